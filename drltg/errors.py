@@ -1,0 +1,2 @@
+class UsageError(Exception):
+    """A mistake the user can fix; the CLI prints it as one sentence and exits with code 2."""
