@@ -1,0 +1,28 @@
+"""Task environments (TorchRL ``EnvBase``) and the registry of tasks and task pairs."""
+from drltg.envs.fourrooms import FourRoomsEnv
+from drltg.envs.gridrooms import GridFourRoomsEnv
+from drltg.envs.registry import (
+    PAIRS,
+    TASKS,
+    PairSpec,
+    TaskSpec,
+    get_pair,
+    get_task,
+    make_env,
+    register_pair,
+    register_task,
+)
+
+__all__ = [
+    "FourRoomsEnv",
+    "GridFourRoomsEnv",
+    "PAIRS",
+    "TASKS",
+    "PairSpec",
+    "TaskSpec",
+    "get_pair",
+    "get_task",
+    "make_env",
+    "register_pair",
+    "register_task",
+]

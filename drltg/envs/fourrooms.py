@@ -1,0 +1,315 @@
+"""Continuous FourRooms: a point agent in four rooms joined by four doorways.
+
+The classic FourRooms layout (Sutton, Precup & Singh 1999) made continuous, as a stateless,
+batched TorchRL environment in pure torch (any ``batch_size``, any device).
+
+Geometry (arena units; ``x`` to the right, ``y`` up)::
+
+    y
+    10 +-------------------+--------------------+
+       |                   |                    |
+       |    northwest      N     northeast      |      N doorway: x in [4.75, 5.25], y in [7.0, 8.0]
+       |                   |                    |      S doorway: x in [4.75, 5.25], y in [1.5, 2.5]
+     5 +----W----+---------+---------E---+------+      W doorway: x in [1.5, 2.5], y in [4.75, 5.25]
+       |                   |                    |      E doorway: x in [7.0, 8.0], y in [4.75, 5.25]
+       |    southwest      S     southeast      |
+       |                   |                    |
+     0 +-------------------+--------------------+  x
+       0                   5                    10
+
+* The arena is the square ``[0, 10]^2``; its border is a wall.
+* Two inner walls of thickness 0.5 lie along the middle lines ``x = 5`` and ``y = 5``
+  (the boxes ``[4.75, 5.25] x [0, 10]`` and ``[0, 10] x [4.75, 5.25]``), each cut by two
+  doorways of width 1.0 placed off-centre like the classic layout (see :data:`DOORWAYS`).
+* The four rooms are the ``4.75 x 4.75`` squares left between the walls (see :data:`ROOMS`).
+  :func:`room_of` assigns every point (doorway passages included) to the quadrant it lies in.
+
+Dynamics. The action ``a`` lies in ``[-1, 1]^2`` and asks for the displacement ``max_step * a``.
+Motion is axis-separated: the ``x`` displacement is applied first and stops at the first wall
+face on the way, then the ``y`` displacement likewise. A wall stops the agent however long the
+step, so the agent never tunnels through a wall; moving along a wall face is free. The agent is
+a point; free space is the arena minus the open interiors of the walls.
+
+Episode. The start position is uniform over free space minus the goal disc (optionally over one
+room, ``start_room``), drawn from the environment's own generator, seeded by :meth:`set_seed`.
+Reaching the goal disc (``||p' - goal|| <= goal_radius``, tested at the end of each move) gives
+reward ``+1`` and ends the episode (``terminated``, ``success``); any other step gives
+``-step_cost``. After ``horizon`` steps without success the episode is ``truncated``.
+
+Observation. The position scaled to ``[-1, 1]^2`` (``2 p / 10 - 1``), float32; with
+``observe_goal=True`` the goal, scaled the same way, is appended. The raw position (arena units)
+is kept in the ``"position"`` entry.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple, Sequence
+
+import numpy as np
+import torch
+from tensordict import TensorDict, TensorDictBase
+from torchrl.data import Bounded, Categorical, Composite, Unbounded
+from torchrl.envs import EnvBase
+
+from drltg.errors import UsageError
+
+ARENA_SIZE = 10.0
+WALL_THICKNESS = 0.5
+DOOR_WIDTH = 1.0
+
+_LO, _HI = 5.0 - WALL_THICKNESS / 2, 5.0 + WALL_THICKNESS / 2
+
+ROOM_NAMES = ("northwest", "northeast", "southwest", "southeast")
+"""Room names in the order of the indices returned by :func:`room_of`."""
+
+ROOMS = {
+    "northwest": (0.0, _HI, _LO, ARENA_SIZE),
+    "northeast": (_HI, _HI, ARENA_SIZE, ARENA_SIZE),
+    "southwest": (0.0, 0.0, _LO, _LO),
+    "southeast": (_HI, 0.0, ARENA_SIZE, _LO),
+}
+"""Each room's free rectangle ``(xmin, ymin, xmax, ymax)``."""
+
+
+class Doorway(NamedTuple):
+    center: tuple[float, float]
+    rooms: tuple[str, str]
+
+
+DOORWAYS = {
+    "north": Doorway((5.0, 7.5), ("northwest", "northeast")),
+    "south": Doorway((5.0, 2.0), ("southwest", "southeast")),
+    "west": Doorway((2.0, 5.0), ("northwest", "southwest")),
+    "east": Doorway((7.5, 5.0), ("northeast", "southeast")),
+}
+"""Doorway centres (on a middle line) and the two rooms each one joins."""
+
+
+WALLS = (
+    (_LO, 0.0, _HI, 1.5),
+    (_LO, 2.5, _HI, 7.0),
+    (_LO, 8.0, _HI, ARENA_SIZE),
+    (0.0, _LO, 1.5, _HI),
+    (2.5, _LO, 7.0, _HI),
+    (8.0, _LO, ARENA_SIZE, _HI),
+)
+"""Inner wall boxes ``(xmin, ymin, xmax, ymax)``: the two middle walls cut by the doorways."""
+
+DOOR_PASSAGES = (
+    (_LO, 7.0, _HI, 8.0),
+    (_LO, 1.5, _HI, 2.5),
+    (1.5, _LO, 2.5, _HI),
+    (7.0, _LO, 8.0, _HI),
+)
+"""The free rectangles through the walls, one per doorway, in :data:`DOORWAYS` order."""
+
+
+def room_of(pos: torch.Tensor) -> torch.Tensor:
+    """Index into :data:`ROOM_NAMES` of the quadrant holding each position ``[..., 2]`` (int64)."""
+    x, y = pos[..., 0], pos[..., 1]
+    return 2 * (y < 5.0).long() + (x >= 5.0).long()
+
+
+def in_free_space(pos: torch.Tensor) -> torch.Tensor:
+    """Whether each position ``[..., 2]`` lies in the arena and outside every wall's interior."""
+    walls = torch.as_tensor(WALLS, dtype=pos.dtype, device=pos.device)
+    x, y = pos[..., 0:1], pos[..., 1:2]
+    inside = (walls[:, 0] < x) & (x < walls[:, 2]) & (walls[:, 1] < y) & (y < walls[:, 3])
+    in_arena = ((pos >= 0) & (pos <= ARENA_SIZE)).all(-1)
+    return in_arena & ~inside.any(-1)
+
+
+def _slide(coord, across, delta, walls, axis):
+    """Moves ``coord`` by ``delta`` along ``axis``, stopping at the first wall face on the way.
+
+    Only walls whose extent along the other axis strictly contains ``across`` are in the way.
+    """
+    lo, hi = walls[:, axis], walls[:, axis + 2]
+    olo, ohi = walls[:, 1 - axis], walls[:, 3 - axis]
+    c, o = coord.unsqueeze(-1), across.unsqueeze(-1)
+    in_the_way = (olo < o) & (o < ohi)
+    upper = torch.where(in_the_way & (lo >= c), lo, ARENA_SIZE).amin(-1)
+    lower = torch.where(in_the_way & (hi <= c), hi, 0.0).amax(-1)
+    return torch.minimum(torch.maximum(coord + delta, lower), upper)
+
+
+def move(pos: torch.Tensor, displacement: torch.Tensor, walls: torch.Tensor | None = None) -> torch.Tensor:
+    """Applies ``displacement [..., 2]`` to ``pos [..., 2]`` with the axis-separated wall rule."""
+    if walls is None:
+        walls = torch.as_tensor(WALLS, dtype=pos.dtype, device=pos.device)
+    x = _slide(pos[..., 0], pos[..., 1], displacement[..., 0], walls, 0)
+    y = _slide(pos[..., 1], x, displacement[..., 1], walls, 1)
+    return torch.stack((x, y), -1)
+
+
+class FourRoomsEnv(EnvBase):
+    """Continuous FourRooms (see the module docstring for geometry, dynamics and rewards).
+
+    Args:
+        goal: the goal centre ``(x, y)`` in arena units; must lie in free space.
+        goal_radius: radius of the goal disc.
+        max_step: the displacement per unit of action along each axis.
+        step_cost: the cost paid on every step that does not reach the goal.
+        horizon: episode length after which the episode is truncated.
+        start_room: one of :data:`ROOM_NAMES` to start in that room only; ``None`` for anywhere.
+        observe_goal: append the scaled goal to the observation.
+        render_size: side of the square image returned by :meth:`render`, in pixels.
+        batch_size, device: as for any :class:`~torchrl.envs.EnvBase`.
+        seed: seed of the start-position generator; ``None`` draws one from torch's global RNG.
+
+    Examples:
+        >>> env = FourRoomsEnv(goal=(8.0, 8.0), batch_size=(16,), seed=0)
+        >>> td = env.rollout(100)
+        >>> td["next", "success"].shape
+        torch.Size([16, 100, 1])
+    """
+
+    _supports_set_state = True
+
+    def __init__(
+        self,
+        goal: Sequence[float] = (8.0, 8.0),
+        *,
+        goal_radius: float = 0.5,
+        max_step: float = 0.5,
+        step_cost: float = 0.0,
+        horizon: int = 100,
+        start_room: str | None = None,
+        observe_goal: bool = False,
+        render_size: int = 200,
+        batch_size: Sequence[int] | torch.Size = (),
+        device: torch.device | str | None = None,
+        seed: int | None = None,
+    ):
+        super().__init__(device=device, batch_size=torch.Size(batch_size))
+        goal_t = torch.as_tensor(goal, dtype=torch.float32)
+        if goal_t.shape != (2,) or not bool(in_free_space(goal_t)):
+            raise UsageError(f"goal {tuple(goal)} is not a point (x, y) in the free space of the 10x10 arena.")
+        if start_room is not None and start_room not in ROOMS:
+            raise UsageError(f"start_room {start_room!r} is not one of {', '.join(ROOM_NAMES)}.")
+        if goal_radius <= 0 or max_step <= 0 or horizon < 1:
+            raise UsageError("goal_radius and max_step must be positive and horizon at least 1.")
+        self.goal_radius = float(goal_radius)
+        self.max_step = float(max_step)
+        self.step_cost = float(step_cost)
+        self.horizon = int(horizon)
+        self.start_room = start_room
+        self.observe_goal = bool(observe_goal)
+        self.render_size = int(render_size)
+        regions = [ROOMS[start_room]] if start_room else list(ROOMS.values()) + list(DOOR_PASSAGES)
+        self.register_buffer("goal", goal_t.to(self.device))
+        self.register_buffer("_walls", torch.tensor(WALLS, device=self.device))
+        self._regions = torch.tensor(regions)
+        self._make_spec()
+        if seed is None:
+            seed = torch.empty((), dtype=torch.int64).random_().item()
+        self.set_seed(seed)
+
+    def _make_spec(self):
+        obs_dim = 4 if self.observe_goal else 2
+        flag = Categorical(2, (1,), dtype=torch.bool, device=self.device)
+        state = Composite(
+            position=Bounded(0.0, ARENA_SIZE, (2,), dtype=torch.float32, device=self.device),
+            step_count=Bounded(0, self.horizon, (1,), dtype=torch.int64, device=self.device),
+            device=self.device,
+        )
+        observation = state.clone()
+        observation["observation"] = Bounded(-1.0, 1.0, (obs_dim,), dtype=torch.float32, device=self.device)
+        observation["success"] = flag.clone()
+        self.observation_spec = observation.expand(self.batch_size)
+        self.state_spec = state.expand(self.batch_size)
+        self.action_spec = Bounded(-1.0, 1.0, (*self.batch_size, 2), dtype=torch.float32, device=self.device)
+        self.reward_spec = Unbounded((*self.batch_size, 1), dtype=torch.float32, device=self.device)
+        self.done_spec = Composite(
+            done=flag.clone(), terminated=flag.clone(), truncated=flag.clone(), device=self.device
+        ).expand(self.batch_size)
+
+    def _set_seed(self, seed: int | None) -> None:
+        self.rng = torch.Generator()
+        if seed is not None:
+            self.rng.manual_seed(seed)
+
+    def _observe(self, position: torch.Tensor) -> torch.Tensor:
+        obs = position * (2.0 / ARENA_SIZE) - 1.0
+        if self.observe_goal:
+            obs = torch.cat((obs, (self.goal * (2.0 / ARENA_SIZE) - 1.0).expand_as(obs)), -1)
+        return obs
+
+    def _sample_start(self, shape: torch.Size) -> torch.Tensor:
+        """Uniform over the start regions (weighted by area), rejecting points in the goal disc.
+
+        Draws on the CPU generator, so a seed gives the same starts on every device.
+        """
+        regions = self._regions
+        areas = (regions[:, 2] - regions[:, 0]) * (regions[:, 3] - regions[:, 1])
+        n = shape.numel()
+        pos = torch.empty(n, 2)
+        todo = torch.arange(n)
+        goal = self.goal.cpu()
+        while todo.numel():
+            box = regions[torch.multinomial(areas, todo.numel(), replacement=True, generator=self.rng)]
+            u = torch.rand(todo.numel(), 2, generator=self.rng)
+            pos[todo] = box[:, :2] + u * (box[:, 2:] - box[:, :2])
+            todo = todo[(pos[todo] - goal).norm(dim=-1) <= self.goal_radius]
+        return pos.reshape(*shape, 2).to(self.device)
+
+    def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
+        shape = self.batch_size
+        if kwargs.get("set_state") and tensordict is not None and "position" in tensordict.keys():
+            position = tensordict["position"].clone()
+        else:
+            position = self._sample_start(shape)
+        return TensorDict(
+            {
+                "observation": self._observe(position),
+                "position": position,
+                "step_count": torch.zeros((*shape, 1), dtype=torch.int64, device=self.device),
+                "success": torch.zeros((*shape, 1), dtype=torch.bool, device=self.device),
+            },
+            batch_size=shape,
+            device=self.device,
+        )
+
+    def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
+        action = tensordict["action"].clamp(-1.0, 1.0)
+        position = move(tensordict["position"], action * self.max_step, self._walls)
+        step_count = tensordict["step_count"] + 1
+        success = (position - self.goal).norm(dim=-1, keepdim=True) <= self.goal_radius
+        reward = torch.where(success, 1.0, -self.step_cost)
+        truncated = (step_count >= self.horizon) & ~success
+        return TensorDict(
+            {
+                "observation": self._observe(position),
+                "position": position,
+                "step_count": step_count,
+                "success": success,
+                "reward": reward,
+                "done": success | truncated,
+                "terminated": success,
+                "truncated": truncated,
+            },
+            batch_size=tensordict.batch_size,
+            device=self.device,
+        )
+
+    def render(self, tensordict: TensorDictBase | None = None) -> np.ndarray:
+        """An RGB ``uint8`` image ``[render_size, render_size, 3]``: walls, goal disc and agents.
+
+        Every ``"position"`` in ``tensordict`` is drawn (one state, a batch, or a trajectory);
+        pass ``td[0]`` to draw only the first environment of a batch.
+        """
+        size = self.render_size
+        scale = ARENA_SIZE / size
+        centres = (np.arange(size) + 0.5) * scale
+        x, y = np.meshgrid(centres, centres[::-1])
+        img = np.full((size, size, 3), 255, dtype=np.uint8)
+        for x0, y0, x1, y1 in WALLS:
+            img[(x0 <= x) & (x <= x1) & (y0 <= y) & (y <= y1)] = (60, 60, 60)
+        edge = max(1, size // 100)
+        img[:edge] = img[-edge:] = img[:, :edge] = img[:, -edge:] = (60, 60, 60)
+        gx, gy = self.goal.tolist()
+        img[(x - gx) ** 2 + (y - gy) ** 2 <= self.goal_radius**2] = (40, 170, 70)
+        if tensordict is not None:
+            agent_radius = max(0.12, 2.5 * scale)
+            for px, py in tensordict["position"].detach().reshape(-1, 2).cpu().tolist():
+                img[(x - px) ** 2 + (y - py) ** 2 <= agent_radius**2] = (215, 40, 40)
+        return img

@@ -1,0 +1,192 @@
+"""Named tasks and task pairs (source -> target).
+
+A task is a factory of :class:`~torchrl.envs.EnvBase` plus default keyword arguments; a pair names
+a source task and a target task. Factories are called as
+``factory(batch_size=..., device=..., **defaults, **overrides)`` and must be cheap to import: a
+factory that needs a heavy library imports it inside the function.
+
+Examples:
+    >>> from drltg.envs import make_env, register_task, register_pair, FourRoomsEnv
+    >>> register_task("fourrooms/center-west", FourRoomsEnv, "goal near the west doorway", goal=(2.0, 4.0))
+    >>> register_pair("my-pair", "fourrooms/northeast", "fourrooms/center-west", "goal to the west door")
+    >>> env = make_env("fourrooms/center-west", batch_size=(8,), seed=0)
+"""
+from __future__ import annotations
+
+import difflib
+import inspect
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+import torch
+from torchrl.envs import EnvBase
+
+from drltg.envs.fourrooms import FourRoomsEnv
+from drltg.envs.gridrooms import GridFourRoomsEnv
+from drltg.errors import UsageError
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """A named task: ``factory(**defaults)`` builds it; ``train`` overrides the training config."""
+
+    name: str
+    factory: Callable[..., EnvBase]
+    description: str
+    defaults: dict[str, Any] = field(default_factory=dict)
+    train: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class PairSpec:
+    """A transfer problem: learn ``source``, then transfer to ``target``."""
+
+    name: str
+    source: str
+    target: str
+    description: str
+
+
+TASKS: dict[str, TaskSpec] = {}
+PAIRS: dict[str, PairSpec] = {}
+
+
+def _lookup(table: dict, name: str, kind: str):
+    if name in table:
+        return table[name]
+    close = difflib.get_close_matches(name, list(table), n=1)
+    hint = f"; did you mean {close[0]!r}?" if close else f"; known {kind}s: {', '.join(sorted(table))}."
+    raise UsageError(f"unknown {kind} {name!r}{hint} (`drltg tasks` lists them)")
+
+
+def get_task(name: str) -> TaskSpec:
+    """The registered task ``name``; a :class:`UsageError` suggesting a close name otherwise."""
+    return _lookup(TASKS, name, "task")
+
+
+def get_pair(name: str) -> PairSpec:
+    """The registered pair ``name``; a :class:`UsageError` suggesting a close name otherwise."""
+    return _lookup(PAIRS, name, "pair")
+
+
+def register_task(
+    name: str,
+    factory: Callable[..., EnvBase],
+    description: str,
+    *,
+    train: dict[str, Any] | None = None,
+    **defaults,
+) -> TaskSpec:
+    """Registers a task; ``defaults`` are keyword arguments of ``factory``, ``train`` config overrides."""
+    if name in TASKS:
+        raise UsageError(f"task {name!r} is already registered.")
+    spec = TaskSpec(name, factory, description, dict(defaults), dict(train or {}))
+    TASKS[name] = spec
+    return spec
+
+
+def register_pair(name: str, source: str, target: str, description: str) -> PairSpec:
+    """Registers a task pair; both tasks must already be registered."""
+    if name in PAIRS:
+        raise UsageError(f"pair {name!r} is already registered.")
+    get_task(source), get_task(target)
+    spec = PairSpec(name, source, target, description)
+    PAIRS[name] = spec
+    return spec
+
+
+def _check_options(spec: TaskSpec, options: dict[str, Any]) -> None:
+    factory = spec.factory
+    params = inspect.signature(factory.__init__ if inspect.isclass(factory) else factory).parameters
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
+        return
+    unknown = sorted(set(options) - set(params))
+    if unknown:
+        known = ", ".join(sorted(set(params) - {"self", "batch_size", "device", "seed"}))
+        raise UsageError(f"task {spec.name!r} has no option {unknown[0]!r}; its options are: {known}.")
+
+
+def make_env(
+    name: str,
+    *,
+    batch_size: Sequence[int] | torch.Size = (),
+    device: torch.device | str | None = None,
+    seed: int | None = None,
+    **overrides,
+) -> EnvBase:
+    """Builds the task ``name`` with its defaults updated by ``overrides``, then seeds it."""
+    spec = get_task(name)
+    options = {**spec.defaults, **overrides}
+    _check_options(spec, options)
+    env = spec.factory(batch_size=batch_size, device=device, **options)
+    if seed is not None:
+        env.set_seed(seed)
+    return env
+
+
+register_task(
+    "fourrooms/northeast",
+    FourRoomsEnv,
+    "continuous FourRooms, goal disc (r 0.5) at (8.0, 8.0) in the north-east room, random start",
+    goal=(8.0, 8.0),
+    step_cost=0.01,
+)
+register_task(
+    "fourrooms/northeast-shifted",
+    FourRoomsEnv,
+    "continuous FourRooms, goal disc (r 0.5) at (8.0, 7.0), 1 unit south of fourrooms/northeast",
+    goal=(8.0, 7.0),
+    step_cost=0.01,
+)
+register_task(
+    "fourrooms/southwest",
+    FourRoomsEnv,
+    "continuous FourRooms, goal disc (r 0.5) at (2.0, 2.0) in the south-west room, random start",
+    goal=(2.0, 2.0),
+    step_cost=0.01,
+)
+register_task(
+    "gridrooms/northeast",
+    GridFourRoomsEnv,
+    "grid FourRooms 13x13, goal cell (row 3, col 9) in the north-east room, random start",
+    goal=(3, 9),
+    step_cost=0.01,
+)
+register_task(
+    "gridrooms/northeast-shifted",
+    GridFourRoomsEnv,
+    "grid FourRooms 13x13, goal cell (row 4, col 9), 1 cell below gridrooms/northeast",
+    goal=(4, 9),
+    step_cost=0.01,
+)
+register_task(
+    "gridrooms/southwest",
+    GridFourRoomsEnv,
+    "grid FourRooms 13x13, goal cell (row 9, col 3) in the south-west room, random start",
+    goal=(9, 3),
+    step_cost=0.01,
+)
+register_pair(
+    "fourrooms-near",
+    "fourrooms/northeast",
+    "fourrooms/northeast-shifted",
+    "the goal moves 1 unit within the north-east room (transfer should help)",
+)
+register_pair(
+    "fourrooms-far",
+    "fourrooms/northeast",
+    "fourrooms/southwest",
+    "the goal moves to the opposite, south-west room",
+)
+register_pair(
+    "gridrooms-near",
+    "gridrooms/northeast",
+    "gridrooms/northeast-shifted",
+    "the goal moves 1 cell within the north-east room (transfer should help)",
+)
+register_pair(
+    "gridrooms-far",
+    "gridrooms/northeast",
+    "gridrooms/southwest",
+    "the goal moves to the opposite, south-west room",
+)
