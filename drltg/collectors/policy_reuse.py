@@ -1,0 +1,343 @@
+"""Probabilistic policy reuse: a policy mixer chained after the learner's policy.
+
+In every episode, with probability psi_h the action comes from a past (source) policy and otherwise
+from the learner's own exploration (Fernandez & Veloso 2006, pi-reuse):
+
+    psi_h = psi * upsilon ** h,        h = steps since the episode started (``step_count``)
+
+so the past policy guides the start of every episode and hands over to the learner as the episode
+goes on. The mixer is a schedule-driven ``torch.where`` per environment, like TorchRL's
+``EGreedyModule``; the schedule says how likely reuse is at step h, and, for a library of past
+policies, which one an episode reuses:
+
+- :class:`PiReuse`: psi * upsilon^h, with an optional linear decay of psi over training;
+- :class:`JumpStart`: the guide acts for the first H steps, H shrinking on a curriculum (JSRL,
+  Uchendu et al. 2022);
+- :class:`PRQL`: a library of past policies; each episode reuses policy k with probability
+  softmax(tau * W)_k, W_k being its average return when reused (Fernandez & Veloso 2006).
+
+Off-policy learners only. The behaviour policy (past policy mixed with the learner) is not the
+learner's policy, so the collected actions are not samples of pi_theta: an on-policy loss (PPO, A2C)
+would weigh them with log-probabilities of a policy that did not choose them and follow a biased
+gradient. Off-policy losses (SAC, TD3, soft option-critic, DQN) learn from any behaviour's
+transitions in the replay buffer, which is exactly what reuse provides.
+"""
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+
+import torch
+from tensordict import NestedKey, TensorDictBase
+from tensordict.nn import TensorDictModuleBase
+from tensordict.utils import expand_as_right
+from torch import nn
+from torchrl.data import Composite, TensorSpec
+from torchrl.envs.utils import ExplorationType, exploration_type, set_exploration_type
+
+from drltg.errors import UsageError
+
+__all__ = ["PolicyReuse", "ReuseSchedule", "PiReuse", "JumpStart", "PRQL"]
+
+
+class ReuseSchedule(nn.Module):
+    """When to reuse: psi_h per environment, and which past policy an episode reuses.
+
+    Training progress (frames collected) is a buffer, so it is saved with the module's
+    ``state_dict`` and a resumed run continues the same schedule.
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.register_buffer("frames", torch.zeros((), dtype=torch.long))
+
+    def step(self, frames: int = 1) -> None:
+        """Advance training progress by ``frames`` collected frames."""
+        self.frames += frames
+
+    def set_progress(self, frames: int) -> None:
+        """Set training progress to ``frames`` collected frames."""
+        self.frames.fill_(frames)
+
+    def probability(self, step_count: torch.Tensor) -> torch.Tensor:
+        """psi_h, the probability of reusing at step ``step_count`` of the episode (same shape)."""
+        raise NotImplementedError
+
+    def attach(self, num_policies: int) -> None:
+        """Called by the mixer with the size of its library of past policies."""
+        if num_policies != 1:
+            raise UsageError(
+                f"{type(self).__name__} reuses one past policy but {num_policies} were given; "
+                "use the PRQL schedule to choose among several."
+            )
+
+    def choose(self, n: int, device: torch.device) -> torch.Tensor:
+        """Index of the past policy for ``n`` new episodes (== the library size: the learner's own)."""
+        return torch.zeros(n, dtype=torch.long, device=device)
+
+    def observe(self, index, step_count, reward, done) -> None:  # noqa: B027
+        """Learn from collected transitions, time last (only schedules that learn use it)."""
+
+
+class PiReuse(ReuseSchedule):
+    """psi_h = psi_t * upsilon^h (Fernandez & Veloso 2006).
+
+    psi_t goes linearly from ``psi`` to ``psi_end`` over the first ``annealing_frames`` training
+    frames (no decay across training by default).
+
+    Args:
+        psi: probability of reusing at the first step of an episode. Default 1.
+        upsilon: decay of psi within an episode, in [0, 1]. Default 0.95.
+        psi_end: psi after ``annealing_frames`` frames. Default ``psi`` (no decay).
+        annealing_frames: frames over which psi decays to ``psi_end``.
+    """
+
+    def __init__(
+        self,
+        psi: float = 1.0,
+        upsilon: float = 0.95,
+        *,
+        psi_end: float | None = None,
+        annealing_frames: int = 0,
+    ) -> None:
+        super().__init__()
+        psi_end = psi if psi_end is None else psi_end
+        for name, value in (("psi", psi), ("upsilon", upsilon), ("psi_end", psi_end)):
+            if not 0.0 <= value <= 1.0:
+                raise UsageError(f"{name} must lie in [0, 1], got {value}.")
+        if psi_end != psi and annealing_frames <= 0:
+            raise UsageError("psi_end needs annealing_frames > 0, the frames over which psi decays.")
+        self.psi_init, self.psi_end, self.upsilon = psi, psi_end, upsilon
+        self.annealing_frames = annealing_frames
+
+    @property
+    def psi(self) -> torch.Tensor:
+        """psi at the current training progress."""
+        if self.annealing_frames <= 0:
+            return torch.tensor(self.psi_init, device=self.frames.device)
+        fraction = (self.frames / self.annealing_frames).clamp(max=1.0)
+        return self.psi_init + (self.psi_end - self.psi_init) * fraction
+
+    def probability(self, step_count: torch.Tensor) -> torch.Tensor:
+        upsilon = torch.tensor(self.upsilon, device=step_count.device)
+        return self.psi * upsilon.pow(step_count)
+
+
+class JumpStart(ReuseSchedule):
+    """The guide acts for the first H steps of each episode (JSRL, Uchendu et al. 2022).
+
+    H shrinks on a curriculum of ``stages`` equal steps, one every ``frames_per_stage`` training
+    frames: H_k = guide_steps * (stages - k) // stages, k = min(frames // frames_per_stage, stages),
+    down to H = 0 (the learner alone).
+    """
+
+    def __init__(self, guide_steps: int, *, stages: int = 10, frames_per_stage: int) -> None:
+        super().__init__()
+        if guide_steps < 0 or stages < 1 or frames_per_stage < 1:
+            raise UsageError("JumpStart needs guide_steps >= 0, stages >= 1 and frames_per_stage >= 1.")
+        self.guide_steps, self.stages, self.frames_per_stage = guide_steps, stages, frames_per_stage
+
+    @property
+    def horizon(self) -> int:
+        """H, the number of guided steps at the current training progress."""
+        stage = min(int(self.frames) // self.frames_per_stage, self.stages)
+        return self.guide_steps * (self.stages - stage) // self.stages
+
+    def probability(self, step_count: torch.Tensor) -> torch.Tensor:
+        return (step_count < self.horizon).to(torch.get_default_dtype())
+
+
+class PRQL(ReuseSchedule):
+    """Choose, per episode, which past policy to reuse (Fernandez & Veloso 2006, PRQL).
+
+    The choices are the K past policies and the learner itself (index K). Episode choice:
+
+        P(k) = exp(tau * W_k) / sum_j exp(tau * W_j)
+
+    where W_k is the average discounted return sum_h gamma^h r_h of the episodes that chose k
+    (W_k <- (W_k * U_k + R) / (U_k + 1), U_k <- U_k + 1), and tau grows by ``tau_step`` after every
+    episode, so the choice turns greedy as the estimates firm up. Within an episode that reuses k,
+    ``schedule`` (default :class:`PiReuse`) gives psi_h; an episode that chose the learner never reuses.
+    Feed collected batches to :meth:`PolicyReuse.observe` so W is learnt.
+    """
+
+    def __init__(
+        self,
+        schedule: ReuseSchedule | None = None,
+        *,
+        tau: float = 0.0,
+        tau_step: float = 0.05,
+        gamma: float = 0.99,
+    ) -> None:
+        super().__init__()
+        self.schedule = PiReuse() if schedule is None else schedule
+        self.tau_step, self.gamma = tau_step, gamma
+        self.register_buffer("tau", torch.tensor(float(tau)))
+        self.register_buffer("gain", torch.zeros(0))
+        self.register_buffer("uses", torch.zeros(0, dtype=torch.long))
+        self._returns: torch.Tensor | None = None
+
+    def attach(self, num_policies: int) -> None:
+        self.gain = torch.zeros(num_policies + 1, device=self.tau.device)
+        self.uses = torch.zeros(num_policies + 1, dtype=torch.long, device=self.tau.device)
+
+    def step(self, frames: int = 1) -> None:
+        super().step(frames)
+        self.schedule.step(frames)
+
+    def set_progress(self, frames: int) -> None:
+        super().set_progress(frames)
+        self.schedule.set_progress(frames)
+
+    def probability(self, step_count: torch.Tensor) -> torch.Tensor:
+        return self.schedule.probability(step_count)
+
+    def choice_probabilities(self) -> torch.Tensor:
+        """P(k) for k = 0..K (the last one is the learner's own policy)."""
+        return torch.softmax(self.tau * self.gain, dim=0)
+
+    def choose(self, n: int, device: torch.device) -> torch.Tensor:
+        return torch.multinomial(self.choice_probabilities(), n, replacement=True).to(device)
+
+    def update(self, index: torch.Tensor, returns: torch.Tensor) -> None:
+        """Add finished episodes, in order: the policy each chose and its discounted return."""
+        for k, ret in zip(index.tolist(), returns.tolist()):
+            self.gain[k] = (self.gain[k] * self.uses[k] + ret) / (self.uses[k] + 1)
+            self.uses[k] += 1
+            self.tau += self.tau_step
+
+    def observe(self, index, step_count, reward, done) -> None:
+        if self._returns is None or self._returns.shape != reward.shape[:-1]:
+            self._returns = torch.zeros(reward.shape[:-1], device=reward.device)
+        for t in range(reward.shape[-1]):
+            self._returns += self.gamma ** step_count[..., t].to(reward.dtype) * reward[..., t]
+            finished = done[..., t]
+            if finished.any():
+                self.update(index[..., t][finished], self._returns[finished])
+                self._returns[finished] = 0.0
+
+
+class PolicyReuse(TensorDictModuleBase):
+    """Mixes the learner's action with a past policy's action, per environment.
+
+    Chain it after the learner's exploration policy and give the result to a ``Collector``::
+
+        policy = TensorDictSequential(actor, PolicyReuse(source_actor, spec=env.action_spec_unbatched))
+
+    Per environment, with probability psi_h (from ``schedule``) the action is the past policy's
+    deterministic action (its mean/greedy action, under ``ExplorationType.DETERMINISTIC``);
+    otherwise it is the learner's action, itself replaced with probability ``epsilon`` by an action
+    drawn uniformly from ``spec`` (epsilon-greedy, for a deterministic learner). ``h`` is read from
+    ``step_count`` (drltg environments and TorchRL's ``StepCounter`` write it), so psi_h restarts at
+    every episode start, per environment. Under any exploration type other than RANDOM (e.g.
+    evaluation under DETERMINISTIC) the learner's action passes through unchanged.
+
+    The past policies are copied, frozen (no gradient) and never trained; they are not parameters
+    of the learner, whose loss module is built from ``actor`` alone. Every call writes ``reused``
+    (bool [*, 1]: the past policy acted) and ``reuse_index`` (int64 [*, 1]: the past policy chosen
+    for this episode; K, the library size, when :class:`PRQL` chose the learner).
+
+    Args:
+        past_policy: a past policy, or a sequence of them (a library, for :class:`PRQL`).
+        spec: the action spec, needed when ``epsilon > 0``.
+        schedule: the reuse schedule. Default ``PiReuse(psi=1, upsilon=0.95)``.
+        epsilon: probability of a uniform random action when the learner acts. Default 0 (the
+            learner's stochastic action is its exploration).
+
+    Call :meth:`step` with the frames of each collected batch (decaying schedules), and
+    :meth:`observe` with the batch (schedules that learn from returns).
+
+    Only for off-policy learners: see the module docstring.
+    """
+
+    def __init__(
+        self,
+        past_policy: TensorDictModuleBase | Sequence[TensorDictModuleBase],
+        *,
+        spec: TensorSpec | None = None,
+        schedule: ReuseSchedule | None = None,
+        epsilon: float = 0.0,
+        action_key: NestedKey = "action",
+        step_count_key: NestedKey = "step_count",
+        reused_key: NestedKey = "reused",
+        reuse_index_key: NestedKey = "reuse_index",
+    ) -> None:
+        super().__init__()
+        policies = [past_policy] if isinstance(past_policy, TensorDictModuleBase) else list(past_policy)
+        if not policies:
+            raise UsageError("PolicyReuse needs at least one past policy.")
+        if not 0.0 <= epsilon <= 1.0:
+            raise UsageError(f"epsilon must lie in [0, 1], got {epsilon}.")
+        if epsilon > 0 and spec is None:
+            raise UsageError("epsilon > 0 draws random actions from the action spec: pass spec=.")
+        self.past_policies = nn.ModuleList(copy.deepcopy(p).requires_grad_(False).eval() for p in policies)
+        self.schedule = PiReuse() if schedule is None else schedule
+        self.schedule.attach(len(policies))
+        self.spec = spec[action_key] if isinstance(spec, Composite) else spec
+        self.epsilon = epsilon
+        self.action_key, self.step_count_key = action_key, step_count_key
+        self.reused_key, self.reuse_index_key = reused_key, reuse_index_key
+        past_in_keys = [k for p in self.past_policies for k in p.in_keys]
+        self.in_keys = list(dict.fromkeys([*past_in_keys, step_count_key, action_key]))
+        self.out_keys = [action_key, reused_key, reuse_index_key]
+        self._choice: torch.Tensor | None = None
+
+    def step(self, frames: int = 1) -> None:
+        """Advance the schedule's training progress by ``frames`` collected frames."""
+        self.schedule.step(frames)
+
+    def set_progress(self, frames: int) -> None:
+        """Set the schedule's training progress to ``frames`` collected frames."""
+        self.schedule.set_progress(frames)
+
+    def observe(self, batch: TensorDictBase) -> None:
+        """Learn from a collected batch (time is its last dimension), e.g. PRQL's reuse gains."""
+        self.schedule.observe(
+            batch.get(self.reuse_index_key).squeeze(-1),
+            batch.get(self.step_count_key).squeeze(-1),
+            batch.get(("next", "reward")).squeeze(-1),
+            batch.get(("next", "done")).squeeze(-1),
+        )
+
+    def _episode_choice(self, new_episode: torch.Tensor) -> torch.Tensor:
+        if self._choice is None or self._choice.shape != new_episode.shape:
+            self._choice = torch.zeros(new_episode.shape, dtype=torch.long, device=new_episode.device)
+            new_episode = torch.ones_like(new_episode)
+        if new_episode.any():
+            self._choice = self._choice.masked_scatter(
+                new_episode, self.schedule.choose(int(new_episode.sum()), new_episode.device)
+            )
+        return self._choice
+
+    def _random_action(self, action: torch.Tensor) -> torch.Tensor:
+        return self.spec.rand(action.shape[: action.ndim - self.spec.ndim]).to(action.device)
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        action = tensordict.get(self.action_key)
+        shape = tensordict.batch_size
+        if exploration_type() not in (ExplorationType.RANDOM, None):
+            reused = torch.zeros(*shape, 1, dtype=torch.bool, device=action.device)
+            index = torch.zeros(*shape, 1, dtype=torch.long, device=action.device)
+            return tensordict.update({self.reused_key: reused, self.reuse_index_key: index})
+
+        step_count = tensordict.get(self.step_count_key).squeeze(-1)
+        choice = self._episode_choice(step_count == 0)
+        psi = self.schedule.probability(step_count)
+        reused = (torch.rand(shape, device=action.device) < psi) & (choice < len(self.past_policies))
+
+        if self.epsilon > 0:
+            explore = torch.rand(shape, device=action.device) < self.epsilon
+            action = torch.where(expand_as_right(explore, action), self._random_action(action), action)
+        for k, past in enumerate(self.past_policies):
+            acts = reused & (choice == k)
+            if acts.any():
+                with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+                    past_action = past(tensordict.select(*past.in_keys)).get(self.action_key)
+                action = torch.where(expand_as_right(acts, action), past_action.to(action.dtype), action)
+        return tensordict.update(
+            {
+                self.action_key: action,
+                self.reused_key: reused.unsqueeze(-1),
+                self.reuse_index_key: choice.unsqueeze(-1),
+            }
+        )
