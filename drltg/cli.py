@@ -1,0 +1,46 @@
+"""The `drltg` command. Each subcommand lives in its own module exposing
+``add_arguments(parser)`` and ``run(args) -> int``; modules are imported only when used."""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from drltg.errors import UsageError
+
+SUBCOMMANDS = {
+    "tasks": ("drltg.tasks_cmd", "list the registered tasks and task pairs"),
+    "train": ("drltg.train_cmd", "train one agent on one task (writes a run directory)"),
+    "demo": ("drltg.demo", "a short FourRooms run on the built-in defaults"),
+    "report": ("drltg.report", "transfer metrics, plots and tables from baseline vs transfer runs"),
+}
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one sentence, exit code 2 (argparse's own convention)
+        self.exit(2, f"drltg: error: {message}\n")
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    parser = _Parser(prog="drltg", description="DRL Transfer Gym: transfer learning for deep RL on TorchRL.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+    for name, (module, help_text) in SUBCOMMANDS.items():
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        p.set_defaults(_module=module)
+        if argv[:1] == [name]:  # import only the module that runs (keeps `drltg tasks` fast)
+            importlib.import_module(module).add_arguments(p)
+    args = parser.parse_args(argv)
+    try:
+        return importlib.import_module(args._module).run(args) or 0
+    except UsageError as err:
+        print(f"drltg {args.command}: error: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"drltg {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

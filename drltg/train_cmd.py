@@ -1,0 +1,45 @@
+"""`drltg train TASK --algo sac --frames N --seed S --run-dir DIR [--config FILE] [-o KEY=VALUE ...]`"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from drltg import config as config_lib
+from drltg.errors import UsageError
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("task", nargs="?", help="registered task name (see `drltg tasks`)")
+    p.add_argument("--algo", help="learning algorithm: sac (discrete SAC on discrete tasks), td3, ...")
+    p.add_argument("--frames", type=int, help="environment frames to train for")
+    p.add_argument("--seed", type=int, help="random seed (envs, networks, sampling)")
+    p.add_argument("--run-dir", type=Path, help="output run directory (default: runs/<task>/<algo>-seed<seed>)")
+    p.add_argument("--config", type=Path, help="YAML config file (e.g. a run's config.yaml, to reproduce it)")
+    p.add_argument("-o", "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a config key, e.g. -o optim.lr=1e-3 -o network.hidden=[64,64] (repeatable)")
+    p.add_argument("--resume", action="store_true", help="continue an interrupted run from its last checkpoint")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def run(args: argparse.Namespace) -> int:
+    from drltg.train import train
+
+    if args.resume and args.run_dir is None:
+        raise UsageError("--resume needs --run-dir, the run directory to continue.")
+    if args.config is not None:
+        base = config_lib.load_yaml(args.config)
+    elif args.resume and (args.run_dir / "config.yaml").is_file():
+        base = config_lib.load_yaml(args.run_dir / "config.yaml")
+    else:
+        base = {}
+    if args.task is None and "task" not in base:
+        raise UsageError("name a task (see `drltg tasks`) or pass --config.")
+    cfg = config_lib.resolve(
+        base, args.overrides, task=args.task, algo=args.algo, frames=args.frames, seed=args.seed
+    )
+    run_dir = args.run_dir or Path("runs") / cfg["task"].replace("/", "-") / f"{cfg['algo']}-seed{cfg['seed']}"
+    run_dir = train(cfg, run_dir, resume=args.resume, progress=not args.no_progress)
+    print(f"run directory: {run_dir}")
+    print(f"  eval curve:  {run_dir / 'eval.csv'}")
+    print(f"  tensorboard: tensorboard --logdir {run_dir / 'logs' / 'tensorboard'}")
+    return 0

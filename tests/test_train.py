@@ -1,0 +1,115 @@
+"""The training loop and `drltg train`: run directory contract, determinism, resume, CLI errors."""
+import csv
+
+import pytest
+import yaml
+
+import drltg.train as train_mod
+from drltg import config as config_lib
+from drltg.cli import main
+from drltg.train import read_eval_csv, train
+
+TINY = [
+    "network.hidden=[16,16]",
+    "collector.num_envs=4",
+    "collector.frames_per_batch=16",
+    "collector.init_random_frames=256",
+    "optim.updates_per_batch=1",
+    "buffer.batch_size=32",
+    "eval.every=512",
+    "eval.episodes=4",
+    "checkpoint.every=512",
+    "log.every=256",
+    "log.tensorboard=false",
+]
+
+
+def tiny_cfg(**kw):
+    return config_lib.resolve({}, TINY, task="fourrooms/northeast", frames=1024, seed=3, **kw)
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    return train(tiny_cfg(), tmp_path_factory.mktemp("runs") / "a", progress=False)
+
+
+def test_run_directory_contract(tiny_run):
+    cfg = yaml.safe_load((tiny_run / "config.yaml").read_text())
+    assert cfg == tiny_cfg()
+    with open(tiny_run / "eval.csv") as f:
+        header = next(csv.reader(f))
+    assert header == ["frames", "return_mean", "return_std", "episodes", "success_rate"]
+    rows = read_eval_csv(tiny_run / "eval.csv")
+    assert [r["frames"] for r in rows] == [0, 512, 1024]  # frame 0 is evaluated before any update
+    assert all(r["episodes"] == 4 and 0.0 <= r["success_rate"] <= 1.0 for r in rows)
+    assert (tiny_run / "checkpoints" / "last.pt").is_file()
+    assert (tiny_run / "summary.json").is_file()
+    assert (tiny_run / "logs" / "csv" / "scalars").is_dir()
+
+
+def test_same_seed_same_curve(tiny_run, tmp_path):
+    again = train(tiny_cfg(), tmp_path / "b", progress=False)
+    assert (again / "eval.csv").read_text() == (tiny_run / "eval.csv").read_text()
+
+
+def test_resume_after_interruption(tiny_run, tmp_path, monkeypatch):
+    real = train_mod._episode_stats
+    calls = {"n": 0}
+
+    def crash_after_first_checkpoint(data, stats):
+        calls["n"] += 1
+        if (tmp_path / "c" / "checkpoints" / "last.pt").exists() and calls["n"] > 40:
+            raise KeyboardInterrupt
+        return real(data, stats)
+
+    monkeypatch.setattr(train_mod, "_episode_stats", crash_after_first_checkpoint)
+    with pytest.raises(KeyboardInterrupt):
+        train(tiny_cfg(), tmp_path / "c", progress=False)
+    assert not (tmp_path / "c" / "summary.json").exists()
+    monkeypatch.setattr(train_mod, "_episode_stats", real)
+    run = train(tiny_cfg(), tmp_path / "c", resume=True, progress=False)
+    rows = read_eval_csv(run / "eval.csv")
+    ref = read_eval_csv(tiny_run / "eval.csv")
+    assert [r["frames"] for r in rows] == [r["frames"] for r in ref]
+    assert rows[:2] == ref[:2]  # identical up to the checkpoint at 512 frames
+    assert (run / "summary.json").is_file()
+
+
+def _cli(args, capsys):
+    code = main(args)
+    return code, capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["train", "fourrooms/nowhere"], "unknown task 'fourrooms/nowhere'"),
+        (["train", "fourrooms/northeast", "--algo", "ppo"], "unknown algorithm 'ppo'"),
+        (["train", "fourrooms/northeast", "-o", "optim.lrr=1"], "did you mean 'optim.lr'"),
+        (["train", "fourrooms/northeast", "-o", "optim.lr"], "must look like KEY=VALUE"),
+        (["train", "fourrooms/northeast", "-o", "eval.episodes=many"], "must be an integer"),
+        (["train", "fourrooms/northeast", "--config", "missing.yaml"], "does not exist"),
+    ],
+)
+def test_cli_bad_input_is_one_sentence_and_exit_2(args, message, capsys, tmp_path):
+    run_dir = tmp_path / "run"
+    code, err = _cli(args + ["--run-dir", str(run_dir)], capsys)
+    assert code == 2
+    assert message in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
+    assert not run_dir.exists()  # nothing written
+
+
+def test_cli_refuses_existing_run_dir_and_changed_resume(tiny_run, capsys):
+    before = (tiny_run / "eval.csv").read_text()
+    code, err = _cli(["train", "fourrooms/northeast", "--run-dir", str(tiny_run)], capsys)
+    assert code == 2 and "already exists; pass --resume" in err
+    code, err = _cli(["train", "--resume", "--run-dir", str(tiny_run), "--seed", "99"], capsys)
+    assert code == 2 and "differs from the saved one in seed" in err
+    assert (tiny_run / "eval.csv").read_text() == before
+
+
+def test_cli_unknown_subcommand_option(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["train", "fourrooms/northeast", "--no-such-option"])
+    assert exc.value.code == 2
