@@ -1,0 +1,423 @@
+"""Learning curves from run directories and foreign logs, as :class:`Curve` objects.
+
+A curve is one run's evaluation return against environment frames. Readers (``FORMATS``):
+
+``drltg``
+    a drltg run directory: ``eval.csv`` (``frames,return_mean,...``; ``--tag`` picks another column,
+    e.g. ``success_rate``); the task comes from ``config.yaml``'s ``task`` key.
+``sb3``
+    Stable-Baselines3 ``progress.csv``: x = ``time/total_timesteps``, y = ``eval/mean_reward``
+    (or ``--tag``); rows whose y cell is empty (training rows) are skipped. The same reader takes the
+    three-column ``Wall time,time/total_timesteps,eval/mean_reward`` logs.
+``sb3-monitor``
+    Stable-Baselines3 ``*monitor.csv`` files (one per environment, merged by wall time): x = cumulative
+    episode length ``l``, y = episode return ``r``. These are *training* episodes, so they are noisier
+    than evaluation curves.
+``tensorboard``
+    ``events.out.tfevents.*`` files; the scalar tag is ``--tag`` (default: the first of
+    ``DEFAULT_TAGS`` present).
+``csvlogger``
+    TorchRL ``CSVLogger`` scalars: ``<exp>/scalars/<tag>.csv`` with header-less ``step,value`` lines.
+
+A path may be a file, a run directory, a directory holding several runs (found recursively; one run
+per seed), or a glob. A directory that holds several kinds of log is read once, in the order above.
+Every curve is checked: no empty file, finite values only, strictly increasing frames. A bad input
+raises :class:`~drltg.errors.UsageError` with one sentence naming the file and the problem.
+"""
+from __future__ import annotations
+
+import glob as _glob
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from drltg.errors import UsageError
+
+FORMATS = ("auto", "drltg", "sb3", "sb3-monitor", "tensorboard", "csvlogger")
+DEFAULT_TAGS = ("eval/return_mean", "eval/mean_reward", "eval/reward")
+
+_SB3_X = "time/total_timesteps"
+_SB3_Y = "eval/mean_reward"
+
+
+@dataclass
+class Curve:
+    """One run's learning curve: ``values[i]`` is the evaluation return after ``frames[i]`` frames."""
+
+    frames: np.ndarray
+    values: np.ndarray
+    source: Path
+    label: str
+    task: str | None = None
+
+    def __post_init__(self):
+        self.frames = np.asarray(self.frames, dtype=np.float64)
+        self.values = np.asarray(self.values, dtype=np.float64)
+        self.source = Path(self.source)
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+
+def read_curves(
+    paths: str | Path | Iterable[str | Path],
+    *,
+    format: str = "auto",
+    tag: str | None = None,
+) -> list[Curve]:
+    """Read every run named by ``paths`` (files, run directories, directories of runs, globs)."""
+    if format not in FORMATS:
+        raise UsageError(f"unknown log format '{format}'; choose one of {', '.join(FORMATS)}.")
+    if isinstance(paths, (str, Path)):
+        paths = [paths]
+    curves: list[Curve] = []
+    for path in paths:
+        for target in _expand(str(path)):
+            curves.extend(_read_path(target, format, tag))
+    if not curves:
+        raise UsageError(f"no runs found in {', '.join(map(str, paths))}.")
+    return curves
+
+
+def _expand(pattern: str) -> list[Path]:
+    if any(c in pattern for c in "*?["):
+        matches = sorted(_glob.glob(pattern))
+        if not matches:
+            raise UsageError(f"the pattern '{pattern}' matches no file or directory.")
+        return [Path(m) for m in matches]
+    path = Path(pattern)
+    if not path.exists():
+        raise UsageError(f"'{path}' does not exist.")
+    return [path]
+
+
+def _read_path(path: Path, format: str, tag: str | None) -> list[Curve]:
+    if path.is_file():
+        return [_read_file(path, format, tag)]
+    runs = find_runs(path, format)
+    if not runs:
+        raise UsageError(
+            f"directory '{path}' holds no runs (no eval.csv, progress.csv, *monitor.csv, "
+            "TensorBoard event file or CSVLogger scalars/ folder)."
+        )
+    return [read_run(run, format=format, tag=tag) for run in runs]
+
+
+def run_format(directory: Path) -> str | None:
+    """The log format a directory holds as a single run, or None if it holds none."""
+    d = Path(directory)
+    if (d / "eval.csv").is_file():
+        return "drltg"
+    if (d / "progress.csv").is_file():
+        return "sb3"
+    if any(d.glob("*monitor.csv")):
+        return "sb3-monitor"
+    if any(d.glob("events.out.tfevents.*")):
+        return "tensorboard"
+    if (d / "scalars").is_dir():
+        return "csvlogger"
+    return None
+
+
+def _has_format(directory: Path, format: str) -> bool:
+    if format == "auto":
+        return run_format(directory) is not None
+    d = Path(directory)
+    return {
+        "drltg": lambda: (d / "eval.csv").is_file(),
+        "sb3": lambda: (d / "progress.csv").is_file(),
+        "sb3-monitor": lambda: any(d.glob("*monitor.csv")),
+        "tensorboard": lambda: any(d.glob("events.out.tfevents.*")),
+        "csvlogger": lambda: (d / "scalars").is_dir(),
+    }[format]()
+
+
+def find_runs(directory: str | Path, format: str = "auto") -> list[Path]:
+    """Run directories at or below ``directory`` (sorted; a run's own subfolders are not searched)."""
+    directory = Path(directory)
+    if _has_format(directory, format):
+        return [directory]
+    runs: list[Path] = []
+    for child in sorted(p for p in directory.iterdir() if p.is_dir()):
+        runs.extend(find_runs(child, format))
+    return runs
+
+
+def read_run(directory: str | Path, *, format: str = "auto", tag: str | None = None) -> Curve:
+    """Read one run directory."""
+    d = Path(directory)
+    fmt = run_format(d) if format == "auto" else format
+    if fmt is None:
+        raise UsageError(f"directory '{d}' holds no run.")
+    owner = _owner(d)
+    task, label = _task_of(owner), owner.resolve().name
+    if fmt == "drltg":
+        curve = read_eval_csv(d / "eval.csv", column=tag or "return_mean")
+    elif fmt == "sb3":
+        curve = read_sb3_progress(d / "progress.csv", column=tag or _SB3_Y)
+    elif fmt == "sb3-monitor":
+        curve = read_sb3_monitor(sorted(d.glob("*monitor.csv")), column=tag or "r")
+    elif fmt == "tensorboard":
+        curve = read_tensorboard(d, tag=tag)
+    else:
+        curve = read_csvlogger(d / "scalars", tag=tag)
+    curve.label, curve.task = label, task
+    return curve
+
+
+def _read_file(path: Path, format: str, tag: str | None) -> Curve:
+    name = path.name
+    if format == "auto":
+        if name == "eval.csv":
+            format = "drltg"
+        elif name.endswith("monitor.csv"):
+            format = "sb3-monitor"
+        elif name.startswith("events.out.tfevents"):
+            format = "tensorboard"
+        elif name.endswith(".csv"):
+            format = "sb3" if _header(path) is not None else "csvlogger"
+        else:
+            raise UsageError(f"cannot tell the log format of '{path}'; pass --format.")
+    if format == "drltg":
+        curve = read_eval_csv(path, column=tag or "return_mean")
+    elif format == "sb3":
+        curve = read_sb3_progress(path, column=tag or _SB3_Y)
+    elif format == "sb3-monitor":
+        curve = read_sb3_monitor([path], column=tag or "r")
+    elif format == "tensorboard":
+        curve = read_tensorboard(path, tag=tag)
+    else:
+        curve = read_csvlogger(path, tag=tag)
+    owner = _owner(path.parent)
+    curve.task = _task_of(owner)
+    if owner != path.parent.resolve():
+        curve.label = owner.name
+    return curve
+
+
+def _owner(directory: Path, levels: int = 3) -> Path:
+    """The run a log folder belongs to: the nearest of it and its parents holding a ``config.yaml``
+    (a drltg run keeps its logger files in ``logs/csv`` and ``logs/tensorboard``)."""
+    d = Path(directory).resolve()
+    for candidate in [d, *d.parents][:levels + 1]:
+        if (candidate / "config.yaml").is_file():
+            return candidate
+    return d
+
+
+def _task_of(directory: Path) -> str | None:
+    config = Path(directory) / "config.yaml"
+    if not config.is_file():
+        return None
+    import yaml
+
+    try:
+        data = yaml.safe_load(config.read_text())
+    except yaml.YAMLError:
+        raise UsageError(f"'{config}' is not valid YAML.") from None
+    task = data.get("task") if isinstance(data, dict) else None
+    return str(task) if task is not None else None
+
+
+# ----------------------------------------------------------------------------------------- readers
+def _lines(path: Path) -> list[str]:
+    try:
+        text = Path(path).read_text()
+    except UnicodeDecodeError:
+        raise UsageError(f"'{path}' is not a text file.") from None
+    lines = [line for line in text.splitlines() if line.strip()]
+    if not lines:
+        raise UsageError(f"'{path}' is empty.")
+    return lines
+
+
+def _header(path: Path) -> list[str] | None:
+    """The CSV header of ``path``, or None if its first line is numeric (a header-less file)."""
+    first = _lines(path)[0].split(",")
+    try:
+        [float(c) for c in first]
+    except ValueError:
+        return [c.strip() for c in first]
+    return None
+
+
+def _table(path: Path, comment: str | None = None) -> tuple[list[str], list[list[str]], int]:
+    """Header, rows of string cells and the file line number of the first row."""
+    lines = _lines(path)
+    skip = 0
+    while comment and skip < len(lines) and lines[skip].startswith(comment):
+        skip += 1
+    if skip == len(lines):
+        raise UsageError(f"'{path}' has no header.")
+    header = [c.strip() for c in lines[skip].split(",")]
+    rows = [line.split(",") for line in lines[skip + 1:]]
+    if not rows:
+        raise UsageError(f"'{path}' has a header but no rows.")
+    for i, row in enumerate(rows):
+        if len(row) != len(header):
+            raise UsageError(
+                f"'{path}' line {skip + 2 + i} has {len(row)} cells, but the header has {len(header)}."
+            )
+    return header, rows, skip + 2
+
+
+def _column(path: Path, header: list[str], name: str) -> int:
+    if name not in header:
+        raise UsageError(f"'{path}' has no column '{name}' (columns: {', '.join(header)}).")
+    return header.index(name)
+
+
+def _number(path: Path, line: int, name: str, cell: str) -> float:
+    try:
+        value = float(cell)
+    except ValueError:
+        raise UsageError(f"'{path}' line {line}: column '{name}' holds '{cell}', not a number.") from None
+    if not math.isfinite(value):
+        raise UsageError(f"'{path}' line {line}: column '{name}' holds the non-finite value {cell}.")
+    return value
+
+
+def _columns_xy(
+    path: Path, x_name: str, y_name: str, *, skip_empty_y: bool, comment: str | None = None
+) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    header, rows, first_line = _table(path, comment)
+    ix, iy = _column(path, header, x_name), _column(path, header, y_name)
+    xs, ys, lines = [], [], []
+    for i, row in enumerate(rows):
+        line = first_line + i
+        y_cell, x_cell = row[iy].strip(), row[ix].strip()
+        if not y_cell:
+            if skip_empty_y:
+                continue
+            raise UsageError(f"'{path}' line {line}: column '{y_name}' is empty.")
+        if not x_cell:
+            raise UsageError(f"'{path}' line {line}: column '{x_name}' is empty.")
+        xs.append(_number(path, line, x_name, x_cell))
+        ys.append(_number(path, line, y_name, y_cell))
+        lines.append(line)
+    if not ys:
+        raise UsageError(f"'{path}' has no values in column '{y_name}'.")
+    return np.asarray(xs), np.asarray(ys), lines
+
+
+def _checked(path: Path, frames, values, where: Sequence | None = None, what: str = "line") -> Curve:
+    """A curve whose frames strictly increase and whose values are finite."""
+    frames, values = np.asarray(frames, np.float64), np.asarray(values, np.float64)
+    if frames.size == 0:
+        raise UsageError(f"'{path}' holds no evaluations.")
+    bad = np.flatnonzero(~np.isfinite(frames) | ~np.isfinite(values))
+    if bad.size:
+        i = bad[0]
+        at = f" at {what} {where[i]}" if where is not None else ""
+        raise UsageError(f"'{path}' holds a non-finite value{at} (frame {frames[i]:g}, value {values[i]:g}).")
+    steps = np.diff(frames)
+    if (steps <= 0).any():
+        i = int(np.flatnonzero(steps <= 0)[0]) + 1
+        at = f" at {what} {where[i]}" if where is not None else ""
+        kind = "appears twice" if steps[i - 1] == 0 else f"comes after frame {frames[i - 1]:g}"
+        raise UsageError(f"'{path}': frame {frames[i]:g}{at} {kind}; frames must strictly increase.")
+    return Curve(frames, values, Path(path), Path(path).parent.name or Path(path).name)
+
+
+def read_eval_csv(path: str | Path, column: str = "return_mean") -> Curve:
+    """A drltg ``eval.csv`` (``frames`` against ``column``)."""
+    path = Path(path)
+    x, y, lines = _columns_xy(path, "frames", column, skip_empty_y=False)
+    return _checked(path, x, y, lines)
+
+
+def read_sb3_progress(path: str | Path, column: str = _SB3_Y, x_column: str = _SB3_X) -> Curve:
+    """A Stable-Baselines3 ``progress.csv``; training rows (empty ``column`` cell) are skipped."""
+    path = Path(path)
+    x, y, lines = _columns_xy(path, x_column, column, skip_empty_y=True)
+    return _checked(path, x, y, lines)
+
+
+def read_sb3_monitor(paths: Sequence[str | Path], column: str = "r") -> Curve:
+    """Stable-Baselines3 ``monitor.csv`` files (a ``#{json}`` line, then ``r,l,t``), merged by wall time.
+
+    x is the cumulative episode length, as in SB3's own ``load_results``/``ts2xy``.
+    """
+    ts, ls, ys = [], [], []
+    for path in map(Path, paths):
+        header, rows, first = _table(path, comment="#")
+        it, il, iy = (_column(path, header, c) for c in ("t", "l", column))
+        for i, row in enumerate(rows):
+            line = first + i
+            ts.append(_number(path, line, "t", row[it]))
+            ls.append(_number(path, line, "l", row[il]))
+            ys.append(_number(path, line, column, row[iy]))
+    order = np.argsort(np.asarray(ts), kind="stable")
+    frames = np.cumsum(np.asarray(ls)[order])
+    source = Path(paths[0]) if len(paths) == 1 else Path(paths[0]).parent
+    return _checked(source, frames, np.asarray(ys)[order], None)
+
+
+def read_tensorboard(path: str | Path, tag: str | None = None) -> Curve:
+    """Scalars of ``tag`` from a TensorBoard event file, or from all event files of a directory."""
+    from tensorboard.backend.event_processing import event_accumulator as ea
+
+    path = Path(path)
+    acc = ea.EventAccumulator(str(path), size_guidance={ea.SCALARS: 0, ea.TENSORS: 0})
+    try:
+        acc.Reload()
+    except Exception as err:  # a corrupt record surfaces as a library-specific error
+        raise UsageError(f"'{path}' is not a readable TensorBoard event file ({err}).") from None
+    tags = acc.Tags()
+    scalar_tags, tensor_tags = list(tags.get("scalars", [])), list(tags.get("tensors", []))
+    if not scalar_tags and not tensor_tags:
+        raise UsageError(f"'{path}' holds no scalar in any TensorBoard event file.")
+    tag = tag or _default_tag(path, scalar_tags + tensor_tags)
+    if tag in scalar_tags:
+        events = acc.Scalars(tag)
+        steps, values = [e.step for e in events], [e.value for e in events]
+    elif tag in tensor_tags:
+        from tensorboard.util import tensor_util
+
+        events = acc.Tensors(tag)
+        steps = [e.step for e in events]
+        values = [float(tensor_util.make_ndarray(e.tensor_proto)) for e in events]
+    else:
+        raise UsageError(
+            f"'{path}' has no scalar tag '{tag}' (tags: {', '.join(sorted(scalar_tags + tensor_tags))})."
+        )
+    return _checked(path, steps, values, list(range(len(steps))), what="event")
+
+
+def read_csvlogger(path: str | Path, tag: str | None = None) -> Curve:
+    """TorchRL ``CSVLogger`` scalars: ``path`` is a ``scalars/`` folder (``tag`` picks the file) or a file."""
+    path = Path(path)
+    if path.is_dir():
+        found = sorted(p.relative_to(path).with_suffix("").as_posix() for p in path.rglob("*.csv"))
+        if not found:
+            raise UsageError(f"'{path}' holds no CSVLogger scalar file.")
+        tag = tag or _default_tag(path, found)
+        if tag not in found:
+            raise UsageError(f"'{path}' has no scalar '{tag}' (scalars: {', '.join(found)}).")
+        path = path / f"{tag}.csv"
+    steps, values, lines = [], [], []
+    for i, line in enumerate(Path(path).read_text().splitlines(), start=1):
+        if not line.strip():
+            continue
+        cells = line.split(",")
+        if len(cells) != 2:
+            raise UsageError(f"'{path}' line {i} is not a 'step,value' pair.")
+        steps.append(_number(path, i, "step", cells[0]))
+        values.append(_number(path, i, "value", cells[1]))
+        lines.append(i)
+    if not steps:
+        raise UsageError(f"'{path}' is empty.")
+    return _checked(path, steps, values, lines)
+
+
+def _default_tag(path: Path, available: Sequence[str]) -> str:
+    for tag in DEFAULT_TAGS:
+        if tag in available:
+            return tag
+    raise UsageError(
+        f"'{path}' has none of the default tags {', '.join(DEFAULT_TAGS)}; choose one with --tag "
+        f"(available: {', '.join(sorted(available))})."
+    )
