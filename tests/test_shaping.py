@@ -11,7 +11,8 @@ from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase, TransformedEnv
 from torchrl.envs.utils import check_env_specs, step_mdp
 
-from drltg.transforms import PotentialShaping, TimeDependentPotential
+from drltg.envs import FourRoomsEnv, GridFourRoomsEnv, fourrooms, gridrooms
+from drltg.transforms import FourRoomsPotential, GridFourRoomsPotential, PotentialShaping, TimeDependentPotential
 
 GAMMA = 0.9
 
@@ -191,3 +192,131 @@ def test_potential_is_evaluated_once_per_state():
 def test_invalid_gamma_is_refused():
     with pytest.raises(ValueError, match="gamma"):
         PotentialShaping(phi, gamma=1.5, in_keys=["observation"])
+
+
+# ------------------------------------------------------------------ FourRooms potentials
+def test_fourrooms_potential_is_minus_the_path_through_the_doorways():
+    potential = FourRoomsPotential(goal=(8.0, 8.0), scale=1.0)  # northeast room
+    door_n, door_w, door_s, door_e = (5.0, 7.5), (2.0, 5.0), (5.0, 2.0), (7.5, 5.0)
+
+    def dist(*points):
+        return sum(((a - c) ** 2 + (b - d) ** 2) ** 0.5 for (a, b), (c, d) in zip(points, points[1:]))
+
+    positions = [(8.0, 8.0), (6.0, 9.0), (2.0, 8.0), (2.0, 2.0), (8.0, 2.0), (4.0, 3.0)]
+    expected = [
+        0.0,
+        dist((6.0, 9.0), (8.0, 8.0)),  # same room: straight line
+        dist((2.0, 8.0), door_n, (8.0, 8.0)),  # northwest: through the north doorway
+        min(dist((2.0, 2.0), door_w, door_n, (8.0, 8.0)), dist((2.0, 2.0), door_s, door_e, (8.0, 8.0))),
+        dist((8.0, 2.0), door_e, (8.0, 8.0)),
+        dist((4.0, 3.0), door_s, door_e, (8.0, 8.0)),  # southwest, nearer the south doorway
+    ]
+    torch.testing.assert_close(potential(torch.tensor(positions)), -torch.tensor(expected).unsqueeze(-1))
+
+
+def test_default_scales_put_potentials_in_minus_one_to_zero():
+    grid = torch.cartesian_prod(torch.linspace(0, 10, 101), torch.linspace(0, 10, 101))
+    phi_cont = FourRoomsPotential(goal=(2.0, 2.0))(grid[fourrooms.in_free_space(grid)])
+    phi_grid = GridFourRoomsPotential(goal=(10, 2))(gridrooms.FREE_CELLS)
+    for values in (phi_cont, phi_grid):
+        assert values.max() == 0.0 and -1.0 <= values.min() < -0.95
+
+
+def test_grid_potential_is_minus_the_number_of_moves():
+    potential = GridFourRoomsPotential(goal=(3, 9), scale=1.0)
+    cells = torch.tensor([[3, 9], [3, 8], [3, 5], [7, 9], [6, 2], [11, 1]])
+    # (3,5) -> north hallway (3,6) -> (3,9): 4 moves; (11,1) -> west hallway (6,2) (6 moves) -> (3,9) (10 more)
+    assert potential(cells).squeeze(-1).tolist() == [0.0, -1.0, -4.0, -4.0, -10.0, -16.0]
+
+
+@pytest.mark.parametrize("task", ["fourrooms", "gridrooms"])
+def test_shaped_task_envs_pass_check_env_specs(task):
+    if task == "fourrooms":
+        base = FourRoomsEnv(goal=(8.0, 8.0), horizon=5, batch_size=(4,), seed=0)
+        potential, in_keys = FourRoomsPotential(goal=(8.0, 8.0)), ["position"]
+    else:
+        base = GridFourRoomsEnv(goal=(3, 9), horizon=5, batch_size=(4,), seed=0)
+        potential, in_keys = GridFourRoomsPotential(goal=(3, 9)), ["cell"]
+    fade = TimeDependentPotential(potential, lambda t: 1.0 - t / 10)
+    for phi_, keys in ((potential, None), (fade, None), (fade, [*in_keys, "step_count"])):
+        env = TransformedEnv(base, PotentialShaping(phi_, gamma=0.99, in_keys=keys))
+        check_env_specs(env, break_when_any_done="both", seed=0)
+        td = env.rollout(12, break_when_any_done=False)  # horizon 5: truncations and resets inside
+        assert td["next", "truncated"].any()
+        shaping = env.transform
+        alive = ~td["next", "terminated"]
+        expected = td["next", "task_reward"] + 0.99 * shaping.potential_of(td["next"]) * alive - shaping.potential_of(td)
+        torch.testing.assert_close(td["next", "reward"], expected)
+
+
+# ------------------------------------------------------------------ policy invariance
+def value_iteration(P, R, terminal, gamma):
+    """Q*[s, a] of the MDP with transitions P[s, a, s'], rewards R[s, s'] and terminal states s'."""
+    V = torch.zeros(P.shape[0], dtype=P.dtype)
+    expected_reward = torch.einsum("sat,st->sa", P, R)
+    for _ in range(100_000):
+        Q = expected_reward + gamma * torch.einsum("sat,t->sa", P, V.masked_fill(terminal, 0.0))
+        V_new = Q.amax(-1)
+        if (V_new - V).abs().max() < 1e-13:
+            return Q
+        V = V_new
+    raise AssertionError("value iteration did not converge")
+
+
+def greedy_sets(Q, tol=1e-9):
+    return (Q >= Q.amax(-1, keepdim=True) - tol).tolist()
+
+
+def grid_mdp(goal, slip, step_cost):
+    """The grid task as tables, and its (s, s') transitions as a TensorDict the transform can shape."""
+    cells = gridrooms.FREE_CELLS
+    goal_index = gridrooms.CELL_INDEX[goal].item()
+    terminal = torch.arange(gridrooms.N_CELLS) == goal_index
+    R = torch.where(terminal, 1.0, -step_cost).double().expand(gridrooms.N_CELLS, -1)
+    n = gridrooms.N_CELLS
+    transitions = TensorDict(
+        cell=cells[:, None].expand(n, n, 2),
+        next=TensorDict(
+            cell=cells[None].expand(n, n, 2),
+            reward=R.unsqueeze(-1).clone(),
+            terminated=terminal[None, :, None].expand(n, n, 1),
+            batch_size=(n, n),
+        ),
+        batch_size=(n, n),
+    )
+    return gridrooms.transition_matrix(slip), R, terminal, transitions, goal_index
+
+
+@pytest.mark.parametrize(
+    "goal, gamma, slip, step_cost",
+    [((3, 9), 0.9, 0.0, 0.0), ((3, 9), 0.99, 0.0, 0.0), ((10, 2), 0.95, 0.0, 0.01), ((7, 9), 0.99, 1 / 3, 0.0), ((11, 1), 0.9, 1 / 3, 0.01)],
+)
+def test_shaping_preserves_the_optimal_policy_and_a_plain_bonus_does_not(goal, gamma, slip, step_cost):
+    P, R, terminal, transitions, goal_index = grid_mdp(goal, slip, step_cost)
+    potential = GridFourRoomsPotential(goal)
+    shaping = PotentialShaping(potential, gamma=gamma, in_keys=["cell"])
+    R_shaped = shaping(transitions)["next", "reward"].squeeze(-1)
+    acting = ~terminal  # the goal state is never acted from
+
+    Q = value_iteration(P, R, terminal, gamma)[acting]
+    Q_shaped = value_iteration(P, R_shaped, terminal, gamma)[acting]
+    assert greedy_sets(Q_shaped) == greedy_sets(Q)
+    phi = potential(gridrooms.FREE_CELLS).squeeze(-1).double()[acting]
+    torch.testing.assert_close(Q_shaped, Q - phi.unsqueeze(-1), rtol=0, atol=1e-9)  # Ng et al., Thm 1
+
+    # a bonus as large as the biggest shaping term, for entering one far cell, is not potential-based
+    possible = P.sum(1) > 0
+    bonus = (R_shaped - R)[possible].abs().max()
+    far_index = int(potential.distance(gridrooms.FREE_CELLS).argmax())
+    R_bonus = R.clone()
+    R_bonus[:, far_index] += bonus
+    Q_bonus = value_iteration(P, R_bonus, terminal, gamma)[acting]
+    assert greedy_sets(Q_bonus) != greedy_sets(Q)
+
+
+def test_value_iteration_matches_the_breadth_first_distances():
+    # undiscounted moves d(s) to the goal and the optimal values of the +1 task: V*(s) = gamma^(d(s) - 1)
+    P, R, terminal, _, _ = grid_mdp((3, 9), 0.0, 0.0)
+    d = GridFourRoomsPotential((3, 9), scale=1.0).distance(gridrooms.FREE_CELLS).double()
+    V = value_iteration(P, R, terminal, 0.9).amax(-1)
+    torch.testing.assert_close(V[~terminal], 0.9 ** (d[~terminal] - 1), rtol=0, atol=1e-10)

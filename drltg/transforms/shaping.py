@@ -33,11 +33,13 @@ class PotentialShaping(Transform):
         potential: the potential ``Phi``, one of
             - a ``TensorDictModule``: called on the observation entries it reads, its first out-key is
               ``Phi``;
-            - a callable with ``in_keys``: called as ``potential(*[td[k] for k in in_keys])``;
+            - a callable with ``in_keys`` (passed here, or its own ``in_keys`` attribute as on
+              drltg's potentials): called as ``potential(*[td[k] for k in in_keys])``;
             - a callable without ``in_keys``: called as ``potential(td)``.
             It returns one value per batch element, shaped like the reward (``[*batch, 1]``).
         gamma: the learner's discount; shaping preserves the optimal policy only for this gamma.
-        in_keys: the observation entries passed to a plain callable ``potential``.
+        in_keys: the observation entries passed to a plain callable ``potential`` (default: its
+            ``in_keys`` attribute if it has one).
         reward_key: the reward to shape in place.
         task_reward_key: where the unshaped reward is kept (``("next", task_reward_key)``), so that
             logging and evaluation can use the true task reward. Registered as an observation entry
@@ -71,6 +73,8 @@ class PotentialShaping(Transform):
             if in_keys is not None:
                 raise ValueError("in_keys are taken from the TensorDictModule potential; do not pass them.")
             in_keys = list(potential.in_keys)
+        elif in_keys is None:
+            in_keys = getattr(potential, "in_keys", None)
         super().__init__(in_keys=[reward_key], out_keys=[reward_key, task_reward_key, potential_key])
         self.potential = potential
         self.potential_in_keys = None if in_keys is None else list(in_keys)
