@@ -170,6 +170,7 @@ def _check_types(cfg: dict) -> None:
         raise UsageError(
             f"collector.frames_per_batch ({fpb}) must be a multiple of collector.num_envs ({n})."
         )
+    cfg["frames"] = -(-cfg["frames"] // fpb) * fpb  # whole collector batches: the budget is exact
 
 
 def _get(cfg: dict, dotted: str) -> Any:
