@@ -1,0 +1,102 @@
+"""The task and pair registry, and `drltg tasks`."""
+import argparse
+
+import pytest
+import torch
+from torchrl.envs.utils import check_env_specs
+
+from drltg import tasks_cmd
+from drltg.envs import PAIRS, TASKS, FourRoomsEnv, get_pair, get_task, make_env
+from drltg.envs import registry
+from drltg.errors import UsageError
+
+
+@pytest.fixture
+def scratch_registry(monkeypatch):
+    """Registrations made in a test vanish after it."""
+    monkeypatch.setattr(registry, "TASKS", dict(registry.TASKS))
+    monkeypatch.setattr(registry, "PAIRS", dict(registry.PAIRS))
+    return registry
+
+
+def test_builtin_tasks_and_pairs():
+    for family in ("fourrooms", "gridrooms"):
+        for goal in ("northeast", "northeast-shifted", "southwest"):
+            assert f"{family}/{goal}" in TASKS
+        near, far = PAIRS[f"{family}-near"], PAIRS[f"{family}-far"]
+        assert near.source == far.source == f"{family}/northeast"
+        assert (near.target, far.target) == (f"{family}/northeast-shifted", f"{family}/southwest")
+    for pair in PAIRS.values():
+        assert pair.source in TASKS and pair.target in TASKS
+
+
+def test_pair_goals_move_as_described():
+    goal = {name: make_env(name).goal.float() for name in TASKS}
+    assert (goal["fourrooms/northeast-shifted"] - goal["fourrooms/northeast"]).norm().item() == 1.0
+    assert (goal["gridrooms/northeast-shifted"] - goal["gridrooms/northeast"]).abs().sum().item() == 1.0
+    assert torch.equal(goal["fourrooms/southwest"], 10 - goal["fourrooms/northeast"])
+    assert torch.equal(goal["gridrooms/southwest"], 12 - goal["gridrooms/northeast"])
+
+
+@pytest.mark.parametrize("name", sorted(TASKS))
+@pytest.mark.parametrize("batch_size", [(), (4,)])
+def test_check_env_specs_for_every_task(name, batch_size):
+    env = make_env(name, batch_size=batch_size, seed=0)
+    assert env.batch_size == batch_size
+    check_env_specs(env, seed=0)
+
+
+def test_make_env_applies_defaults_overrides_and_seed():
+    env = make_env("fourrooms/southwest", horizon=7, observe_goal=True)
+    assert env.horizon == 7 and env.goal.tolist() == [2.0, 2.0] and env.step_cost == 0.01
+    assert env.observation_spec["observation"].shape == (4,)
+    a = make_env("gridrooms/northeast", batch_size=(32,), seed=11).reset()["cell"]
+    b = make_env("gridrooms/northeast", batch_size=(32,), seed=11).reset()["cell"]
+    c = make_env("gridrooms/northeast", batch_size=(32,), seed=12).reset()["cell"]
+    assert torch.equal(a, b) and not torch.equal(a, c)
+
+
+def test_unknown_task_names_it_and_suggests_a_close_name():
+    with pytest.raises(UsageError, match=r"unknown task 'fourroom/northest'.*did you mean 'fourrooms/northeast'"):
+        make_env("fourroom/northest")
+    with pytest.raises(UsageError, match=r"unknown task 'zzz'; known tasks: fourrooms/northeast"):
+        get_task("zzz")
+    with pytest.raises(UsageError, match=r"unknown pair 'fourrooms-nera'.*'fourrooms-near'"):
+        get_pair("fourrooms-nera")
+
+
+def test_unknown_option_is_a_usage_error():
+    with pytest.raises(UsageError, match=r"no option 'goal_radus'.*goal_radius"):
+        make_env("fourrooms/northeast", goal_radus=0.3)
+    with pytest.raises(UsageError, match="free space"):
+        make_env("fourrooms/northeast", goal=(5.0, 3.0))
+
+
+def test_register_a_user_task_and_pair(scratch_registry):
+    def factory(batch_size=(), device=None, **kwargs):
+        return FourRoomsEnv(batch_size=batch_size, device=device, **kwargs)
+
+    spec = scratch_registry.register_task("mine/west", factory, "goal by the west door", goal=(2.0, 4.0), train={"frames": 10})
+    assert spec.train == {"frames": 10} and scratch_registry.TASKS["mine/west"] is spec
+    assert scratch_registry.make_env("mine/west", batch_size=(3,)).goal.tolist() == [2.0, 4.0]
+    scratch_registry.register_pair("mine", "fourrooms/northeast", "mine/west", "to the west door")
+    assert scratch_registry.get_pair("mine").target == "mine/west"
+    with pytest.raises(UsageError, match="already registered"):
+        scratch_registry.register_task("mine/west", factory, "again")
+    with pytest.raises(UsageError, match="unknown task 'mine/east'"):
+        scratch_registry.register_pair("bad", "fourrooms/northeast", "mine/east", "no such target")
+    assert "bad" not in scratch_registry.PAIRS
+
+
+def test_tasks_command_lists_every_task_and_pair(capsys):
+    parser = argparse.ArgumentParser()
+    tasks_cmd.add_arguments(parser)
+    assert tasks_cmd.run(parser.parse_args([])) == 0
+    lines = capsys.readouterr().out.splitlines()
+    for task in TASKS.values():
+        assert any(line.split()[0] == task.name and task.description in line for line in lines)
+    for pair in PAIRS.values():
+        assert any(line.split()[0] == pair.name and f"{pair.source} -> {pair.target}" in line for line in lines)
+    assert tasks_cmd.run(parser.parse_args(["grid"])) == 0
+    names = [line.split()[0] for line in capsys.readouterr().out.splitlines() if line.startswith("  ")]
+    assert names and all("grid" in name for name in names)
