@@ -42,6 +42,16 @@ DEFAULTS: dict[str, Any] = {
     "eval": {"every": 5_000, "episodes": 16},
     "checkpoint": {"every": 10_000},
     "log": {"tensorboard": True, "every": 1_000},
+    # How this run transfers knowledge (drltg.transfer): none | reward-shaping | policy-reuse | model-reuse
+    "transfer": {
+        "method": "none",
+        "source": None,  # source run directory (policy-reuse, model-reuse)
+        "psi": 1.0,  # pi-reuse: probability of reusing at an episode's first step ...
+        "upsilon": 0.95,  # ... decaying as psi * upsilon^h within the episode
+        "psi_end": None,  # optional decay of psi across training, reached after annealing_frames
+        "annealing_frames": 0,
+        "freeze": [],  # model reuse: parameter name patterns to keep fixed
+    },
 }
 
 

@@ -33,7 +33,8 @@ from torchrl.envs import EnvBase, ExplorationType, RewardSum, TransformedEnv, se
 from torchrl.record.loggers import CSVLogger, TensorboardLogger
 from tqdm.auto import tqdm
 
-from drltg.agents import Agent, make_agent
+from drltg import transfer
+from drltg.agents import make_agent
 from drltg.config import dump
 from drltg.envs import make_env
 from drltg.errors import UsageError
@@ -169,12 +170,9 @@ def train(
     *,
     resume: bool = False,
     progress: bool = True,
-    agent_hook: Callable[[Agent], None] | None = None,
 ) -> Path:
-    """Train ``cfg["algo"]`` on ``cfg["task"]`` for ``cfg["frames"]`` frames; return the run directory.
-
-    ``agent_hook(agent)`` runs after the agent is built and before training (e.g. model reuse).
-    """
+    """Train ``cfg["algo"]`` on ``cfg["task"]`` for ``cfg["frames"]`` frames, with the transfer method
+    of ``cfg["transfer"]``; return the run directory."""
     run_dir = Path(run_dir).expanduser().resolve()
     ckpt = _prepare_run_dir(cfg, run_dir, resume)
     if resume and is_complete(run_dir):
@@ -183,11 +181,18 @@ def train(
     torch.set_num_threads(cfg["threads"])
     torch.manual_seed(cfg["seed"])
     # Build everything before writing anything: a bad config fails with nothing on disk.
+    transfer.check(cfg)
     probe = make_env(cfg["task"], seed=cfg["seed"], device=cfg["device"], **cfg["env"])
     agent = make_agent(probe, cfg)
     train_env, eval_env = make_envs(cfg, agent.env_transforms)
-    if agent_hook is not None:
-        agent_hook(agent)
+    method = cfg["transfer"]["method"]
+    policy, mixer = agent.policy, None
+    if method == "reward-shaping":  # after RewardSum: train/episode_return stays the task's return
+        train_env.append_transform(transfer.shaping(cfg))
+    elif method == "policy-reuse":
+        policy, mixer = transfer.reuse_policy(cfg, agent)
+    elif method == "model-reuse" and ckpt is None:
+        print(transfer.reuse_weights(cfg, agent))
 
     col, opt = cfg["collector"], cfg["optim"]
     fpb = col["frames_per_batch"]
@@ -239,7 +244,7 @@ def train(
 
     collector = Collector(
         train_env,
-        agent.policy,
+        policy,
         frames_per_batch=fpb,
         total_frames=cfg["frames"] - frames,
         init_random_frames=max(init_random - frames, 0),
@@ -258,6 +263,8 @@ def train(
     for data in collector:
         data = data.reshape(-1)
         frames += data.numel()
+        if mixer is not None:
+            mixer.set_progress(frames)
         buffer.extend(data)
         _episode_stats(data, stats)
         if frames >= init_random:

@@ -35,6 +35,8 @@ class TaskSpec:
     description: str
     defaults: dict[str, Any] = field(default_factory=dict)
     train: dict[str, Any] = field(default_factory=dict)
+    potential: Callable[[dict[str, Any]], Callable] | None = None
+    """``potential(env_options)`` builds the task's shaping potential (``drltg.transforms``)."""
 
 
 @dataclass(frozen=True)
@@ -75,12 +77,14 @@ def register_task(
     description: str,
     *,
     train: dict[str, Any] | None = None,
+    potential: Callable[[dict[str, Any]], Callable] | None = None,
     **defaults,
 ) -> TaskSpec:
-    """Registers a task; ``defaults`` are keyword arguments of ``factory``, ``train`` config overrides."""
+    """Registers a task; ``defaults`` are keyword arguments of ``factory``, ``train`` config overrides,
+    ``potential(env_options)`` builds its reward-shaping potential."""
     if name in TASKS:
         raise UsageError(f"task {name!r} is already registered.")
-    spec = TaskSpec(name, factory, description, dict(defaults), dict(train or {}))
+    spec = TaskSpec(name, factory, description, dict(defaults), dict(train or {}), potential)
     TASKS[name] = spec
     return spec
 
@@ -129,6 +133,18 @@ def make_env(
 # success in 10k frames (drltg train fourrooms/northeast --frames 50000).
 ROOMS_TRAIN = {"sac": {"alpha_init": 0.01}, "network": {"hidden": [64, 64]}}
 
+
+def _rooms_potential(options: dict[str, Any]):
+    from drltg.transforms.potentials import FourRoomsPotential
+
+    return FourRoomsPotential(options["goal"])
+
+
+def _grid_potential(options: dict[str, Any]):
+    from drltg.transforms.potentials import GridFourRoomsPotential
+
+    return GridFourRoomsPotential(options["goal"])
+
 register_task(
     "fourrooms/northeast",
     FourRoomsEnv,
@@ -136,6 +152,7 @@ register_task(
     goal=(8.0, 8.0),
     step_cost=0.01,
     train=ROOMS_TRAIN,
+    potential=_rooms_potential,
 )
 register_task(
     "fourrooms/northeast-shifted",
@@ -144,6 +161,7 @@ register_task(
     goal=(8.0, 7.0),
     step_cost=0.01,
     train=ROOMS_TRAIN,
+    potential=_rooms_potential,
 )
 register_task(
     "fourrooms/southwest",
@@ -152,6 +170,7 @@ register_task(
     goal=(2.0, 2.0),
     step_cost=0.01,
     train=ROOMS_TRAIN,
+    potential=_rooms_potential,
 )
 register_task(
     "gridrooms/northeast",
@@ -160,6 +179,7 @@ register_task(
     goal=(3, 9),
     step_cost=0.01,
     train=ROOMS_TRAIN,
+    potential=_grid_potential,
 )
 register_task(
     "gridrooms/northeast-shifted",
@@ -168,6 +188,7 @@ register_task(
     goal=(4, 9),
     step_cost=0.01,
     train=ROOMS_TRAIN,
+    potential=_grid_potential,
 )
 register_task(
     "gridrooms/southwest",
@@ -176,6 +197,7 @@ register_task(
     goal=(9, 3),
     step_cost=0.01,
     train=ROOMS_TRAIN,
+    potential=_grid_potential,
 )
 register_pair(
     "fourrooms-near",
