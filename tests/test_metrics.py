@@ -1,0 +1,156 @@
+import numpy as np
+import pytest
+import torch
+
+from drltg import metrics as M
+
+# An uneven grid: steps of 10, 20 and 30 frames.
+F = [0, 10, 30, 60]
+Y = [0, 10, 10, 40]
+
+
+def test_area_uses_the_real_frame_axis():
+    # 10 * (0 + 10) / 2 + 20 * (10 + 10) / 2 + 30 * (10 + 40) / 2
+    assert M.area_under_curve(F, Y) == pytest.approx(50 + 200 + 750)
+    # a fixed dx of one evaluation would give 5 + 10 + 25 = 40
+    assert M.area_under_curve(np.arange(4), Y) == pytest.approx(40)
+
+
+def test_area_within_a_budget_interpolates_the_end_point():
+    # y(45) = 10 + 15/30 * 30 = 25
+    assert M.value_at(F, Y, 45) == pytest.approx(25)
+    assert M.area_under_curve(F, Y, stop=45) == pytest.approx(50 + 200 + 15 * (10 + 25) / 2)
+    assert M.area_under_curve(F, Y, start=10, stop=30) == pytest.approx(200)
+
+
+def test_area_never_extrapolates_past_the_last_evaluation():
+    with pytest.raises(ValueError, match="not inside"):
+        M.area_under_curve(F, Y, stop=61)
+    with pytest.raises(ValueError, match="strictly increase"):
+        M.area_under_curve([0, 10, 10], [1, 2, 3])
+
+
+def test_area_accepts_torch_tensors():
+    assert M.area_under_curve(torch.tensor(F), torch.tensor(Y, dtype=torch.float32)) == pytest.approx(1000)
+
+
+def test_initial_and_final_performance():
+    assert M.initial_performance(Y, k=1) == 0
+    assert M.initial_performance(Y, k=2) == pytest.approx(5)
+    with pytest.raises(ValueError):
+        M.initial_performance(Y, k=5)
+    # window = last half of [0, 60] = [30, 60]: evaluations 10 and 40
+    assert M.final_performance(F, Y, fraction=0.5) == pytest.approx(25)
+    # within a budget of 45 the window is [22.5, 45]: only the evaluation at 30
+    assert M.final_performance(F, Y, stop=45, fraction=0.5) == pytest.approx(10)
+    with pytest.raises(ValueError, match="no evaluation"):
+        M.final_performance(F, Y, stop=59, fraction=0.1)
+
+
+def test_time_to_threshold_and_censoring():
+    assert M.time_to_threshold(F, Y, 10) == 10
+    assert M.time_to_threshold(F, Y, 0) == 0
+    assert M.time_to_threshold(F, Y, 40) == 60
+    assert M.time_to_threshold(F, Y, 40, stop=45) is None  # reached only after the budget
+    assert M.time_to_threshold(F, Y, 41) is None
+
+
+def test_moving_average_is_trailing_with_a_short_start():
+    np.testing.assert_allclose(M.moving_average([1, 2, 3, 4], 2), [1, 1.5, 2.5, 3.5])
+    np.testing.assert_allclose(M.moving_average([1, 2, 3, 4], 3), [1, 1.5, 2, 3])
+    np.testing.assert_allclose(M.moving_average([1, 2, 3], 1), [1, 2, 3])
+    # smoothing delays a noisy spike's threshold crossing
+    y = [0, 9, 0, 5, 6, 7]
+    f = np.arange(6) * 100
+    assert M.time_to_threshold(f, y, 5) == 100
+    assert M.time_to_threshold(f, M.moving_average(y, 2), 5) == 400
+
+
+def test_interquartile_mean():
+    assert M.interquartile_mean([1, 2, 3, 4, 100, 5, 6, 7]) == pytest.approx(4.5)  # mean of 3..6
+    assert M.interquartile_mean([1, 2, 30]) == pytest.approx(11)  # n < 4: plain mean
+    np.testing.assert_allclose(M.interquartile_mean([[4, 1, 2, 3], [0, 0, 10, 0]], axis=-1), [2.5, 0])
+
+
+def test_probability_of_improvement_counts_ties_as_half():
+    # pairs (t, b): (2,1) win, (2,2) tie, (3,1) win, (3,2) win
+    assert M.probability_of_improvement([1, 2], [2, 3]) == pytest.approx(3.5 / 4)
+    assert M.probability_of_improvement([1, 2, 3], [0]) == 0
+    assert M.probability_of_improvement([5], [5]) == 0.5
+    a, b = np.array([3.0, 1.0, 4.0]), np.array([1.0, 5.0])
+    assert M.probability_of_improvement(a, b) + M.probability_of_improvement(b, a) == pytest.approx(1)
+
+
+def test_jumpstart_and_asymptotic_are_differences_of_locations():
+    assert M.jumpstart([0, 2], [4, 6]) == pytest.approx(4)
+    assert M.jumpstart(1.0, 3.5) == pytest.approx(2.5)
+    assert M.asymptotic_performance([1, 2, 3, 4, 100], [1, 2, 3, 4, 5]) == pytest.approx(-19)
+    # interquartile mean drops the outlier: IQM([1,2,3,4,100]) = 3, IQM([1..5]) = 3
+    assert M.asymptotic_performance([1, 2, 3, 4, 100], [1, 2, 3, 4, 5], location=M.interquartile_mean) == 0
+
+
+def test_transfer_ratio_against_the_plain_ratio():
+    assert M.transfer_ratio(100, 125) == pytest.approx(125 / 100 - 1)
+    # negative areas: less negative is better, the ratio stays positive while the plain ratio is 0.5
+    assert M.transfer_ratio(-100, -50) == pytest.approx(0.5)
+    assert M.transfer_ratio(-100, -150) == pytest.approx(-0.5)
+    assert M.transfer_ratio([100, 300], [250, 350]) == pytest.approx((300 - 200) / 200)
+    # near-zero baseline area relative to the possible area: undefined
+    assert M.transfer_ratio(0.5, 80, scale=1000, eps=0.01) is None
+    assert M.transfer_ratio(20, 80, scale=1000, eps=0.01) == pytest.approx(3)
+    assert M.transfer_ratio(0.0, 5.0) is None
+
+
+def test_censored_median():
+    assert M.censored_median([5]) == 5
+    assert M.censored_median([None]) is None
+    assert M.censored_median([10, None, 30]) == 30
+    assert M.censored_median([10, None]) is None  # half the seeds never reach it
+    assert M.censored_median([10, 20, 30, None]) == 25
+    assert M.censored_median([10, 20, None, None]) is None
+
+
+def test_bootstrap_ci_is_seeded_and_brackets_the_estimate():
+    b, t = np.array([1.0, 2.0, 4.0, 3.0]), np.array([3.0, 5.0, 4.0, 6.0, 7.0])
+    stat = M.difference_statistic()
+    ci = M.bootstrap_ci(stat, b, t, n_resamples=2000, seed=3)
+    assert ci == M.bootstrap_ci(stat, b, t, n_resamples=2000, seed=3)
+    assert ci != M.bootstrap_ci(stat, b, t, n_resamples=2000, seed=4)
+    assert ci[0] < t.mean() - b.mean() < ci[1]
+    wide = M.bootstrap_ci(stat, b, t, n_resamples=2000, seed=3, confidence=0.99)
+    assert wide[0] <= ci[0] and ci[1] <= wide[1]
+
+
+def test_bootstrap_ci_hits_the_extremes_it_can_reach():
+    # two seeds per side: the resampled mean difference is one of 2,3,4,5,6; the extremes each have
+    # probability 1/16 > 2.5 %, so the 95 % interval is exactly [2, 6]
+    lo, hi = M.bootstrap_ci(M.difference_statistic(), [0.0, 2.0], [4.0, 6.0], seed=0)
+    assert (lo, hi) == (2.0, 6.0)
+    # constant samples give a zero-width interval
+    assert M.bootstrap_ci(M.difference_statistic(), [1.0, 1.0], [3.0, 3.0]) == (2.0, 2.0)
+
+
+def test_bootstrap_ci_matches_a_direct_resampling():
+    b, t = np.array([1.0, 5.0, 2.0]), np.array([4.0, 2.0, 9.0, 3.0])
+    lo, hi = M.bootstrap_ci(M.difference_statistic(), b, t, n_resamples=500, seed=7)
+    rng = np.random.default_rng(7)
+    ib = rng.integers(0, 3, size=(500, 3))
+    it = rng.integers(0, 4, size=(500, 4))
+    d = t[it].mean(1) - b[ib].mean(1)
+    assert (lo, hi) == pytest.approx(tuple(np.quantile(d, [0.025, 0.975])))
+
+
+def test_ratio_and_poi_statistics_match_the_scalar_functions():
+    b, t = np.array([[100.0, 300.0], [0.1, 0.1]]), np.array([[250.0, 350.0], [5.0, 6.0]])
+    r = M.ratio_statistic(scale=1000, eps=0.01)(b, t)
+    assert r[0] == pytest.approx(M.transfer_ratio(b[0], t[0]))
+    assert np.isnan(r[1])
+    p = M.poi_statistic(b, t)
+    assert p.tolist() == [M.probability_of_improvement(b[0], t[0]), 1.0]
+
+
+def test_bootstrap_of_a_curve_band_has_one_interval_per_point():
+    runs = np.array([[0.0, 1.0, 2.0], [2.0, 3.0, 4.0]])
+    lo, hi = M.bootstrap_ci(lambda x: x.mean(axis=1), runs, seed=0)
+    np.testing.assert_allclose(lo, [0, 1, 2])
+    np.testing.assert_allclose(hi, [2, 3, 4])
