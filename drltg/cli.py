@@ -12,6 +12,7 @@ SUBCOMMANDS = {
     "tasks": ("drltg.tasks_cmd", "list the registered tasks and task pairs"),
     "train": ("drltg.train_cmd", "train one agent on one task (writes a run directory)"),
     "demo": ("drltg.demo", "a short FourRooms run on the built-in defaults"),
+    "experiment": ("drltg.experiment", "train source, baseline and transfer runs over seeds, then report"),
     "report": ("drltg.report", "transfer metrics, plots and tables from baseline vs transfer runs"),
 }
 

@@ -186,13 +186,13 @@ def train(
     agent = make_agent(probe, cfg)
     train_env, eval_env = make_envs(cfg, agent.env_transforms)
     method = cfg["transfer"]["method"]
-    policy, mixer = agent.policy, None
+    policy, mixer, reuse_report = agent.policy, None, None
     if method == "reward-shaping":  # after RewardSum: train/episode_return stays the task's return
         train_env.append_transform(transfer.shaping(cfg))
     elif method == "policy-reuse":
         policy, mixer = transfer.reuse_policy(cfg, agent)
     elif method == "model-reuse" and ckpt is None:
-        print(transfer.reuse_weights(cfg, agent))
+        reuse_report = transfer.reuse_weights(cfg, agent)
 
     col, opt = cfg["collector"], cfg["optim"]
     fpb = col["frames_per_batch"]
@@ -213,6 +213,8 @@ def train(
 
     run_dir.mkdir(parents=True, exist_ok=True)
     atomic_write(run_dir / "config.yaml", dump(cfg))
+    if reuse_report is not None:
+        atomic_write(run_dir / "model_reuse.txt", f"{reuse_report}\n")
     loggers = [CSVLogger("csv", log_dir=str(run_dir / "logs"))]
     if cfg["log"]["tensorboard"]:
         loggers.append(TensorboardLogger("tensorboard", log_dir=str(run_dir / "logs")))

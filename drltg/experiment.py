@@ -1,0 +1,156 @@
+"""`drltg experiment PAIR --method M --seeds N --frames F --out DIR`: one transfer experiment.
+
+    DIR/experiment.yaml        the experiment's settings (re-running with other settings is refused)
+    DIR/source/seed-<s>/       source runs (policy-reuse, model-reuse): the source task, no transfer
+    DIR/baseline/seed-<s>/     target task, no transfer
+    DIR/transfer/seed-<s>/     target task with the method; run i transfers from source run i
+    DIR/report/                transfer_metrics.{json,csv}, transfer_plot.{png,svg} (drltg report)
+
+Reward shaping has no source: its baseline is the target task's plain reward and its transfer run
+learns from the shaped reward (both evaluated on the task's own reward). Baseline and transfer run i
+share the seed ``seed + 100 i`` (paired runs); source run i uses ``seed + 100 i + 50``, so no source
+and target run share a seed. A completed run is reused; an interrupted one resumes from its checkpoint,
+so re-running the same command finishes what is missing.
+"""
+from __future__ import annotations
+
+import argparse
+import concurrent.futures as cf
+import multiprocessing as mp
+import traceback
+from pathlib import Path
+
+import yaml
+
+from drltg import config as config_lib
+from drltg.errors import UsageError
+
+METHODS = ("reward-shaping", "policy-reuse", "model-reuse")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("pair", help="registered task pair (see `drltg tasks`); reward-shaping also takes a task")
+    p.add_argument("--method", required=True, choices=METHODS, help="transfer method")
+    p.add_argument("--algo", default="sac", help="learner (default sac)")
+    p.add_argument("--seeds", type=int, default=5, help="runs per side (default 5)")
+    p.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
+    p.add_argument("--frames", type=int, required=True, help="frame budget of each target run")
+    p.add_argument("--source-frames", type=int, help="frame budget of each source run (default --frames)")
+    p.add_argument("--out", type=Path, required=True, help="experiment directory")
+    p.add_argument("--workers", type=int, default=1, help="runs trained in parallel processes (default 1)")
+    p.add_argument("-o", "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="config override applied to every run, e.g. -o transfer.upsilon=0.9")
+    p.add_argument("--threshold", help="report threshold: a value, or a fraction of the best baseline like 80%%")
+
+
+def plan(args: argparse.Namespace) -> list[tuple[str, dict, Path]]:
+    """The experiment's runs as (role, config, run directory), sources first."""
+    from drltg.envs import PAIRS, TASKS
+
+    if args.seeds < 1 or args.frames < 1:
+        raise UsageError("--seeds and --frames must be positive.")
+    if args.pair in PAIRS:
+        source_task, target_task = PAIRS[args.pair].source, PAIRS[args.pair].target
+    elif args.method == "reward-shaping" and args.pair in TASKS:
+        source_task, target_task = None, args.pair
+    else:
+        from drltg.envs import get_pair
+
+        get_pair(args.pair)  # raises the "unknown pair" sentence
+    out = args.out.expanduser().resolve()
+    runs = []
+    for i in range(args.seeds):
+        seed = args.seed + 100 * i
+
+        def cfg(task, seed, frames, **transfer):
+            over = list(args.overrides) + [f"transfer.{k}={v}" for k, v in transfer.items()]
+            return config_lib.resolve({}, over, task=task, algo=args.algo, frames=frames, seed=seed)
+
+        if args.method == "reward-shaping":
+            runs.append(("baseline", cfg(target_task, seed, args.frames), out / "baseline" / f"seed-{seed}"))
+            runs.append(("transfer", cfg(target_task, seed, args.frames, method="reward-shaping"),
+                         out / "transfer" / f"seed-{seed}"))
+            continue
+        source = out / "source" / f"seed-{seed + 50}"
+        runs.append(("source", cfg(source_task, seed + 50, args.source_frames or args.frames), source))
+        runs.append(("baseline", cfg(target_task, seed, args.frames), out / "baseline" / f"seed-{seed}"))
+        runs.append(("transfer", cfg(target_task, seed, args.frames, method=args.method, source=source),
+                     out / "transfer" / f"seed-{seed}"))
+    return runs
+
+
+def _train_one(cfg: dict, run_dir: Path) -> str:
+    from drltg.train import is_complete, train
+
+    if is_complete(run_dir):
+        return "reused"
+    train(cfg, run_dir, resume=(run_dir / "config.yaml").is_file(), progress=False)
+    return "trained"
+
+
+def _run_all(runs, workers: int) -> list[str]:
+    """Train the runs (sources before the runs that need them); return the failures."""
+    from tqdm.auto import tqdm
+
+    failures: list[str] = []
+    bar = tqdm(total=len(runs), unit="run", desc="experiment")
+    for stage in (("source",), ("baseline", "transfer")):
+        todo = [(role, cfg, d) for role, cfg, d in runs if role in stage]
+        if workers <= 1:
+            results = ((d, _call(cfg, d)) for _, cfg, d in todo)
+        else:
+            pool = cf.ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"))
+            futures = {pool.submit(_call, cfg, d): d for _, cfg, d in todo}
+            results = ((futures[f], f.result()) for f in cf.as_completed(futures))
+        for run_dir, (status, detail) in results:
+            bar.update()
+            bar.set_postfix_str(f"{run_dir.parent.name}/{run_dir.name}: {status}")
+            if status == "failed":
+                failures.append(f"{run_dir}: {detail}")
+        if workers > 1:
+            pool.shutdown()
+        if failures:
+            break  # the targets need their sources
+    bar.close()
+    return failures
+
+
+def _call(cfg: dict, run_dir: Path) -> tuple[str, str]:
+    try:
+        return _train_one(cfg, run_dir), ""
+    except UsageError as err:
+        return "failed", str(err)
+    except Exception:  # isolate one broken run; its traceback goes to the run directory
+        run_dir.mkdir(parents=True, exist_ok=True)
+        (run_dir / "error.log").write_text(traceback.format_exc())
+        return "failed", f"see {run_dir / 'error.log'}"
+
+
+def run(args: argparse.Namespace) -> int:
+    from drltg.report import format_table, transfer_report
+
+    runs = plan(args)
+    out = args.out.expanduser().resolve()
+    settings = {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()
+                if k not in ("workers", "threshold", "_module", "command")}
+    saved = out / "experiment.yaml"
+    if saved.is_file() and yaml.safe_load(saved.read_text()) != settings:
+        raise UsageError(f"'{out}' holds an experiment with other settings; choose another --out.")
+    out.mkdir(parents=True, exist_ok=True)
+    saved.write_text(yaml.safe_dump(settings, sort_keys=False))
+
+    failures = _run_all(runs, args.workers)
+    if failures:
+        print("failed runs:\n  " + "\n  ".join(failures))
+        return 1
+    result = transfer_report(
+        [d for role, _, d in runs if role == "baseline"],
+        [d for role, _, d in runs if role == "transfer"],
+        out / "report",
+        threshold=args.threshold,
+        baseline_label="no transfer",
+        transfer_label=args.method,
+    )
+    print(format_table(result))
+    print(f"\nreport: {out / 'report'}")
+    return 0
