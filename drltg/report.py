@@ -1,28 +1,48 @@
-"""``drltg report``: did the transfer method help? Metrics, a plot and tables from learning curves.
+r"""``drltg report``: did the transfer method help? Metrics, a plot and tables from learning curves.
 
-    drltg report --baseline RUNS --transfer RUNS [--threshold 150 | --threshold 80%] [--out DIR]
+    drltg report --baseline RUNS... --transfer RUNS... [--threshold 150 | --threshold 80%] [--out DIR]
     drltg report --matrix DIR [--metric transfer_ratio] [--out DIR]
 
 Both sides are read with :func:`drltg.curves.read_curves` (run directories, directories of seed runs,
-globs, SB3 / TensorBoard / CSVLogger logs) and compared on the target task over a common budget,
-``[start, budget]``: ``start`` is the latest first evaluation of any run (frame 0 for drltg runs) and
-``budget`` the shortest run's last evaluation unless ``--budget`` sets it. Metrics are computed per
-seed and aggregated (see :mod:`drltg.metrics` for every formula):
+globs, SB3 / TensorBoard / CSVLogger logs). Curves are compared on the target task over a common
+interval ``[start, budget]``: ``start`` is the latest first evaluation of any run (frame 0 for drltg
+runs), ``budget`` the shortest run's last evaluation unless ``--budget`` sets it; nothing is invented
+past a run's last evaluation. Every score is computed per seed, then aggregated over seeds (B =
+baseline, T = transfer, L = mean over seeds; formulas in :mod:`drltg.metrics`):
 
-``jumpstart``                          mean of the first K evaluations, transfer minus baseline
-``asymptotic_performance``             mean over the evaluations in the last FRAC of the span, T - B
-``total_reward_baseline/_transfer``    trapezoid area under the curve on the real frame axis
-``transfer_ratio``                     (A_T - A_B) / |A_B| (null when |A_B| is near zero)
-``time_to_threshold_baseline/_transfer``  median first frame reaching the threshold; null if not reached
-``threshold_reached_baseline/_transfer``  fraction of seeds that reach it
-``initial_performance_*``, ``final_performance_*``  the per-side means behind jumpstart and asymptote
-``probability_of_improvement[_initial|_final]``  P(transfer seed > baseline seed) on area / initial / final
-``<name>_iqm``                         the difference metric with the interquartile mean as location
-``<name>_ci``                          95 % bootstrap interval over seeds, where both sides have >= 2 seeds
+``jumpstart``                 L(mean of the first K evaluations of T) - L(same of B)
+``asymptotic_performance``    L(mean of T's evaluations in [budget - FRAC (budget - start), budget]) - same of B
+``total_reward_<side>``       L(A), A = trapezoid area under the curve on the real frame axis over
+                              [start, budget] (the value at the budget interpolated between evaluations)
+``transfer_ratio``            (L(A_T) - L(A_B)) / |L(A_B)| = A_T / A_B - 1 when A_B > 0; stays positive
+                              for a better transfer curve when A_B < 0; null (with a warning) when
+                              |L(A_B)| <= 0.01 x (budget - start) x max |y|
+``time_to_threshold_<side>``  median over seeds of the first evaluation frame <= budget whose (raw, or
+                              ``--smooth`` W) value is >= threshold; a seed that never reaches it counts
+                              as infinitely late, and null means "not reached" (the median is infinite)
+``threshold_reached_<side>``  fraction of seeds that reach the threshold within the budget
+``initial_performance_<side>``, ``final_performance_<side>``  the per-side terms of the two differences
+``probability_of_improvement`` P(T > B) = mean over all (baseline seed, transfer seed) pairs of
+                              1[a_T > a_B] + 0.5 x 1[a_T = a_B], on the areas (``_initial``, ``_final``:
+                              on the initial / final performances)
+``<name>_iqm``                the same difference with the interquartile mean over seeds as L
+``<name>_ci``                 percentile bootstrap interval (each side's seeds resampled with replacement,
+                              ``--bootstrap`` N times, seeded by ``--seed``), where both sides have >= 2 seeds
+``n_seeds_baseline``, ``n_seeds_transfer``
 
-Outputs (all written atomically, and only when every input is good): ``transfer_metrics.json``,
-``transfer_metrics.csv``, ``transfer_plot.png`` and ``transfer_plot.svg``; ``--matrix`` writes
-``transfer_matrix.{png,svg,csv,json}`` instead.
+Options: ``--baseline``/``--transfer`` PATH... (runs, directories of seed runs, files or globs),
+``--format`` {auto,drltg,sb3,sb3-monitor,tensorboard,csvlogger}, ``--tag`` (column or scalar tag),
+``--threshold`` (a number, or ``P%`` of the highest value of the baseline's mean-over-seeds curve),
+``--budget`` FRAMES, ``--jumpstart-window`` K (default 1), ``--asymptote-window`` FRAC (default 0.1),
+``--smooth`` W (trailing moving average before time-to-threshold), ``--plot-smooth`` W (drawn lines
+only), ``--bootstrap`` N (10000), ``--confidence`` (0.95), ``--seed`` (0), ``--baseline-label``,
+``--transfer-label``, ``--out`` DIR (default: a fresh ``report-<transfer>-vs-<baseline>`` folder in the
+working directory), ``--matrix`` DIR with ``--metric`` NAME.
+
+Outputs (written through temporary files and ``os.replace``, and only once every input is read and
+checked): ``transfer_metrics.json`` (``metrics``, ``settings`` with every choice and warning,
+``per_seed``), ``transfer_metrics.csv`` (``metric,value,ci_low,ci_high``), ``transfer_plot.png`` and
+``.svg``; ``--matrix`` writes ``transfer_matrix.{png,svg,csv,json}``.
 """
 from __future__ import annotations
 
@@ -374,7 +394,8 @@ def _side_label(curves: Sequence[Curve], default: str) -> str:
         return curves[0].label
     parents = {Path(c.source).resolve().parent.parent if Path(c.source).is_file()
                else Path(c.source).resolve().parent for c in curves}
-    return parents.pop().name if len(parents) == 1 else default
+    name = parents.pop().name if len(parents) == 1 else ""
+    return name or default
 
 
 # ------------------------------------------------------------------------------------------ outputs
@@ -660,9 +681,16 @@ def run(args) -> int:
             raise UsageError("--matrix builds its own baseline/transfer pairs; drop --baseline and --transfer.")
         settings.pop("baseline_label"), settings.pop("transfer_label")
         result = transfer_matrix(find_matrix_cells(args.matrix), args.out, args.metric, **settings)
-        print(_csv_text([("source \\ target", *result["targets"])] + [
-            (s, *("null" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.4g}" for v in row))
-            for s, row in zip(result["sources"], result["table"])]).replace(",", "\t"), end="")
+        for cell in result["cells"]:
+            for w in cell["settings"]["warnings"]:
+                print(f"warning: {cell['source']} -> {cell['target']}: {w}", file=sys.stderr)
+        rows = [("source \\ target", *result["targets"])] + [
+            (s, *("-" if math.isnan(v) else f"{v:.4g}" for v in row))
+            for s, row in zip(result["sources"], result["table"])]
+        widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+        print(f"{args.metric}:")
+        for r in rows:
+            print("  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in enumerate(zip(r, widths))))
         print(f"wrote {result['out_dir']}/transfer_matrix.{{png,svg,csv,json}}")
         return 0
     if not args.baseline or not args.transfer:

@@ -47,7 +47,7 @@ def plot_transfer(result: dict) -> tuple[bytes, bytes]:
     from matplotlib.ticker import FuncFormatter
 
     m, st, curves = result["metrics"], result["settings"], result["curves"]
-    plt, (fig, ax) = _figure(figsize=(10, 6))
+    plt, (fig, ax) = _figure(figsize=(10, 5.5))
     start, budget = st["start"], st["budget"]
     lo_w, hi_w = st["asymptote_frames"]
 
@@ -86,7 +86,9 @@ def plot_transfer(result: dict) -> tuple[bytes, bytes]:
         how = f" (moving average of {st['smooth']})" if st["smooth"] else " (raw evaluations)"
         if len(curves["baseline"]["runs"]) + len(curves["transfer"]["runs"]) > 2:
             how = ", median over seeds" + how
-        ax.axhline(thr, color="0.15", lw=1.1, ls="--", zorder=2, label=f"threshold {thr:.4g}")
+        basis = st["threshold_basis"]
+        of_best = "" if basis == "absolute" else f" ({basis.split(' x ')[0]} x best baseline mean)"
+        ax.axhline(thr, color="0.15", lw=1.1, ls="--", zorder=2, label=f"threshold {thr:.4g}{of_best}")
         for side in ("baseline", "transfer"):
             t = m[f"time_to_threshold_{side}"]
             if t is not None:
@@ -97,14 +99,16 @@ def plot_transfer(result: dict) -> tuple[bytes, bytes]:
                 ax.plot([], [], marker="v", ls="", ms=9, color=COLORS[side], mec="black", mew=0.8,
                         label=f"{side} never reaches it (within budget)")
 
+    ci_note = f", [{round(100 * st['confidence'])}% CI]" if m.get("jumpstart_ci") else ""
     summary = [
+        f"transfer - baseline{ci_note}",
         f"jumpstart {_signed(m['jumpstart'])}" + _ci(m, "jumpstart"),
         f"asymptotic {_signed(m['asymptotic_performance'])}" + _ci(m, "asymptotic_performance"),
         f"transfer ratio {_signed(m['transfer_ratio'])}" + _ci(m, "transfer_ratio"),
         f"P(improvement) {m['probability_of_improvement']:.2f}",
         f"area B {m['total_reward_baseline']:.4g}, T {m['total_reward_transfer']:.4g}",
     ]
-    ax.text(0.99, 0.02, "\n".join(summary), transform=ax.transAxes, ha="right", va="bottom",
+    ax.text(1.0, -0.12, "\n".join(summary), transform=ax.transAxes, ha="right", va="top",
             fontsize=9, family="monospace", zorder=8,
             bbox=dict(boxstyle="round,pad=0.4", fc="white", ec="0.7", alpha=0.9))
 
@@ -118,7 +122,7 @@ def plot_transfer(result: dict) -> tuple[bytes, bytes]:
                  f"budget {_frames(budget)} frames; asymptote = mean over the last "
                  f"{100 * st['asymptote_window']:g}% of it (shaded)", fontsize=11)
     ax.grid(alpha=0.3)
-    ax.legend(loc="upper left", fontsize=8.5, framealpha=0.9)
+    ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.1), fontsize=8.5, frameon=False)
     return _save(plt, fig)
 
 
@@ -150,17 +154,17 @@ def plot_matrix(table: np.ndarray, sources, targets, metric: str) -> tuple[bytes
     if diverging or metric.startswith("probability"):
         half = max(span - center, center - float(finite.min()) if finite.size else 0, 1e-12)
         norm = TwoSlopeNorm(vcenter=center, vmin=center - half, vmax=center + half)
-        cmap = plt.get_cmap("RdBu").copy()
+        cmap = plt.get_cmap("RdBu")
     else:
-        norm, cmap = None, plt.get_cmap("viridis").copy()
-    cmap.set_bad("0.85")
+        norm, cmap = None, plt.get_cmap("viridis")
+    cmap = cmap.with_extremes(bad="0.85")
     im = ax.imshow(data, cmap=cmap, norm=norm, aspect="auto")
     for i in range(len(sources)):
         for j in range(len(targets)):
             v = table[i, j]
             ax.text(j, i, "n/a" if not np.isfinite(v) else f"{v:.3g}", ha="center", va="center",
                     fontsize=10, color="black",
-                    bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.6))
+                    bbox=dict(boxstyle="round,pad=0.2", fc="white", ec="none", alpha=0.85))
     ax.set_xticks(range(len(targets)), targets, rotation=30, ha="right")
     ax.set_yticks(range(len(sources)), sources)
     ax.set_xlabel("target task")
