@@ -83,7 +83,7 @@ def read_curves(
 
 
 def _expand(pattern: str) -> list[Path]:
-    if any(c in pattern for c in "*?["):
+    if any(c in pattern for c in "*?[") and not Path(pattern).exists():
         matches = sorted(_glob.glob(pattern))
         if not matches:
             raise UsageError(f"the pattern '{pattern}' matches no file or directory.")
