@@ -216,7 +216,7 @@ def _scores(curves, *, start, budget, k, fraction, threshold, smooth) -> list[di
             initial_performance=M.initial_performance(c.values[inside], k),
             final_performance=float(c.values[window].mean()),
             total_reward=M.area_under_curve(c.frames, c.values, start, budget),
-            time_to_threshold=None if threshold is None else M.time_to_threshold(c.frames, y, threshold, budget),
+            time_to_threshold=None if threshold is None else _num(M.time_to_threshold(c.frames, y, threshold, budget)),
         ))
     return out
 
@@ -299,7 +299,7 @@ def compute(
     for side, rows in (("baseline", per_b), ("transfer", per_t)):
         times = [r["time_to_threshold"] for r in rows]
         ttt[side] = times
-        m[f"time_to_threshold_{side}"] = None if threshold is None else M.censored_median(times)
+        m[f"time_to_threshold_{side}"] = None if threshold is None else _num(M.censored_median(times))
         m[f"threshold_reached_{side}"] = (
             None if threshold is None else sum(t is not None for t in times) / len(times)
         )
