@@ -3,7 +3,9 @@ import numpy as np
 import pytest
 import torch
 from tensordict import TensorDict
+from torchrl.envs import TransformedEnv
 from torchrl.envs.utils import step_mdp
+from torchrl.record import PixelRenderTransform
 
 from drltg.envs import fourrooms as fr
 from drltg.envs import gridrooms as gr
@@ -263,6 +265,15 @@ def test_fourrooms_render():
     assert tuple(img[20, 80]) == (40, 170, 70)  # goal (8, 8): row 100 - 80, col 80
     assert tuple(img[80, 20]) == tuple(img[80, 70]) == (215, 40, 40)  # the two agents
     assert tuple(empty[80, 20]) == (255, 255, 255)
+
+
+@pytest.mark.parametrize("env_cls", [FourRoomsEnv, GridFourRoomsEnv])
+def test_render_through_torchrl_pixel_transform(env_cls):
+    env = TransformedEnv(env_cls(seed=0), PixelRenderTransform(out_keys=["pixels"], pass_tensordict=True))
+    td = env.rollout(3, break_when_any_done=False)
+    side = env.base_env.render().shape[0]
+    assert td["next", "pixels"].shape == (3, side, side, 3) and td["next", "pixels"].dtype == torch.uint8
+    assert not torch.equal(td["next", "pixels"][0], torch.as_tensor(env.base_env.render()))  # the agent is drawn
 
 
 # ----------------------------------------------------------------------------- grid

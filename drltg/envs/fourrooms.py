@@ -234,30 +234,33 @@ class FourRoomsEnv(EnvBase):
             obs = torch.cat((obs, (self.goal * (2.0 / ARENA_SIZE) - 1.0).expand_as(obs)), -1)
         return obs
 
-    def _sample_start(self, shape: torch.Size) -> torch.Tensor:
-        """Uniform over the start regions (weighted by area), rejecting points in the goal disc.
+    def _sample_start(self, n: int) -> torch.Tensor:
+        """``n`` positions uniform over the start regions (weighted by area) minus the goal disc.
 
         Draws on the CPU generator, so a seed gives the same starts on every device.
         """
         regions = self._regions
         areas = (regions[:, 2] - regions[:, 0]) * (regions[:, 3] - regions[:, 1])
-        n = shape.numel()
+        goal = self.goal.cpu()
         pos = torch.empty(n, 2)
         todo = torch.arange(n)
-        goal = self.goal.cpu()
         while todo.numel():
             box = regions[torch.multinomial(areas, todo.numel(), replacement=True, generator=self.rng)]
-            u = torch.rand(todo.numel(), 2, generator=self.rng)
-            pos[todo] = box[:, :2] + u * (box[:, 2:] - box[:, :2])
+            pos[todo] = box[:, :2] + torch.rand(todo.numel(), 2, generator=self.rng) * (box[:, 2:] - box[:, :2])
             todo = todo[(pos[todo] - goal).norm(dim=-1) <= self.goal_radius]
-        return pos.reshape(*shape, 2).to(self.device)
+        return pos.to(self.device)
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
         shape = self.batch_size
+        reset = None if tensordict is None else tensordict.get("_reset", None)
         if kwargs.get("set_state") and tensordict is not None and "position" in tensordict.keys():
             position = tensordict["position"].clone()
-        else:
-            position = self._sample_start(shape)
+        elif reset is None:
+            position = self._sample_start(shape.numel()).reshape(*shape, 2)
+        else:  # a partial reset: only the reset elements need a start (the others are kept)
+            mask = reset.squeeze(-1)
+            position = torch.zeros((*shape, 2), device=self.device)
+            position[mask] = self._sample_start(int(mask.sum()))
         return TensorDict(
             {
                 "observation": self._observe(position),
