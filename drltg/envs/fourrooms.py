@@ -158,7 +158,7 @@ class FourRoomsEnv(EnvBase):
 
     Examples:
         >>> env = FourRoomsEnv(goal=(8.0, 8.0), batch_size=(16,), seed=0)
-        >>> td = env.rollout(100)
+        >>> td = env.rollout(100, break_when_any_done=False)
         >>> td["next", "success"].shape
         torch.Size([16, 100, 1])
     """
