@@ -245,7 +245,9 @@ class PolicyReuse(TensorDictModuleBase):
             learner's stochastic action is its exploration).
 
     Call :meth:`step` with the frames of each collected batch (decaying schedules), and
-    :meth:`observe` with the batch (schedules that learn from returns).
+    :meth:`observe` with the batch as collected, before flattening (schedules that learn from
+    returns). A ``Collector``'s ``init_random_frames`` replace the whole policy by random actions,
+    so the past policy only starts acting after them.
 
     Only for off-policy learners: see the module docstring.
     """
