@@ -8,7 +8,7 @@ from tensordict.nn import TensorDictModule
 from torch import nn
 from torchrl.collectors import Collector
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
-from torchrl.envs import EnvBase, TransformedEnv
+from torchrl.envs import EnvBase, SerialEnv, TransformedEnv
 from torchrl.envs.utils import check_env_specs, step_mdp
 
 from drltg.envs import FourRoomsEnv, GridFourRoomsEnv, fourrooms, gridrooms
@@ -138,6 +138,16 @@ def test_collector_auto_reset_shapes_every_transition():
         torch.testing.assert_close(data["next", "reward"], expected)
         assert data["next", "done"].any()
     collector.shutdown()
+
+
+def test_shaping_inside_batched_env_workers():
+    env = SerialEnv(2, lambda: shaped(WalkEnv(start=[0.0, 10.0], goal=[1.0, 99.0], horizon=[99, 2])))
+    check_env_specs(env)
+    td = env.rollout(4, ones_action, break_when_any_done=False)
+    assert td["observation"][0].squeeze(-1).tolist() == [[0, 0, 0, 0], [10, 11, 10, 11]]
+    alive = (~td["next", "terminated"]).float()
+    expected = td["next", "task_reward"] + GAMMA * phi(td["next", "observation"]) * alive - phi(td["observation"])
+    torch.testing.assert_close(td["next", "reward"], expected)
 
 
 def test_tensordict_module_and_plain_callable_potentials_agree():

@@ -49,6 +49,9 @@ class PotentialShaping(Transform):
             ``step_mdp``, partial resets and batched-env workers.
 
     The shaped reward spec becomes ``Unbounded`` (shaping moves rewards outside any original bounds).
+    A ``RewardSum`` placed before this transform sums the task's reward, one placed after it the
+    shaped reward. Dynamic potentials that read ``step_count`` need it in the TensorDict at reset
+    (drltg's envs keep it; otherwise put ``StepCounter`` before this transform).
 
     Examples:
         >>> env = TransformedEnv(base_env, PotentialShaping(lambda x: -x.norm(dim=-1, keepdim=True),
