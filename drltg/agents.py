@@ -26,6 +26,7 @@ from torchrl.modules import (
 from torchrl.objectives import DiscreteSACLoss, LossModule, SACLoss, SoftUpdate, TD3Loss
 
 from drltg.errors import UsageError
+from drltg.losses.soc import make_soc_agent
 
 
 @dataclass
@@ -169,6 +170,7 @@ def _init_lazy(env: EnvBase, actor: nn.Module, qvalue: nn.Module) -> None:
 ALGOS: dict[str, Callable[[EnvBase, dict], Agent]] = {
     "sac": make_sac_agent,
     "td3": make_td3_agent,
+    "soc": make_soc_agent,
 }
 
 
