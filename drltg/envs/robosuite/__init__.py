@@ -1,0 +1,33 @@
+"""robosuite manipulation tasks (Lift, Lift+Place, Lift+Place with barrier) as TorchRL envs.
+
+Importing this package does not import robosuite; building a :class:`RobosuiteEnv` does.
+"""
+from drltg.envs.robosuite.demonstrator import PickPlaceDemonstrator
+from drltg.envs.robosuite.env import TASK_CLASSES, RobosuiteEnv, make_robosuite_env
+from drltg.envs.robosuite.layout import LAYOUT, OBSERVABLES, OBSERVATION_SIZE
+from drltg.envs.robosuite.potentials import (
+    Carry,
+    Grasp,
+    Lift,
+    LiftPotential,
+    PlacePotential,
+    Reach,
+    potential_for,
+)
+
+__all__ = [
+    "Carry",
+    "Grasp",
+    "LAYOUT",
+    "Lift",
+    "LiftPotential",
+    "OBSERVABLES",
+    "OBSERVATION_SIZE",
+    "PickPlaceDemonstrator",
+    "PlacePotential",
+    "Reach",
+    "RobosuiteEnv",
+    "TASK_CLASSES",
+    "make_robosuite_env",
+    "potential_for",
+]

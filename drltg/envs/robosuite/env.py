@@ -1,0 +1,239 @@
+"""A robosuite manipulation task as a TorchRL ``EnvBase``.
+
+robosuite runs with ``ignore_done=True`` and this env counts steps itself: the horizon is reported as
+``truncated`` (bootstrapping continues through it), never as ``terminated``. ``terminated`` is set only
+by a true task end, which these tasks do not have unless ``terminate_on_success=True``.
+"""
+from __future__ import annotations
+
+import functools
+import logging
+from typing import Sequence
+
+import numpy as np
+import torch
+from tensordict import TensorDict, TensorDictBase
+from torchrl.data import Bounded, Categorical, Composite, Unbounded
+from torchrl.envs import EnvBase
+
+from drltg.envs.robosuite.layout import OBSERVABLES, layout_of
+
+TASK_CLASSES = {
+    "lift": "LiftWithTarget",
+    "lift-place": "LiftPlace",
+    "lift-place-barrier": "LiftPlaceBarrier",
+}
+
+
+def _task_class(task):
+    """A drltg task name, a robosuite environment name, or a robosuite environment class."""
+    if not isinstance(task, str):
+        return task
+    if task in TASK_CLASSES:
+        from drltg.envs.robosuite import tasks
+
+        return getattr(tasks, TASK_CLASSES[task])
+    from robosuite.environments.base import REGISTERED_ENVS
+
+    if task not in REGISTERED_ENVS:
+        raise ValueError(f"Unknown robosuite task {task!r}; known: {sorted(TASK_CLASSES)} and {sorted(REGISTERED_ENVS)}.")
+    return REGISTERED_ENVS[task]
+
+
+def _quiet_import_robosuite():
+    """Import robosuite without its start-up warnings (private macro file, optional robot models)."""
+    logging.disable(logging.WARNING)
+    try:
+        import robosuite  # noqa: F401
+    finally:
+        logging.disable(logging.NOTSET)
+    logging.getLogger("robosuite_logs").setLevel(logging.ERROR)
+
+
+def osc_pose_config(robot: str = "Panda") -> dict:
+    """robosuite 1.5's default composite controller (OSC_POSE arm + gripper), reduced to one arm."""
+    from robosuite.controllers import load_composite_controller_config
+
+    config = load_composite_controller_config(controller="BASIC", robot=robot)
+    config["body_parts"] = {"right": config["body_parts"]["right"]}
+    return config
+
+
+class RobosuiteEnv(EnvBase):
+    """One robosuite environment (Panda, OSC_POSE, object observations, no cameras) as an ``EnvBase``.
+
+    Keys: ``observation`` (float32, the listed ``observables`` concatenated, each once), ``action``
+    (the controller's box, ``[-1, 1]^7``: OSC position/rotation deltas and the gripper), ``reward``,
+    ``success`` (the task's own success check after the step), ``step_count``, ``done`` /
+    ``terminated`` / ``truncated``. One env steps one simulation; use ``ParallelEnv`` for several.
+
+    Args:
+        task: ``"lift"``, ``"lift-place"``, ``"lift-place-barrier"``, another robosuite environment
+            name (e.g. ``"Stack"``, with ``observables`` it provides), or a robosuite environment class.
+        observables: robosuite observable names, in observation order (default: ``layout.OBSERVABLES``).
+        horizon: steps until ``truncated``.
+        control_freq: policy steps per simulated second.
+        terminate_on_success: end the episode (``terminated``) when the task succeeds.
+        render_camera: a robosuite camera name (e.g. ``"frontview"``); enables offscreen rendering
+            and :meth:`render`. Needs ``MUJOCO_GL=egl`` (or ``osmesa`` with libOSMesa) on a headless host.
+        render_size: ``(height, width)`` of rendered frames.
+        seed: seeds robosuite's generator at construction (cube size, placements, joint noise).
+        **task_kwargs: passed to the robosuite environment (e.g. ``reward_shaping=True`` for ``lift``).
+    """
+
+    def __init__(
+        self,
+        task="lift",
+        *,
+        observables: Sequence[str] = tuple(OBSERVABLES),
+        horizon: int = 500,
+        control_freq: int = 20,
+        robot: str = "Panda",
+        terminate_on_success: bool = False,
+        render_camera: str | None = None,
+        render_size: tuple[int, int] = (256, 256),
+        seed: int | None = None,
+        device=None,
+        **task_kwargs,
+    ):
+        super().__init__(device=device, batch_size=torch.Size([]))
+        _quiet_import_robosuite()
+        self.task = task
+        self.horizon = int(horizon)
+        self.terminate_on_success = bool(terminate_on_success)
+        self.render_camera = render_camera
+        self.render_size = tuple(render_size)
+        self._env = _task_class(task)(
+            robots=robot,
+            controller_configs=osc_pose_config(robot),
+            use_camera_obs=False,
+            use_object_obs=True,
+            has_renderer=False,
+            has_offscreen_renderer=render_camera is not None,
+            control_freq=control_freq,
+            horizon=self.horizon,
+            ignore_done=True,
+            hard_reset=False,
+            seed=seed,
+            **task_kwargs,
+        )
+        self.observables = tuple(observables)
+        raw = self._env.reset()
+        missing = [name for name in self.observables if name not in raw]
+        if missing:
+            raise ValueError(f"Task {task!r} has no observables {missing}; it has {sorted(raw)}.")
+        self.layout = layout_of({name: np.size(raw[name]) for name in self.observables})
+        self._step_count = 0
+        self._make_specs(sum(s.stop - s.start for s in self.layout.values()))
+        if seed is not None:
+            self.set_seed(seed)
+
+    @property
+    def robosuite_env(self):
+        """The wrapped robosuite environment (for its sim, success check, rendering)."""
+        return self._env
+
+    def _make_specs(self, obs_size: int) -> None:
+        low, high = self._env.action_spec
+        self.observation_spec = Composite(
+            observation=Unbounded((obs_size,), dtype=torch.float32, device=self.device),
+            success=Categorical(2, (1,), dtype=torch.bool, device=self.device),
+            step_count=Unbounded((1,), dtype=torch.int64, device=self.device),
+        )
+        self.action_spec = Bounded(
+            low=torch.as_tensor(low, dtype=torch.float32),
+            high=torch.as_tensor(high, dtype=torch.float32),
+            shape=(len(low),),
+            dtype=torch.float32,
+            device=self.device,
+        )
+        self.reward_spec = Unbounded((1,), dtype=torch.float32, device=self.device)
+        self.done_spec = Composite(
+            {key: Categorical(2, (1,), dtype=torch.bool, device=self.device) for key in ("done", "terminated", "truncated")}
+        )
+
+    def _observation(self, raw: dict) -> torch.Tensor:
+        flat = np.concatenate([np.asarray(raw[name], dtype=np.float32).ravel() for name in self.observables])
+        return torch.from_numpy(flat).to(self.device)
+
+    def _flag(self, value: bool) -> torch.Tensor:
+        return torch.tensor([bool(value)], device=self.device)
+
+    def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
+        raw = self._env.reset()
+        self._step_count = 0
+        return TensorDict(
+            {
+                "observation": self._observation(raw),
+                "success": self._flag(self._env._check_success()),
+                "step_count": torch.zeros(1, dtype=torch.int64, device=self.device),
+                "done": self._flag(False),
+                "terminated": self._flag(False),
+                "truncated": self._flag(False),
+            },
+            batch_size=(),
+            device=self.device,
+        )
+
+    def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
+        action = tensordict.get("action").detach().cpu().numpy().astype(np.float64)
+        raw, reward, _, _ = self._env.step(action)
+        self._step_count += 1
+        success = bool(self._env._check_success())
+        terminated = self.terminate_on_success and success
+        truncated = self._step_count >= self.horizon
+        return TensorDict(
+            {
+                "observation": self._observation(raw),
+                "reward": torch.tensor([reward], dtype=torch.float32, device=self.device),
+                "success": self._flag(success),
+                "step_count": torch.tensor([self._step_count], dtype=torch.int64, device=self.device),
+                "done": self._flag(terminated or truncated),
+                "terminated": self._flag(terminated),
+                "truncated": self._flag(truncated),
+            },
+            batch_size=(),
+            device=self.device,
+        )
+
+    def _set_seed(self, seed: int | None) -> None:
+        # robosuite's placement sampler and robot noise share the env's Generator object: reseed it in place.
+        self._env.rng.bit_generator.state = np.random.default_rng(seed).bit_generator.state
+
+    def render(self, camera: str | None = None, size: tuple[int, int] | None = None) -> np.ndarray:
+        """The current scene as an ``(height, width, 3)`` uint8 image (needs ``render_camera``)."""
+        if self.render_camera is None:
+            raise RuntimeError("Rendering needs RobosuiteEnv(render_camera=...), e.g. 'frontview'.")
+        height, width = size or self.render_size
+        image = self._env.sim.render(camera_name=camera or self.render_camera, height=height, width=width)
+        return np.ascontiguousarray(image[::-1])
+
+    def close(self, *, raise_if_closed: bool = True):
+        env = getattr(self, "_env", None)
+        if env is not None:
+            env.close()
+            self._env = None
+        super().close(raise_if_closed=raise_if_closed)
+
+
+def make_robosuite_env(
+    task: str = "lift",
+    *,
+    batch_size: Sequence[int] | torch.Size = (),
+    device=None,
+    parallel: bool = True,
+    **options,
+) -> EnvBase:
+    """One :class:`RobosuiteEnv` for ``batch_size=()``; for ``(n,)``, ``n`` of them stepped together,
+    each in its own worker process (``ParallelEnv``) or, with ``parallel=False``, in this one
+    (``SerialEnv``). ``set_seed(s)`` on the batch seeds its members with distinct seeds derived from ``s``."""
+    from torchrl.envs import ParallelEnv, SerialEnv
+
+    batch_size = torch.Size(batch_size)
+    if len(batch_size) == 0:
+        return RobosuiteEnv(task, device=device, **options)
+    if len(batch_size) != 1:
+        raise ValueError(f"robosuite tasks batch along one dimension, got batch_size={tuple(batch_size)}.")
+    make = functools.partial(RobosuiteEnv, task, device=device, **options)
+    batched = ParallelEnv if parallel and batch_size[0] > 1 else SerialEnv
+    return batched(batch_size[0], make)
