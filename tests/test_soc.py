@@ -155,8 +155,8 @@ def test_one_option_equals_sac_loss_gradients_and_training_steps():
 
 
 # ------------------------------------------------------------------------------------------ hand-computed
-@pytest.mark.parametrize("option_policy", ["soft", "egreedy"])
-def test_targets_and_termination_loss_by_hand(option_policy):
+@pytest.mark.parametrize("option_policy,bonus", [("soft", False), ("soft", True), ("egreedy", False)])
+def test_targets_and_termination_loss_by_hand(option_policy, bonus):
     """K = 3, critics constant per option (Q_U = b_o), terminations beta_o(s) = sigmoid(w_o . s + c_o)."""
     torch.manual_seed(0)
     K, gamma, xi, alpha_omega, eps = 3, 0.9, 0.05, 0.5, 0.2
@@ -178,6 +178,7 @@ def test_targets_and_termination_loss_by_hand(option_policy):
         fixed_option_alpha=True,
         option_epsilon=eps,
         deliberation_cost=xi,
+        option_entropy_bonus=bonus,
     )
     loss.make_value_estimator(gamma=gamma)
     _constant_critic(loss, b)
@@ -193,7 +194,7 @@ def test_targets_and_termination_loss_by_hand(option_policy):
     beta = torch.sigmoid((s_next * w[o]).sum(-1) + c[o])  # at s', for the transition's option only
     if option_policy == "soft":
         p = torch.softmax(b / alpha_omega, 0)
-        v = (p * (b - alpha_omega * p.log())).sum()
+        v = (p * (b - bonus * alpha_omega * p.log())).sum()
     else:
         p = torch.full((K,), eps / K)
         p[b.argmax()] += 1 - eps
