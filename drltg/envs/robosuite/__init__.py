@@ -2,7 +2,7 @@
 
 Importing this package does not import robosuite; building a :class:`RobosuiteEnv` does.
 """
-from drltg.envs.robosuite.demonstrator import PickPlaceDemonstrator
+from drltg.envs.robosuite.demonstrator import PickPlaceDemonstrator, demonstrator_for
 from drltg.envs.robosuite.env import TASK_CLASSES, RobosuiteEnv, make_robosuite_env
 from drltg.envs.robosuite.layout import LAYOUT, OBSERVABLES, OBSERVATION_SIZE
 from drltg.envs.robosuite.potentials import (
@@ -28,6 +28,7 @@ __all__ = [
     "Reach",
     "RobosuiteEnv",
     "TASK_CLASSES",
+    "demonstrator_for",
     "make_robosuite_env",
     "potential_for",
 ]

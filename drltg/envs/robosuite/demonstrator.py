@@ -163,3 +163,10 @@ class PickPlaceDemonstrator(TensorDictModuleBase):
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
         tensordict.set(self.out_keys[0], self.act(tensordict.get(self.in_keys[0])))
         return tensordict
+
+
+def demonstrator_for(task: str, **kwargs) -> PickPlaceDemonstrator:
+    """The demonstrator for a manipulation task name: lift and hold for ``lift``, place otherwise."""
+    if task not in ("lift", "lift-place", "lift-place-barrier"):
+        raise ValueError(f"No demonstrator for task {task!r}; known: lift, lift-place, lift-place-barrier.")
+    return PickPlaceDemonstrator(place=task != "lift", **kwargs)

@@ -74,8 +74,8 @@ class RobosuiteEnv(EnvBase):
         horizon: steps until ``truncated``.
         control_freq: policy steps per simulated second.
         terminate_on_success: end the episode (``terminated``) when the task succeeds.
-        render_camera: a robosuite camera name (e.g. ``"frontview"``); enables offscreen rendering
-            and :meth:`render`. Needs ``MUJOCO_GL=egl`` (or ``osmesa`` with libOSMesa) on a headless host.
+        render_camera: the robosuite camera :meth:`render` uses by default (``frontview``,
+            ``sideview``, ``agentview``, ``birdview``, ...).
         render_size: ``(height, width)`` of rendered frames.
         seed: seeds robosuite's generator at construction (cube size, placements, joint noise).
         **task_kwargs: passed to the robosuite environment (e.g. ``reward_shaping=True`` for ``lift``).
@@ -90,7 +90,7 @@ class RobosuiteEnv(EnvBase):
         control_freq: int = 20,
         robot: str = "Panda",
         terminate_on_success: bool = False,
-        render_camera: str | None = None,
+        render_camera: str = "frontview",
         render_size: tuple[int, int] = (256, 256),
         seed: int | None = None,
         device=None,
@@ -109,7 +109,7 @@ class RobosuiteEnv(EnvBase):
             use_camera_obs=False,
             use_object_obs=True,
             has_renderer=False,
-            has_offscreen_renderer=render_camera is not None,
+            has_offscreen_renderer=False,
             control_freq=control_freq,
             horizon=self.horizon,
             ignore_done=True,
@@ -200,12 +200,21 @@ class RobosuiteEnv(EnvBase):
         # robosuite's placement sampler and robot noise share the env's Generator object: reseed it in place.
         self._env.rng.bit_generator.state = np.random.default_rng(seed).bit_generator.state
 
-    def render(self, camera: str | None = None, size: tuple[int, int] | None = None) -> np.ndarray:
-        """The current scene as an ``(height, width, 3)`` uint8 image (needs ``render_camera``)."""
-        if self.render_camera is None:
-            raise RuntimeError("Rendering needs RobosuiteEnv(render_camera=...), e.g. 'frontview'.")
+    def render(
+        self, tensordict: TensorDictBase | None = None, *, camera: str | None = None, size: tuple[int, int] | None = None
+    ) -> np.ndarray:
+        """The current scene as an ``(height, width, 3)`` uint8 image. The simulation holds the state,
+        so ``tensordict`` is not needed (it is accepted so every drltg env renders as ``env.render(td)``).
+        The offscreen context is created on first use (``MUJOCO_GL=egl`` or ``osmesa`` on a headless host)."""
+        sim = self._env.sim
+        if sim._render_context_offscreen is None:
+            from robosuite.utils.binding_utils import MjRenderContextOffscreen
+
+            context = MjRenderContextOffscreen(sim, device_id=-1)
+            context.vopt.geomgroup[0] = 0  # collision geoms hidden, visual geoms shown (robosuite's default)
+            context.vopt.geomgroup[1] = 1
         height, width = size or self.render_size
-        image = self._env.sim.render(camera_name=camera or self.render_camera, height=height, width=width)
+        image = sim.render(camera_name=camera or self.render_camera, height=height, width=width)
         return np.ascontiguousarray(image[::-1])
 
     def close(self, *, raise_if_closed: bool = True):

@@ -1,0 +1,266 @@
+"""robosuite manipulation tasks: specs, observation layout, truncation, success checks, demonstrator,
+barrier, potentials, parallel workers, rendering and the video command.
+
+One env per task is shared by the whole module (building one takes ~2 s)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+pytest.importorskip("robosuite")
+
+from torchrl.envs import TransformedEnv  # noqa: E402
+from torchrl.envs.utils import check_env_specs, step_mdp  # noqa: E402
+
+from drltg.envs import get_task, make_env  # noqa: E402
+from drltg.envs.robosuite import (  # noqa: E402
+    LAYOUT,
+    OBSERVABLES,
+    OBSERVATION_SIZE,
+    Carry,
+    Grasp,
+    Lift,
+    LiftPotential,
+    PickPlaceDemonstrator,
+    PlacePotential,
+    Reach,
+    RobosuiteEnv,
+    demonstrator_for,
+    potential_for,
+)
+from drltg.envs.robosuite.layout import TABLE_TOP_Z, TARGET_RADIUS, TARGET_XY  # noqa: E402
+from drltg.transforms import PotentialShaping  # noqa: E402
+
+TASKS = ("lift", "lift-place", "lift-place-barrier")
+
+
+@pytest.fixture(scope="module")
+def envs():
+    built = {task: RobosuiteEnv(task, seed=0) for task in TASKS}
+    yield built
+    for env in built.values():
+        env.close()
+
+
+def part(td, name):
+    return td["observation"][..., LAYOUT[name]]
+
+
+def drive(env, td, goal, steps, grip=1.0):
+    """Move the gripper towards ``goal`` (a position or a function of the TensorDict) for ``steps``."""
+    trajectory = []
+    for _ in range(steps):
+        target = torch.as_tensor(goal(td) if callable(goal) else goal, dtype=torch.float32)
+        action = torch.zeros(7)
+        action[:3] = ((target - part(td, "robot0_eef_pos")) / 0.05).clamp(-1, 1)
+        action[6] = grip
+        td = env.step(td.set("action", action))["next"]
+        trajectory.append(td.clone())
+    return td, trajectory
+
+
+@pytest.mark.parametrize("task", TASKS)
+def test_specs_pass_torchrl_checks(envs, task):
+    env = envs[task]
+    check_env_specs(env, seed=0)
+    assert env.observation_spec["observation"].shape == (OBSERVATION_SIZE,)
+    assert env.observation_spec["observation"].dtype == torch.float32
+    assert env.action_spec.shape == (7,)
+    assert torch.equal(env.action_spec.space.low, -torch.ones(7)) and torch.equal(env.action_spec.space.high, torch.ones(7))
+
+
+@pytest.mark.parametrize("task", TASKS)
+def test_observation_holds_each_listed_observable_once(envs, task):
+    env = envs[task]
+    td = env.reset()
+    raw = env.robosuite_env._get_observations(force_update=True)
+    assert list(env.layout) == list(OBSERVABLES) and not any(name.endswith("-state") for name in env.layout)
+    assert sum(np.size(raw[name]) for name in OBSERVABLES) == OBSERVATION_SIZE == 50
+    for name, where in env.layout.items():
+        assert td["observation"][where].numpy() == pytest.approx(np.ravel(raw[name]).astype(np.float32), abs=1e-6), name
+    cube, target = part(td, "cube_pos"), part(td, "target_pos")
+    assert torch.allclose(part(td, "gripper_to_cube_pos"), cube - part(td, "robot0_eef_pos"), atol=1e-6)
+    assert torch.allclose(part(td, "cube_to_target_pos"), target - cube, atol=1e-6)
+    assert target.tolist() == pytest.approx([*TARGET_XY, TABLE_TOP_Z + 0.002])
+    assert part(td, "cube_grasped").item() == 0.0 and part(td, "cube_lifted").item() == 0.0
+
+
+def test_horizon_is_a_truncation_not_a_termination(envs, monkeypatch):
+    env = envs["lift"]
+    monkeypatch.setattr(env, "horizon", 4)
+    td = env.rollout(10, break_when_any_done=True)
+    assert td.shape == (4,)
+    assert td["next", "step_count"].squeeze(-1).tolist() == [1, 2, 3, 4]
+    assert td["next", "truncated"].squeeze(-1).tolist() == [False, False, False, True]
+    assert not td["next", "terminated"].any()
+    assert torch.equal(td["next", "done"], td["next", "truncated"])
+    assert env.reset()["step_count"].item() == 0
+
+
+def test_set_seed_reproduces_and_varies_the_initial_state(envs):
+    env = envs["lift-place"]
+    env.set_seed(5)
+    a = env.reset()["observation"]
+    env.set_seed(5)
+    b = env.reset()["observation"]
+    env.set_seed(6)
+    c = env.reset()["observation"]
+    assert torch.equal(a, b)
+    assert not torch.allclose(a[LAYOUT["cube_pos"]], c[LAYOUT["cube_pos"]])
+
+
+@pytest.mark.parametrize("task", TASKS)
+@pytest.mark.parametrize("seed", [0, 1])
+def test_demonstrator_solves_the_task_and_reward_is_success(envs, task, seed):
+    env = envs[task]
+    env.set_seed(seed)
+    barrier = env.robosuite_env.barrier_pos() if task == "lift-place-barrier" else None
+    td = env.rollout(130, demonstrator_for(task), break_when_any_done=False)
+    success = td["next", "success"].squeeze(-1)
+    assert success.any(), "no success within 130 steps"
+    first = int(success.float().argmax())
+    assert success[first:].all(), "success is not kept once reached"
+    # sparse reward: 1 exactly on success steps (robosuite's Lift and drltg's place tasks alike)
+    assert torch.equal(td["next", "reward"].squeeze(-1), success.float())
+    if task != "lift":
+        assert (part(td["next"], "cube_grasped")[success] == 0).all(), "a held cube counted as placed"
+        assert (part(td["next"], "cube_lifted")[success] == 1).all()
+    if barrier is not None:
+        assert np.abs(env.robosuite_env.barrier_pos() - barrier).max() < 1e-3
+    phi = potential_for(task)(td["next", "observation"])
+    assert phi[0].item() < 0.2 and phi[-1].item() > 0.9
+
+
+def test_pushing_the_cube_onto_the_target_is_not_placing(envs):
+    env = envs["lift-place"]
+    rs = env.robosuite_env
+    env.set_seed(0)
+    td = env.reset()
+    start = part(td, "cube_pos").clone()
+    behind = lambda z: [start[0].item(), start[1].item() - 0.08, z]  # noqa: E731
+    td, _ = drive(env, td, behind(TABLE_TOP_Z + 0.10), 30)
+    td, _ = drive(env, td, behind(TABLE_TOP_Z + 0.025), 25)
+    push = lambda td: [part(td, "cube_pos")[0].item(), part(td, "cube_pos")[1].item() - 0.015, TABLE_TOP_Z + 0.025]  # noqa: E731
+    td, pushed = drive(env, td, push, 150)
+    td, backed_off = drive(env, td, lambda td: part(td, "robot0_eef_pos") + torch.tensor([0.0, -0.05, 0.05]), 15, grip=-1.0)
+    trajectory = pushed + backed_off
+    # the cube ended up on the disc: inside its radius, touching it, resting, not held ...
+    assert part(td, "cube_to_target_pos")[:2].norm().item() < TARGET_RADIUS
+    assert rs.check_contact(rs.cube, rs.target) and not rs.cube_grasped()
+    assert part(td, "cube_pos")[2].item() < TABLE_TOP_Z + 0.002 + rs.cube.size[2] + 0.005
+    # ... but it was never lifted, so no step counts as a success or earns reward
+    assert all(x["observation"][LAYOUT["cube_lifted"]].item() == 0.0 for x in trajectory)
+    assert not any(x["success"].item() or x["reward"].item() for x in trajectory)
+    # lifting is the only missing condition
+    rs._was_lifted = True
+    assert rs._check_success()
+
+
+def test_barrier_stays_put_when_the_arm_drives_into_it(envs):
+    env = envs["lift-place-barrier"]
+    rs = env.robosuite_env
+    env.set_seed(0)
+    td = env.reset()
+    start = rs.barrier_pos()
+    td, _ = drive(env, td, [0.08, 0.12, 0.95], 30)
+    td, _ = drive(env, td, [0.08, 0.12, TABLE_TOP_Z + 0.05], 25)
+    for _ in range(60):
+        td = env.step(td.set("action", torch.tensor([0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0])))["next"]
+    sim = rs.sim
+    touching = {
+        sim.model.geom_id2name(g)
+        for c in sim.data.contact[: sim.data.ncon]
+        for g in (c.geom1, c.geom2)
+        if "barrier" in str(sim.model.geom_id2name(c.geom1)) + str(sim.model.geom_id2name(c.geom2))
+    }
+    assert any(name.startswith("gripper0") for name in touching), "the arm never reached the barrier"
+    assert np.abs(rs.barrier_pos() - start).max() < 2e-3
+
+
+def test_potential_terms_match_hand_computed_values():
+    def approx(values):  # float32 arithmetic
+        return pytest.approx(values, abs=1e-5)
+
+    obs = torch.zeros(2, OBSERVATION_SIZE)
+    obs[:, LAYOUT["gripper_to_cube_pos"]] = torch.tensor([0.03, 0.04, 0.0])
+    obs[0, LAYOUT["cube_pos"]] = torch.tensor([0.0, 0.0, TABLE_TOP_Z + 0.031])
+    obs[1, LAYOUT["cube_pos"]] = torch.tensor([0.0, 0.0, TABLE_TOP_Z + 0.010])
+    obs[:, LAYOUT["cube_to_target_pos"]] = torch.tensor([0.3, 0.4, -0.5])
+    obs[0, LAYOUT["cube_grasped"]] = 1.0
+    obs[0, LAYOUT["cube_lifted"]] = 1.0
+    reach = 1 - math.tanh(10 * 0.05)
+    carry = 1 - math.tanh(5 * 0.5)
+    assert Reach()(obs).squeeze(-1).tolist() == approx([reach, reach])
+    assert Grasp()(obs).squeeze(-1).tolist() == [1.0, 0.0]
+    assert Lift()(obs).squeeze(-1).tolist() == approx([(0.031 - 0.022) / (0.04 - 0.022), 0.0])
+    assert Carry()(obs).squeeze(-1).tolist() == approx([carry, 0.0])  # not lifted: no credit
+    assert LiftPotential()(obs).squeeze(-1).tolist() == approx([(reach + 0.25 + 0.5) / 2.25, reach / 2.25])
+    assert PlacePotential()(obs).squeeze(-1).tolist() == approx([0.5 + 0.5 * carry, 0.1 * reach])
+    assert PlacePotential()(obs).shape == (2, 1)
+
+
+def test_shaped_reward_is_gamma_phi_next_minus_phi(envs):
+    env = TransformedEnv(envs["lift"], PotentialShaping(LiftPotential(), gamma=0.9))
+    env.set_seed(0)
+    td = env.rollout(3, demonstrator_for("lift"))
+    phi = LiftPotential()
+    expected = 0.9 * phi(td["next", "observation"]) - phi(td["observation"])
+    assert torch.allclose(td["next", "reward"] - td["next", "task_reward"], expected, atol=1e-6)
+    assert get_task("lift").potential({"task": "lift"}).__class__ is LiftPotential
+
+
+def test_demonstrator_is_a_function_of_the_observation_batch(envs):
+    env = envs["lift-place"]
+    env.set_seed(0)
+    rows = env.rollout(40, demonstrator_for("lift-place"))["observation"]
+    policy = PickPlaceDemonstrator(place=True)
+    batched = policy.act(rows)
+    assert batched.shape == (40, 7) and batched.abs().max() <= 1.0
+    assert torch.equal(batched[17], policy.act(rows[17]))
+    assert torch.equal(policy.act(rows.view(4, 10, -1)).view(40, 7), batched)
+
+
+def test_registered_pair_builds_two_parallel_workers():
+    env = make_env("lift-place", batch_size=(2,), seed=3)
+    try:
+        assert env.batch_size == (2,)
+        td = env.rollout(3, PickPlaceDemonstrator(place=True))
+        assert td.shape == (2, 3) and td["next", "observation"].shape == (2, 3, OBSERVATION_SIZE)
+        assert td["next", "step_count"][:, -1].squeeze(-1).tolist() == [3, 3]
+        cubes = td["observation"][:, 0, LAYOUT["cube_pos"]]
+        assert not torch.allclose(cubes[0], cubes[1]), "both workers got the same seed"
+    finally:
+        env.close()
+
+
+def _renderable_env():
+    env = RobosuiteEnv("lift", seed=0, render_size=(64, 64))
+    try:
+        env.render()
+    except Exception as err:  # no GL backend on this host
+        env.close()
+        pytest.skip(f"no offscreen GL backend for MuJoCo (MUJOCO_GL=egl or osmesa): {err}")
+    return env
+
+
+def test_render_writes_a_non_blank_frame_and_video_writes_files(tmp_path):
+    env = _renderable_env()
+    frame = env.render(env.reset())
+    env.close()
+    assert frame.shape == (64, 64, 3) and frame.dtype == np.uint8
+    assert frame.std() > 10 and len(np.unique(frame.reshape(-1, 3), axis=0)) > 50
+
+    from drltg.cli import main
+
+    assert main(["video", "demonstrator", "--task", "lift", "--out", str(tmp_path), "--max-steps", "3",
+                 "--size", "32", "--format", "gif", "--strip", "2"]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "lift-demonstrator-seed0-ep0-filmstrip.png",
+        "lift-demonstrator-seed0-ep0.gif",
+    ]
+    import imageio.v3 as iio
+
+    assert iio.imread(tmp_path / "lift-demonstrator-seed0-ep0.gif", index=None).shape == (4, 32, 32, 3)
