@@ -38,6 +38,7 @@ from drltg.agents import make_agent
 from drltg.config import dump
 from drltg.envs import make_env
 from drltg.errors import UsageError
+from drltg.fast import UpdateStep, sample_batches
 
 EVAL_COLUMNS = ["frames", "return_mean", "return_std", "episodes", "success_rate"]
 
@@ -260,6 +261,7 @@ def train(
     next_ckpt = (frames // cfg["checkpoint"]["every"] + 1) * cfg["checkpoint"]["every"]
     next_log = frames + cfg["log"]["every"]
     stats: dict[str, list[float]] = defaultdict(list)
+    update = UpdateStep(agent)
     start, start_frames = time.perf_counter(), frames
 
     for data in collector:
@@ -267,18 +269,11 @@ def train(
         frames += data.numel()
         if mixer is not None:
             mixer.set_progress(frames)
-        buffer.extend(data)
+        buffer.extend(data.select(*agent.loss.in_keys))  # only what the loss reads is stored
         _episode_stats(data, stats)
         if frames >= init_random:
-            for _ in range(opt["updates_per_batch"]):
-                update_actor = updates % agent.actor_delay == 0
-                losses = agent.loss(buffer.sample())
-                total = sum(v for k, v in losses.items() if k.startswith("loss_") and (update_actor or k != "loss_actor"))
-                agent.optimizer.zero_grad(set_to_none=True)
-                total.backward()
-                agent.optimizer.step()
-                if update_actor:
-                    agent.target_updater.step()
+            for batch in sample_batches(buffer, opt["updates_per_batch"]):
+                losses = update(batch, update_actor=updates % agent.actor_delay == 0)
                 updates += 1
                 for k, v in losses.items():
                     if v.numel() == 1:

@@ -1,0 +1,1 @@
+"""drltg's performance comparisons: ``python -m benchmarks [suite ...] [--device cpu|cuda] [--quick]``."""
