@@ -1,6 +1,7 @@
 """Task environments (TorchRL ``EnvBase``) and the registry of tasks and task pairs."""
 from drltg.envs.fourrooms import FourRoomsEnv
 from drltg.envs.gridrooms import GridFourRoomsEnv
+from drltg.envs.robosuite import RobosuiteEnv  # robosuite itself is imported when one is built
 from drltg.envs.registry import (
     PAIRS,
     TASKS,
@@ -16,6 +17,7 @@ from drltg.envs.registry import (
 __all__ = [
     "FourRoomsEnv",
     "GridFourRoomsEnv",
+    "RobosuiteEnv",
     "PAIRS",
     "TASKS",
     "PairSpec",
