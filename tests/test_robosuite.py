@@ -101,15 +101,25 @@ def test_horizon_is_a_truncation_not_a_termination(envs, monkeypatch):
 
 
 def test_set_seed_reproduces_and_varies_the_initial_state(envs):
-    env = envs["lift-place"]
+    env = envs["lift"]
     env.set_seed(5)
-    a = env.reset()["observation"]
-    env.set_seed(5)
-    b = env.reset()["observation"]
+    a = env.rollout(5, demonstrator_for("lift"))["next", "observation"]
     env.set_seed(6)
     c = env.reset()["observation"]
+    fresh = make_env("lift", seed=5)  # another env: same scene (cube size), same episode
+    b = fresh.rollout(5, demonstrator_for("lift"))["next", "observation"]
+    fresh.close()
     assert torch.equal(a, b)
-    assert not torch.allclose(a[LAYOUT["cube_pos"]], c[LAYOUT["cube_pos"]])
+    assert not torch.allclose(a[0, LAYOUT["cube_pos"]], c[LAYOUT["cube_pos"]])
+
+
+def test_terminate_on_success_ends_the_episode_as_terminated(envs, monkeypatch):
+    env = envs["lift"]
+    monkeypatch.setattr(env, "terminate_on_success", True)
+    env.set_seed(0)
+    td = env.rollout(100, demonstrator_for("lift"), break_when_any_done=True)
+    assert td["next", "success"][-1].item() and td["next", "terminated"][-1].item()
+    assert not td["next", "truncated"].any() and td["next", "success"].sum().item() == 1
 
 
 @pytest.mark.parametrize("task", TASKS)

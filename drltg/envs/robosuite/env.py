@@ -17,6 +17,7 @@ from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 from drltg.envs.robosuite.layout import OBSERVABLES, layout_of
+from drltg.errors import UsageError
 
 TASK_CLASSES = {
     "lift": "LiftWithTarget",
@@ -36,7 +37,7 @@ def _task_class(task):
     from robosuite.environments.base import REGISTERED_ENVS
 
     if task not in REGISTERED_ENVS:
-        raise ValueError(f"Unknown robosuite task {task!r}; known: {sorted(TASK_CLASSES)} and {sorted(REGISTERED_ENVS)}.")
+        raise UsageError(f"unknown robosuite task {task!r}; known: {', '.join([*TASK_CLASSES, *sorted(REGISTERED_ENVS)])}.")
     return REGISTERED_ENVS[task]
 
 
@@ -77,7 +78,9 @@ class RobosuiteEnv(EnvBase):
         render_camera: the robosuite camera :meth:`render` uses by default (``frontview``,
             ``sideview``, ``agentview``, ``birdview``, ...).
         render_size: ``(height, width)`` of rendered frames.
-        seed: seeds robosuite's generator at construction (cube size, placements, joint noise).
+        seed: seeds the episodes (cube placement and yaw, joint noise); ``None`` draws fresh entropy.
+            The scene itself is always built with seed 0, so the cube's size (robosuite samples it
+            once per model, 0.020-0.022 m) is the same in every env and worker.
         **task_kwargs: passed to the robosuite environment (e.g. ``reward_shaping=True`` for ``lift``).
     """
 
@@ -114,19 +117,18 @@ class RobosuiteEnv(EnvBase):
             horizon=self.horizon,
             ignore_done=True,
             hard_reset=False,
-            seed=seed,
+            seed=0,
             **task_kwargs,
         )
         self.observables = tuple(observables)
         raw = self._env.reset()
         missing = [name for name in self.observables if name not in raw]
         if missing:
-            raise ValueError(f"Task {task!r} has no observables {missing}; it has {sorted(raw)}.")
+            raise UsageError(f"task {task!r} has no observables {missing}; it has {', '.join(sorted(raw))}.")
         self.layout = layout_of({name: np.size(raw[name]) for name in self.observables})
         self._step_count = 0
         self._make_specs(sum(s.stop - s.start for s in self.layout.values()))
-        if seed is not None:
-            self.set_seed(seed)
+        self._set_seed(seed)
 
     @property
     def robosuite_env(self):
