@@ -31,8 +31,8 @@ By default the option choice is not rewarded for its entropy (maximum entropy ac
 SAC; the soft policy over options explores with a tuned temperature). With the bonus,
 :math:`V_\Omega \ge \max_o Q_\Omega`, so every switch pays :math:`\alpha_\Omega\mathcal H` and
 :math:`A_\Omega \le 0` everywhere: terminations learn to fire at every step and the per-step bonus
-inflates the values (measured on FourRooms with K = 4: mean termination probability 0.71 vs 0.09
-without the bonus after 30k frames).
+inflates the values (measured on ``fourrooms/northeast``, K = 4, 30k frames: the mean termination
+probability over training was 0.66 and 0.73 with the bonus, 0.14 to 0.39 without it, over 2 and 3 seeds).
 
 Value upon arrival in :math:`s'` with option :math:`o` still running, and the advantage of keeping it:
 
