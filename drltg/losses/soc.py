@@ -128,6 +128,18 @@ class SoftOptionCriticLoss(LossModule):
     only moves its own parameters, so their sum can be minimised with one optimizer. Use
     ``SoftUpdate(loss, tau=...)`` for the target critics; the termination needs no target copy
     (like SAC's actor, it is evaluated with its current parameters).
+
+    Examples:
+        >>> from torchrl.data import Bounded
+        >>> from drltg.modules import make_option_actor, make_option_policy, make_option_qvalue, make_termination
+        >>> spec, K = Bounded(-1.0, 1.0, (2,)), 4
+        >>> loss = SoftOptionCriticLoss(
+        ...     make_option_actor(spec, K, [64, 64], in_features=2),
+        ...     make_option_qvalue(K, [64, 64], in_features=2 + 2),
+        ...     make_termination(K, [64, 64], in_features=2),
+        ...     num_options=K, alpha_init=0.01, deliberation_cost=0.01)
+        >>> loss.make_value_estimator(gamma=0.99)
+        >>> policy = make_option_policy(loss)  # the collector's policy; the env needs option_transforms(K)
     """
 
     @dataclass
