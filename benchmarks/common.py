@@ -35,20 +35,25 @@ def interleaved(
     """Rate of each case in units per second: median over ``rounds`` interleaved chunks.
 
     A case is a callable that does one chunk of work and returns how many units (frames, updates)
-    it did. ``warmup`` chunks of every case run first and are not timed.
+    it did. ``warmup`` chunks of every case run first and are not timed. Besides the wall-clock rate,
+    on the CPU the rate per second of this process's CPU time (``cpu``) is reported: on a machine
+    shared with other work it moves far less with the load than the wall-clock rate does.
     """
     for _ in range(warmup):
         for run in cases.values():
             run()
     sync(device)
-    rates: dict[str, list[float]] = {name: [] for name in cases}
+    wall: dict[str, list[float]] = {name: [] for name in cases}
+    cpu: dict[str, list[float]] = {name: [] for name in cases}
     for _ in range(rounds):
         for name, run in cases.items():
-            start = time.perf_counter()
+            start, start_cpu = time.perf_counter(), time.process_time()
             units = run()
             sync(device)
-            rates[name].append(units / (time.perf_counter() - start))
-    return {name: summarize(r) for name, r in rates.items()}
+            wall[name].append(units / (time.perf_counter() - start))
+            cpu[name].append(units / max(time.process_time() - start_cpu, 1e-9))
+    on_cpu = device is None or torch.device(device).type == "cpu"
+    return {name: summarize(wall[name]) | ({"cpu": summarize(cpu[name])} if on_cpu else {}) for name in cases}
 
 
 def summarize(rates: list[float]) -> dict:
@@ -60,11 +65,25 @@ def summarize(rates: list[float]) -> dict:
     }
 
 
-def ratio(results: dict, a: str, b: str) -> float | None:
-    """Median rate of ``a`` over median rate of ``b`` (None when either is missing)."""
-    if a not in results or b not in results or not results[b]["median"]:
+def ratio(results: dict, a: str, b: str, clock: str = "wall") -> float | None:
+    """Median rate of ``a`` over median rate of ``b`` on the ``"wall"`` or ``"cpu"`` clock (None when
+    either is missing)."""
+    if a not in results or b not in results:
         return None
-    return round(results[a]["median"] / results[b]["median"], 3)
+    ra, rb = (results[a], results[b]) if clock == "wall" else (results[a].get("cpu"), results[b].get("cpu"))
+    if not ra or not rb or not rb["median"]:
+        return None
+    return round(ra["median"] / rb["median"], 3)
+
+
+def ratios(results: dict, pairs: list[tuple[str, str]]) -> dict:
+    """``{"a/b": {"wall": ..., "cpu": ...}}`` for each pair present in ``results``."""
+    out = {}
+    for a, b in pairs:
+        r = {clock: ratio(results, a, b, clock) for clock in ("wall", "cpu")}
+        if r["wall"] is not None:
+            out[f"{a}/{b}"] = {k: v for k, v in r.items() if v is not None}
+    return out
 
 
 def _cpu_model() -> str:

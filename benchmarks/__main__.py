@@ -1,0 +1,151 @@
+"""``python -m benchmarks [suite ...] [--device cpu|cuda] [--quick]``: run the comparisons, print one JSON
+object (machine, versions, rates, ratios, targets) and append it as one line to
+``benchmarks/results.jsonl``.
+
+Suites: ``env`` (FourRooms vs a NumPy reference), ``robosuite`` (wrapper overhead, ParallelEnv),
+``sac`` (update throughput vs TorchRL, plain PyTorch, Stable-Baselines3; SOC K=4), ``train`` (whole
+``drltg train`` runs), ``memory`` (1e6-transition replay buffer); all five by default. ``demo``
+(``drltg demo``, several minutes) runs only when named.
+"""
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+import traceback
+from pathlib import Path
+
+import torch
+
+from benchmarks.common import REPO, machine, versions
+
+DEFAULT = ("env", "robosuite", "sac", "train", "memory")
+
+
+def _suite(name: str):
+    if name == "env":
+        from benchmarks.env import run
+    elif name == "robosuite":
+        from benchmarks.robosuite import run
+    elif name == "sac":
+        from benchmarks.sac import run
+    elif name == "train":
+        from benchmarks.e2e import run_train as run
+    elif name == "memory":
+        from benchmarks.e2e import run_memory as run
+    else:
+        run = _demo
+    return run
+
+
+def _demo(device: str = "cpu", quick: bool = False) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        start = time.perf_counter()
+        done = subprocess.run([sys.executable, "-m", "drltg.cli", "demo", "--out", tmp], cwd=REPO,
+                              capture_output=True, text=True)
+        wall = time.perf_counter() - start
+    return {"command": "drltg demo", "wall_s": round(wall, 1), "returncode": done.returncode}
+
+
+def _met(value, target, at_least=True):
+    return None if value is None else (value >= target if at_least else value <= target)
+
+
+def summarize(suites: dict, device: str) -> dict:
+    """The figures the targets speak of, each with its target and whether this run met it."""
+    clock = "cpu" if device == "cpu" else "wall"
+    out = {}
+    env = suites.get("env", {})
+    for key, r in env.get("ratios", {}).items():
+        batch = int(key.split("/")[0].rsplit("_", 1)[1])
+        if batch >= 1024:
+            out[f"env: drltg batch {batch} / NumPy reference"] = {"value": r, "target": ">= 100", "met": _met(r, 100)}
+    rs = suites.get("robosuite", {}).get("ratios", {})
+    if "drltg/raw" in rs:
+        v = rs["drltg/raw"]["wall"]
+        out["robosuite: RobosuiteEnv / raw robosuite"] = {"value": v, "target": ">= 0.9", "met": _met(v, 0.9)}
+    if "parallel_2/parallel_1" in rs:
+        v = rs["parallel_2/parallel_1"]["wall"]
+        out["robosuite: ParallelEnv 2 workers / 1 worker"] = {"value": v, "target": ">= 1.6", "met": _met(v, 1.6)}
+    sac = suites.get("sac", {}).get("ratios", {})
+    best = "drltg_cudagraphs" if "drltg_cudagraphs/plain" in sac else "drltg"
+    for other, target in (("plain", 1.0), ("torchrl", 2.0), ("sb3", 2.0)):
+        key = f"{best}/{other}"
+        if key in sac:
+            v = sac[key].get(clock, sac[key]["wall"])
+            out[f"sac: {key} updates/s ({clock} clock)"] = {"value": v, "target": f">= {target}", "met": _met(v, target)}
+    train = suites.get("train", {}).get("fourrooms")
+    if train:
+        out["train: fourrooms speed-up over the reference step"] = {"value": train["speedup_vs_reference_step"]}
+    mem = suites.get("memory", {}).get("loss_keys")
+    if mem:
+        out["memory: replay RSS growth / raw bytes"] = {"value": mem["ratio"], "target": "<= 1.3", "met": _met(mem["ratio"], 1.3, False)}
+    return out
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.split("\n\n")[0])
+    parser.add_argument("suites", nargs="*", metavar="suite",
+                        help=f"any of {', '.join(DEFAULT)}, demo (default: all but demo)")
+    parser.add_argument("--device", default="cpu", help="cpu or cuda (default cpu)")
+    parser.add_argument("--quick", action="store_true", help="a smoke run of about a minute")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1, as drltg train)")
+    parser.add_argument("--results", type=Path, default=REPO / "benchmarks" / "results.jsonl",
+                        help="JSON-lines file the run is appended to")
+    parser.add_argument("--no-save", action="store_true", help="print only; append nothing")
+    args = parser.parse_args(argv)
+    unknown = sorted(set(args.suites) - {*DEFAULT, "demo"})
+    if unknown:
+        parser.error(f"unknown suite(s) {', '.join(unknown)}; choose from {', '.join(DEFAULT)}, demo.")
+    if args.device.startswith("cuda") and not torch.cuda.is_available():
+        parser.error("--device cuda needs a CUDA build of torch and a visible GPU.")
+    torch.set_num_threads(args.threads)
+    suites = args.suites or list(DEFAULT)
+    record = {
+        "time": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "command": "python -m benchmarks " + " ".join(argv if argv is not None else sys.argv[1:]),
+        "quick": args.quick,
+        "machine": machine(args.device),
+        "versions": versions(),
+        "note": "indicative figures: other work may share this machine; see machine.loadavg and each case's cpu-clock rate",
+        "suites": {},
+    }
+    start = time.perf_counter()
+    sys.stdout.flush()
+    stdout = os.dup(1)
+    os.dup2(2, 1)  # libraries and worker processes print to stdout: only the JSON goes there
+    try:
+        _run_suites(suites, args, record)
+    finally:
+        sys.stdout.flush()
+        os.dup2(stdout, 1)
+        os.close(stdout)
+    record["seconds"] = round(time.perf_counter() - start, 1)
+    record["loadavg_after"] = [round(x, 2) for x in os.getloadavg()]
+    record["summary"] = summarize(record["suites"], "cpu" if not args.device.startswith("cuda") else "cuda")
+    print(json.dumps(record, indent=1))
+    if not args.no_save:
+        args.results.parent.mkdir(parents=True, exist_ok=True)
+        with open(args.results, "a") as f:
+            f.write(json.dumps(record) + "\n")
+    return 0
+
+
+def _run_suites(suites: list[str], args: argparse.Namespace, record: dict) -> None:
+    for name in suites:
+        print(f"[benchmarks] {name} ...", file=sys.stderr, flush=True)
+        t = time.perf_counter()
+        try:
+            record["suites"][name] = _suite(name)(device=args.device, quick=args.quick)
+        except Exception as err:  # one broken suite must not lose the others' figures
+            record["suites"][name] = {"error": f"{type(err).__name__}: {err}", "traceback": traceback.format_exc(limit=3)}
+        record["suites"][name]["seconds"] = round(time.perf_counter() - t, 1)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

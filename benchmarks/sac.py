@@ -1,0 +1,261 @@
+"""Suite ``sac``: SAC gradient updates per second on the same work, side by side.
+
+Batch 256, Lift-sized transitions (observation 50, action 7), actor and twin critics of 2x256 ReLU
+layers, Adam lr 3e-4, gamma 0.99, tau 0.005, learned temperature from 1.0, target entropy -7, one
+update = critic + actor + temperature step and a soft target update. Every learner samples from a
+replay buffer holding the same 20k random transitions. Cases:
+
+* ``drltg``: the training loop's step (``drltg.fast.UpdateStep`` on the SAC agent of
+  ``drltg.agents.make_sac_agent``, batches drawn with ``sample_batches``);
+* ``torchrl``: TorchRL's stock ``SACLoss`` step as the sota example writes it (``buffer.sample()``,
+  ``loss``, ``backward``, ``Adam.step``, ``SoftUpdate.step``);
+* ``plain``: a minimal hand-written PyTorch SAC update (one backward for all three losses), the
+  practical bound of eager PyTorch;
+* ``sb3``: Stable-Baselines3 ``SAC.train(gradient_steps, batch_size=256)`` on a filled buffer;
+* ``soc_k4``: drltg's soft option-critic with 4 options (same networks, per-option heads);
+* on CUDA also ``drltg_cudagraphs``: the drltg step captured in a CUDA graph.
+"""
+from __future__ import annotations
+
+import math
+
+import torch
+import torch.nn.functional as F
+from tensordict import TensorDict
+from torch import nn
+from torchrl.data import Bounded, Composite, LazyTensorStorage, ReplayBuffer, Unbounded
+from torchrl.envs import EnvBase
+
+from benchmarks.common import interleaved, ratios
+from drltg import config as config_lib
+from drltg.agents import make_sac_agent
+from drltg.fast import UpdateStep, sample_batches
+
+OBS, ACT, HIDDEN, BATCH, N_DATA = 50, 7, 256, 256, 20_000
+LR, GAMMA, TAU = 3e-4, 0.99, 0.005
+
+
+class SpecEnv(EnvBase):
+    """Specs only (observation 50, action 7): what the agent builders read."""
+
+    def __init__(self, device="cpu"):
+        super().__init__(device=device, batch_size=torch.Size([]))
+        self.observation_spec = Composite(observation=Unbounded((OBS,), device=device), device=device)
+        self.action_spec = Bounded(-1.0, 1.0, (ACT,), device=device)
+        self.reward_spec = Unbounded((1,), device=device)
+
+    def _reset(self, tensordict):
+        raise NotImplementedError
+
+    def _step(self, tensordict):
+        raise NotImplementedError
+
+    def _set_seed(self, seed):
+        pass
+
+
+def transitions(n: int = N_DATA, seed: int = 0, options: int = 0) -> TensorDict:
+    g = torch.Generator().manual_seed(seed)
+    terminated = torch.rand(n, 1, generator=g) < 0.01
+    td = TensorDict(
+        {
+            "observation": torch.randn(n, OBS, generator=g),
+            "action": torch.rand(n, ACT, generator=g) * 2 - 1,
+            "next": {
+                "observation": torch.randn(n, OBS, generator=g),
+                "reward": torch.randn(n, 1, generator=g),
+                "terminated": terminated,
+                "done": terminated.clone(),
+            },
+        },
+        [n],
+    )
+    if options:
+        td["option"] = torch.randint(0, options, (n, 1), generator=g)
+    return td
+
+
+def _buffer(data: TensorDict, device: str) -> ReplayBuffer:
+    buffer = ReplayBuffer(storage=LazyTensorStorage(len(data), device=device), batch_size=BATCH)
+    buffer.extend(data.to(device))
+    return buffer
+
+
+def _config(**extra) -> dict:
+    return config_lib.resolve({}, [f"network.hidden=[{HIDDEN},{HIDDEN}]"], **extra)
+
+
+def drltg_case(device: str, chunk: int, cudagraphs: bool = False):
+    torch.manual_seed(0)
+    agent = make_sac_agent(SpecEnv(device), _config(device=device))
+    step = UpdateStep(agent, cudagraphs=cudagraphs)
+    buffer = _buffer(transitions(), device)
+
+    def run() -> int:
+        for batch in sample_batches(buffer, chunk):
+            step(batch)
+        return chunk
+
+    return run
+
+
+def torchrl_case(device: str, chunk: int):
+    torch.manual_seed(0)
+    agent = make_sac_agent(SpecEnv(device), _config(device=device))
+    loss, updater = agent.loss, agent.target_updater
+    optimizer = torch.optim.Adam(loss.parameters(), lr=LR)
+    buffer = _buffer(transitions(), device)
+
+    def run() -> int:
+        for _ in range(chunk):
+            out = loss(buffer.sample())
+            (out["loss_actor"] + out["loss_qvalue"] + out["loss_alpha"]).backward()
+            optimizer.step()
+            optimizer.zero_grad(set_to_none=True)
+            updater.step()
+        return chunk
+
+    return run
+
+
+class PlainSAC(nn.Module):
+    """SAC in plain PyTorch, written the direct way: tanh-Gaussian actor, two critics, target
+    critics, learned temperature, one optimizer and one backward per update."""
+
+    def __init__(self, device: str):
+        super().__init__()
+
+        def mlp(i, o):
+            return nn.Sequential(nn.Linear(i, HIDDEN), nn.ReLU(), nn.Linear(HIDDEN, HIDDEN), nn.ReLU(), nn.Linear(HIDDEN, o))
+
+        self.actor = mlp(OBS, 2 * ACT).to(device)
+        self.q = nn.ModuleList([mlp(OBS + ACT, 1) for _ in range(2)]).to(device)
+        self.q_target = nn.ModuleList([mlp(OBS + ACT, 1) for _ in range(2)]).to(device)
+        self.q_target.load_state_dict(self.q.state_dict())
+        self.q_target.requires_grad_(False)
+        self.log_alpha = nn.Parameter(torch.zeros((), device=device))
+        self.optimizer = torch.optim.Adam([*self.actor.parameters(), *self.q.parameters(), self.log_alpha], lr=LR)
+
+    def policy(self, obs):
+        loc, pre_scale = self.actor(obs).chunk(2, -1)
+        scale = F.softplus(pre_scale + 0.5413) + 1e-4
+        u = loc + scale * torch.randn_like(loc)
+        log_prob = (-0.5 * ((u - loc) / scale) ** 2 - scale.log() - 0.5 * math.log(2 * math.pi)).sum(-1)
+        log_prob = log_prob - (2 * (math.log(2) - u - F.softplus(-2 * u))).sum(-1)
+        return torch.tanh(u), log_prob
+
+    @staticmethod
+    def value(nets, obs, action):
+        x = torch.cat([obs, action], -1)
+        return torch.min(nets[0](x), nets[1](x)).squeeze(-1)
+
+    def update(self, b) -> None:
+        obs, action, nxt = b["observation"], b["action"], b["next"]
+        alpha = self.log_alpha.exp().detach()
+        with torch.no_grad():
+            next_action, next_log_prob = self.policy(nxt["observation"])
+            next_value = self.value(self.q_target, nxt["observation"], next_action) - alpha * next_log_prob
+            y = nxt["reward"].squeeze(-1) + GAMMA * (~nxt["terminated"].squeeze(-1)) * next_value
+        x = torch.cat([obs, action], -1)
+        q_loss = sum(F.mse_loss(q(x).squeeze(-1), y) for q in self.q)
+        new_action, log_prob = self.policy(obs)
+        self.q.requires_grad_(False)
+        actor_loss = (alpha * log_prob - self.value(self.q, obs, new_action)).mean()
+        self.q.requires_grad_(True)
+        alpha_loss = -(self.log_alpha * (log_prob.detach() - ACT)).mean()
+        self.optimizer.zero_grad(set_to_none=True)
+        (q_loss + actor_loss + alpha_loss).backward()
+        self.optimizer.step()
+        with torch.no_grad():
+            for p, t in zip(self.q.parameters(), self.q_target.parameters()):
+                t.lerp_(p, TAU)
+
+
+def plain_case(device: str, chunk: int):
+    torch.manual_seed(0)
+    sac = PlainSAC(device)
+    buffer = _buffer(transitions(), device)
+
+    def run() -> int:
+        for _ in range(chunk):
+            sac.update(buffer.sample())
+        return chunk
+
+    return run
+
+
+def sb3_case(device: str, chunk: int):
+    import gymnasium as gym
+    import numpy as np
+    from stable_baselines3 import SAC
+    from stable_baselines3.common.logger import Logger
+
+    class Box(gym.Env):
+        observation_space = gym.spaces.Box(-np.inf, np.inf, (OBS,), np.float32)
+        action_space = gym.spaces.Box(-1.0, 1.0, (ACT,), np.float32)
+
+    model = SAC(
+        "MlpPolicy", Box(), learning_rate=LR, buffer_size=N_DATA, learning_starts=0, batch_size=BATCH, tau=TAU,
+        gamma=GAMMA, policy_kwargs={"net_arch": [HIDDEN, HIDDEN]}, device=device, seed=0,
+    )
+    model.set_logger(Logger(None, []))
+    data, rb = transitions(), model.replay_buffer
+    rb.observations[:, 0] = data["observation"].numpy()
+    rb.next_observations[:, 0] = data["next", "observation"].numpy()
+    rb.actions[:, 0] = data["action"].numpy()
+    rb.rewards[:, 0] = data["next", "reward"].squeeze(-1).numpy()
+    rb.dones[:, 0] = data["next", "terminated"].squeeze(-1).numpy()
+    rb.full = True
+
+    def run() -> int:
+        model.train(gradient_steps=chunk, batch_size=BATCH)
+        return chunk
+
+    return run
+
+
+def soc_case(device: str, chunk: int, options: int = 4):
+    from drltg.losses.soc import make_soc_agent
+
+    torch.manual_seed(0)
+    agent = make_soc_agent(SpecEnv(device), _config(algo="soc", device=device) | {"soc": {"num_options": options}})
+    step = UpdateStep(agent)
+    buffer = _buffer(transitions(options=options), device)
+
+    def run() -> int:
+        for batch in sample_batches(buffer, chunk):
+            step(batch)
+        return chunk
+
+    return run
+
+
+def run(device: str = "cpu", quick: bool = False) -> dict:
+    chunk, rounds = (8, 3) if quick else (16, 7)
+    cases = {
+        "drltg": drltg_case(device, chunk),
+        "torchrl": torchrl_case(device, chunk),
+        "plain": plain_case(device, chunk),
+    }
+    if device.startswith("cuda"):
+        cases["drltg_cudagraphs"] = drltg_case(device, chunk, cudagraphs=True)
+    missing = {}
+    try:
+        cases["sb3"] = sb3_case(device, chunk)
+    except ImportError as err:
+        missing["sb3"] = f"not installed ({err.name}); pip install -e '.[bench]'"
+    try:
+        cases["soc_k4"] = soc_case(device, max(chunk // 4, 2))
+    except ImportError as err:
+        missing["soc_k4"] = f"drltg.losses.soc not importable ({err})"
+    results = interleaved(cases, rounds=rounds, warmup=1, device=device)
+    pairs = [("drltg", "plain"), ("drltg", "torchrl"), ("drltg", "sb3"), ("torchrl", "plain"), ("sb3", "plain"),
+             ("drltg_cudagraphs", "plain"), ("drltg_cudagraphs", "torchrl"), ("soc_k4", "drltg")]
+    return {
+        "unit": "updates/s",
+        "work": f"batch {BATCH}, obs {OBS}, act {ACT}, 2x{HIDDEN} actor and twin critics, Adam {LR}",
+        "rates": results,
+        "ratios": ratios(results, pairs),
+        "missing": missing,
+        "target": "drltg >= 1.0x plain and >= 2x torchrl and sb3",
+    }
