@@ -237,9 +237,14 @@ def run(device: str = "cpu", quick: bool = False) -> dict:
         "torchrl": torchrl_case(device, chunk),
         "plain": plain_case(device, chunk),
     }
-    if device.startswith("cuda"):
-        cases["drltg_cudagraphs"] = drltg_case(device, chunk, cudagraphs=True)
     missing = {}
+    if device.startswith("cuda"):
+        try:
+            case = drltg_case(device, chunk, cudagraphs=True)
+            case()  # capture now: a failure is reported, the other cases still run
+            cases["drltg_cudagraphs"] = case
+        except Exception as err:  # noqa: BLE001
+            missing["drltg_cudagraphs"] = f"{type(err).__name__}: {err}"
     try:
         cases["sb3"] = sb3_case(device, chunk)
     except ImportError as err:

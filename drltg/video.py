@@ -52,7 +52,8 @@ def _policy_and_env(args):
         try:
             policy = demonstrator_for(args.task)
         except ValueError:
-            raise UsageError(f"the demonstrator solves lift, lift-place and lift-place-barrier, not {args.task!r}.") from None
+            known = "lift, lift-place and lift-place-barrier"
+            raise UsageError(f"the demonstrator solves {known}, not {args.task!r}.") from None
         env = make_env(args.task, seed=args.seed)
         return policy, env, env, "demonstrator", args.task
 

@@ -13,7 +13,7 @@ import torch
 pytest.importorskip("robosuite")
 
 from torchrl.envs import TransformedEnv  # noqa: E402
-from torchrl.envs.utils import check_env_specs, step_mdp  # noqa: E402
+from torchrl.envs.utils import check_env_specs  # noqa: E402
 
 from drltg.envs import get_task, make_env  # noqa: E402
 from drltg.envs.robosuite import (  # noqa: E402
@@ -22,7 +22,7 @@ from drltg.envs.robosuite import (  # noqa: E402
     OBSERVATION_SIZE,
     Carry,
     Grasp,
-    Lift,
+    LiftHeight,
     LiftPotential,
     PickPlaceDemonstrator,
     PlacePotential,
@@ -69,7 +69,8 @@ def test_specs_pass_torchrl_checks(envs, task):
     assert env.observation_spec["observation"].shape == (OBSERVATION_SIZE,)
     assert env.observation_spec["observation"].dtype == torch.float32
     assert env.action_spec.shape == (7,)
-    assert torch.equal(env.action_spec.space.low, -torch.ones(7)) and torch.equal(env.action_spec.space.high, torch.ones(7))
+    assert torch.equal(env.action_spec.space.low, -torch.ones(7))
+    assert torch.equal(env.action_spec.space.high, torch.ones(7))
 
 
 @pytest.mark.parametrize("task", TASKS)
@@ -149,13 +150,17 @@ def test_pushing_the_cube_onto_the_target_is_not_placing(envs):
     rs = env.robosuite_env
     env.set_seed(0)
     td = env.reset()
-    start = part(td, "cube_pos").clone()
-    behind = lambda z: [start[0].item(), start[1].item() - 0.08, z]  # noqa: E731
-    td, _ = drive(env, td, behind(TABLE_TOP_Z + 0.10), 30)
-    td, _ = drive(env, td, behind(TABLE_TOP_Z + 0.025), 25)
-    push = lambda td: [part(td, "cube_pos")[0].item(), part(td, "cube_pos")[1].item() - 0.015, TABLE_TOP_Z + 0.025]  # noqa: E731
+    x, y, _ = part(td, "cube_pos").tolist()
+    td, _ = drive(env, td, [x, y - 0.08, TABLE_TOP_Z + 0.10], 30)  # above the table, behind the cube
+    td, _ = drive(env, td, [x, y - 0.08, TABLE_TOP_Z + 0.025], 25)  # down to the table
+
+    def push(td):  # aim just past the cube's near face, so the closed fingers shove it along +y
+        x, y, _ = part(td, "cube_pos").tolist()
+        return [x, y - 0.015, TABLE_TOP_Z + 0.025]
+
     td, pushed = drive(env, td, push, 150)
-    td, backed_off = drive(env, td, lambda td: part(td, "robot0_eef_pos") + torch.tensor([0.0, -0.05, 0.05]), 15, grip=-1.0)
+    back_off = torch.tensor([0.0, -0.05, 0.05])
+    td, backed_off = drive(env, td, lambda td: part(td, "robot0_eef_pos") + back_off, 15, grip=-1.0)
     trajectory = pushed + backed_off
     # the cube ended up on the disc: inside its radius, touching it, resting, not held ...
     assert part(td, "cube_to_target_pos")[:2].norm().item() < TARGET_RADIUS
@@ -205,7 +210,7 @@ def test_potential_terms_match_hand_computed_values():
     carry = 1 - math.tanh(5 * 0.5)
     assert Reach()(obs).squeeze(-1).tolist() == approx([reach, reach])
     assert Grasp()(obs).squeeze(-1).tolist() == [1.0, 0.0]
-    assert Lift()(obs).squeeze(-1).tolist() == approx([(0.031 - 0.022) / (0.04 - 0.022), 0.0])
+    assert LiftHeight()(obs).squeeze(-1).tolist() == approx([(0.031 - 0.022) / (0.04 - 0.022), 0.0])
     assert Carry()(obs).squeeze(-1).tolist() == approx([carry, 0.0])  # not lifted: no credit
     assert LiftPotential()(obs).squeeze(-1).tolist() == approx([(reach + 0.25 + 0.5) / 2.25, reach / 2.25])
     assert PlacePotential()(obs).squeeze(-1).tolist() == approx([0.5 + 0.5 * carry, 0.1 * reach])

@@ -8,7 +8,7 @@ from drltg.envs.robosuite.layout import LAYOUT, OBSERVABLES, OBSERVATION_SIZE
 from drltg.envs.robosuite.potentials import (
     Carry,
     Grasp,
-    Lift,
+    LiftHeight,
     LiftPotential,
     PlacePotential,
     Reach,
@@ -19,7 +19,7 @@ __all__ = [
     "Carry",
     "Grasp",
     "LAYOUT",
-    "Lift",
+    "LiftHeight",
     "LiftPotential",
     "OBSERVABLES",
     "OBSERVATION_SIZE",

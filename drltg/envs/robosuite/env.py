@@ -37,7 +37,8 @@ def _task_class(task):
     from robosuite.environments.base import REGISTERED_ENVS
 
     if task not in REGISTERED_ENVS:
-        raise UsageError(f"unknown robosuite task {task!r}; known: {', '.join([*TASK_CLASSES, *sorted(REGISTERED_ENVS)])}.")
+        known = ", ".join([*TASK_CLASSES, *sorted(REGISTERED_ENVS)])
+        raise UsageError(f"unknown robosuite task {task!r}; known: {known}.")
     return REGISTERED_ENVS[task]
 
 
@@ -150,9 +151,8 @@ class RobosuiteEnv(EnvBase):
             device=self.device,
         )
         self.reward_spec = Unbounded((1,), dtype=torch.float32, device=self.device)
-        self.done_spec = Composite(
-            {key: Categorical(2, (1,), dtype=torch.bool, device=self.device) for key in ("done", "terminated", "truncated")}
-        )
+        flag = Categorical(2, (1,), dtype=torch.bool, device=self.device)
+        self.done_spec = Composite(done=flag.clone(), terminated=flag.clone(), truncated=flag.clone())
 
     def _observation(self, raw: dict) -> torch.Tensor:
         flat = np.concatenate([np.asarray(raw[name], dtype=np.float32).ravel() for name in self.observables])
@@ -203,7 +203,11 @@ class RobosuiteEnv(EnvBase):
         self._env.rng.bit_generator.state = np.random.default_rng(seed).bit_generator.state
 
     def render(
-        self, tensordict: TensorDictBase | None = None, *, camera: str | None = None, size: tuple[int, int] | None = None
+        self,
+        tensordict: TensorDictBase | None = None,
+        *,
+        camera: str | None = None,
+        size: tuple[int, int] | None = None,
     ) -> np.ndarray:
         """The current scene as an ``(height, width, 3)`` uint8 image. The simulation holds the state,
         so ``tensordict`` is not needed (it is accepted so every drltg env renders as ``env.render(td)``).

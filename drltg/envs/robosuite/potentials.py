@@ -6,17 +6,17 @@ The dense rewards of robosuite (reach, grasp, lift) become potentials ``Phi(s)``
 ``nn.Module`` with ``in_keys = ["observation"]``: called on the flat observation (drltg's manipulation
 layout, see ``layout.py``) it returns ``Phi`` of shape ``[*batch, 1]``. Terms lie in ``[0, 1]``:
 
-- ``Reach``:  ``1 - tanh(10 * |cube - gripper|)``
-- ``Grasp``:  ``1`` while both finger pads touch the cube
-- ``Lift``:   ``clip((z_cube - z_rest) / (height - z_rest), 0, 1)``, heights above the table top
-- ``Carry``:  ``lifted * (1 - tanh(5 * |xy_target - xy_cube|))``, zero until the cube has been lifted,
+- ``Reach``: ``1 - tanh(10 * |cube - gripper|)``
+- ``Grasp``: ``1`` while both finger pads touch the cube
+- ``LiftHeight``: ``clip((z_cube - z_rest) / (height - z_rest), 0, 1)``, heights above the table top
+- ``Carry``: ``lifted * (1 - tanh(5 * |xy_target - xy_cube|))``, zero until the cube has been lifted,
   so pushing the cube towards the target earns nothing
 
 and the task potentials combine them:
 
-- ``lift_potential``:  ``(Reach + 0.25 Grasp + Lift) / 2.25`` (robosuite Lift's dense reward terms,
-  with its success bonus replaced by lift progress);
-- ``place_potential``: ``max(0.1 Reach, 0.35 Grasp, Grasp * (0.35 + 0.15 Lift), 0.5 + 0.5 Carry)``
+- ``LiftPotential``: ``(Reach + 0.25 Grasp + LiftHeight) / 2.25`` (robosuite Lift's dense reward
+  terms, with its success bonus replaced by lift progress);
+- ``PlacePotential``: ``max(0.1 Reach, 0.35 Grasp, Grasp * (0.35 + 0.15 LiftHeight), 0.5 + 0.5 Carry)``
   where the last stage applies once the cube has been lifted: the staged form of robosuite's
   PickPlace reward, so that letting go of the cube on the target keeps ``Phi`` high.
 """
@@ -59,7 +59,7 @@ class Grasp(ObservationPotential):
         return self.part(obs, "cube_grasped")
 
 
-class Lift(ObservationPotential):
+class LiftHeight(ObservationPotential):
     """Lift progress: 0 with the cube resting on the table, 1 with its centre ``height`` above the table."""
 
     def __init__(self, height: float = LIFT_MARGIN, **kwargs):
@@ -86,23 +86,23 @@ class Carry(ObservationPotential):
 
 
 class LiftPotential(ObservationPotential):
-    """``(Reach + 0.25 Grasp + Lift) / 2.25``, in ``[0, 1]``."""
+    """``(Reach + 0.25 Grasp + LiftHeight) / 2.25``, in ``[0, 1]``."""
 
     def __init__(self, height: float = LIFT_MARGIN, **kwargs):
         super().__init__(**kwargs)
-        self.reach, self.grasp, self.lift = Reach(**kwargs), Grasp(**kwargs), Lift(height, **kwargs)
+        self.reach, self.grasp, self.lift = Reach(**kwargs), Grasp(**kwargs), LiftHeight(height, **kwargs)
 
     def forward(self, obs):
         return (self.reach(obs) + 0.25 * self.grasp(obs) + self.lift(obs)) / 2.25
 
 
 class PlacePotential(ObservationPotential):
-    """``max(0.1 Reach, 0.35 Grasp, Grasp * (0.35 + 0.15 Lift), lifted * (0.5 + 0.5 Carry))``, in ``[0, 1]``."""
+    """``max(0.1 Reach, 0.35 Grasp, Grasp * (0.35 + 0.15 LiftHeight), lifted * (0.5 + 0.5 Carry))``, in ``[0, 1]``."""
 
     def __init__(self, height: float = LIFT_MARGIN, **kwargs):
         super().__init__(**kwargs)
         self.reach, self.grasp = Reach(**kwargs), Grasp(**kwargs)
-        self.lift, self.carry = Lift(height, **kwargs), Carry(**kwargs)
+        self.lift, self.carry = LiftHeight(height, **kwargs), Carry(**kwargs)
 
     def forward(self, obs):
         grasped = self.grasp(obs)

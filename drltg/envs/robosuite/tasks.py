@@ -45,6 +45,7 @@ from drltg.envs.robosuite.layout import (
     TARGET_RADIUS,
     TARGET_XY,
 )
+from drltg.errors import UsageError
 
 REST_TOLERANCE = 0.005
 """How far above resting height the cube centre may be and still count as resting on the disc."""
@@ -113,9 +114,9 @@ class LiftPlace(LiftWithTarget):
 
     def __init__(self, *args, reward_shaping: bool = False, **kwargs):
         if reward_shaping:
-            raise ValueError(
-                "LiftPlace has only the sparse success reward; shape it with PotentialShaping and "
-                "drltg.envs.robosuite.potentials instead."
+            raise UsageError(
+                "the place tasks have only the sparse success reward; shape it with PotentialShaping "
+                "(transfer.method=reward-shaping) and drltg.envs.robosuite.potentials instead."
             )
         super().__init__(*args, **kwargs)
 
