@@ -39,6 +39,17 @@ DEFAULTS: dict[str, Any] = {
     "network": {"hidden": [256, 256]},
     "sac": {"alpha_init": 1.0, "fixed_alpha": False, "target_entropy": "auto"},
     "td3": {"exploration_noise": 0.1, "policy_noise": 0.2, "noise_clip": 0.5, "policy_delay": 2},
+    # soft option-critic (drltg.losses.soc); the action temperature comes from "sac"
+    "soc": {
+        "num_options": 4,
+        "option_policy": "soft",  # soft (softmax of Q_Omega / alpha_Omega) | egreedy
+        "option_alpha_init": None,  # None: sac.alpha_init
+        "fixed_option_alpha": False,
+        "option_target_entropy": "auto",  # 0.5 * log(num_options)
+        "option_epsilon": 0.1,  # egreedy only
+        "deliberation_cost": 0.01,  # xi > 0 keeps options running
+        "option_entropy_bonus": False,  # soft policy: the option choice's entropy enters V_Omega
+    },
     "eval": {"every": 5_000, "episodes": 16},
     "checkpoint": {"every": 10_000},
     "log": {"tensorboard": True, "every": 1_000},

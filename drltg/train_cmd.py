@@ -11,6 +11,7 @@ from drltg.errors import UsageError
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("task", nargs="?", help="registered task name (see `drltg tasks`)")
     p.add_argument("--algo", help="learning algorithm: sac (discrete SAC on discrete tasks), td3, ...")
+    p.add_argument("--options", type=int, metavar="K", help="number of options for --algo soc (soc.num_options)")
     p.add_argument("--frames", type=int, help="environment frames to train for")
     p.add_argument("--seed", type=int, help="random seed (envs, networks, sampling)")
     p.add_argument("--run-dir", type=Path, help="output run directory (default: runs/<task>/<algo>-seed<seed>)")
@@ -34,8 +35,11 @@ def run(args: argparse.Namespace) -> int:
         base = {}
     if args.task is None and "task" not in base:
         raise UsageError("name a task (see `drltg tasks`) or pass --config.")
+    if args.options is not None and (args.algo or base.get("algo")) != "soc":
+        raise UsageError("--options sets the number of options of the soft option-critic; add --algo soc.")
+    explicit = {"soc.num_options": args.options} if args.options is not None else {}
     cfg = config_lib.resolve(
-        base, args.overrides, task=args.task, algo=args.algo, frames=args.frames, seed=args.seed
+        base, args.overrides, task=args.task, algo=args.algo, frames=args.frames, seed=args.seed, **explicit
     )
     run_dir = args.run_dir or Path("runs") / cfg["task"].replace("/", "-") / f"{cfg['algo']}-seed{cfg['seed']}"
     run_dir = train(cfg, run_dir, resume=args.resume, progress=not args.no_progress)

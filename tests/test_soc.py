@@ -4,6 +4,7 @@ import math
 
 import pytest
 import torch
+import yaml
 from tensordict import TensorDict
 from tensordict.nn import NormalParamExtractor, TensorDictModule
 from torch import nn
@@ -375,12 +376,22 @@ def test_soc_agent_trains_in_the_training_loop(tmp_path):
         "collector.init_random_frames=128", "optim.updates_per_batch=1", "buffer.batch_size=32",
         "eval.every=256", "eval.episodes=4", "checkpoint.every=256", "log.every=128", "log.tensorboard=false",
     ]
-    cfg = config_lib.resolve({}, tiny, task="fourrooms/northeast", algo="soc", frames=256, seed=0)
-    cfg["soc"] = {"num_options": 2}
+    cfg = config_lib.resolve({}, [*tiny, "soc.num_options=2"], task="fourrooms/northeast", algo="soc", frames=256)
     run = train(cfg, tmp_path / "run", progress=False)
     assert [r["frames"] for r in read_eval_csv(run / "eval.csv")] == [0, 256]
     state = torch.load(run / "checkpoints" / "last.pt", weights_only=False)["loss"]
     assert "log_option_alpha" in state and any(k.startswith("termination_network_params") for k in state)
+    assert state["termination_network_params.module.net.4.weight"].shape == (2, 16)  # one beta_o per option
+    assert yaml.safe_load((run / "config.yaml").read_text())["soc"]["num_options"] == 2
+
+
+def test_cli_options_sets_the_number_of_options(tmp_path, capsys):
+    from drltg.cli import main
+
+    assert main(["train", "fourrooms/northeast", "--algo", "td3", "--options", "2"]) == 2
+    assert "--algo soc" in capsys.readouterr().err
+    with pytest.raises(UsageError, match="unknown config key 'soc.num_option'"):
+        config_lib.resolve({}, ["soc.num_option=2"], task="fourrooms/northeast", algo="soc")
 
 
 def test_soc_agent_rejects_discrete_actions_and_unknown_options():

@@ -84,6 +84,7 @@ from torchrl.objectives.common import LossModule
 from torchrl.objectives.sac import compute_rsample_log_prob
 from torchrl.objectives.utils import _vmap_func, dispatch_value_estimator, distance_loss, ValueEstimators
 
+from drltg.config import DEFAULTS
 from drltg.errors import UsageError
 from drltg.modules.options import (
     make_option_actor,
@@ -462,16 +463,7 @@ class SoftOptionCriticLoss(LossModule):
         return TensorDict(out, batch_size=[])
 
 
-SOC_DEFAULTS = {
-    "num_options": 4,
-    "option_policy": "soft",  # soft | egreedy
-    "option_alpha_init": None,  # None: the action temperature's sac.alpha_init
-    "fixed_option_alpha": False,
-    "option_target_entropy": "auto",  # 0.5 * log(num_options)
-    "option_epsilon": 0.1,  # egreedy only
-    "deliberation_cost": 0.01,  # xi > 0 keeps options running (see the module docstring)
-    "option_entropy_bonus": False,  # soft policy: reward the option choice's entropy in V_Omega
-}
+SOC_DEFAULTS = DEFAULTS["soc"]
 """Options of ``make_soc_agent`` under ``cfg["soc"]``; the action temperature comes from ``cfg["sac"]``."""
 
 
