@@ -13,6 +13,7 @@ SUBCOMMANDS = {
     "train": ("drltg.train_cmd", "train one agent on one task (writes a run directory)"),
     "demo": ("drltg.demo", "a short FourRooms run on the built-in defaults"),
     "experiment": ("drltg.experiment", "train source, baseline and transfer runs over seeds, then report"),
+    "sweep": ("drltg.sweep", "many experiments from one YAML spec, on a local process pool or a Ray cluster"),
     "report": ("drltg.report", "transfer metrics, plots and tables from baseline vs transfer runs"),
     "video": ("drltg.video", "render episodes of a trained policy or the demonstrator to video and a filmstrip"),
 }

@@ -45,37 +45,64 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def plan(args: argparse.Namespace) -> list[tuple[str, dict, Path]]:
     """The experiment's runs as (role, config, run directory), sources first."""
+    return plan_runs(args.pair, args.method, algo=args.algo, seeds=args.seeds, seed=args.seed,
+                     frames=args.frames, source_frames=args.source_frames, overrides=args.overrides,
+                     out=args.out)
+
+
+def plan_runs(
+    pair: str,
+    method: str,
+    *,
+    frames: int,
+    out: Path,
+    shared: Path | None = None,
+    algo: str = "sac",
+    seeds: int = 5,
+    seed: int = 0,
+    source_frames: int | None = None,
+    base: dict | None = None,
+    overrides: list[str] = (),
+) -> list[tuple[str, dict, Path]]:
+    """One experiment's runs as (role, config, run directory), sources first.
+
+    Transfer runs go to ``out/transfer``, source and baseline runs to ``shared/{source,baseline}``
+    (``shared`` defaults to ``out``; several methods' experiments can share one). ``base`` holds
+    config keys (``{"eval.every": 1000}``) applied before the ``KEY=VALUE`` ``overrides``.
+    """
     from drltg.envs import PAIRS, TASKS
 
-    if args.seeds < 1 or args.frames < 1:
+    if seeds < 1 or frames < 1:
         raise UsageError("--seeds and --frames must be positive.")
-    if args.pair in PAIRS:
-        source_task, target_task = PAIRS[args.pair].source, PAIRS[args.pair].target
-    elif args.method == "reward-shaping" and args.pair in TASKS:
-        source_task, target_task = None, args.pair
+    if pair in PAIRS:
+        source_task, target_task = PAIRS[pair].source, PAIRS[pair].target
+    elif method == "reward-shaping" and pair in TASKS:
+        source_task, target_task = None, pair
     else:
         from drltg.envs import get_pair
 
-        get_pair(args.pair)  # raises the "unknown pair" sentence
-    out = args.out.expanduser().resolve()
+        get_pair(pair)  # raises the "unknown pair" sentence
+    out = Path(out).expanduser().resolve()
+    shared = out if shared is None else Path(shared).expanduser().resolve()
     runs = []
-    for i in range(args.seeds):
-        seed = args.seed + 100 * i
+    for i in range(seeds):
+        seed_i = seed + 100 * i
 
         def cfg(task, seed, frames, **transfer):
-            over = list(args.overrides) + [f"transfer.{k}={v}" for k, v in transfer.items()]
-            return config_lib.resolve({}, over, task=task, algo=args.algo, frames=frames, seed=seed)
+            over = list(overrides) + [f"transfer.{k}={v}" for k, v in transfer.items()]
+            return config_lib.resolve(base, over, task=task, algo=algo, frames=frames, seed=seed)
 
-        if args.method == "reward-shaping":
-            runs.append(("baseline", cfg(target_task, seed, args.frames), out / "baseline" / f"seed-{seed}"))
-            runs.append(("transfer", cfg(target_task, seed, args.frames, method="reward-shaping"),
-                         out / "transfer" / f"seed-{seed}"))
+        baseline = ("baseline", cfg(target_task, seed_i, frames), shared / "baseline" / f"seed-{seed_i}")
+        if method == "reward-shaping":
+            runs.append(baseline)
+            runs.append(("transfer", cfg(target_task, seed_i, frames, method="reward-shaping"),
+                         out / "transfer" / f"seed-{seed_i}"))
             continue
-        source = out / "source" / f"seed-{seed + 50}"
-        runs.append(("source", cfg(source_task, seed + 50, args.source_frames or args.frames), source))
-        runs.append(("baseline", cfg(target_task, seed, args.frames), out / "baseline" / f"seed-{seed}"))
-        runs.append(("transfer", cfg(target_task, seed, args.frames, method=args.method, source=source),
-                     out / "transfer" / f"seed-{seed}"))
+        source = shared / "source" / f"seed-{seed_i + 50}"
+        runs.append(("source", cfg(source_task, seed_i + 50, source_frames or frames), source))
+        runs.append(baseline)
+        runs.append(("transfer", cfg(target_task, seed_i, frames, method=method, source=source),
+                     out / "transfer" / f"seed-{seed_i}"))
     return runs
 
 

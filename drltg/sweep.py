@@ -1,0 +1,614 @@
+"""`drltg sweep SPEC --out DIR`: many transfer experiments from one YAML spec, on a process pool or Ray.
+
+The spec is a grid (every list is one axis; a scalar is a one-value axis)::
+
+    pairs: [fourrooms-near, fourrooms-far]     # registered task pairs (see `drltg tasks`)
+    methods: [reward-shaping, policy-reuse, model-reuse]
+    algos: [sac]                               # default [sac]
+    seeds: 5                                   # runs per side (default 5); first seed `seed` (default 0)
+    frames: 20000                              # target budget; a list sweeps it
+    source_frames: 40000                       # source budget (default: frames); a list sweeps it
+    overrides: {eval.every: 1000}              # config keys of every run
+    grid: {optim.lr: [3.0e-4, 1.0e-3]}         # config keys swept, each a list
+    threshold: 0.5                             # report threshold: a value or "80%"
+    resources: {num_cpus: 1, num_gpus: 0}      # per run, for --backend ray
+
+Each (pair, algo, variant, method) is one ``drltg experiment`` (same runs, same paired and spaced
+seeds: ``seed + 100 i`` for baseline and transfer run i, ``+ 50`` for its source), laid out as
+
+    DIR/<pair>/<algo>[/<variant>]/source/seed-<s>/     shared by every method that needs a source
+    DIR/<pair>/<algo>[/<variant>]/baseline/seed-<s>/   shared by every method
+    DIR/<pair>/<algo>[/<variant>]/<method>/transfer/seed-<s>/
+    DIR/<pair>/<algo>[/<variant>]/<method>/report/     drltg report of transfer vs baseline
+    DIR/logs/<same relative path>.log                  each run's output and traceback
+    DIR/summary.{csv,md}, DIR/transfer_matrix.png      all reports in one table and one heatmap
+
+``<variant>`` (e.g. ``frames=20000,optim.lr=0.001``) names the point on the swept axes; it is absent
+when nothing but pairs, algos, methods and seeds varies. Runs are deduplicated by their resolved
+config: a run that several experiments need (the baseline of every method, a source shared by
+policy and model reuse) trains once, in the first place the expansion order puts it.
+
+Re-running is safe: complete runs (``summary.json`` in place, written last) are skipped, interrupted
+ones resume from ``checkpoints/last.pt``, a failed run is reported with its log and the others go on.
+The same spec gives the same run directories and, run by run, the same numbers on both backends.
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import difflib
+import itertools
+import json
+import math
+import os
+import sys
+import time
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from drltg.errors import UsageError
+
+KEYS = ("pairs", "methods", "algos", "seeds", "seed", "frames", "source_frames", "overrides", "grid",
+        "threshold", "resources")
+RESOURCES = ("num_cpus", "num_gpus")
+SET_BY_SWEEP = ("task", "algo", "seed", "frames", "transfer.method", "transfer.source")
+
+
+# ------------------------------------------------------------------------------------------- spec
+@dataclass
+class Spec:
+    pairs: list[str]
+    methods: list[str]
+    algos: list[str] = field(default_factory=lambda: ["sac"])
+    seeds: int = 5
+    seed: int = 0
+    frames: list[int] = field(default_factory=list)
+    source_frames: list[int] | None = None
+    overrides: dict[str, Any] = field(default_factory=dict)
+    grid: dict[str, list] = field(default_factory=dict)
+    threshold: float | str | None = None
+    resources: dict[str, float] = field(default_factory=lambda: {"num_cpus": 1, "num_gpus": 0})
+
+
+def _hint(word: str, choices) -> str:
+    close = difflib.get_close_matches(str(word), list(choices), n=1)
+    return f"; did you mean '{close[0]}'?" if close else f"; choose from: {', '.join(choices)}."
+
+
+def _axis(data: dict, key: str, kind: type, where: str) -> list:
+    """A spec entry as a non-empty list of ``kind`` (a scalar is a one-value list)."""
+    value = data[key]
+    values = value if isinstance(value, list) else [value]
+    if not values:
+        raise UsageError(f"{where}: '{key}' is an empty list; give at least one value.")
+    for v in values:
+        if kind is int and isinstance(v, float) and v.is_integer():
+            continue
+        if not isinstance(v, kind) or (kind is int and isinstance(v, bool)):
+            raise UsageError(f"{where}: '{key}' must hold {kind.__name__} values, got {v!r}.")
+    return [int(v) if kind is int else v for v in values]
+
+
+def _config_keys(mapping, key: str, where: str) -> dict:
+    if not isinstance(mapping, dict):
+        raise UsageError(f"{where}: '{key}' must be a mapping of config keys like {{eval.every: 1000}}.")
+    for k in mapping:
+        if k in SET_BY_SWEEP:
+            raise UsageError(f"{where}: '{key}' may not set '{k}'; the sweep sets it from its own keys.")
+    return dict(mapping)
+
+
+def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
+    """Validate a loaded spec; every mistake is one :class:`UsageError` sentence."""
+    from drltg.agents import ALGOS
+    from drltg.envs import get_pair
+    from drltg.experiment import METHODS
+
+    if not isinstance(data, dict):
+        raise UsageError(f"{where} must be a YAML mapping with keys like pairs, methods, seeds, frames.")
+    for key in data:
+        if key not in KEYS:
+            raise UsageError(f"{where}: unknown key '{key}'{_hint(key, KEYS)}")
+    for key in ("pairs", "methods", "frames"):
+        if key not in data:
+            raise UsageError(f"{where}: the key '{key}' is required.")
+    spec = Spec(pairs=_axis(data, "pairs", str, where), methods=_axis(data, "methods", str, where),
+                frames=_axis(data, "frames", int, where))
+    for pair in spec.pairs:
+        try:
+            get_pair(pair)
+        except UsageError as err:
+            raise UsageError(f"{where}: {err}") from None
+    for method in spec.methods:
+        if method not in METHODS:
+            raise UsageError(f"{where}: unknown method '{method}'{_hint(method, METHODS)}")
+    if "algos" in data:
+        spec.algos = _axis(data, "algos", str, where)
+    for algo in spec.algos:
+        if algo not in ALGOS:
+            raise UsageError(f"{where}: unknown algo '{algo}'{_hint(algo, sorted(ALGOS))}")
+    for key in ("seeds", "seed"):
+        if key in data:
+            value = data[key]
+            if not isinstance(value, int) or isinstance(value, bool):
+                raise UsageError(f"{where}: '{key}' must be an integer, got {value!r}.")
+            setattr(spec, key, value)
+    if spec.seeds < 1 or min(spec.frames) < 1:
+        raise UsageError(f"{where}: 'seeds' and 'frames' must be positive.")
+    if data.get("source_frames") is not None:
+        spec.source_frames = _axis(data, "source_frames", int, where)
+    spec.overrides = _config_keys(data.get("overrides") or {}, "overrides", where)
+    spec.grid = _config_keys(data.get("grid") or {}, "grid", where)
+    for key, values in spec.grid.items():
+        if not isinstance(values, list) or not values:
+            raise UsageError(f"{where}: grid key '{key}' must be a non-empty list of values.")
+    threshold = data.get("threshold")
+    if threshold is not None and (isinstance(threshold, bool) or not isinstance(threshold, (int, float, str))):
+        raise UsageError(f"{where}: 'threshold' must be a number or a percentage like \"80%\".")
+    spec.threshold = threshold
+    resources = data.get("resources") or {}
+    if not isinstance(resources, dict):
+        raise UsageError(f"{where}: 'resources' must be a mapping like {{num_cpus: 1, num_gpus: 0}}.")
+    for key, value in resources.items():
+        if key not in RESOURCES:
+            raise UsageError(f"{where}: unknown resource '{key}'{_hint(key, RESOURCES)}")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or value < 0:
+            raise UsageError(f"{where}: resource '{key}' must be a non-negative number, got {value!r}.")
+        spec.resources[key] = value
+    return spec
+
+
+def load_spec(path: str | Path) -> Spec:
+    from drltg.config import load_yaml
+
+    return parse_spec(load_yaml(path), where=f"sweep spec '{path}'")
+
+
+# ------------------------------------------------------------------------------------------- plan
+@dataclass
+class Run:
+    """One training run: its resolved config, its directory, its log and the run it needs first."""
+
+    role: str  # source | baseline | transfer
+    cfg: dict
+    path: Path
+    log: Path
+    needs: Path | None = None
+
+    @property
+    def frames(self) -> int:
+        return self.cfg["frames"]
+
+
+@dataclass
+class Cell:
+    """One report: transfer runs of ``method`` against the baseline runs of one (pair, algo, variant)."""
+
+    pair: str
+    algo: str
+    variant: str
+    method: str
+    baseline: list[Path]
+    transfer: list[Path]
+
+    @property
+    def report(self) -> Path:
+        return self.transfer[0].parent.parent / "report"
+
+
+def _variants(spec: Spec) -> list[tuple[str, int, int | None, dict]]:
+    """(name, frames, source_frames, grid values) for every point on the swept axes."""
+    axes: list[tuple[str, list]] = []
+    if len(spec.frames) > 1:
+        axes.append(("frames", spec.frames))
+    if spec.source_frames and len(spec.source_frames) > 1:
+        axes.append(("source_frames", spec.source_frames))
+    axes += [(k, v) for k, v in spec.grid.items()]
+    out = []
+    for point in itertools.product(*(values for _, values in axes)):
+        values = dict(zip((k for k, _ in axes), point))
+        name = ",".join(f"{k}={v}" for k, v in values.items()).replace("/", "_")
+        frames = values.pop("frames", spec.frames[0])
+        source_frames = values.pop("source_frames", spec.source_frames[0] if spec.source_frames else None)
+        out.append((name, frames, source_frames, values))
+    return out
+
+
+def _key(cfg: dict) -> str:
+    return json.dumps(cfg, sort_keys=True, default=str)
+
+
+def plan(spec: Spec, out: Path) -> tuple[list[Run], list[Cell]]:
+    """Expand the spec into unique runs (each after the run it needs) and the reports to write."""
+    from drltg.experiment import plan_runs
+
+    out = Path(out).expanduser().resolve()
+    home: dict[str, Path] = {}  # resolved config -> the one directory that trains it
+    moved: dict[Path, Path] = {}  # planned directory -> that directory
+    runs: dict[Path, Run] = {}
+    cells = []
+    for pair, algo, (variant, frames, source_frames, values) in itertools.product(
+        spec.pairs, spec.algos, _variants(spec)
+    ):
+        group = out / pair / algo / variant if variant else out / pair / algo
+        for method in spec.methods:
+            planned = plan_runs(pair, method, algo=algo, seeds=spec.seeds, seed=spec.seed, frames=frames,
+                                source_frames=source_frames, base={**spec.overrides, **values},
+                                out=group / method, shared=group)
+            sides: dict[str, list[Path]] = {"baseline": [], "transfer": []}
+            for role, cfg, path in planned:
+                needs = cfg["transfer"]["source"]
+                if needs is not None:
+                    needs = moved[Path(needs)]
+                    cfg["transfer"]["source"] = str(needs)
+                moved[path] = home.setdefault(_key(cfg), path)
+                path = moved[path]
+                if path in runs and runs[path].cfg != cfg:
+                    raise UsageError(f"two runs of the spec would share '{path}'; check the grid values.")
+                log = out / "logs" / path.relative_to(out).with_suffix(".log")
+                runs.setdefault(path, Run(role, cfg, path, log, needs))
+                sides.get(role, []).append(path)
+            cells.append(Cell(pair, algo, variant, method, sides["baseline"], sides["transfer"]))
+    return list(runs.values()), cells
+
+
+def check_existing(runs: list[Run]) -> None:
+    """Refuse, before anything runs, a directory that holds a run with another config."""
+    from drltg.train import _diff_keys
+
+    for run in runs:
+        saved = run.path / "config.yaml"
+        if saved.is_file():
+            old = yaml.safe_load(saved.read_text())
+            if old != run.cfg:
+                keys = ", ".join(sorted(_diff_keys(old, run.cfg)))
+                raise UsageError(f"'{run.path}' holds a run with another config (differs in {keys}); "
+                                 "use another --out.")
+        elif run.path.exists() and any(run.path.iterdir()):
+            raise UsageError(f"'{run.path}' exists but holds no config.yaml; move it away or use another --out.")
+
+
+# --------------------------------------------------------------------------------------- one run
+@contextlib.contextmanager
+def _output_to(log):
+    """Send this process's stdout and stderr (Python and C level) to ``log``."""
+    sys.stdout.flush(), sys.stderr.flush()
+    saved = os.dup(1), os.dup(2)
+    os.dup2(log.fileno(), 1), os.dup2(log.fileno(), 2)
+    try:
+        yield
+    finally:
+        sys.stdout.flush(), sys.stderr.flush()
+        os.dup2(saved[0], 1), os.dup2(saved[1], 2)
+        os.close(saved[0]), os.close(saved[1])
+
+
+def run_one(cfg: dict, run_dir: str, log_path: str) -> tuple[str, str]:
+    """Train (or resume) one run with its output in ``log_path``; ``("done" | "failed", detail)``.
+
+    Never raises for a broken run: the traceback goes to the log, the sweep goes on.
+    """
+    from drltg.train import train
+
+    run_dir, log_path = Path(run_dir), Path(log_path)
+    log_path.parent.mkdir(parents=True, exist_ok=True)
+    resume = (run_dir / "config.yaml").is_file()
+    with open(log_path, "a", buffering=1) as log, _output_to(log):
+        print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] {'resume' if resume else 'start'} {run_dir} "
+              f"(pid {os.getpid()})", flush=True)
+        try:
+            train(cfg, run_dir, resume=resume, progress=False)
+        except Exception as err:
+            traceback.print_exc()
+            return "failed", f"{type(err).__name__}: {err}"
+        print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] complete", flush=True)
+    return "done", ""
+
+
+def _frames_done(run: Run) -> int:
+    """Frames a run has reached so far (its last evaluation; 0 before the first)."""
+    try:
+        with open(run.path / "eval.csv") as f:
+            last = f.read().rstrip().rsplit("\n", 1)[-1]
+        return min(int(last.split(",", 1)[0]), run.frames)
+    except (OSError, ValueError):
+        return 0
+
+
+# --------------------------------------------------------------------------------------- backends
+def _single_thread() -> None:
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    os.environ.setdefault("MKL_NUM_THREADS", "1")
+
+
+class LocalBackend:
+    """A pool of ``workers`` spawned processes, one run at a time in each (torch single-threaded)."""
+
+    def __init__(self, workers: int):
+        self.workers = workers
+        self.pool = None
+
+    @property
+    def capacity(self) -> int:
+        return self.workers
+
+    def _pool(self):
+        import concurrent.futures as cf
+        import multiprocessing as mp
+
+        if self.pool is None:
+            self.pool = cf.ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"),
+                                               initializer=_single_thread)
+        return self.pool
+
+    def submit(self, run: Run):
+        return self._pool().submit(run_one, run.cfg, str(run.path), str(run.log))
+
+    def wait(self, handles: list, timeout: float) -> list[tuple[Any, tuple[str, str]]]:
+        import concurrent.futures as cf
+        from concurrent.futures.process import BrokenProcessPool
+
+        finished, _ = cf.wait(handles, timeout=timeout, return_when=cf.FIRST_COMPLETED)
+        results = []
+        for f in finished:
+            try:
+                results.append((f, f.result()))
+            except BrokenProcessPool:  # a worker died (killed, out of memory): start a fresh pool
+                results.append((f, ("failed", "its worker process died (killed or out of memory?)")))
+                self.pool.shutdown(wait=False, cancel_futures=True)
+                self.pool = None
+        return results
+
+    def close(self) -> None:
+        if self.pool is not None:
+            self.pool.shutdown(cancel_futures=True)
+
+
+class RayBackend:
+    """Ray tasks declaring ``num_cpus``/``num_gpus`` each; Ray places them on the cluster's nodes.
+
+    ``address=None`` starts a private local instance (``num_cpus`` CPUs, loopback only);
+    ``address="auto"`` or ``"ip:port"`` joins a running cluster (`ray start --head`).
+    """
+
+    def __init__(self, address: str | None, resources: dict, num_cpus: int | None = None):
+        try:
+            import ray
+        except ImportError:
+            raise UsageError("--backend ray needs Ray: pip install 'drltg[ray]'.") from None
+        self.ray = ray
+        if address is None:
+            ray.init(address="local", num_cpus=num_cpus, include_dashboard=False,
+                     _node_ip_address="127.0.0.1", configure_logging=False, log_to_driver=False)
+        else:
+            try:
+                ray.init(address=address, configure_logging=False, log_to_driver=False)
+            except (ConnectionError, ValueError, RuntimeError) as err:
+                raise UsageError(f"cannot join the Ray cluster at '{address}' ({err}).") from None
+        self.task = ray.remote(run_one).options(max_retries=0, **resources)
+
+    capacity = math.inf  # Ray queues the tasks and runs as many as the cluster's resources allow
+
+    def submit(self, run: Run):
+        return self.task.remote(run.cfg, str(run.path), str(run.log))
+
+    def wait(self, handles: list, timeout: float) -> list[tuple[Any, tuple[str, str]]]:
+        ready, _ = self.ray.wait(handles, num_returns=1, timeout=timeout)
+        if ready:
+            ready, _ = self.ray.wait(handles, num_returns=len(handles), timeout=0)
+        results = []
+        for ref in ready:
+            try:
+                results.append((ref, self.ray.get(ref)))
+            except Exception as err:  # the task's worker or node died
+                results.append((ref, ("failed", f"Ray task failed: {type(err).__name__}")))
+        return results
+
+    def close(self) -> None:
+        self.ray.shutdown()
+
+
+# --------------------------------------------------------------------------------------- schedule
+def execute(runs: list[Run], backend, poll: float = 1.0) -> dict[Path, tuple[str, str]]:
+    """Run every incomplete run (each after the run it needs) and return ``{path: (status, detail)}``
+    with status ``skipped`` (complete before), ``done`` or ``failed``."""
+    from tqdm.auto import tqdm
+
+    from drltg.train import is_complete
+
+    status: dict[Path, tuple[str, str]] = {r.path: ("skipped", "") for r in runs if is_complete(r.path)}
+    todo = [r for r in runs if r.path not in status]
+    reached = {r.path: _frames_done(r) for r in todo}
+    bar = tqdm(total=sum(r.frames for r in todo), initial=sum(reached.values()), unit="frame",
+               desc="sweep", dynamic_ncols=True, smoothing=0.05)
+    running: dict[Any, Run] = {}
+
+    def postfix() -> None:
+        counts = [s for s, _ in status.values()]
+        bar.set_postfix_str(f"runs {len(counts)}/{len(runs)} ({counts.count('failed')} failed), "
+                            f"{len(running)} running", refresh=False)
+
+    try:
+        while todo or running:
+            for run in list(todo):
+                state = status.get(run.needs, ("done", ""))[0] if run.needs else "done"
+                if run.needs and run.needs not in status:
+                    continue  # its source is not trained yet
+                if state == "failed":
+                    status[run.path] = ("failed", f"not run: the run it needs failed ({run.needs})")
+                    todo.remove(run)
+                elif len(running) < backend.capacity:
+                    running[backend.submit(run)] = run
+                    todo.remove(run)
+            postfix()
+            for handle, result in backend.wait(list(running), poll):
+                run = running.pop(handle)
+                status[run.path] = result
+                bar.update(run.frames - reached[run.path])
+                reached[run.path] = run.frames
+            for run in running.values():
+                now = _frames_done(run)
+                bar.update(max(now - reached[run.path], 0))
+                reached[run.path] = max(now, reached[run.path])
+            postfix()
+            bar.refresh()
+    finally:
+        bar.close()
+    return status
+
+
+# ---------------------------------------------------------------------------------------- reports
+def write_reports(cells: list[Cell], status: dict, threshold) -> list[dict]:
+    """One ``drltg report`` per cell whose runs are all complete; a row per cell for the summary."""
+    from drltg.report import transfer_report
+
+    rows = []
+    for c in cells:
+        row = {"pair": c.pair, "algo": c.algo, "variant": c.variant, "method": c.method,
+               "report": str(c.report), "metrics": None}
+        missing = [p for p in c.baseline + c.transfer if status.get(p, ("",))[0] not in ("done", "skipped")]
+        if missing:
+            row["note"] = f"{len(missing)} run(s) incomplete"
+        else:
+            try:
+                result = transfer_report(c.baseline, c.transfer, c.report, threshold=threshold,
+                                         baseline_label="no transfer", transfer_label=c.method)
+                row["metrics"] = result["metrics"]
+            except UsageError as err:
+                row["note"] = str(err)
+        rows.append(row)
+    return rows
+
+
+SUMMARY_COLUMNS = ("jumpstart", "asymptotic_performance", "transfer_ratio", "probability_of_improvement",
+                   "time_to_threshold_baseline", "time_to_threshold_transfer")
+
+
+def summary_tables(rows: list[dict]) -> tuple[str, str]:
+    """The cells' metrics (value and CI bounds) as CSV and as a Markdown table."""
+    from drltg.report import _csv_text
+
+    head = ["pair", "algo", "variant", "method", "seeds"]
+    csv_rows = [head + [f"{m}{s}" for m in SUMMARY_COLUMNS for s in ("", "_ci_low", "_ci_high")]
+                + ["report", "note"]]
+    md = ["| pair | algo | method | " + " | ".join(SUMMARY_COLUMNS) + " | seeds |",
+          "|" + "---|" * (len(SUMMARY_COLUMNS) + 4)]
+    for r in rows:
+        m = r["metrics"] or {}
+        seeds = f"{m['n_seeds_baseline']}+{m['n_seeds_transfer']}" if m else ""
+        line = [r["pair"], r["algo"], r["variant"], r["method"], seeds]
+        cells = []
+        for name in SUMMARY_COLUMNS:
+            value, ci = m.get(name), m.get(f"{name}_ci") or (None, None)
+            line += [value, *ci]
+            if not m:
+                cells.append("-")
+            elif value is None:
+                cells.append("not reached" if name.startswith("time_to") else "n/a")
+            else:
+                cells.append(f"{value:.3g}" + (f" [{ci[0]:.3g}, {ci[1]:.3g}]" if ci[0] is not None else ""))
+        csv_rows.append(line + [r["report"] if m else "", r.get("note", "")])
+        pair = f"{r['pair']} {r['variant']}".strip()
+        md.append(f"| {pair} | {r['algo']} | {r['method']} | " + " | ".join(cells)
+                  + f" | {seeds or r.get('note', '')} |")
+    return _csv_text(csv_rows), "\n".join(md) + "\n"
+
+
+def plot_transfer_matrix(rows: list[dict], metric: str = "transfer_ratio") -> bytes:
+    """Heatmap PNG of ``metric`` over (pair, algo, variant) rows x method columns, mean and CI per cell."""
+    import numpy as np
+
+    from drltg.report_plot import _figure, _save
+
+    one_algo = len({r["algo"] for r in rows}) == 1
+
+    def label(r: dict) -> str:
+        return " / ".join(x for x in (r["pair"], None if one_algo else r["algo"], r["variant"]) if x)
+
+    labels = list(dict.fromkeys(map(label, rows)))
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    table = np.full((len(labels), len(methods)), np.nan)
+    text = np.full(table.shape, "n/a", dtype=object)
+    for r in rows:
+        i, j = labels.index(label(r)), methods.index(r["method"])
+        value = (r["metrics"] or {}).get(metric)
+        if value is not None:
+            ci = r["metrics"].get(f"{metric}_ci")
+            table[i, j] = value
+            text[i, j] = f"{value:+.2f}" + (f"\n[{ci[0]:+.2f}, {ci[1]:+.2f}]" if ci else "")
+    plt, (fig, ax) = _figure(figsize=(2.2 * len(methods) + 3, 1.0 * len(labels) + 2))
+    finite = table[np.isfinite(table)]
+    span = max(float(np.abs(finite).max()), 1e-12) if finite.size else 1.0
+    cmap = plt.get_cmap("RdBu").with_extremes(bad="0.85")
+    im = ax.imshow(np.ma.masked_invalid(table), cmap=cmap, vmin=-span, vmax=span, aspect="auto")
+    for i in range(len(labels)):
+        for j in range(len(methods)):
+            ax.text(j, i, text[i, j], ha="center", va="center", fontsize=9,
+                    bbox=dict(boxstyle="round,pad=0.2", fc="white", ec="none", alpha=0.85))
+    ax.set_xticks(range(len(methods)), methods, rotation=20, ha="right")
+    ax.set_yticks(range(len(labels)), labels)
+    ax.set_title(f"{metric}: mean over seeds [bootstrap CI]")
+    fig.colorbar(im, ax=ax, label=f"{metric} (> 0: transfer helped)")
+    return _save(plt, fig)[0]
+
+
+# ---------------------------------------------------------------------------------------------- CLI
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("spec", type=Path, help="sweep spec (YAML), e.g. examples/sweeps/fourrooms.yaml")
+    p.add_argument("--out", type=Path, required=True, help="sweep directory (re-run to resume)")
+    p.add_argument("--backend", choices=("local", "ray"), default="local",
+                   help="local: a process pool on this machine (default); ray: Ray tasks")
+    p.add_argument("--workers", type=int, default=os.cpu_count(),
+                   help="local: runs in parallel (default: the CPU count); ray without --address: "
+                        "CPUs of the local Ray instance")
+    p.add_argument("--address", help="ray: a running cluster ('auto' or HOST:PORT); default: start a local one")
+    p.add_argument("--num-cpus", type=float, help="ray: CPUs per run (overrides the spec's resources)")
+    p.add_argument("--num-gpus", type=float, help="ray: GPUs per run (overrides the spec's resources)")
+    p.add_argument("--dry-run", action="store_true", help="list the runs and reports, run nothing")
+
+
+def run(args: argparse.Namespace) -> int:
+    from drltg.report import write_files
+
+    spec = load_spec(args.spec)
+    if args.workers is not None and args.workers < 1:
+        raise UsageError("--workers must be at least 1.")
+    resources = {**spec.resources, **{k: v for k, v in (("num_cpus", args.num_cpus),
+                                                         ("num_gpus", args.num_gpus)) if v is not None}}
+    out = args.out.expanduser().resolve()
+    runs, cells = plan(spec, out)
+    if args.dry_run:
+        for r in runs:
+            print(f"{r.role:<9} {r.frames:>9} frames  {r.path.relative_to(out)}")
+        print(f"{len(runs)} runs, {len(cells)} reports")
+        return 0
+    check_existing(runs)
+    out.mkdir(parents=True, exist_ok=True)
+    write_files(out, {"sweep.yaml": Path(args.spec).read_bytes()})
+    if args.backend == "ray":
+        backend = RayBackend(args.address, resources, num_cpus=args.workers)
+    else:
+        backend = LocalBackend(args.workers)
+    try:
+        status = execute(runs, backend)
+    finally:
+        backend.close()
+
+    rows = write_reports(cells, status, spec.threshold)
+    csv_text, md_text = summary_tables(rows)
+    files = {"summary.csv": csv_text.encode(), "summary.md": md_text.encode()}
+    if any(r["metrics"] for r in rows):
+        files["transfer_matrix.png"] = plot_transfer_matrix(rows)
+    write_files(out, files)
+    counts = [s for s, _ in status.values()]
+    print(md_text)
+    failed = [r for r in runs if status[r.path][0] == "failed"]
+    for r in failed:
+        print(f"failed: {r.path.relative_to(out)}: {status[r.path][1]}\n        log: {r.log}")
+    print(f"{len(runs)} runs: {counts.count('done')} done, {len(failed)} failed, "
+          f"{counts.count('skipped')} skipped (complete before); summary: {out / 'summary.md'}")
+    return 1 if failed else 0
