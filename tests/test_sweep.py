@@ -1,0 +1,192 @@
+"""`drltg sweep`: spec expansion and validation, the local pool, resuming, failure isolation, Ray."""
+import contextlib
+import csv
+import io
+import json
+import shutil
+
+import pytest
+import yaml
+
+from drltg import sweep
+from drltg.cli import main
+from drltg.train import train
+
+TINY = {"network.hidden": [16, 16], "collector.num_envs": 4, "collector.frames_per_batch": 16,
+        "collector.init_random_frames": 64, "optim.updates_per_batch": 1, "buffer.batch_size": 32,
+        "eval.every": 128, "eval.episodes": 4, "log.tensorboard": False}
+GRID = {"pairs": ["fourrooms-near", "fourrooms-far"], "methods": ["model-reuse", "reward-shaping"],
+        "seeds": 1, "frames": 256, "threshold": 0, "overrides": TINY}
+
+
+def write_spec(path, data):
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+# ------------------------------------------------------------------------------------ expansion
+def test_expansion_shares_runs_and_spaces_seeds(tmp_path):
+    spec = sweep.parse_spec({"pairs": ["fourrooms-near", "fourrooms-far"],
+                             "methods": ["reward-shaping", "policy-reuse", "model-reuse"],
+                             "seeds": 2, "frames": 1024, "source_frames": 2048})
+    runs, cells = sweep.plan(spec, tmp_path)
+    by_role = {role: [r for r in runs if r.role == role] for role in ("source", "baseline", "transfer")}
+    # both pairs start from fourrooms/northeast: one source per seed serves every pair and method
+    assert [r.cfg["seed"] for r in by_role["source"]] == [50, 150]
+    assert {r.cfg["frames"] for r in by_role["source"]} == {2048}
+    assert len(by_role["baseline"]) == 2 * 2 and len(by_role["transfer"]) == 2 * 3 * 2
+    assert len({r.path for r in runs}) == len({sweep._key(r.cfg) for r in runs}) == len(runs) == 18
+    assert {r.cfg["seed"] for r in by_role["baseline"]} == {0, 100}
+    assert not {r.cfg["seed"] for r in by_role["source"]} & {r.cfg["seed"] for r in by_role["baseline"]}
+    order = [r.path for r in runs]
+    for r in by_role["transfer"]:
+        if r.cfg["transfer"]["method"] == "reward-shaping":
+            assert r.needs is None
+        else:  # trained from the source run with the spaced seed, which comes earlier in the plan
+            assert r.cfg["transfer"]["source"] == str(r.needs) == str(tmp_path / "fourrooms-near" / "sac"
+                                                                       / "source" / f"seed-{r.cfg['seed'] + 50}")
+            assert order.index(r.needs) < order.index(r.path)
+    assert len(cells) == 6
+    near = [c for c in cells if c.pair == "fourrooms-near"]
+    assert near[0].baseline == near[1].baseline == near[2].baseline  # every method, one baseline
+    assert near[1].report == tmp_path / "fourrooms-near" / "sac" / "policy-reuse" / "report"
+
+
+def test_swept_axes_name_the_variant_directories(tmp_path):
+    spec = sweep.parse_spec({"pairs": "fourrooms-near", "methods": "model-reuse", "seeds": 1,
+                             "frames": [1000, 2000], "source_frames": 3000, "grid": {"optim.lr": [0.001, 0.01]}})
+    runs, cells = sweep.plan(spec, tmp_path)
+    assert [c.variant for c in cells] == ["frames=1000,optim.lr=0.001", "frames=1000,optim.lr=0.01",
+                                          "frames=2000,optim.lr=0.001", "frames=2000,optim.lr=0.01"]
+    # the source does not depend on the target budget: 2 sources (one per lr), 4 baselines, 4 transfers
+    assert sorted(r.role for r in runs).count("source") == 2 and len(runs) == 10
+    lrs = {r.path.relative_to(tmp_path).parts[2]: r.cfg["optim"]["lr"] for r in runs}
+    assert all(lr == float(name.rsplit("=", 1)[1]) for name, lr in lrs.items())
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"pair": ["fourrooms-near"]}, "unknown key 'pair'; did you mean 'pairs'?"),
+    ({"pairs": []}, "'pairs' is an empty list"),
+    ({"pairs": ["fourrooms-nera"]}, "did you mean 'fourrooms-near'?"),
+    ({"methods": ["policy-reus"]}, "unknown method 'policy-reus'; did you mean 'policy-reuse'?"),
+    ({"seeds": "five"}, "'seeds' must be an integer"),
+    ({"frames": [1000, "lots"]}, "'frames' must hold int values, got 'lots'"),
+    ({"grid": {"optim.lr": []}}, "grid key 'optim.lr' must be a non-empty list"),
+    ({"overrides": {"seed": 3}}, "may not set 'seed'"),
+    ({"overrides": {"optim.lrr": 0.1}}, "unknown config key 'optim.lrr'; did you mean 'optim.lr'?"),
+    ({"overrides": {"eval.every": "often"}}, "'eval.every' must be an integer"),
+    ({"resources": {"gpus": 1}}, "unknown resource 'gpus'; did you mean 'num_gpus'?"),
+])
+def test_spec_errors_are_one_sentence_and_write_nothing(tmp_path, capsys, change, message):
+    data = {k: v for k, v in GRID.items() if k not in ("pairs",) or "pair" not in change}
+    spec = write_spec(tmp_path / "spec.yaml", {**data, **change})
+    assert main(["sweep", str(spec), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
+    assert not (tmp_path / "out").exists()
+
+
+def test_missing_spec_file(tmp_path, capsys):
+    assert main(["sweep", str(tmp_path / "nope.yaml"), "--out", str(tmp_path / "out")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------------------- local pool
+def _curves(out):
+    return {str(p.relative_to(out)): p.read_text() for p in sorted(out.glob("fourrooms-*/**/eval.csv"))}
+
+
+@pytest.fixture(scope="module")
+def local(tmp_path_factory):
+    root = tmp_path_factory.mktemp("sweep")
+    spec, out = write_spec(root / "tiny.yaml", GRID), root / "local"
+    assert main(["sweep", str(spec), "--out", str(out), "--workers", "2"]) == 0
+    return spec, out, _curves(out)
+
+
+def test_local_grid_trains_each_run_once_and_reports(local):
+    spec, out, curves = local
+    runs = sorted(str(p.parent.relative_to(out)) for p in out.glob("fourrooms-*/**/summary.json"))
+    assert runs == ["fourrooms-far/sac/baseline/seed-0", "fourrooms-far/sac/model-reuse/transfer/seed-0",
+                    "fourrooms-far/sac/reward-shaping/transfer/seed-0", "fourrooms-near/sac/baseline/seed-0",
+                    "fourrooms-near/sac/model-reuse/transfer/seed-0", "fourrooms-near/sac/reward-shaping/transfer/seed-0",
+                    "fourrooms-near/sac/source/seed-50"]
+    assert len(curves) == 7 and all(c.count("\n") == 4 for c in curves.values())  # frames 0, 128, 256
+    far = yaml.safe_load((out / "fourrooms-far/sac/model-reuse/transfer/seed-0/config.yaml").read_text())
+    assert far["transfer"]["source"] == str(out / "fourrooms-near/sac/source/seed-50")
+    for run in runs:
+        assert "complete" in (out / "logs" / f"{run}.log").read_text()
+    with open(out / "summary.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [(r["pair"], r["method"]) for r in rows] == [
+        ("fourrooms-near", "model-reuse"), ("fourrooms-near", "reward-shaping"),
+        ("fourrooms-far", "model-reuse"), ("fourrooms-far", "reward-shaping")]
+    for r in rows:
+        report = json.loads((out / r["pair"] / "sac" / r["method"] / "report" / "transfer_metrics.json").read_text())
+        assert float(r["transfer_ratio"]) == pytest.approx(report["metrics"]["transfer_ratio"])
+        assert r["seeds"] == "1+1"
+    assert (out / "summary.md").read_text().count("| fourrooms-") == 4
+    assert (out / "transfer_matrix.png").read_bytes()[:4] == b"\x89PNG"
+
+
+@pytest.fixture(scope="module")
+def rerun(local, tmp_path_factory):
+    """The local sweep after a kill mid-run, a broken source, and a lost run; then re-run."""
+    spec, out, _ = local
+    killed = out / "fourrooms-far/sac/baseline/seed-0"
+    cfg = yaml.safe_load((killed / "config.yaml").read_text())
+    half = tmp_path_factory.mktemp("half") / "run"
+    train({**cfg, "frames": 128}, half, progress=False)  # the state a kill after frame 128 leaves
+    (half / "summary.json").unlink()
+    shutil.rmtree(killed)
+    shutil.copytree(half, killed)
+    (killed / "config.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False))
+    source = out / "fourrooms-near/sac/source/seed-50"
+    (source / "summary.json").unlink()
+    (source / "checkpoints" / "last.pt").write_bytes(b"not a checkpoint")
+    lost = out / "fourrooms-near/sac/reward-shaping/transfer/seed-0"
+    for d in [lost] + [out / p / "sac/model-reuse/transfer/seed-0" for p in ("fourrooms-near", "fourrooms-far")]:
+        shutil.rmtree(d)
+    untouched = [out / "fourrooms-near/sac/baseline/seed-0", out / "fourrooms-far/sac/reward-shaping/transfer/seed-0"]
+    stamps = {d: (d / "summary.json").stat().st_mtime_ns for d in untouched}
+    with contextlib.redirect_stdout(io.StringIO()) as printed:
+        code = main(["sweep", str(spec), "--out", str(out), "--workers", "2"])
+    return out, code, printed.getvalue(), stamps, killed, half, lost
+
+
+def test_killed_run_resumes_from_its_checkpoint(rerun):
+    out, _, _, _, killed, half, _ = rerun
+    rows = (killed / "eval.csv").read_text().splitlines()
+    assert [r.split(",")[0] for r in rows[1:]] == ["0", "128", "256"]
+    assert rows[:3] == (half / "eval.csv").read_text().splitlines()  # the evaluations before the kill are kept
+    assert json.loads((killed / "summary.json").read_text())["frames"] == 256
+    assert "resume" in (out / "logs/fourrooms-far/sac/baseline/seed-0.log").read_text()
+
+
+def test_complete_runs_are_skipped_and_a_failure_is_isolated(rerun):
+    out, code, printed, stamps, _, _, lost = rerun
+    log = out / "logs/fourrooms-near/sac/source/seed-50.log"
+    assert code == 1
+    assert "7 runs: 2 done, 3 failed, 2 skipped" in printed
+    assert "failed: fourrooms-near/sac/source/seed-50: UnpicklingError" in printed
+    assert f"log: {log}" in printed
+    assert "Traceback" in log.read_text()
+    assert stamps == {d: (d / "summary.json").stat().st_mtime_ns for d in stamps}
+    assert (lost / "summary.json").is_file()  # trained although the source run failed
+    assert not any((out / p / "sac/model-reuse/transfer/seed-0").exists() for p in ("fourrooms-near", "fourrooms-far"))
+    with open(out / "summary.csv") as f:
+        notes = {(r["pair"], r["method"]): r["note"] for r in csv.DictReader(f)}
+    assert notes[("fourrooms-near", "model-reuse")] == "1 run(s) incomplete"
+    assert notes[("fourrooms-far", "model-reuse")] == "1 run(s) incomplete"
+    assert notes[("fourrooms-near", "reward-shaping")] == notes[("fourrooms-far", "reward-shaping")] == ""
+
+
+# ----------------------------------------------------------------------------------------- Ray
+def test_ray_backend_gives_the_same_runs_and_curves(local, tmp_path):
+    import ray
+
+    spec, _, curves = local
+    out = tmp_path / "ray"
+    assert main(["sweep", str(spec), "--out", str(out), "--backend", "ray", "--workers", "2"]) == 0
+    assert not ray.is_initialized()
+    assert _curves(out) == curves
