@@ -79,6 +79,9 @@ def summarize(suites: dict, device: str) -> dict:
         if key in sac:
             v = sac[key].get(clock, sac[key]["wall"])
             out[f"sac: {key} updates/s ({clock} clock)"] = {"value": v, "target": f">= {target}", "met": _met(v, target)}
+    for key in (f"{best}/matmul_bound", "soc_k4/drltg"):
+        if key in sac:
+            out[f"sac: {key} updates/s ({clock} clock)"] = {"value": sac[key].get(clock, sac[key]["wall"])}
     train = suites.get("train", {}).get("fourrooms")
     if train:
         out["train: fourrooms speed-up over the reference step"] = {"value": train["speedup_vs_reference_step"]}

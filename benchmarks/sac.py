@@ -13,6 +13,9 @@ replay buffer holding the same 20k random transitions. Cases:
   practical bound of eager PyTorch;
 * ``sb3``: Stable-Baselines3 ``SAC.train(gradient_steps, batch_size=256)`` on a filled buffer;
 * ``soc_k4``: drltg's soft option-critic with 4 options (same networks, per-option heads);
+* ``matmul_bound``: only the matrix products of one SAC update (forward and backward, see
+  :func:`sac_matmuls`) into preallocated outputs: what this thread's BLAS allows for the update's
+  arithmetic, a bound no eager float32 implementation reaches;
 * on CUDA also ``drltg_cudagraphs``: the drltg step captured in a CUDA graph.
 """
 from __future__ import annotations
@@ -230,12 +233,53 @@ def soc_case(device: str, chunk: int, options: int = 4):
     return run
 
 
+def _mlp_matmuls(dims: list[int], batch: int, forward: bool, weight_grads: bool, input_grads: str) -> list[tuple]:
+    """``(m, k, n)`` of the products of an MLP with layer widths ``dims`` on ``batch`` rows: the
+    forward ``x W^T``, the weight gradients ``g^T x`` and the input gradients ``g W`` (``input_grads``
+    ``"none"``, ``"hidden"``: all layers but the first, ``"all"``)."""
+    layers = list(zip(dims[:-1], dims[1:]))
+    out = [(batch, i, o) for i, o in layers] if forward else []
+    if weight_grads:
+        out += [(o, batch, i) for i, o in layers]
+    if input_grads != "none":
+        out += [(batch, o, i) for n, (i, o) in enumerate(layers) if n or input_grads == "all"]
+    return out
+
+
+def sac_matmuls(obs: int = OBS, act: int = ACT, hidden: int = HIDDEN, batch: int = BATCH, critics: int = 2) -> list[tuple]:
+    """The matrix products of one SAC update: the target ``y`` (actor and target critics on s', no
+    gradient), the critic loss (critics on (s, a), weight and hidden-layer input gradients), the
+    actor loss (actor on s with weight gradients; critics on (s, a~) with input gradients only, down
+    to a~)."""
+    actor, critic = [obs, hidden, hidden, 2 * act], [obs + act, hidden, hidden, 1]
+    out = _mlp_matmuls(actor, batch, True, False, "none") + critics * _mlp_matmuls(critic, batch, True, False, "none")
+    out += critics * _mlp_matmuls(critic, batch, True, True, "hidden")
+    out += _mlp_matmuls(actor, batch, True, True, "hidden") + critics * _mlp_matmuls(critic, batch, True, False, "all")
+    return out
+
+
+def matmul_case(device: str, chunk: int):
+    shapes = sac_matmuls()
+    g = torch.Generator().manual_seed(0)
+    operands = [(torch.randn(m, k, generator=g).to(device), torch.randn(k, n, generator=g).to(device),
+                 torch.empty(m, n, device=device)) for m, k, n in shapes]
+
+    def run() -> int:
+        for _ in range(chunk):
+            for a, b, out in operands:
+                torch.mm(a, b, out=out)
+        return chunk
+
+    return run
+
+
 def run(device: str = "cpu", quick: bool = False) -> dict:
-    chunk, rounds = (8, 3) if quick else (16, 7)
+    chunk, rounds = (8, 3) if quick else (16, 15)
     cases = {
         "drltg": drltg_case(device, chunk),
         "torchrl": torchrl_case(device, chunk),
         "plain": plain_case(device, chunk),
+        "matmul_bound": matmul_case(device, chunk),
     }
     missing = {}
     if device.startswith("cuda"):
@@ -255,10 +299,14 @@ def run(device: str = "cpu", quick: bool = False) -> dict:
         missing["soc_k4"] = f"drltg.losses.soc not importable ({err})"
     results = interleaved(cases, rounds=rounds, warmup=1, device=device)
     pairs = [("drltg", "plain"), ("drltg", "torchrl"), ("drltg", "sb3"), ("torchrl", "plain"), ("sb3", "plain"),
-             ("drltg_cudagraphs", "plain"), ("drltg_cudagraphs", "torchrl"), ("soc_k4", "drltg")]
+             ("drltg_cudagraphs", "plain"), ("drltg_cudagraphs", "torchrl"), ("soc_k4", "drltg"),
+             ("drltg", "matmul_bound"), ("plain", "matmul_bound"), ("sb3", "matmul_bound"), ("torchrl", "matmul_bound")]
+    flops = sum(2 * m * k * n for m, k, n in sac_matmuls())
     return {
         "unit": "updates/s",
         "work": f"batch {BATCH}, obs {OBS}, act {ACT}, 2x{HIDDEN} actor and twin critics, Adam {LR}",
+        "matmul_gflop_per_update": round(flops / 1e9, 3),
+        "matmul_bound_gflops": round(results["matmul_bound"]["median"] * flops / 1e9, 1),
         "rates": results,
         "ratios": ratios(results, pairs),
         "missing": missing,
