@@ -7,6 +7,11 @@ Python loop (reset when the episode ends) in two styles: NumPy arrays (the refer
 target) and plain Python floats (for a system this small several times faster than NumPy; reported
 too). Before timing, both references are checked to reproduce ``FourRoomsEnv``'s positions, rewards
 and episode ends on the same starts and actions.
+
+Where the collector loop's time goes is shown by two more cases at the large batch sizes:
+``drltg_step_batch_*`` (``env.step`` with no resets: TorchRL's step bookkeeping plus the dynamics)
+and ``drltg_dynamics_batch_*`` (``FourRoomsEnv._step`` alone: the batched dynamics' own tensor
+arithmetic, with no TorchRL code around it).
 """
 from __future__ import annotations
 
@@ -157,6 +162,19 @@ def _drltg_case(batch: int, device: str, steps: int):
     return run
 
 
+def _drltg_part_case(batch: int, device: str, steps: int, dynamics_only: bool):
+    env = make_drltg(batch, device)
+    td = env.reset()
+    td["action"] = (torch.rand(batch, 2, generator=torch.Generator().manual_seed(0)) * 2 - 1).to(device)
+
+    def run() -> int:
+        for _ in range(steps):
+            env._step(td) if dynamics_only else env.step(td.clone(False))
+        return steps * batch
+
+    return run
+
+
 def run(device: str = "cpu", quick: bool = False) -> dict:
     batches = (1, 1024) if quick else (1, 16, 256, 1024, 4096)
     rounds = 3 if quick else 5
@@ -167,6 +185,9 @@ def run(device: str = "cpu", quick: bool = False) -> dict:
     }
     for b in batches:
         cases[f"drltg_batch_{b}"] = _drltg_case(b, device, 100 if b > 1 else 300)
+    for b in [b for b in batches if b >= 1024]:
+        cases[f"drltg_step_batch_{b}"] = _drltg_part_case(b, device, 100, dynamics_only=False)
+        cases[f"drltg_dynamics_batch_{b}"] = _drltg_part_case(b, device, 100, dynamics_only=True)
     results = interleaved(cases, rounds=rounds, warmup=1, device=device)
     return {
         "unit": "frames/s",
