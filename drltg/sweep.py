@@ -21,6 +21,7 @@ seeds: ``seed + 100 i`` for baseline and transfer run i, ``+ 50`` for its source
     DIR/<pair>/<algo>[/<variant>]/<method>/transfer/seed-<s>/
     DIR/<pair>/<algo>[/<variant>]/<method>/report/     drltg report of transfer vs baseline
     DIR/logs/<same relative path>.log                  each run's output and traceback
+    DIR/runs.csv                                       each run's status (done, failed, skipped) and log
     DIR/summary.{csv,md}, DIR/transfer_matrix.png      all reports in one table and one heatmap
 
 ``<variant>`` (e.g. ``frames=20000,optim.lr=0.001``) names the point on the swept axes; it is absent
@@ -445,7 +446,7 @@ def execute(runs: list[Run], backend, poll: float = 1.0) -> dict[Path, tuple[str
                     running[backend.submit(run)] = run
                     todo.remove(run)
             postfix()
-            for handle, result in backend.wait(list(running), poll):
+            for handle, result in backend.wait(list(running), poll) if running else ():
                 run = running.pop(handle)
                 status[run.path] = result
                 bar.update(run.frames - reached[run.path])
@@ -509,6 +510,8 @@ def summary_tables(rows: list[dict]) -> tuple[str, str]:
                 cells.append("-")
             elif value is None:
                 cells.append("not reached" if name.startswith("time_to") else "n/a")
+            elif name.startswith("time_to"):
+                cells.append(f"{value / 1000:.3g}k")
             else:
                 cells.append(f"{value:.3g}" + (f" [{ci[0]:.3g}, {ci[1]:.3g}]" if ci[0] is not None else ""))
         csv_rows.append(line + [r["report"] if m else "", r.get("note", "")])
@@ -551,7 +554,7 @@ def plot_transfer_matrix(rows: list[dict], metric: str = "transfer_ratio") -> by
                     bbox=dict(boxstyle="round,pad=0.2", fc="white", ec="none", alpha=0.85))
     ax.set_xticks(range(len(methods)), methods, rotation=20, ha="right")
     ax.set_yticks(range(len(labels)), labels)
-    ax.set_title(f"{metric}: mean over seeds [bootstrap CI]")
+    ax.set_title(f"{metric}: mean over seeds [bootstrap CI where both sides have 2+ seeds]")
     fig.colorbar(im, ax=ax, label=f"{metric} (> 0: transfer helped)")
     return _save(plt, fig)[0]
 
@@ -572,7 +575,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drltg.report import write_files
+    from drltg.report import _csv_text, write_files
 
     spec = load_spec(args.spec)
     if args.workers is not None and args.workers < 1:
@@ -587,20 +590,21 @@ def run(args: argparse.Namespace) -> int:
         print(f"{len(runs)} runs, {len(cells)} reports")
         return 0
     check_existing(runs)
-    out.mkdir(parents=True, exist_ok=True)
-    write_files(out, {"sweep.yaml": Path(args.spec).read_bytes()})
     if args.backend == "ray":
         backend = RayBackend(args.address, resources, num_cpus=args.workers)
     else:
         backend = LocalBackend(args.workers)
     try:
+        write_files(out, {"sweep.yaml": Path(args.spec).read_bytes()})
         status = execute(runs, backend)
     finally:
         backend.close()
 
     rows = write_reports(cells, status, spec.threshold)
     csv_text, md_text = summary_tables(rows)
-    files = {"summary.csv": csv_text.encode(), "summary.md": md_text.encode()}
+    runs_csv = _csv_text([("run", "role", "status", "detail", "log")] + [
+        (r.path.relative_to(out), r.role, *status[r.path], r.log.relative_to(out)) for r in runs])
+    files = {"summary.csv": csv_text.encode(), "summary.md": md_text.encode(), "runs.csv": runs_csv.encode()}
     if any(r["metrics"] for r in rows):
         files["transfer_matrix.png"] = plot_transfer_matrix(rows)
     write_files(out, files)

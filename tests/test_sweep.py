@@ -179,6 +179,10 @@ def test_complete_runs_are_skipped_and_a_failure_is_isolated(rerun):
     assert notes[("fourrooms-near", "model-reuse")] == "1 run(s) incomplete"
     assert notes[("fourrooms-far", "model-reuse")] == "1 run(s) incomplete"
     assert notes[("fourrooms-near", "reward-shaping")] == notes[("fourrooms-far", "reward-shaping")] == ""
+    with open(out / "runs.csv") as f:
+        states = {r["run"]: r["status"] for r in csv.DictReader(f)}
+    assert sorted(states.values()) == ["done", "done", "failed", "failed", "failed", "skipped", "skipped"]
+    assert states["fourrooms-far/sac/model-reuse/transfer/seed-0"] == "failed"  # its source failed
 
 
 # ----------------------------------------------------------------------------------------- Ray
