@@ -1,4 +1,5 @@
 """`drltg sweep`: spec expansion and validation, the local pool, resuming, failure isolation, Ray."""
+import argparse
 import contextlib
 import csv
 import io
@@ -50,6 +51,25 @@ def test_expansion_shares_runs_and_spaces_seeds(tmp_path):
     near = [c for c in cells if c.pair == "fourrooms-near"]
     assert near[0].baseline == near[1].baseline == near[2].baseline  # every method, one baseline
     assert near[1].report == tmp_path / "fourrooms-near" / "sac" / "policy-reuse" / "report"
+
+
+def test_runs_are_those_of_drltg_experiment(tmp_path):
+    """Every run of ``drltg experiment`` with the same settings is a sweep run with the same config."""
+    from drltg.experiment import plan as experiment_plan
+
+    spec = sweep.parse_spec(GRID)
+    runs, _ = sweep.plan(spec, tmp_path / "sweep")
+
+    def key(cfg, role):
+        return role, sweep._key({**cfg, "transfer": {**cfg["transfer"], "source": None}})
+
+    planned = {key(r.cfg, r.role) for r in runs}
+    overrides = [f"{k}={json.dumps(v)}" for k, v in TINY.items()]
+    for pair in GRID["pairs"]:
+        for method in GRID["methods"]:
+            args = argparse.Namespace(pair=pair, method=method, algo="sac", seeds=1, seed=0, frames=256,
+                                      source_frames=None, overrides=overrides, out=tmp_path / pair / method)
+            assert {key(cfg, role) for role, cfg, _ in experiment_plan(args)} <= planned
 
 
 def test_swept_axes_name_the_variant_directories(tmp_path):
