@@ -7,7 +7,9 @@
     DIR/report/                transfer_metrics.{json,csv}, transfer_plot.{png,svg} (drltg report)
 
 Reward shaping has no source: its baseline is the target task's plain reward and its transfer run
-learns from the shaped reward (both evaluated on the task's own reward). Baseline and transfer run i
+learns from the shaped reward (both evaluated on the task's own reward). A source given in the config
+(``-o transfer.source=RUN_DIR``, or ``-o transfer.source=demonstrator:lift`` for policy reuse on the
+manipulation tasks) serves every transfer run, and no source runs are trained. Baseline and transfer run i
 share the seed ``seed + 100 i`` (paired runs); source run i uses ``seed + 100 i + 50``, so no source
 and target run share a seed. A completed run is reused; an interrupted one resumes from its checkpoint,
 so re-running the same command finishes what is missing.
@@ -84,6 +86,7 @@ def plan_runs(
         get_pair(pair)  # raises the "unknown pair" sentence
     out = Path(out).expanduser().resolve()
     shared = out if shared is None else Path(shared).expanduser().resolve()
+    given_source = config_lib.resolve(base, overrides, task=target_task, algo=algo)["transfer"]["source"]
     runs = []
     for i in range(seeds):
         seed_i = seed + 100 * i
@@ -96,6 +99,11 @@ def plan_runs(
         if method == "reward-shaping":
             runs.append(baseline)
             runs.append(("transfer", cfg(target_task, seed_i, frames, method="reward-shaping"),
+                         out / "transfer" / f"seed-{seed_i}"))
+            continue
+        if given_source is not None:
+            runs.append(baseline)
+            runs.append(("transfer", cfg(target_task, seed_i, frames, method=method),
                          out / "transfer" / f"seed-{seed_i}"))
             continue
         source = shared / "source" / f"seed-{seed_i + 50}"

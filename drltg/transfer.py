@@ -6,7 +6,9 @@
                     = model-reuse     the learner starts from the source run's weights
 
 Each method is one of drltg's parts (``drltg.transforms``, ``drltg.collectors``, ``drltg.model_reuse``);
-this module only reads the config and builds them. The source run is a run directory.
+this module only reads the config and builds them. ``transfer.source`` is a run directory, or for
+policy reuse on the manipulation tasks ``demonstrator:TASK``, the scripted policy of ``TASK``
+(``drltg.envs.robosuite.demonstrator_for``) acting as the past policy.
 """
 from __future__ import annotations
 
@@ -21,6 +23,8 @@ from drltg.envs import get_task, make_env
 from drltg.errors import UsageError
 
 METHODS = ("none", "reward-shaping", "policy-reuse", "model-reuse")
+DEMONSTRATOR = "demonstrator:"
+MANIPULATION = ("lift", "lift-place", "lift-place-barrier")
 
 
 def check(cfg: dict) -> None:
@@ -31,6 +35,10 @@ def check(cfg: dict) -> None:
     if t["method"] in ("policy-reuse", "model-reuse"):
         if not t["source"]:
             raise UsageError(f"transfer.method={t['method']} needs transfer.source, the source run directory.")
+        demonstrated = demonstrator_task(t["source"])
+        if demonstrated is not None:
+            _check_demonstrator(cfg, demonstrated)
+            return
         ckpt = Path(t["source"]).expanduser() / "checkpoints" / "last.pt"
         if not ckpt.is_file():
             raise UsageError(f"transfer.source '{t['source']}' holds no checkpoints/last.pt; train the source first.")
@@ -47,8 +55,31 @@ def shaping(cfg: dict):
     return PotentialShaping(potential, gamma=cfg["optim"]["gamma"])
 
 
+def demonstrator_task(source) -> str | None:
+    """``TASK`` for a source written ``demonstrator:TASK``, else ``None``."""
+    if isinstance(source, str) and source.startswith(DEMONSTRATOR):
+        return source[len(DEMONSTRATOR):]
+    return None
+
+
+def _check_demonstrator(cfg: dict, task: str) -> None:
+    if cfg["transfer"]["method"] != "policy-reuse":
+        raise UsageError("a demonstrator has no weights to reuse; use it with transfer.method=policy-reuse.")
+    if task not in MANIPULATION or cfg["task"] not in MANIPULATION:
+        raise UsageError(
+            f"transfer.source=demonstrator:{task} on task '{cfg['task']}': the demonstrator reads the "
+            f"manipulation observation and solves {', '.join(MANIPULATION)} only."
+        )
+
+
 def source_actor(cfg: dict) -> TensorDictModuleBase:
-    """The source run's trained actor, rebuilt from its saved config and checkpoint."""
+    """The past policy: the source run's trained actor, rebuilt from its saved config and checkpoint,
+    or the scripted demonstrator of ``demonstrator:TASK``."""
+    task = demonstrator_task(cfg["transfer"]["source"])
+    if task is not None:
+        from drltg.envs.robosuite.demonstrator import demonstrator_for
+
+        return demonstrator_for(task)
     run = Path(cfg["transfer"]["source"]).expanduser()
     src_cfg = yaml.safe_load((run / "config.yaml").read_text())
     env = make_env(src_cfg["task"], device=cfg["device"], **src_cfg["env"])

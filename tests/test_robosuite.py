@@ -238,10 +238,12 @@ def test_demonstrator_is_a_function_of_the_observation_batch(envs):
     assert torch.equal(policy.act(rows.view(4, 10, -1)).view(40, 7), batched)
 
 
-def test_registered_pair_builds_two_parallel_workers():
-    env = make_env("lift-place", batch_size=(2,), seed=3)
+def test_registered_task_steps_two_parallel_workers():
+    env = make_env("lift-place", batch_size=(2,), seed=3, mp_start_method="fork")  # spawn: same, ~10 s slower
     try:
-        assert env.batch_size == (2,)
+        from torchrl.envs import ParallelEnv
+
+        assert isinstance(env, ParallelEnv) and env.batch_size == (2,)
         td = env.rollout(3, PickPlaceDemonstrator(place=True))
         assert td.shape == (2, 3) and td["next", "observation"].shape == (2, 3, OBSERVATION_SIZE)
         assert td["next", "step_count"][:, -1].squeeze(-1).tolist() == [3, 3]
@@ -279,3 +281,79 @@ def test_render_writes_a_non_blank_frame_and_video_writes_files(tmp_path):
     import imageio.v3 as iio
 
     assert iio.imread(tmp_path / "lift-demonstrator-seed0-ep0.gif", index=None).shape == (4, 32, 32, 3)
+
+
+def _config(task, *overrides):
+    from drltg import config
+
+    return config.resolve({}, list(overrides), task=task, frames=1000, seed=0)
+
+
+def test_demonstrator_as_past_policy_acts_through_the_reuse_mixer(envs):
+    from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+    from drltg import transfer
+    from drltg.agents import make_agent
+
+    cfg = _config("lift-place", "transfer.method=policy-reuse", "transfer.source=demonstrator:lift",
+                  "transfer.upsilon=1.0", "network.hidden=[8,8]")
+    transfer.check(cfg)  # no run directory needed
+    past = transfer.source_actor(cfg)
+    assert isinstance(past, PickPlaceDemonstrator) and not past.place  # lift's skill: reach, grasp, lift
+    env = envs["lift-place"]
+    env.set_seed(0)
+    td = env.reset()
+    policy, mixer = transfer.reuse_policy(cfg, make_agent(env, cfg))
+    with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
+        out = policy(td.clone())
+    assert out["reused"].item()  # psi_h = 1 * 1^h: the demonstrator always acts
+    assert torch.equal(out["action"], past.act(td["observation"]))
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        assert not policy(td.clone())["reused"].item()  # evaluation measures the learner
+
+
+@pytest.mark.parametrize(
+    "task, overrides, message",
+    [
+        ("lift-place", ["transfer.method=model-reuse", "transfer.source=demonstrator:lift"], "no weights"),
+        ("lift-place", ["transfer.method=policy-reuse", "transfer.source=demonstrator:stack"], "solves lift"),
+        ("fourrooms/northeast", ["transfer.method=policy-reuse", "transfer.source=demonstrator:lift"], "solves"),
+    ],
+)
+def test_demonstrator_source_misuse_is_one_sentence(task, overrides, message):
+    from drltg import transfer
+    from drltg.errors import UsageError
+
+    with pytest.raises(UsageError, match=message):
+        transfer.check(_config(task, *overrides))
+
+
+def test_lift_sparse_vs_shaped_uses_the_lift_potential_on_the_sparse_task():
+    from drltg import transfer
+
+    cfg = _config("lift", "transfer.method=reward-shaping")
+    transfer.check(cfg)
+    shaping = transfer.shaping(cfg)
+    assert isinstance(shaping.potential, LiftPotential) and shaping.gamma == cfg["optim"]["gamma"]
+    assert get_task("lift").defaults == {"task": "lift"}  # the baseline learns from Lift's sparse reward
+
+
+def test_lift_to_place_experiment_plans_sources_or_reuses_the_demonstrator(tmp_path):
+    from drltg.experiment import plan_runs
+
+    trained = plan_runs("lift-to-place", "policy-reuse", frames=100, seeds=2, out=tmp_path)
+    assert [(role, cfg["task"]) for role, cfg, _ in trained] == [
+        ("source", "lift"), ("baseline", "lift-place"), ("transfer", "lift-place")] * 2
+    assert trained[2][1]["transfer"]["source"] == str(trained[0][2])
+
+    given = plan_runs("lift-to-place", "policy-reuse", frames=100, seeds=2, out=tmp_path,
+                      overrides=["transfer.source=demonstrator:lift"])
+    assert [(role, cfg["task"], cfg["seed"]) for role, cfg, _ in given] == [
+        ("baseline", "lift-place", 0), ("transfer", "lift-place", 0),
+        ("baseline", "lift-place", 100), ("transfer", "lift-place", 100)]
+    assert all(cfg["transfer"]["source"] == "demonstrator:lift" for _, cfg, _ in given)
+    assert [cfg["transfer"]["method"] for _, cfg, _ in given] == ["none", "policy-reuse"] * 2
+
+    shaping = plan_runs("lift", "reward-shaping", frames=100, seeds=1, out=tmp_path)
+    assert [(role, cfg["task"], cfg["transfer"]["method"]) for role, cfg, _ in shaping] == [
+        ("baseline", "lift", "none"), ("transfer", "lift", "reward-shaping")]

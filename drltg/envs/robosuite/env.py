@@ -237,11 +237,13 @@ def make_robosuite_env(
     batch_size: Sequence[int] | torch.Size = (),
     device=None,
     parallel: bool = True,
+    mp_start_method: str | None = None,
     **options,
 ) -> EnvBase:
     """One :class:`RobosuiteEnv` for ``batch_size=()``; for ``(n,)``, ``n`` of them stepped together,
-    each in its own worker process (``ParallelEnv``) or, with ``parallel=False``, in this one
-    (``SerialEnv``). ``set_seed(s)`` on the batch seeds its members with distinct seeds derived from ``s``."""
+    each in its own worker process (``ParallelEnv``, started by ``mp_start_method``, TorchRL's default
+    ``spawn`` if ``None``) or, with ``parallel=False``, in this one (``SerialEnv``). ``set_seed(s)`` on
+    the batch seeds its members with distinct seeds derived from ``s``."""
     from torchrl.envs import ParallelEnv, SerialEnv
 
     batch_size = torch.Size(batch_size)
@@ -250,5 +252,6 @@ def make_robosuite_env(
     if len(batch_size) != 1:
         raise ValueError(f"robosuite tasks batch along one dimension, got batch_size={tuple(batch_size)}.")
     make = functools.partial(RobosuiteEnv, task, device=device, **options)
-    batched = ParallelEnv if parallel and batch_size[0] > 1 else SerialEnv
-    return batched(batch_size[0], make)
+    if parallel and batch_size[0] > 1:
+        return ParallelEnv(batch_size[0], make, mp_start_method=mp_start_method)
+    return SerialEnv(batch_size[0], make)
