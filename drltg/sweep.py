@@ -369,6 +369,20 @@ class LocalBackend:
             self.pool.shutdown(cancel_futures=True)
 
 
+def _loopback_only() -> None:
+    """Make a local Ray node listen on 127.0.0.1 only.
+
+    On Linux Ray replaces a loopback node address by the machine's reachable one and its servers
+    listen on every interface; the switch Ray reads for single-machine nodes (the environment
+    variable below, read when Ray is imported) keeps them on loopback.
+    """
+    os.environ["RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"] = "0"
+    if "ray" in sys.modules:  # imported already: set the constant Ray derived from it
+        from ray._private import ray_constants
+
+        ray_constants.ENABLE_RAY_CLUSTER = False
+
+
 class RayBackend:
     """Ray tasks declaring ``num_cpus``/``num_gpus`` each; Ray places them on the cluster's nodes.
 
@@ -377,6 +391,8 @@ class RayBackend:
     """
 
     def __init__(self, address: str | None, resources: dict, num_cpus: int | None = None):
+        if address is None:
+            _loopback_only()
         try:
             import ray
         except ImportError:
@@ -385,6 +401,8 @@ class RayBackend:
         if address is None:
             ray.init(address="local", num_cpus=num_cpus, include_dashboard=False,
                      _node_ip_address="127.0.0.1", configure_logging=False, log_to_driver=False)
+            print(f"ray: a local instance on {ray.util.get_node_ip_address()} with {num_cpus} CPUs",
+                  file=sys.stderr)
         else:
             try:
                 ray.init(address=address, configure_logging=False, log_to_driver=False)

@@ -206,11 +206,12 @@ def test_complete_runs_are_skipped_and_a_failure_is_isolated(rerun):
 
 
 # ----------------------------------------------------------------------------------------- Ray
-def test_ray_backend_gives_the_same_runs_and_curves(local, tmp_path):
-    import ray
-
+def test_ray_backend_gives_the_same_runs_and_curves(local, tmp_path, capsys):
     spec, _, curves = local
     out = tmp_path / "ray"
     assert main(["sweep", str(spec), "--out", str(out), "--backend", "ray", "--workers", "2"]) == 0
+    import ray
+
+    assert "ray: a local instance on 127.0.0.1 with 2 CPUs" in capsys.readouterr().err
     assert not ray.is_initialized()
     assert _curves(out) == curves
