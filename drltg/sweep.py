@@ -332,6 +332,7 @@ class LocalBackend:
     def __init__(self, workers: int):
         self.workers = workers
         self.pool = None
+        self.pool_of = {}  # future -> the pool that runs it
 
     @property
     def capacity(self) -> int:
@@ -347,7 +348,10 @@ class LocalBackend:
         return self.pool
 
     def submit(self, run: Run):
-        return self._pool().submit(run_one, run.cfg, str(run.path), str(run.log))
+        pool = self._pool()
+        future = pool.submit(run_one, run.cfg, str(run.path), str(run.log))
+        self.pool_of[future] = pool
+        return future
 
     def wait(self, handles: list, timeout: float) -> list[tuple[Any, tuple[str, str]]]:
         import concurrent.futures as cf
@@ -356,12 +360,14 @@ class LocalBackend:
         finished, _ = cf.wait(handles, timeout=timeout, return_when=cf.FIRST_COMPLETED)
         results = []
         for f in finished:
+            pool = self.pool_of.pop(f)
             try:
                 results.append((f, f.result()))
-            except BrokenProcessPool:  # a worker died (killed, out of memory): start a fresh pool
+            except BrokenProcessPool:  # a worker died (killed, out of memory): the next run gets a fresh pool
                 results.append((f, ("failed", "its worker process died (killed or out of memory?)")))
-                self.pool.shutdown(wait=False, cancel_futures=True)
-                self.pool = None
+                if pool is self.pool:
+                    pool.shutdown(wait=False, cancel_futures=True)
+                    self.pool = None
         return results
 
     def close(self) -> None:
@@ -630,7 +636,8 @@ def run(args: argparse.Namespace) -> int:
     print(md_text)
     failed = [r for r in runs if status[r.path][0] == "failed"]
     for r in failed:
-        print(f"failed: {r.path.relative_to(out)}: {status[r.path][1]}\n        log: {r.log}")
+        print(f"failed: {r.path.relative_to(out)}: {status[r.path][1]}"
+              + (f"\n        log: {r.log}" if r.log.exists() else ""))
     print(f"{len(runs)} runs: {counts.count('done')} done, {len(failed)} failed, "
           f"{counts.count('skipped')} skipped (complete before); summary: {out / 'summary.md'}")
     return 1 if failed else 0
