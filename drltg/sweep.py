@@ -8,7 +8,8 @@ The spec is a grid (every list is one axis; a scalar is a one-value axis)::
     seeds: 5                                   # runs per side (default 5); first seed `seed` (default 0)
     frames: 20000                              # target budget; a list sweeps it
     source_frames: 40000                       # source budget (default: frames); a list sweeps it
-    overrides: {eval.every: 1000}              # config keys of every run
+    overrides: {eval.every: 1000}              # config keys of every run (a transfer.source given
+                                               # here serves every transfer run: no source runs)
     grid: {optim.lr: [3.0e-4, 1.0e-3]}         # config keys swept, each a list
     threshold: 0.5                             # report threshold: a value or "80%"
     resources: {num_cpus: 1, num_gpus: 0}      # per run, for --backend ray
@@ -56,7 +57,7 @@ from drltg.errors import UsageError
 KEYS = ("pairs", "methods", "algos", "seeds", "seed", "frames", "source_frames", "overrides", "grid",
         "threshold", "resources")
 RESOURCES = ("num_cpus", "num_gpus")
-SET_BY_SWEEP = ("task", "algo", "seed", "frames", "transfer.method", "transfer.source")
+SET_BY_SWEEP = ("task", "algo", "seed", "frames", "transfer.method")
 
 
 # ------------------------------------------------------------------------------------------- spec
@@ -242,9 +243,8 @@ def plan(spec: Spec, out: Path) -> tuple[list[Run], list[Cell]]:
                                 out=group / method, shared=group)
             sides: dict[str, list[Path]] = {"baseline": [], "transfer": []}
             for role, cfg, path in planned:
-                needs = cfg["transfer"]["source"]
+                needs = moved.get(Path(str(cfg["transfer"]["source"])))  # None: no source, or one given
                 if needs is not None:
-                    needs = moved[Path(needs)]
                     cfg["transfer"]["source"] = str(needs)
                 moved[path] = home.setdefault(_key(cfg), path)
                 path = moved[path]
