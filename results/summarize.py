@@ -14,12 +14,13 @@ def cell(m, key):
     return text + (f" [{ci[0]:+.2f}, {ci[1]:+.2f}]" if ci else "")
 
 
-print("| pair | method | jumpstart | asymptotic | transfer ratio | frames to 0.5 (B / T) | P(T > B) | seeds |")
-print("|---|---|---|---|---|---|---|---|")
+print("| pair | method | jumpstart | asymptotic | transfer ratio | threshold | frames to threshold (B / T) | P(T > B) | seeds |")
+print("|---|---|---|---|---|---|---|---|---|")
 for path in sorted(root.glob("*/*/transfer_metrics.json")):
-    m = json.loads(path.read_text())["metrics"]
+    report = json.loads(path.read_text())
+    m, threshold = report["metrics"], report["settings"]["threshold"]
     pair, method = path.parent.parent.name, path.parent.name
     ttt = f"{cell(m, 'time_to_threshold_baseline')} / {cell(m, 'time_to_threshold_transfer')}"
     print(f"| {pair} | {method} | {cell(m, 'jumpstart')} | {cell(m, 'asymptotic_performance')} | "
-          f"{cell(m, 'transfer_ratio')} | {ttt} | {m['probability_of_improvement']:.2f} | "
+          f"{cell(m, 'transfer_ratio')} | {threshold:g} | {ttt} | {m['probability_of_improvement']:.2f} | "
           f"{m['n_seeds_baseline']} + {m['n_seeds_transfer']} |")
