@@ -24,3 +24,19 @@ study() {
 study sac --algo sac > "$RUNS/logs/sac.log" 2>&1
 study soc-k4 --algo soc -o soc.num_options=4 > "$RUNS/logs/soc-k4.log" 2>&1
 study soc-k2 --algo soc -o soc.num_options=2 > "$RUNS/logs/soc-k2.log" 2>&1
+
+# Into results/options/PAIR/LEARNER/: each learner's own transfer report (model reuse vs its baseline),
+# and PAIR/soc-kK-vs-sac/: SOC's model-reuse runs against SAC's (both on the target task).
+for pair in fourrooms-near fourrooms-far; do
+  for name in sac soc-k4 soc-k2; do
+    mkdir -p "results/options/$pair/$name"
+    cp "$RUNS/$name/$pair"/report/transfer_metrics.{json,csv} "$RUNS/$name/$pair"/report/transfer_plot.png \
+      "results/options/$pair/$name/"
+  done
+  for k in 4 2; do
+    $DRLTG report --baseline "$RUNS/sac/$pair/transfer" --transfer "$RUNS/soc-k$k/$pair/transfer" \
+      --baseline-label "SAC + model reuse" --transfer-label "SOC K=$k + model reuse" --threshold 0.5 \
+      --out "results/options/$pair/soc-k$k-vs-sac" > /dev/null
+    rm -f "results/options/$pair/soc-k$k-vs-sac/transfer_plot.svg"
+  done
+done
