@@ -141,7 +141,23 @@ def write_filmstrip(path: Path, frames: list[np.ndarray], success: list[bool], c
     _atomic_save(path, lambda tmp: Path(tmp).write_bytes(buf.getvalue()))
 
 
+GL_LIBRARIES = {"egl": ("EGL", "Mesa's libEGL, Debian package libegl1"),
+                "osmesa": ("OSMesa", "Debian package libosmesa6")}
+
+
+def check_gl_backend() -> None:
+    """Name a missing offscreen GL library in one sentence: without it MuJoCo fails at import time, deep
+    inside TorchRL, for any env (``MUJOCO_GL`` is read when ``torchrl.envs`` is imported)."""
+    import ctypes.util
+
+    backend = os.environ.get("MUJOCO_GL")
+    if backend in GL_LIBRARIES and ctypes.util.find_library(GL_LIBRARIES[backend][0]) is None:
+        library, package = GL_LIBRARIES[backend]
+        raise UsageError(f"MUJOCO_GL={backend} needs the {library} library, which is not installed ({package}).")
+
+
 def run(args: argparse.Namespace) -> int:
+    check_gl_backend()
     if args.episodes < 1 or args.strip < 1 or args.fps < 1 or args.size < 16:
         raise UsageError("--episodes, --strip and --fps must be positive and --size at least 16.")
     if args.out is None and args.source == "demonstrator":

@@ -283,6 +283,19 @@ def test_render_writes_a_non_blank_frame_and_video_writes_files(tmp_path):
     assert iio.imread(tmp_path / "lift-demonstrator-seed0-ep0.gif", index=None).shape == (4, 32, 32, 3)
 
 
+def test_video_names_a_missing_gl_library_in_one_sentence(tmp_path, monkeypatch, capsys):
+    import ctypes.util
+
+    from drltg.cli import main
+
+    monkeypatch.setenv("MUJOCO_GL", "osmesa")
+    monkeypatch.setattr(ctypes.util, "find_library", lambda name: None)
+    assert main(["video", "demonstrator", "--task", "lift", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "MUJOCO_GL=osmesa needs the OSMesa library" in err and "libosmesa6" in err
+    assert list(tmp_path.iterdir()) == []
+
+
 def _config(task, *overrides):
     from drltg import config
 
