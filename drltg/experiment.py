@@ -87,30 +87,23 @@ def plan_runs(
     out = Path(out).expanduser().resolve()
     shared = out if shared is None else Path(shared).expanduser().resolve()
     given_source = config_lib.resolve(base, overrides, task=target_task, algo=algo)["transfer"]["source"]
+
+    def cfg(task, seed, frames, **transfer):
+        over = list(overrides) + [f"transfer.{k}={v}" for k, v in transfer.items()]
+        return config_lib.resolve(base, over, task=task, algo=algo, frames=frames, seed=seed)
+
     runs = []
     for i in range(seeds):
         seed_i = seed + 100 * i
-
-        def cfg(task, seed, frames, **transfer):
-            over = list(overrides) + [f"transfer.{k}={v}" for k, v in transfer.items()]
-            return config_lib.resolve(base, over, task=task, algo=algo, frames=frames, seed=seed)
-
         baseline = ("baseline", cfg(target_task, seed_i, frames), shared / "baseline" / f"seed-{seed_i}")
-        if method == "reward-shaping":
-            runs.append(baseline)
-            runs.append(("transfer", cfg(target_task, seed_i, frames, method="reward-shaping"),
-                         out / "transfer" / f"seed-{seed_i}"))
-            continue
-        if given_source is not None:
-            runs.append(baseline)
-            runs.append(("transfer", cfg(target_task, seed_i, frames, method=method),
-                         out / "transfer" / f"seed-{seed_i}"))
-            continue
-        source = shared / "source" / f"seed-{seed_i + 50}"
-        runs.append(("source", cfg(source_task, seed_i + 50, source_frames or frames), source))
-        runs.append(baseline)
-        runs.append(("transfer", cfg(target_task, seed_i, frames, method=method, source=source),
-                     out / "transfer" / f"seed-{seed_i}"))
+        if method == "reward-shaping" or given_source is not None:  # no source runs to train
+            sources, transfer = [], {"method": method}
+        else:
+            source = shared / "source" / f"seed-{seed_i + 50}"
+            sources = [("source", cfg(source_task, seed_i + 50, source_frames or frames), source)]
+            transfer = {"method": method, "source": source}
+        runs += [*sources, baseline,
+                 ("transfer", cfg(target_task, seed_i, frames, **transfer), out / "transfer" / f"seed-{seed_i}")]
     return runs
 
 

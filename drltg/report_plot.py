@@ -141,8 +141,18 @@ def _gap(ax, x, y_from, y_to, text, side):
                 bbox=dict(boxstyle="round,pad=0.25", fc="white", ec="0.6", alpha=0.9))
 
 
-def plot_matrix(table: np.ndarray, sources, targets, metric: str) -> tuple[bytes, bytes]:
-    """Heatmap of ``metric`` over source (rows) x target (columns); empty cells are grey."""
+def plot_matrix(
+    table: np.ndarray,
+    sources,
+    targets,
+    metric: str,
+    *,
+    text: np.ndarray | None = None,
+    axis_labels: tuple[str, str] = ("source task", "target task"),
+    title: str | None = None,
+) -> tuple[bytes, bytes]:
+    """Heatmap of ``metric`` over source (rows) x target (columns); empty cells are grey. ``text``
+    replaces each cell's printed value (e.g. with its confidence interval)."""
     from matplotlib.colors import TwoSlopeNorm
 
     plt, (fig, ax) = _figure(figsize=(1.6 * len(targets) + 3, 1.1 * len(sources) + 2))
@@ -162,13 +172,14 @@ def plot_matrix(table: np.ndarray, sources, targets, metric: str) -> tuple[bytes
     for i in range(len(sources)):
         for j in range(len(targets)):
             v = table[i, j]
-            ax.text(j, i, "n/a" if not np.isfinite(v) else f"{v:.3g}", ha="center", va="center",
+            label = text[i, j] if text is not None else "n/a" if not np.isfinite(v) else f"{v:.3g}"
+            ax.text(j, i, label, ha="center", va="center",
                     fontsize=10, color="black",
                     bbox=dict(boxstyle="round,pad=0.2", fc="white", ec="none", alpha=0.85))
     ax.set_xticks(range(len(targets)), targets, rotation=30, ha="right")
     ax.set_yticks(range(len(sources)), sources)
-    ax.set_xlabel("target task")
-    ax.set_ylabel("source task")
-    ax.set_title(f"Transfer matrix: {metric}")
+    ax.set_ylabel(axis_labels[0])
+    ax.set_xlabel(axis_labels[1])
+    ax.set_title(title or f"Transfer matrix: {metric}")
     fig.colorbar(im, ax=ax, label=metric)
     return _save(plt, fig)

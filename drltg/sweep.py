@@ -549,7 +549,7 @@ def plot_transfer_matrix(rows: list[dict], metric: str = "transfer_ratio") -> by
     """Heatmap PNG of ``metric`` over (pair, algo, variant) rows x method columns, mean and CI per cell."""
     import numpy as np
 
-    from drltg.report_plot import _figure, _save
+    from drltg.report_plot import plot_matrix
 
     one_algo = len({r["algo"] for r in rows}) == 1
 
@@ -567,20 +567,8 @@ def plot_transfer_matrix(rows: list[dict], metric: str = "transfer_ratio") -> by
             ci = r["metrics"].get(f"{metric}_ci")
             table[i, j] = value
             text[i, j] = f"{value:+.2f}" + (f"\n[{ci[0]:+.2f}, {ci[1]:+.2f}]" if ci else "")
-    plt, (fig, ax) = _figure(figsize=(2.2 * len(methods) + 3, 1.0 * len(labels) + 2))
-    finite = table[np.isfinite(table)]
-    span = max(float(np.abs(finite).max()), 1e-12) if finite.size else 1.0
-    cmap = plt.get_cmap("RdBu").with_extremes(bad="0.85")
-    im = ax.imshow(np.ma.masked_invalid(table), cmap=cmap, vmin=-span, vmax=span, aspect="auto")
-    for i in range(len(labels)):
-        for j in range(len(methods)):
-            ax.text(j, i, text[i, j], ha="center", va="center", fontsize=9,
-                    bbox=dict(boxstyle="round,pad=0.2", fc="white", ec="none", alpha=0.85))
-    ax.set_xticks(range(len(methods)), methods, rotation=20, ha="right")
-    ax.set_yticks(range(len(labels)), labels)
-    ax.set_title(f"{metric}: mean over seeds [bootstrap CI where both sides have 2+ seeds]")
-    fig.colorbar(im, ax=ax, label=f"{metric} (> 0: transfer helped)")
-    return _save(plt, fig)[0]
+    title = f"{metric}: mean over seeds [bootstrap CI where both sides have 2+ seeds]"
+    return plot_matrix(table, labels, methods, metric, text=text, axis_labels=("pair", "method"), title=title)[0]
 
 
 # ---------------------------------------------------------------------------------------------- CLI

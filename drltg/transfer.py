@@ -20,11 +20,11 @@ from tensordict.nn import TensorDictModuleBase, TensorDictSequential
 
 from drltg.agents import Agent, make_agent
 from drltg.envs import get_task, make_env
+from drltg.envs.robosuite.layout import TASKS as MANIPULATION
 from drltg.errors import UsageError
 
 METHODS = ("none", "reward-shaping", "policy-reuse", "model-reuse")
 DEMONSTRATOR = "demonstrator:"
-MANIPULATION = ("lift", "lift-place", "lift-place-barrier")
 
 
 def check(cfg: dict) -> None:

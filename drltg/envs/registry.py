@@ -136,7 +136,7 @@ ROOMS_TRAIN = {"sac": {"alpha_init": 0.01}, "network": {"hidden": [64, 64]}}
 # policy is kept near uniform and its greedy evaluation collapses to never reaching the goal after
 # about 12k frames (measured: return 0.94 at 12k, then -1 from 16k to 40k). A fixed alpha of 0.01 keeps
 # 0.94 to 40k frames.
-GRID_TRAIN = {"sac": {"alpha_init": 0.01, "fixed_alpha": True}, "network": {"hidden": [64, 64]}}
+GRID_TRAIN = {**ROOMS_TRAIN, "sac": {**ROOMS_TRAIN["sac"], "fixed_alpha": True}}
 
 
 def _rooms_potential(options: dict[str, Any]):

@@ -26,7 +26,7 @@ import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 
-from drltg.envs.robosuite.layout import CUBE_HALF_SIZE, LAYOUT, TABLE_TOP_Z, TARGET_HALF_HEIGHT
+from drltg.envs.robosuite.layout import CUBE_HALF_SIZE, LAYOUT, TABLE_TOP_Z, TARGET_HALF_HEIGHT, TASKS
 
 OSC_POSITION_SCALE = 0.05
 OSC_ROTATION_SCALE = 0.5
@@ -167,6 +167,6 @@ class PickPlaceDemonstrator(TensorDictModuleBase):
 
 def demonstrator_for(task: str, **kwargs) -> PickPlaceDemonstrator:
     """The demonstrator for a manipulation task name: lift and hold for ``lift``, place otherwise."""
-    if task not in ("lift", "lift-place", "lift-place-barrier"):
-        raise ValueError(f"No demonstrator for task {task!r}; known: lift, lift-place, lift-place-barrier.")
+    if task not in TASKS:
+        raise ValueError(f"No demonstrator for task {task!r}; known: {', '.join(TASKS)}.")
     return PickPlaceDemonstrator(place=task != "lift", **kwargs)

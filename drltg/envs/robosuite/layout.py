@@ -29,6 +29,8 @@ from __future__ import annotations
 
 from typing import Mapping
 
+TASKS = ("lift", "lift-place", "lift-place-barrier")
+"""The manipulation tasks sharing this scene and layout."""
 TABLE_TOP_Z = 0.8
 CUBE_HALF_SIZE = 0.022
 """Largest cube half-size robosuite's Lift samples (0.020-0.022 m)."""
