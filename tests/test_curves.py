@@ -8,18 +8,11 @@ import pytest
 from drltg.curves import Curve, find_runs, read_curves, read_run
 from drltg.errors import UsageError
 
-SB3_RUNS = Path(__file__).resolve().parents[1].parent / "shared" / "fixtures" / "sb3_runs"
 RUN_NAMES = [
     "lift_shaped_sac", "lift_soc4", "lift_sparse_sac", "liftplace_sac", "liftplace_sac_policyreuse",
     "liftplace_soc4", "liftplacebarrier_sac", "liftplacebarrier_sac_policyreuse",
 ]
 
-
-@pytest.fixture(scope="module")
-def sb3_runs() -> Path:
-    if not SB3_RUNS.is_dir():
-        pytest.fail(f"the real-log fixtures are missing: expected {SB3_RUNS} (shared/ beside the repository)")
-    return SB3_RUNS
 
 
 def write_eval_csv(run_dir: Path, frames, values, task=None, success=None) -> Path:

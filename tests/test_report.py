@@ -11,15 +11,8 @@ from drltg import report
 from drltg.curves import Curve
 from drltg.errors import UsageError
 
-SB3_RUNS = Path(__file__).resolve().parents[1].parent / "shared" / "fixtures" / "sb3_runs"
 FILES = {"transfer_metrics.json", "transfer_metrics.csv", "transfer_plot.png", "transfer_plot.svg"}
 
-
-@pytest.fixture(scope="module")
-def sb3_runs() -> Path:
-    if not SB3_RUNS.is_dir():
-        pytest.fail(f"the real-log fixtures are missing: expected {SB3_RUNS} (shared/ beside the repository)")
-    return SB3_RUNS
 
 
 def write_run(run_dir: Path, frames, values, task=None) -> Path:
