@@ -60,8 +60,8 @@ def test_make_env_applies_defaults_overrides_and_seed():
 
 
 def test_unknown_task_names_it_and_suggests_a_close_name():
-    with pytest.raises(UsageError, match=r"unknown task 'fourroom/northest'.*did you mean 'fourrooms/northeast'"):
-        make_env("fourroom/northest")
+    with pytest.raises(UsageError, match=r"unknown task 'fourroom/northeat'.*did you mean 'fourrooms/northeast'"):
+        make_env("fourroom/northeat")
     with pytest.raises(UsageError, match=r"unknown task 'zzz'; known tasks: fourrooms/northeast"):
         get_task("zzz")
     with pytest.raises(UsageError, match=r"unknown pair 'fourrooms-nera'.*'fourrooms-near'"):
@@ -103,3 +103,18 @@ def test_tasks_command_lists_every_task_and_pair(capsys):
     assert tasks_cmd.run(parser.parse_args(["grid"])) == 0
     names = [line.split()[0] for line in capsys.readouterr().out.splitlines() if line.startswith("  ")]
     assert names and all("grid" in name for name in names)
+
+
+def test_graded_fourrooms_targets_lie_in_their_rooms_at_growing_distances():
+    from drltg.envs.fourrooms import ROOM_NAMES, in_free_space, room_of
+
+    graded = ["fourrooms-near", "fourrooms-inner", "fourrooms-southeast", "fourrooms-northwest", "fourrooms-far"]
+    rooms = ["northeast", "northeast", "southeast", "northwest", "southwest"]
+    source = make_env("fourrooms/northeast").goal.float()
+    straight = []
+    for pair, room in zip(graded, rooms):
+        goal = make_env(PAIRS[pair].target).goal.float()
+        assert PAIRS[pair].source == "fourrooms/northeast"
+        assert bool(in_free_space(goal)) and ROOM_NAMES[room_of(goal)] == room
+        straight.append((goal - source).norm().item())
+    assert straight[0] < straight[1] < min(straight[2:4]) and max(straight[2:4]) < straight[4]

@@ -177,6 +177,36 @@ register_task(
     train=ROOMS_TRAIN,
     potential=_rooms_potential,
 )
+# Graded targets for the source goal (8, 8): shortest free path from the source goal through the
+# doorways, 1.0 (northeast-shifted), 2.1 (northeast-inner), 6.1 (southeast, northwest) and 9.9
+# (southwest) units.
+register_task(
+    "fourrooms/northeast-inner",
+    FourRoomsEnv,
+    "continuous FourRooms, goal disc (r 0.5) at (6.5, 6.5), the north-east room's inner corner",
+    goal=(6.5, 6.5),
+    step_cost=0.01,
+    train=ROOMS_TRAIN,
+    potential=_rooms_potential,
+)
+register_task(
+    "fourrooms/southeast",
+    FourRoomsEnv,
+    "continuous FourRooms, goal disc (r 0.5) at (8.0, 2.0) in the south-east room, random start",
+    goal=(8.0, 2.0),
+    step_cost=0.01,
+    train=ROOMS_TRAIN,
+    potential=_rooms_potential,
+)
+register_task(
+    "fourrooms/northwest",
+    FourRoomsEnv,
+    "continuous FourRooms, goal disc (r 0.5) at (2.0, 8.0) in the north-west room, random start",
+    goal=(2.0, 8.0),
+    step_cost=0.01,
+    train=ROOMS_TRAIN,
+    potential=_rooms_potential,
+)
 register_task(
     "gridrooms/northeast",
     GridFourRoomsEnv,
@@ -215,6 +245,24 @@ register_pair(
     "fourrooms/northeast",
     "fourrooms/southwest",
     "the goal moves to the opposite, south-west room",
+)
+register_pair(
+    "fourrooms-inner",
+    "fourrooms/northeast",
+    "fourrooms/northeast-inner",
+    "the goal moves 2.1 units to the north-east room's inner corner",
+)
+register_pair(
+    "fourrooms-southeast",
+    "fourrooms/northeast",
+    "fourrooms/southeast",
+    "the goal moves to the adjacent south-east room (through the east doorway)",
+)
+register_pair(
+    "fourrooms-northwest",
+    "fourrooms/northeast",
+    "fourrooms/northwest",
+    "the goal moves to the adjacent north-west room (through the north doorway)",
 )
 register_pair(
     "gridrooms-near",
