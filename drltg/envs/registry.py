@@ -326,5 +326,17 @@ register_task(
     train=ROBOSUITE_TRAIN,
     potential=_manipulation_potential,
 )
+register_task(
+    "lift-dense",
+    _robosuite,
+    "robosuite Lift with robosuite's dense reward (reach + grasp + lift, at most 1 per step), horizon 500",
+    task="lift",
+    reward_shaping=True,
+    train=ROBOSUITE_TRAIN,
+)
 register_pair("lift-to-place", "lift", "lift-place", "lifting skills reused to lift and place")
 register_pair("lift-to-place-barrier", "lift", "lift-place-barrier", "lifting reused where pushing cannot work")
+register_pair("lift-dense-to-place", "lift-dense", "lift-place", "a Lift policy learned from dense reward reused to place")
+register_pair(
+    "lift-dense-to-place-barrier", "lift-dense", "lift-place-barrier", "a dense-reward Lift policy reused over the wall"
+)
