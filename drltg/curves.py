@@ -26,6 +26,7 @@ raises :class:`~drltg.errors.UsageError` with one sentence naming the file and t
 """
 from __future__ import annotations
 
+import csv
 import glob as _glob
 import math
 from dataclasses import dataclass
@@ -52,6 +53,7 @@ class Curve:
     source: Path
     label: str
     task: str | None = None
+    config: dict | None = None  # the run's config.yaml, for drltg runs
 
     def __post_init__(self):
         self.frames = np.asarray(self.frames, dtype=np.float64)
@@ -153,7 +155,8 @@ def read_run(directory: str | Path, *, format: str = "auto", tag: str | None = N
     if fmt is None:
         raise UsageError(f"directory '{d}' holds no run.")
     owner = _owner(d)
-    task, label = _task_of(owner), owner.resolve().name
+    config = _config_of(owner)
+    label = owner.resolve().name
     if fmt == "drltg":
         curve = read_eval_csv(d / "eval.csv", column=tag or "return_mean")
     elif fmt == "sb3":
@@ -164,7 +167,8 @@ def read_run(directory: str | Path, *, format: str = "auto", tag: str | None = N
         curve = read_tensorboard(d, tag=tag)
     else:
         curve = read_csvlogger(d / "scalars", tag=tag)
-    curve.label, curve.task = label, task
+    curve.label, curve.config = label, config
+    curve.task = _task_in(config)
     return curve
 
 
@@ -192,7 +196,8 @@ def _read_file(path: Path, format: str, tag: str | None) -> Curve:
     else:
         curve = read_csvlogger(path, tag=tag)
     owner = _owner(path.parent)
-    curve.task = _task_of(owner)
+    curve.config = _config_of(owner)
+    curve.task = _task_in(curve.config)
     if owner != path.parent.resolve():
         curve.label = owner.name
     return curve
@@ -208,7 +213,8 @@ def _owner(directory: Path, levels: int = 3) -> Path:
     return d
 
 
-def _task_of(directory: Path) -> str | None:
+def _config_of(directory: Path) -> dict | None:
+    """The run's ``config.yaml`` as a dict (``{}`` when it holds no mapping), None without one."""
     config = Path(directory) / "config.yaml"
     if not config.is_file():
         return None
@@ -218,25 +224,36 @@ def _task_of(directory: Path) -> str | None:
         data = yaml.safe_load(config.read_text())
     except yaml.YAMLError:
         raise UsageError(f"'{config}' is not valid YAML.") from None
-    task = data.get("task") if isinstance(data, dict) else None
+    return data if isinstance(data, dict) else {}
+
+
+def _task_in(config: dict | None) -> str | None:
+    task = (config or {}).get("task")
     return str(task) if task is not None else None
 
 
+def _task_of(directory: Path) -> str | None:
+    return _task_in(_config_of(directory))
+
+
 # ----------------------------------------------------------------------------------------- readers
-def _lines(path: Path) -> list[str]:
+def _lines(path: Path) -> list[tuple[int, list[str]]]:
+    """The non-blank lines of a CSV file as ``(line number, cells)``: a byte-order mark is dropped
+    and quoted cells are unquoted by the csv module."""
     try:
-        text = Path(path).read_text()
+        text = Path(path).read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
         raise UsageError(f"'{path}' is not a text file.") from None
-    lines = [line for line in text.splitlines() if line.strip()]
+    lines = [(i, line) for i, line in enumerate(text.splitlines(), start=1) if line.strip()]
     if not lines:
         raise UsageError(f"'{path}' is empty.")
-    return lines
+    cells = csv.reader([line for _, line in lines])
+    return [(i, row) for (i, _), row in zip(lines, cells)]
 
 
 def _header(path: Path) -> list[str] | None:
     """The CSV header of ``path``, or None if its first line is numeric (a header-less file)."""
-    first = _lines(path)[0].split(",")
+    first = _lines(path)[0][1]
     try:
         [float(c) for c in first]
     except ValueError:
@@ -244,24 +261,22 @@ def _header(path: Path) -> list[str] | None:
     return None
 
 
-def _table(path: Path, comment: str | None = None) -> tuple[list[str], list[list[str]], int]:
-    """Header, rows of string cells and the file line number of the first row."""
+def _table(path: Path, comment: str | None = None) -> tuple[list[str], list[list[str]], list[int]]:
+    """Header, rows of string cells and each row's line number in the file."""
     lines = _lines(path)
     skip = 0
-    while comment and skip < len(lines) and lines[skip].startswith(comment):
+    while comment and skip < len(lines) and ",".join(lines[skip][1]).startswith(comment):
         skip += 1
     if skip == len(lines):
         raise UsageError(f"'{path}' has no header.")
-    header = [c.strip() for c in lines[skip].split(",")]
-    rows = [line.split(",") for line in lines[skip + 1:]]
-    if not rows:
+    header = [c.strip() for c in lines[skip][1]]
+    body = lines[skip + 1:]
+    if not body:
         raise UsageError(f"'{path}' has a header but no rows.")
-    for i, row in enumerate(rows):
+    for line, row in body:
         if len(row) != len(header):
-            raise UsageError(
-                f"'{path}' line {skip + 2 + i} has {len(row)} cells, but the header has {len(header)}."
-            )
-    return header, rows, skip + 2
+            raise UsageError(f"'{path}' line {line} has {len(row)} cells, but the header has {len(header)}.")
+    return header, [row for _, row in body], [line for line, _ in body]
 
 
 def _column(path: Path, header: list[str], name: str) -> int:
@@ -283,11 +298,10 @@ def _number(path: Path, line: int, name: str, cell: str) -> float:
 def _columns_xy(
     path: Path, x_name: str, y_name: str, *, skip_empty_y: bool, comment: str | None = None
 ) -> tuple[np.ndarray, np.ndarray, list[int]]:
-    header, rows, first_line = _table(path, comment)
+    header, rows, numbers = _table(path, comment)
     ix, iy = _column(path, header, x_name), _column(path, header, y_name)
     xs, ys, lines = [], [], []
-    for i, row in enumerate(rows):
-        line = first_line + i
+    for line, row in zip(numbers, rows):
         y_cell, x_cell = row[iy].strip(), row[ix].strip()
         if not y_cell:
             if skip_empty_y:
@@ -343,10 +357,9 @@ def read_sb3_monitor(paths: Sequence[str | Path], column: str = "r") -> Curve:
     """
     ts, ls, ys = [], [], []
     for path in map(Path, paths):
-        header, rows, first = _table(path, comment="#")
+        header, rows, numbers = _table(path, comment="#")
         it, il, iy = (_column(path, header, c) for c in ("t", "l", column))
-        for i, row in enumerate(rows):
-            line = first + i
+        for line, row in zip(numbers, rows):
             ts.append(_number(path, line, "t", row[it]))
             ls.append(_number(path, line, "l", row[il]))
             ys.append(_number(path, line, column, row[iy]))
@@ -399,17 +412,12 @@ def read_csvlogger(path: str | Path, tag: str | None = None) -> Curve:
             raise UsageError(f"'{path}' has no scalar '{tag}' (scalars: {', '.join(found)}).")
         path = path / f"{tag}.csv"
     steps, values, lines = [], [], []
-    for i, line in enumerate(Path(path).read_text().splitlines(), start=1):
-        if not line.strip():
-            continue
-        cells = line.split(",")
+    for i, cells in _lines(Path(path)):
         if len(cells) != 2:
             raise UsageError(f"'{path}' line {i} is not a 'step,value' pair.")
         steps.append(_number(path, i, "step", cells[0]))
         values.append(_number(path, i, "value", cells[1]))
         lines.append(i)
-    if not steps:
-        raise UsageError(f"'{path}' is empty.")
     return _checked(path, steps, values, lines)
 
 

@@ -223,3 +223,27 @@ def test_config_without_task_and_broken_yaml(tmp_path):
     (run / "config.yaml").write_text("task: [unclosed\n")
     with pytest.raises(UsageError, match="config.yaml' is not valid YAML"):
         read_curves(run)
+
+
+def test_byte_order_mark_and_quoted_headers_are_read(tmp_path):
+    run = tmp_path / "bom"
+    run.mkdir()
+    (run / "eval.csv").write_bytes('\ufeff"frames","return_mean"\n0,"1.5"\n10,2.5\n'.encode("utf-8"))
+    (c,) = read_curves(run)
+    np.testing.assert_array_equal(c.frames, [0, 10])
+    np.testing.assert_array_equal(c.values, [1.5, 2.5])
+    sb3 = tmp_path / "sb3"
+    sb3.mkdir()
+    (sb3 / "progress.csv").write_bytes(
+        '\ufeff"time/total_timesteps","eval/mean_reward"\n500,\n1000,"-3.0"\n'.encode("utf-8"))
+    (p,) = read_curves(sb3)
+    np.testing.assert_array_equal(p.frames, [1000])
+    np.testing.assert_array_equal(p.values, [-3.0])
+
+
+def test_drltg_runs_carry_their_config(tmp_path):
+    run = write_eval_csv(tmp_path / "run", [0, 1], [0, 1], task="fourrooms/near")
+    (c,) = read_curves(run)
+    assert c.config == {"task": "fourrooms/near", "seed": 0}
+    (f,) = read_curves(run / "eval.csv")
+    assert f.config == c.config
