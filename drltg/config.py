@@ -3,12 +3,18 @@
     defaults (below) <- the task's own overrides (registry) <- a YAML file (--config) <- KEY=VALUE overrides
 
 The resolved dict is written to ``<run_dir>/config.yaml``; ``drltg train --config <run_dir>/config.yaml``
-reproduces the run. Keys are validated against the defaults, so a typo is an error, not a silent no-op.
+reproduces the run. Every key has a declared type and range in ``SCHEMA`` (``describe()`` lists them);
+``resolve()`` checks them all before anything is built or written, so a typo or a value out of range is
+one sentence naming the key, not a silent no-op or a failure deep inside a run.
 """
 from __future__ import annotations
 
 import copy
 import difflib
+import inspect
+import math
+import re
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -62,8 +68,163 @@ DEFAULTS: dict[str, Any] = {
         "psi_end": None,  # optional decay of psi across training, reached after annealing_frames
         "annealing_frames": 0,
         "freeze": [],  # model reuse: parameter name patterns to keep fixed
+        "partial": False,  # model reuse: accept a source whose core networks cannot all be loaded
+        "allow_incomplete": False,  # reuse a source run that did not finish (no summary.json)
     },
 }
+
+
+@dataclass(frozen=True)
+class Field:
+    """The type and range of one config key.
+
+    ``type`` is ``int``, ``float`` (any finite number), ``bool``, ``str``, ``list`` (of ``item``),
+    ``"device"`` (a torch device string usable on this machine) or ``dict`` (``env``, whose keys are
+    checked against the keywords the task's factory declares). Bounds are inclusive unless
+    ``open_low``; ``nullable`` also accepts null, ``auto`` also accepts the string ``"auto"``.
+    ``what`` replaces the generated description of the expected value; ``noun`` names a choice in the
+    error message ("unknown algorithm 'ppo'").
+    """
+
+    type: Any
+    help: str = ""
+    low: float | None = None
+    high: float | None = None
+    open_low: bool = False
+    choices: tuple = ()
+    item: Any = None
+    nonempty: bool = False
+    nullable: bool = False
+    auto: bool = False
+    what: str = ""
+    noun: str = ""
+
+    def expected(self) -> str:
+        """The accepted values, as the end of "must be ..."."""
+        if self.what:
+            text = self.what
+        elif self.type is bool:
+            text = "true or false"
+        elif self.choices:
+            text = "one of " + ", ".join(self.choices)
+        elif self.type in (int, float):
+            text = "an integer" if self.type is int else "a number"
+            lo, hi = _number_text(self.low), _number_text(self.high)
+            if lo is not None and hi is not None:
+                text += f" in {'(' if self.open_low else '['}{lo}, {hi}]"
+            elif lo is not None:
+                text += f" {'>' if self.open_low else '>='} {lo}"
+            elif hi is not None:
+                text += f" <= {hi}"
+        else:
+            text = "a string"
+        if self.auto:
+            text = f"'auto' or {text}"
+        if self.nullable:
+            text += " or null"
+        return text
+
+    def check(self, key: str, value: Any) -> Any:
+        """``value`` if it fits (integral floats of an integer key made ``int``); a UsageError otherwise."""
+        if (value is None and self.nullable) or (self.auto and value == "auto"):
+            return value
+        if self.type == "device":
+            return _check_device(key, value, self)
+        ok, value = self._fit(value)
+        if ok:
+            return value
+        if self.choices and isinstance(value, str):
+            raise UsageError(
+                f"unknown {self.noun or 'value'} {value!r}: config key '{key}' must be {self.expected()}."
+            )
+        raise UsageError(f"config key '{key}' must be {self.expected()}, got {_short(value)}.")
+
+    def _fit(self, value: Any) -> tuple[bool, Any]:
+        if self.type is bool or self.type is str:
+            return isinstance(value, self.type) and (not self.choices or value in self.choices), value
+        if self.type is list:
+            if not isinstance(value, (list, tuple)) or (self.nonempty and not value):
+                return False, value
+            items = [self.item._fit(v) for v in value]
+            return all(ok for ok, _ in items), [v for _, v in items]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            return False, value
+        if self.type is int:
+            if isinstance(value, float) and not value.is_integer():
+                return False, value
+            value = int(value)
+        if self.low is not None and (value <= self.low if self.open_low else value < self.low):
+            return False, value
+        return self.high is None or value <= self.high, value
+
+
+def _number_text(x: float | None) -> str | None:
+    return None if x is None else str(int(x)) if float(x).is_integer() else f"{x:g}"
+
+
+ALGOS = ("sac", "td3", "soc")
+TRANSFER_METHODS = ("none", "reward-shaping", "policy-reuse", "model-reuse")
+OPTION_POLICIES = ("soft", "egreedy")
+_PROB = dict(low=0.0, high=1.0)
+_POSITIVE = dict(low=0.0, open_low=True)
+
+SCHEMA: dict[str, Field] = {
+    "task": Field(str, "registered task name (`drltg tasks`)", what="a registered task name"),
+    "algo": Field(str, "learner; sac is discrete SAC on discrete tasks", choices=ALGOS, noun="algorithm"),
+    "seed": Field(int, "seed of envs, networks and sampling", low=0, high=2**31 - 1),
+    "frames": Field(int, "environment frames, rounded up to whole collector batches", low=1),
+    "device": Field("device", "torch device", what="a torch device such as cpu, cuda or cuda:0"),
+    "threads": Field(int, "CPU threads per run", low=1),
+    "env": Field(dict, "keyword arguments of the task's env factory, checked against its declared defaults",
+                 what="a mapping of the task's keyword arguments (e.g. env.horizon=200)"),
+    "collector.num_envs": Field(int, "training envs stepped as one batch", low=1),
+    "collector.frames_per_batch": Field(int, "frames per collector batch, a multiple of num_envs", low=1),
+    "collector.init_random_frames": Field(int, "random-action warm-up frames", low=0),
+    "buffer.size": Field(int, "replay capacity (transitions)", low=1),
+    "buffer.batch_size": Field(int, "minibatch size", low=1),
+    "optim.lr": Field(float, "Adam learning rate", **_POSITIVE),
+    "optim.updates_per_batch": Field(int, "gradient steps per collected batch", low=1),
+    "optim.gamma": Field(float, "discount", **_PROB, open_low=True),
+    "optim.tau": Field(float, "target-network smoothing", **_PROB, open_low=True),
+    "network.hidden": Field(list, "MLP widths of actor and critics", item=Field(int, low=1), nonempty=True,
+                            what="a non-empty list of positive integers (e.g. [64, 64])"),
+    "sac.alpha_init": Field(float, "initial entropy temperature", **_POSITIVE),
+    "sac.fixed_alpha": Field(bool, "keep the temperature at alpha_init"),
+    "sac.target_entropy": Field(float, "entropy the temperature is tuned to", auto=True),
+    "td3.exploration_noise": Field(float, "std of the exploration noise", low=0.0),
+    "td3.policy_noise": Field(float, "std of the target policy smoothing noise", low=0.0),
+    "td3.noise_clip": Field(float, "clip of the target policy noise", low=0.0),
+    "td3.policy_delay": Field(int, "critic updates per actor update", low=1),
+    "soc.num_options": Field(int, "options of the soft option-critic (--options)", low=1),
+    "soc.option_policy": Field(str, "policy over options", choices=OPTION_POLICIES, noun="option policy"),
+    "soc.option_alpha_init": Field(float, "initial option temperature; null: sac.alpha_init", **_POSITIVE,
+                                   nullable=True),
+    "soc.fixed_option_alpha": Field(bool, "keep the option temperature fixed"),
+    "soc.option_target_entropy": Field(float, "entropy over options; auto: 0.5 log(num_options)", auto=True),
+    "soc.option_epsilon": Field(float, "exploration of the egreedy option policy", **_PROB),
+    "soc.deliberation_cost": Field(float, "xi, added to the termination advantage", low=0.0),
+    "soc.option_entropy_bonus": Field(bool, "the option choice's entropy enters V_Omega"),
+    "eval.every": Field(int, "frames between evaluations", low=1),
+    "eval.episodes": Field(int, "evaluation episodes", low=1),
+    "checkpoint.every": Field(int, "frames between checkpoints", low=1),
+    "log.tensorboard": Field(bool, "also log to TensorBoard"),
+    "log.every": Field(int, "frames between logged training scalars", low=1),
+    "transfer.method": Field(str, "transfer method", choices=TRANSFER_METHODS, noun="transfer method"),
+    "transfer.source": Field(str, "source run directory, or demonstrator:TASK", nullable=True,
+                             what="a source run directory, demonstrator:TASK"),
+    "transfer.psi": Field(float, "pi-reuse: probability of reusing at an episode's first step", **_PROB),
+    "transfer.upsilon": Field(float, "pi-reuse: decay of psi within the episode", **_PROB),
+    "transfer.psi_end": Field(float, "psi after annealing_frames; null: no decay", **_PROB, nullable=True),
+    "transfer.annealing_frames": Field(int, "frames over which psi decays to psi_end", low=0),
+    "transfer.freeze": Field(list, "model reuse: parameter-name patterns to keep fixed", item=Field(str),
+                             what="a list of parameter-name patterns (e.g. [actor_network_params])"),
+    "transfer.partial": Field(bool, "model reuse: accept a source whose core networks cannot all be loaded"),
+    "transfer.allow_incomplete": Field(bool, "reuse a source run that did not finish (no summary.json)"),
+}
+"""Every config key (dotted) with its type and range; ``validate`` checks a config against it."""
+
+_SECTIONS = {k for k, v in DEFAULTS.items() if isinstance(v, dict) and v}
+_ENV_RESERVED = {"batch_size": "collector.num_envs and eval.episodes", "device": "device", "seed": "seed"}
 
 
 def _flatten(d: dict, prefix: str = "") -> dict[str, Any]:
@@ -81,10 +242,32 @@ def _valid_keys() -> list[str]:
     return sorted(_flatten(DEFAULTS)) + ["env"]
 
 
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def set_key(cfg: dict, dotted: str, value: Any) -> None:
-    """Set ``cfg[a][b][c] = value`` for ``dotted = "a.b.c"``; keys under ``env.`` are free-form."""
+    """Set ``cfg[a][b] = value`` for ``dotted = "a.b"``; a mapping given for a section (``optim``)
+    is merged into it; keys under ``env.`` are the task's own keyword arguments."""
     parts = dotted.split(".")
-    if parts[0] != "env" and dotted not in _flatten(DEFAULTS):
+    if parts[0] == "env":
+        if len(parts) > 2:
+            raise UsageError(f"config key '{dotted}' is too deep: env options are one level, e.g. env.horizon=200.")
+        if len(parts) == 1:
+            cfg["env"] = value
+            return
+        if not isinstance(cfg.get("env"), dict):
+            raise UsageError(f"config key 'env' must be {SCHEMA['env'].expected()}, got {_short(cfg.get('env'))}.")
+        cfg["env"][parts[1]] = value
+        return
+    if dotted in _SECTIONS:
+        if not isinstance(value, dict):
+            keys = ", ".join(f"{dotted}.{k}" for k in DEFAULTS[dotted])
+            raise UsageError(f"config key '{dotted}' must be a mapping of {keys}, got {_short(value)}.")
+        merge(cfg, value, dotted + ".")
+        return
+    if dotted not in _flatten(DEFAULTS):
         hint = difflib.get_close_matches(dotted, _valid_keys(), n=1)
         raise UsageError(
             f"unknown config key '{dotted}'" + (f"; did you mean '{hint[0]}'?" if hint else ".")
@@ -99,14 +282,17 @@ def merge(cfg: dict, overrides: dict, prefix: str = "") -> None:
     """Merge a nested dict of overrides into ``cfg``, validating every key."""
     for k, v in overrides.items():
         key = f"{prefix}{k}"
-        if isinstance(v, dict) and key != "env" and isinstance(_flatten(DEFAULTS).get(key, {}), dict):
-            merge(cfg, v, key + ".")
-        elif key == "env":
+        if key == "env":
             if not isinstance(v, dict):
-                raise UsageError("config key 'env' must be a mapping of environment keyword arguments.")
+                raise UsageError(f"config key 'env' must be {SCHEMA['env'].expected()}, got {_short(v)}.")
+            if not isinstance(cfg.get("env"), dict):
+                cfg["env"] = {}
             cfg["env"].update(v)
         else:
             set_key(cfg, key, v)
+
+
+_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
 
 def parse_override(text: str) -> tuple[str, Any]:
@@ -118,11 +304,8 @@ def parse_override(text: str) -> tuple[str, Any]:
         value = yaml.safe_load(raw)
     except yaml.YAMLError:
         value = raw
-    if isinstance(value, str):  # YAML reads "1e-3" as a string
-        try:
-            value = float(value)
-        except ValueError:
-            pass
+    if isinstance(value, str) and _NUMBER.fullmatch(value.strip()):  # YAML reads "1e-3" as a string
+        value = float(value)
     return key.strip(), value
 
 
@@ -145,52 +328,51 @@ def resolve(
     **explicit: Any,
 ) -> dict:
     """Build a full config: defaults <- task overrides <- ``base`` (e.g. a YAML file) <- ``explicit``
-    keyword values (e.g. ``--seed``) <- ``KEY=VALUE`` ``overrides``."""
-    from drltg.envs import TASKS  # registry import is cheap
-
+    keyword values (e.g. ``--seed``) <- ``KEY=VALUE`` ``overrides``; then ``validate`` it, so that
+    nothing is built or written from a config with a wrong key, type or range."""
+    if base is not None and not isinstance(base, dict):
+        raise UsageError(f"a config must be a mapping of config keys, got {_short(base)}.")
     base = dict(base or {})
+    parsed = [parse_override(text) for text in overrides]
     cfg = copy.deepcopy(DEFAULTS)
-    task = explicit.get("task") or base.get("task") or cfg["task"]
-    if task not in TASKS:
-        hint = difflib.get_close_matches(str(task), list(TASKS), n=1)
-        raise UsageError(
-            f"unknown task '{task}'" + (f"; did you mean '{hint[0]}'?" if hint else "; see `drltg tasks`.")
-        )
-    merge(cfg, copy.deepcopy(TASKS[task].train))
+    task = cfg["task"]
+    for given in (base.get("task"), explicit.get("task"), *(v for k, v in parsed if k == "task")):
+        if given is not None:
+            task = given
+    merge(cfg, copy.deepcopy(_task_spec(task).train))
     merge(cfg, base)
     for key, value in explicit.items():
         if value is not None:
             set_key(cfg, key, value)
-    for text in overrides:
-        set_key(cfg, *parse_override(text))
-    _check_types(cfg)
+    for key, value in parsed:
+        set_key(cfg, key, value)
+    validate(cfg)
     return cfg
 
 
-def _check_types(cfg: dict) -> None:
-    flat_default = _flatten(DEFAULTS)
-    for key, value in _flatten(cfg).items():
-        if key == "env" or key.startswith("env."):
-            continue
-        ref = flat_default.get(key)
-        if isinstance(ref, bool) and not isinstance(value, bool):
-            raise UsageError(f"config key '{key}' must be true or false, got {value!r}.")
-        if isinstance(ref, int) and not isinstance(ref, bool):
-            if isinstance(value, float) and value.is_integer():
-                set_key(cfg, key, int(value))
-            elif not isinstance(value, int) or isinstance(value, bool):
-                raise UsageError(f"config key '{key}' must be an integer, got {value!r}.")
-        if isinstance(ref, float) and not isinstance(value, (int, float)):
-            raise UsageError(f"config key '{key}' must be a number, got {value!r}.")
-    for key in ("frames", "collector.num_envs", "collector.frames_per_batch", "buffer.batch_size",
-                "eval.every", "eval.episodes"):
-        if _get(cfg, key) <= 0:
-            raise UsageError(f"config key '{key}' must be positive, got {_get(cfg, key)}.")
+def validate(cfg: dict) -> None:
+    """Check every key of a full config against ``SCHEMA`` and the rules that tie keys together;
+    integral floats of integer keys become ``int`` and ``frames`` is rounded up to whole batches."""
+    for key, field in SCHEMA.items():
+        try:
+            value = _get(cfg, key)
+        except (KeyError, TypeError):
+            raise UsageError(f"the config has no key '{key}'; resolve() fills in every key.") from None
+        if key == "env":
+            _check_env(cfg["task"], value)
+        else:
+            checked = field.check(key, value)
+            if checked is not value:
+                set_key(cfg, key, checked)
     fpb, n = cfg["collector"]["frames_per_batch"], cfg["collector"]["num_envs"]
     if fpb % n:
         raise UsageError(
             f"collector.frames_per_batch ({fpb}) must be a multiple of collector.num_envs ({n})."
         )
+    t = cfg["transfer"]
+    if t["psi_end"] is not None and t["psi_end"] != t["psi"] and t["annealing_frames"] <= 0:
+        raise UsageError("config key 'transfer.psi_end' needs transfer.annealing_frames > 0, the frames over "
+                         "which psi decays.")
     cfg["frames"] = -(-cfg["frames"] // fpb) * fpb  # whole collector batches: the budget is exact
 
 
@@ -199,6 +381,115 @@ def _get(cfg: dict, dotted: str) -> Any:
     for p in dotted.split("."):
         node = node[p]
     return node
+
+
+def _task_spec(task: Any):
+    from drltg.envs import TASKS  # registry import is cheap
+
+    if not isinstance(task, str):
+        raise UsageError(f"config key 'task' must be a registered task name, got {_short(task)}.")
+    if task not in TASKS:
+        hint = difflib.get_close_matches(task, list(TASKS), n=1)
+        raise UsageError(
+            f"unknown task '{task}'" + (f"; did you mean '{hint[0]}'?" if hint else "; see `drltg tasks`.")
+        )
+    return TASKS[task]
+
+
+def _check_device(key: str, value: Any, field: Field) -> str:
+    import torch
+
+    try:
+        if not isinstance(value, str):
+            raise TypeError(value)
+        device = torch.device(value)
+    except (RuntimeError, TypeError, ValueError):
+        raise UsageError(f"config key '{key}' must be {field.expected()}, got {_short(value)}.") from None
+    backend = getattr(torch, device.type, None)
+    available = getattr(backend, "is_available", None)
+    if available is None:
+        raise UsageError(f"config key '{key}' is '{value}', a device type drltg cannot train on; use cpu or cuda.")
+    if not available():
+        raise UsageError(
+            f"config key '{key}' is '{value}' but no {device.type.upper()} device is available on this "
+            "machine; use device=cpu."
+        )
+    count = getattr(backend, "device_count", None)
+    if device.index is not None and device.type != "cpu" and count is not None and device.index >= count():
+        raise UsageError(
+            f"config key '{key}' is '{value}' but this machine has {count()} {device.type.upper()} "
+            f"device(s), numbered from 0."
+        )
+    return value
+
+
+def env_defaults(task: str) -> tuple[dict[str, Any], bool]:
+    """The keyword arguments task ``task``'s factory declares with a default (its registered defaults
+    win), and whether it also takes other keywords (``**kwargs``)."""
+    spec = _task_spec(task)
+    factory = spec.factory
+    params = inspect.signature(factory.__init__ if inspect.isclass(factory) else factory).parameters
+    declared = {
+        name: p.default
+        for name, p in params.items()
+        if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY) and name != "self"
+    }
+    declared.update(spec.defaults)
+    return declared, any(p.kind is p.VAR_KEYWORD for p in params.values())
+
+
+def _check_env(task: str, env: Any) -> None:
+    if not isinstance(env, dict):
+        raise UsageError(f"config key 'env' must be {SCHEMA['env'].expected()}, got {_short(env)}.")
+    declared, open_ended = env_defaults(task)
+    for name, value in list(env.items()):
+        key = f"env.{name}"
+        if name in _ENV_RESERVED:
+            raise UsageError(f"config key '{key}' cannot be set: the run sets it from {_ENV_RESERVED[name]}.")
+        if name not in declared:
+            if open_ended:
+                continue
+            known = ", ".join(sorted(set(declared) - set(_ENV_RESERVED)))
+            raise UsageError(f"config key '{key}' is not an option of task '{task}'; its options are: {known}.")
+        ref = declared[name]
+        field = _field_like(ref)
+        if field is None:
+            continue
+        try:
+            env[name] = field.check(key, value)
+        except UsageError:
+            raise UsageError(
+                f"config key '{key}' must be {field.expected()} (task '{task}' declares {name}={ref!r}), "
+                f"got {_short(value)}."
+            ) from None
+
+
+def _field_like(ref: Any) -> Field | None:
+    """The field an env keyword's declared default implies: its type, no range (the env checks that)."""
+    if isinstance(ref, bool):
+        return Field(bool)
+    if isinstance(ref, int):
+        return Field(int)
+    if isinstance(ref, float):
+        return Field(float)
+    if isinstance(ref, str):
+        return Field(str)
+    if isinstance(ref, (list, tuple)) and ref:
+        if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in ref):
+            return Field(list, item=Field(float), nonempty=True, what="a list of numbers")
+        if all(isinstance(v, str) for v in ref):
+            return Field(list, item=Field(str), what="a list of strings")
+    return None
+
+
+def describe() -> str:
+    """Every config key with its default, accepted values and meaning, as a Markdown table."""
+    flat = _flatten(DEFAULTS)
+    rows = ["| key | default | accepted values | meaning |", "|---|---|---|---|"]
+    for key, field in SCHEMA.items():
+        default = yaml.safe_dump(flat[key], default_flow_style=True).strip().removesuffix("...").strip()
+        rows.append(f"| `{key}` | {default} | {field.expected()} | {field.help} |")
+    return "\n".join(rows)
 
 
 def dump(cfg: dict) -> str:

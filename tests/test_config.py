@@ -1,0 +1,245 @@
+"""The config schema: every key has a type and range, and every wrong value is one sentence naming
+the key, raised by ``resolve()`` before anything is built or written."""
+import pytest
+import torch
+
+from drltg import config as config_lib
+from drltg.cli import main
+from drltg.envs import TASKS, register_task
+from drltg.errors import UsageError
+
+
+def _resolve(*overrides, base=None, **explicit):
+    return config_lib.resolve(base, list(overrides), **{"task": "fourrooms/northeast", **explicit})
+
+
+def _refused(key, *overrides, base=None, **explicit):
+    with pytest.raises(UsageError) as err:
+        _resolve(*overrides, base=base, **explicit)
+    message = str(err.value)
+    assert f"'{key}'" in message, message
+    assert "\n" not in message and message.endswith("."), message
+    return message
+
+
+def _leaves(d, prefix=""):
+    for k, v in d.items():
+        if isinstance(v, dict) and v:
+            yield from _leaves(v, f"{prefix}{k}.")
+        else:
+            yield f"{prefix}{k}"
+
+
+@pytest.mark.parametrize(
+    "override, key, expected",
+    [
+        ("network.hidden=abc", "network.hidden", "non-empty list of positive integers"),
+        ("network.hidden=[64,", "network.hidden", "non-empty list of positive integers"),
+        ("network.hidden=[]", "network.hidden", "non-empty list of positive integers"),
+        ("network.hidden=[64, 0]", "network.hidden", "non-empty list of positive integers"),
+        ("network.hidden=[64, 1.5]", "network.hidden", "non-empty list of positive integers"),
+        ("device=nonsense", "device", "torch device"),
+        ("device=5", "device", "torch device"),
+        ("device=meta", "device", "cannot train on"),
+        ("threads=0", "threads", "integer >= 1"),
+        ("seed=-1", "seed", "integer in [0, 2147483647]"),
+        ("frames=0", "frames", "integer >= 1"),
+        ("frames=1.5", "frames", "integer >= 1"),
+        ("optim.lr=-1", "optim.lr", "number > 0"),
+        ("optim.lr=0", "optim.lr", "number > 0"),
+        ("optim.lr=nan", "optim.lr", "number > 0"),
+        ("optim.lr=.inf", "optim.lr", "number > 0"),
+        ("optim.gamma=2", "optim.gamma", "number in (0, 1]"),
+        ("optim.gamma=0", "optim.gamma", "number in (0, 1]"),
+        ("optim.tau=0", "optim.tau", "number in (0, 1]"),
+        ("optim.tau=1.5", "optim.tau", "number in (0, 1]"),
+        ("optim.updates_per_batch=-1", "optim.updates_per_batch", "integer >= 1"),
+        ("optim.updates_per_batch=0", "optim.updates_per_batch", "integer >= 1"),
+        ("buffer.size=0", "buffer.size", "integer >= 1"),
+        ("buffer.batch_size=0", "buffer.batch_size", "integer >= 1"),
+        ("checkpoint.every=0", "checkpoint.every", "integer >= 1"),
+        ("eval.every=0", "eval.every", "integer >= 1"),
+        ("eval.episodes=many", "eval.episodes", "must be an integer"),
+        ("collector.init_random_frames=-1", "collector.init_random_frames", "integer >= 0"),
+        ("collector.num_envs=0", "collector.num_envs", "integer >= 1"),
+        ("log.every=0", "log.every", "integer >= 1"),
+        ("log.tensorboard=1", "log.tensorboard", "true or false"),
+        ("algo=ppo", "algo", "unknown algorithm 'ppo'"),
+        ("algo=5", "algo", "one of sac, td3, soc"),
+        ("sac.alpha_init=0", "sac.alpha_init", "number > 0"),
+        ("sac.fixed_alpha=yes please", "sac.fixed_alpha", "true or false"),
+        ("sac.target_entropy=high", "sac.target_entropy", "'auto' or a number"),
+        ("td3.exploration_noise=-0.1", "td3.exploration_noise", "number >= 0"),
+        ("td3.policy_noise=-1", "td3.policy_noise", "number >= 0"),
+        ("td3.noise_clip=-1", "td3.noise_clip", "number >= 0"),
+        ("td3.policy_delay=0", "td3.policy_delay", "integer >= 1"),
+        ("soc.num_options=0", "soc.num_options", "integer >= 1"),
+        ("soc.option_policy=greedy", "soc.option_policy", "unknown option policy 'greedy'"),
+        ("soc.option_alpha_init=0", "soc.option_alpha_init", "number > 0 or null"),
+        ("soc.fixed_option_alpha=2", "soc.fixed_option_alpha", "true or false"),
+        ("soc.option_target_entropy=[1]", "soc.option_target_entropy", "'auto' or a number"),
+        ("soc.option_epsilon=1.1", "soc.option_epsilon", "number in [0, 1]"),
+        ("soc.deliberation_cost=-0.1", "soc.deliberation_cost", "number >= 0"),
+        ("soc.option_entropy_bonus=0", "soc.option_entropy_bonus", "true or false"),
+        ("transfer.method=copy", "transfer.method", "unknown transfer method 'copy'"),
+        ("transfer.source=[a]", "transfer.source", "source run directory"),
+        ("transfer.psi=1.5", "transfer.psi", "number in [0, 1]"),
+        ("transfer.upsilon=-0.5", "transfer.upsilon", "number in [0, 1]"),
+        ("transfer.psi_end=2", "transfer.psi_end", "number in [0, 1] or null"),
+        ("transfer.annealing_frames=-1", "transfer.annealing_frames", "integer >= 0"),
+        ("transfer.freeze=actor", "transfer.freeze", "list of parameter-name patterns"),
+        ("transfer.freeze=[1]", "transfer.freeze", "list of parameter-name patterns"),
+        ("transfer.partial=maybe", "transfer.partial", "true or false"),
+        ("transfer.allow_incomplete=1", "transfer.allow_incomplete", "true or false"),
+        ("env=5", "env", "mapping of the task's keyword arguments"),
+        ("env.horizon=abc", "env.horizon", "integer (task 'fourrooms/northeast' declares horizon=100)"),
+        ("env.goal=abc", "env.goal", "list of numbers"),
+        ("env.observe_goal=3", "env.observe_goal", "true or false"),
+        ("env.foo=1", "env.foo", "not an option of task 'fourrooms/northeast'"),
+        ("env.seed=1", "env.seed", "the run sets it from seed"),
+        ("env.device=cpu", "env.device", "the run sets it from device"),
+        ("env.goal.x=1", "env.goal.x", "too deep"),
+        ("optim=5", "optim", "mapping of optim.lr"),
+        ("task=[1]", "task", "registered task name"),
+        ("transfer.psi_end=0.1", "transfer.psi_end", "annealing_frames > 0"),
+    ],
+)
+def test_bad_value_is_one_sentence_naming_the_key(override, key, expected):
+    assert expected in _refused(key, override)
+
+
+@pytest.mark.parametrize(
+    "base, key, expected",
+    [
+        ({"network": {"hidden": 64}}, "network.hidden", "got 64"),
+        ({"optim": {"lr": {"a": 1}}}, "optim.lr", "number > 0"),
+        ({"optim": 5}, "optim", "mapping"),
+        ({"sac": None}, "sac", "mapping"),
+        ({"transfer": ["none"]}, "transfer", "mapping"),
+        ({"env": [1]}, "env", "mapping"),
+        ({"env": {"horizon": {"x": 1}}}, "env.horizon", "integer"),
+        ({"collector": {"frames_per_batch": [32]}}, "collector.frames_per_batch", "integer"),
+        ({"seed": "zero"}, "seed", "integer"),
+    ],
+)
+def test_yaml_value_of_the_wrong_shape_is_refused(base, key, expected):
+    assert expected in _refused(key, base=base)
+
+
+def test_config_file_with_a_scalar_hidden_is_refused(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text("task: fourrooms/northeast\nnetwork:\n  hidden: 64\n")
+    _refused("network.hidden", base=config_lib.load_yaml(path))
+
+
+def test_explicit_seed_is_checked():
+    _refused("seed", seed=-1)
+    _refused("frames", frames=0)
+
+
+def test_cuda_when_unavailable_is_one_sentence(monkeypatch):
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    assert "no CUDA device is available" in _refused("device", "device=cuda")
+
+
+def test_cuda_index_beyond_the_devices_is_one_sentence(monkeypatch):
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    monkeypatch.setattr(torch.cuda, "device_count", lambda: 1)
+    assert "has 1 CUDA device(s)" in _refused("device", "device=cuda:3")
+    assert _resolve("device=cuda:0")["device"] == "cuda:0"
+
+
+def test_valid_edge_values_pass():
+    cfg = _resolve(
+        "optim.gamma=1", "optim.tau=1", "optim.updates_per_batch=1", "network.hidden=[8]",
+        "collector.init_random_frames=0", "transfer.psi=0", "transfer.upsilon=1", "soc.option_epsilon=0",
+        "soc.deliberation_cost=0", "sac.target_entropy=-2", "soc.option_alpha_init=null", "device=cpu",
+        "transfer.freeze=[actor_network_params]", "transfer.source=runs/src", "buffer.size=1",
+        "transfer.partial=true", "transfer.allow_incomplete=true", seed=0,
+    )
+    assert cfg["optim"] == {"lr": 3e-4, "updates_per_batch": 1, "gamma": 1, "tau": 1}
+    assert cfg["network"]["hidden"] == [8]
+    assert cfg["sac"]["target_entropy"] == -2
+    assert cfg["transfer"]["partial"] is True and cfg["transfer"]["allow_incomplete"] is True
+
+
+def test_override_parsing_is_unchanged_for_valid_values():
+    cfg = _resolve("optim.lr=1e-3", "frames=1e4", "env.horizon=1e3", "env.goal=[8, 7]", "eval.every=2000.0")
+    assert cfg["optim"]["lr"] == 0.001
+    assert cfg["frames"] == 10_016 and isinstance(cfg["frames"], int)  # rounded up to whole batches
+    assert cfg["env"] == {"horizon": 1000, "goal": [8, 7]} and isinstance(cfg["env"]["horizon"], int)
+    assert cfg["eval"]["every"] == 2000 and isinstance(cfg["eval"]["every"], int)
+    assert config_lib.parse_override("transfer.source=runs/a=b") == ("transfer.source", "runs/a=b")
+    assert config_lib.parse_override("sac.target_entropy=auto") == ("sac.target_entropy", "auto")
+
+
+def test_a_mapping_for_a_section_is_merged():
+    cfg = _resolve("optim={lr: 0.1}")
+    assert cfg["optim"]["lr"] == 0.1 and cfg["optim"]["gamma"] == 0.99
+
+
+def test_task_given_as_override_brings_its_own_settings():
+    cfg = config_lib.resolve({}, ["task=gridrooms/northeast"])
+    assert cfg["task"] == "gridrooms/northeast" and cfg["sac"]["fixed_alpha"] is True
+
+
+def test_every_default_key_has_a_field_and_every_default_fits():
+    assert set(config_lib.SCHEMA) == set(_leaves(config_lib.DEFAULTS)) | {"env"}
+    for task in TASKS:
+        config_lib.resolve({}, [], task=task)
+    table = config_lib.describe()
+    assert all(f"`{key}`" in table for key in config_lib.SCHEMA)
+
+
+def test_choices_match_the_implementations():
+    from drltg.agents import ALGOS
+    from drltg.losses.soc import OPTION_POLICIES
+    from drltg.transfer import METHODS
+
+    assert set(config_lib.ALGOS) == set(ALGOS)
+    assert set(config_lib.TRANSFER_METHODS) == set(METHODS)
+    assert set(config_lib.OPTION_POLICIES) == set(OPTION_POLICIES)
+
+
+def test_env_keys_of_an_open_factory_are_checked_where_declared(monkeypatch):
+    def factory(*, batch_size=(), device=None, size: int = 3, **rest):
+        raise AssertionError("resolve must not build the env")
+
+    spec = register_task("test/open-factory", factory, "a factory taking any keyword")
+    monkeypatch.setitem(TASKS, spec.name, TASKS.pop(spec.name))
+    assert _resolve("env.anything=[1, 2]", "env.size=4", task=spec.name)["env"] == {"anything": [1, 2], "size": 4}
+    assert "declares size=3" in _refused("env.size", "env.size=abc", task=spec.name)
+
+
+def test_validate_refuses_a_partial_config():
+    with pytest.raises(UsageError, match="has no key 'algo'"):
+        config_lib.validate({"task": "fourrooms/northeast"})
+
+
+@pytest.mark.parametrize(
+    "args, key",
+    [
+        (["-o", "network.hidden=abc"], "network.hidden"),
+        (["-o", "device=nonsense"], "device"),
+        (["--seed", "-1"], "seed"),
+        (["-o", "buffer.size=0"], "buffer.size"),
+        (["-o", "env=5"], "env"),
+    ],
+)
+def test_cli_refuses_in_one_line_with_exit_2_and_writes_nothing(args, key, tmp_path, capsys):
+    run_dir = tmp_path / "run"
+    code = main(["train", "fourrooms/northeast", "--no-progress", "--run-dir", str(run_dir), *args])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1 and f"'{key}'" in err and "Traceback" not in err
+    assert not run_dir.exists()
+
+
+def test_cli_refuses_a_config_file_with_a_scalar_hidden(tmp_path, capsys):
+    path = tmp_path / "bad.yaml"
+    path.write_text("task: fourrooms/northeast\nnetwork:\n  hidden: 64\n")
+    run_dir = tmp_path / "run"
+    code = main(["train", "--config", str(path), "--run-dir", str(run_dir)])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "'network.hidden'" in err
+    assert not run_dir.exists()
