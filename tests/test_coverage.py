@@ -1,0 +1,77 @@
+"""Coverage of the report's intervals, measured on simulated experiments.
+
+Each experiment draws per-seed scores for both sides with a known true difference of the means
+(1.0), builds the interval, and checks whether it contains the truth. All experiments of one setting
+are one vectorised call, so thousands run in well under a second for the t-interval.
+
+    python tests/test_coverage.py      # the full table (all candidate methods), about a minute
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from drltg import metrics as M
+
+TRUE_DIFFERENCE = 1.0
+
+
+def draw(shape: str, design: str, n: int, experiments: int, rng) -> tuple[np.ndarray, np.ndarray]:
+    """``[experiments, n]`` baseline and transfer scores with ``mean(T) - mean(B) = 1``.
+
+    normal: noise N(0, 1) for the baseline, N(0, 1.5^2) for the transfer side (unequal spreads);
+    skewed: centred exponential noise (skewness 2), scale 1 and 2. Paired designs add a seed effect
+    N(0, 1) shared by the two runs of a pair."""
+    size = (experiments, n)
+    if shape == "normal":
+        eb, et = rng.normal(0, 1, size), rng.normal(0, 1.5, size)
+    elif shape == "skewed":
+        eb, et = rng.exponential(1, size) - 1, 2 * (rng.exponential(1, size) - 1)
+    else:
+        raise ValueError(shape)
+    seed_effect = rng.normal(0, 1, size) if design == "paired" else 0.0
+    return seed_effect + eb, seed_effect + TRUE_DIFFERENCE + et
+
+
+def coverage(method: str, shape: str, design: str, n: int, experiments: int = 4000, seed: int = 0,
+             confidence: float = 0.95, n_resamples: int = 1000) -> float:
+    """Fraction of simulated experiments whose interval contains the true difference."""
+    rng = np.random.default_rng(seed)
+    b, t = draw(shape, design, n, experiments, rng)
+    kw = {} if method in ("t", "welch") else dict(n_resamples=n_resamples, seed=seed + 1)
+    lo, hi = M.INTERVALS[method](b, t, paired=design == "paired", confidence=confidence, **kw)
+    return float(((lo <= TRUE_DIFFERENCE) & (TRUE_DIFFERENCE <= hi)).mean())
+
+
+@pytest.mark.parametrize("design", ["paired", "unpaired"])
+@pytest.mark.parametrize("shape", ["normal", "skewed"])
+def test_default_interval_keeps_its_promise_at_five_seeds(shape, design):
+    # 10000 experiments: the standard error of a coverage near 0.94 is 0.0024
+    assert coverage("t", shape, design, n=5, experiments=10_000) >= 0.93
+
+
+@pytest.mark.parametrize("n", [3, 10])
+def test_default_interval_at_three_and_ten_seeds(n):
+    for shape in ("normal", "skewed"):
+        for design in ("paired", "unpaired"):
+            assert coverage("t", shape, design, n=n, experiments=2000) >= 0.90
+
+
+def test_percentile_bootstrap_under_covers_with_five_seeds():
+    """The interval the report used before: about 0.88 where 0.95 is promised."""
+    assert coverage("percentile", "normal", "unpaired", n=5, experiments=1000, n_resamples=500) < 0.91
+
+
+def table(experiments: int = 4000) -> str:
+    rows = ["| scores | design | seeds | " + " | ".join(M.INTERVALS) + " |",
+            "|---|---|---|" + "---|" * len(M.INTERVALS)]
+    for shape in ("normal", "skewed"):
+        for design in ("paired", "unpaired"):
+            for n in (3, 5, 10):
+                cells = [f"{coverage(m, shape, design, n, experiments):.3f}" for m in M.INTERVALS]
+                rows.append(f"| {shape} | {design} | {n} | " + " | ".join(cells) + " |")
+    return "\n".join(rows)
+
+
+if __name__ == "__main__":
+    print(table())
