@@ -54,35 +54,120 @@ import math
 import os
 import re
 import sys
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Iterable, Sequence
 
 import numpy as np
+import pandas as pd
 
 from drltg import metrics as M
 from drltg.curves import FORMATS, Curve, read_curves
 from drltg.errors import UsageError
 
-DIFFERENCES = ("jumpstart", "asymptotic_performance", "transfer_ratio")
+DIFFERENCES = ("mean_return_gain", "jumpstart", "asymptotic_performance", "transfer_ratio")
 MAX_LENGTH_RATIO = 2.0  # longest / shortest run beyond which a default budget would hide too much
 PLOT_POINTS = 100  # the display line is smoothed to about this many evaluation windows
+MIN_SEEDS = 3  # fewer seeds on a side leave an interval without a usable spread estimate
+MIN_TREND_POINTS = 4
+CONFIG_KEYS_PER_RUN = ("seed", "frames", "device", "threads", "log", "checkpoint", "transfer.source")
 
-SETTINGS_DEFAULTS = dict(
-    format="auto",
-    tag=None,
-    threshold=None,
-    budget=None,
-    jumpstart_window=1,
-    asymptote_window=0.1,
-    smooth=None,
-    plot_smooth=None,
-    bootstrap=10_000,
-    confidence=0.95,
-    seed=0,
-    ratio_eps=0.01,
-    baseline_label=None,
-    transfer_label=None,
-)
+
+def _option(default, flag=None, group="metrics", **argparse_kwargs):
+    """A report setting; ``flag`` (and the argparse keywords) make it a ``drltg report`` option."""
+    return field(default=default, metadata=dict(flag=flag, group=group, kwargs=argparse_kwargs))
+
+
+@dataclass
+class ReportSettings:
+    """Every choice of ``drltg report``: the keyword settings of :func:`compute` and
+    :func:`transfer_report`, and (through each field's ``flag``) the command-line options."""
+
+    format: str = _option("auto", "--format", "runs", choices=FORMATS,
+                          help="log format (default: auto-detect)")
+    tag: str | None = _option(None, "--tag", "runs", help="column / scalar tag to read (defaults: return_mean "
+                              "in eval.csv, eval/mean_reward in progress.csv, r in monitor.csv, "
+                              "eval/return_mean or eval/mean_reward in TensorBoard / CSVLogger logs)")
+    baseline_label: str | None = _option(None, "--baseline-label", "runs",
+                                         help="name of the baseline in the plot and table")
+    transfer_label: str | None = _option(None, "--transfer-label", "runs",
+                                         help="name of the transfer runs in the plot and table")
+    allow_mixed: bool = _option(False, "--allow-mixed", "runs", action="store_true",
+                                help="accept runs of different configs or methods under one side")
+    threshold: object = _option(None, "--threshold", help="return to reach for time-to-threshold: a "
+                                "number (150) or a percentage of the best baseline mean performance (80%%)")
+    crossing: str = _option("sustained", "--crossing", choices=("sustained", "first"),
+                            help="sustained (default): the first evaluation from which the run stays at or "
+                            "above the threshold (see --sustain); first: the first evaluation at or above it")
+    sustain: int | None = _option(None, "--sustain", type=int, metavar="K",
+                                  help="a sustained crossing holds for K consecutive evaluations "
+                                  "(default: for the rest of the budget)")
+    budget: object = _option(None, "--budget", help="compare over the first FRAMES frames (default: the "
+                             "shortest run's last evaluation); accepts 200000, 200k, 1.5M")
+    jumpstart_window: int = _option(1, "--jumpstart-window", type=int, metavar="K",
+                                    help="jumpstart = mean of the first K evaluations (default: 1)")
+    asymptote_window: float = _option(0.1, "--asymptote-window", type=float, metavar="FRAC",
+                                      help="asymptotic performance = mean over the last FRAC of the budget "
+                                      "(default: 0.1)")
+    trend_window: float = _option(0.25, "--trend-window", type=float, metavar="FRAC",
+                                  help="the convergence test fits a line to the mean curve over the last "
+                                  "FRAC of the budget (default: 0.25)")
+    smooth: int | None = _option(None, "--smooth", type=int, metavar="W",
+                                 help="moving average over W evaluations before time-to-threshold (and a "
+                                 "fractional threshold's best baseline); default: raw curve")
+    plot_smooth: int | None = _option(None, "--plot-smooth", type=int, metavar="W",
+                                      help="moving average for the plotted lines only (default: --smooth, "
+                                      f"else about {PLOT_POINTS} windows per curve; 1 = raw)")
+    paired: bool | None = _option(None, "--paired", action="store_const", const=True,
+                                  help="pair baseline and transfer run i (by seed when the runs record one, "
+                                  "else in the order given); default: paired when drltg runs share seeds")
+    source_frames: object = _option(None, "--source-frames", metavar="N",
+                                    help="frames of source training per transfer run, for the total-time "
+                                    "metrics (default: read from drltg runs' transfer.source)")
+    interval: str = _option("t", "--interval", choices=tuple(M.INTERVALS),
+                            help="interval of the mean differences (default: t, the one whose coverage "
+                            "holds in simulation; the bootstrap ones use --bootstrap and --seed)")
+    confidence: float = _option(0.95, "--confidence", type=float, help="confidence level (default: 0.95)")
+    bootstrap: int = _option(10_000, "--bootstrap", type=int, metavar="N",
+                             help="resamples of a bootstrap --interval (default: 10000)")
+    seed: int = _option(0, "--seed", type=int, help="seed of a bootstrap --interval (default: 0)")
+    ratio_eps: float = _option(0.01)
+
+    def __post_init__(self):
+        """Check every setting before any run is read (one sentence each)."""
+        def need(ok, text):
+            if not ok:
+                raise UsageError(text)
+
+        _parse_threshold(self.threshold)
+        parse_frames(self.budget)
+        need(int(self.jumpstart_window) >= 1, f"--jumpstart-window must be at least 1, got {self.jumpstart_window}.")
+        for name in ("asymptote_window", "trend_window"):
+            value = float(getattr(self, name))
+            need(0.0 < value <= 1.0, f"--{name.replace('_', '-')} must lie in (0, 1], got {value}.")
+        need(self.smooth is None or int(self.smooth) >= 1, f"--smooth must be at least 1 evaluation, got {self.smooth}.")
+        need(self.plot_smooth is None or int(self.plot_smooth) >= 1,
+             f"--plot-smooth must be at least 1 evaluation, got {self.plot_smooth}.")
+        need(self.sustain is None or int(self.sustain) >= 1,
+             f"--sustain must be at least 1 evaluation, got {self.sustain}.")
+        need(self.crossing in ("sustained", "first"), f"--crossing must be sustained or first, got '{self.crossing}'.")
+        need(not (self.sustain is not None and self.crossing == "first"),
+             "--sustain applies to a sustained crossing; drop it or --crossing first.")
+        need(0.0 < float(self.confidence) < 1.0, f"--confidence must lie in (0, 1), got {self.confidence}.")
+        need(int(self.bootstrap) >= 100, f"--bootstrap needs at least 100 resamples, got {self.bootstrap}.")
+        need(self.interval in M.INTERVALS, f"unknown --interval '{self.interval}'; choose one of {', '.join(M.INTERVALS)}.")
+        need(self.format in FORMATS, f"unknown log format '{self.format}'; choose one of {', '.join(FORMATS)}.")
+        if self.source_frames is not None:
+            frames = parse_frames(self.source_frames, "--source-frames")
+            need(frames >= 0, f"--source-frames must be at least 0, got {self.source_frames}.")
+            self.source_frames = frames
+
+    @classmethod
+    def from_args(cls, args) -> "ReportSettings":
+        return cls(**{f.name: getattr(args, f.name) for f in fields(cls) if f.metadata.get("flag")})
+
+
+SETTINGS_DEFAULTS = {f.name: f.default for f in fields(ReportSettings)}
 
 
 # ------------------------------------------------------------------------------------------ compute
@@ -104,7 +189,7 @@ def _parse_threshold(threshold) -> tuple[float | None, float | None]:
     return float(threshold), None
 
 
-def parse_frames(text) -> float | None:
+def parse_frames(text, option: str = "--budget") -> float | None:
     """``"1e6"``, ``"500k"``, ``"1.5M"`` -> frames."""
     if text is None or isinstance(text, (int, float)):
         return text
@@ -112,12 +197,29 @@ def parse_frames(text) -> float | None:
     try:
         value = float(m.group(1)) * {"": 1, "k": 1e3, "m": 1e6}[m.group(2).lower()]
     except (AttributeError, ValueError):
-        raise UsageError(f"--budget '{text}' is not a number of frames (e.g. 200000, 200k, 1.5M).") from None
+        raise UsageError(f"{option} '{text}' is not a number of frames (e.g. 200000, 200k, 1.5M).") from None
     return value
 
 
 def _name(curve: Curve) -> str:
     return f"'{curve.label}' ({curve.source})"
+
+
+def _check_duplicates(baseline: Sequence[Curve], transfer: Sequence[Curve]) -> None:
+    """The same log file named twice would count as two seeds."""
+    seen: dict[Path, str] = {}
+    for side, curves in (("baseline", baseline), ("transfer", transfer)):
+        for c in curves:
+            if not Path(c.source).exists():
+                continue
+            key = Path(c.source).resolve()
+            if seen.get(key) == side:
+                raise UsageError(f"'{c.source}' is given twice among the {side} runs; a run counts as one "
+                                 "seed, so name it once.")
+            if key in seen:
+                raise UsageError(f"'{c.source}' is both a baseline and a transfer run; compare two "
+                                 "different run sets.")
+            seen[key] = side
 
 
 def _check_tasks(baseline: Sequence[Curve], transfer: Sequence[Curve]) -> str | None:
@@ -136,6 +238,68 @@ def _check_tasks(baseline: Sequence[Curve], transfer: Sequence[Curve]) -> str | 
             f"{_name(t)} on '{t.task}'; compare runs on the same target task."
         )
     return (b or t).task if (b or t) else None
+
+
+def _flat(config: dict, prefix: str = "") -> dict:
+    out = {}
+    for key, value in config.items():
+        if isinstance(value, dict):
+            out.update(_flat(value, f"{prefix}{key}."))
+        else:
+            out[f"{prefix}{key}"] = value
+    return out
+
+
+def _check_configs(side: str, curves: Sequence[Curve], allow_mixed: bool, warnings: list[str]) -> None:
+    """One side must be one method and one configuration (seeds, lengths, devices and sources may differ)."""
+    def shared(c):
+        return {k: v for k, v in _flat(c.config).items()
+                if not any(k == p or k.startswith(p + ".") for p in CONFIG_KEYS_PER_RUN)}
+
+    known = [c for c in curves if c.config]
+    for c in known[1:]:
+        ref, other = shared(known[0]), shared(c)
+        diff = sorted(k for k in ref.keys() | other.keys() if ref.get(k, "(unset)") != other.get(k, "(unset)"))
+        if diff:
+            k = diff[0]
+            more = f" ({len(diff)} keys differ)" if len(diff) > 1 else ""
+            text = (f"the {side} runs mix configurations: {_name(known[0])} has {k}={ref.get(k, '(unset)')} "
+                    f"but {_name(c)} has {k}={other.get(k, '(unset)')}{more}")
+            if not allow_mixed:
+                raise UsageError(text + "; compare one configuration per side, or pass --allow-mixed.")
+            warnings.append(text + " (accepted by --allow-mixed).")
+            return
+
+
+def _seed(curve: Curve):
+    seed = (curve.config or {}).get("seed")
+    return seed if isinstance(seed, int) and not isinstance(seed, bool) else None
+
+
+def _pairing(baseline: list[Curve], transfer: list[Curve], paired: bool | None) -> tuple[bool, str, list[Curve]]:
+    """Whether the runs are analysed in pairs, why, and the transfer runs in the baseline's order."""
+    sb, st = [_seed(c) for c in baseline], [_seed(c) for c in transfer]
+    recorded = all(s is not None for s in sb + st)
+    one_to_one = recorded and len(set(sb)) == len(sb) and len(set(st)) == len(st) and set(sb) == set(st)
+    if paired is False:
+        return False, "unpaired: paired=False was given", transfer
+    if one_to_one:
+        order = {s: c for s, c in zip(st, transfer)}
+        how = "--paired" if paired else "drltg runs"
+        return True, (f"paired by seed ({how}): each baseline run has the transfer run with the same seed "
+                      "in its config.yaml"), [order[s] for s in sb]
+    if recorded:
+        why = (f"the baseline seeds {sorted(sb)} and transfer seeds {sorted(st)} do not match one to one")
+        if paired:
+            raise UsageError(f"--paired cannot pair these runs: {why}.")
+        return False, f"unpaired: {why}", transfer
+    if paired:
+        if len(baseline) != len(transfer):
+            raise UsageError(f"--paired needs as many transfer runs as baseline runs (got {len(baseline)} "
+                             f"baseline, {len(transfer)} transfer).")
+        return True, "paired in the order given (--paired; the logs record no seed)", transfer
+    return False, ("unpaired: not every run records its seed (foreign logs); pass --paired when run i of "
+                   "both sides shares seed and initial weights"), transfer
 
 
 def _interval(curves: Sequence[Curve], budget: float | None, warnings: list[str]) -> tuple[float, float, str]:
@@ -191,9 +355,19 @@ def _on_grid(curves: Sequence[Curve], grid: np.ndarray, smooth: int | None = Non
     return np.stack(rows)
 
 
-def _scores(curves, *, start, budget, k, fraction, threshold, smooth) -> list[dict]:
-    lo, hi = M.final_window(start, budget, fraction)
-    out = []
+def _crossing(frames, y, threshold, stop, s: ReportSettings) -> float | None:
+    if threshold is None or stop < frames[0]:
+        return None
+    if s.crossing == "first":
+        return _num(M.time_to_threshold(frames, y, threshold, stop))
+    return _num(M.sustained_time_to_threshold(frames, y, threshold, stop, s.sustain))
+
+
+def _scores(curves, *, start, budget, threshold, s: ReportSettings) -> pd.DataFrame:
+    """One row per run: the per-seed scores every metric is built from."""
+    k, smooth = int(s.jumpstart_window), s.smooth
+    lo, hi = M.final_window(start, budget, float(s.asymptote_window))
+    rows = []
     for c in curves:
         inside = c.frames <= budget
         if inside.sum() < k:
@@ -208,51 +382,187 @@ def _scores(curves, *, start, budget, k, fraction, threshold, smooth) -> list[di
                 "widen --asymptote-window."
             )
         y = M.moving_average(c.values, smooth) if smooth and smooth > 1 else c.values
-        out.append(dict(
+        area = M.area_under_curve(c.frames, c.values, start, budget)
+        rows.append(dict(
             label=c.label,
             source=str(c.source),
+            seed=_seed(c),
             first_frame=_num(c.frames[0]),
             last_frame=_num(c.frames[-1]),
             initial_performance=M.initial_performance(c.values[inside], k),
             final_performance=float(c.values[window].mean()),
-            total_reward=M.area_under_curve(c.frames, c.values, start, budget),
-            time_to_threshold=None if threshold is None else _num(M.time_to_threshold(c.frames, y, threshold, budget)),
+            total_reward=area,
+            mean_return=area / (budget - start),
+            time_to_threshold=_crossing(c.frames, y, threshold, budget, s),
         ))
-    return out
+    return pd.DataFrame(rows)
 
 
-def compute(
-    baseline: Sequence[Curve],
-    transfer: Sequence[Curve],
-    **settings,
-) -> dict:
+def _source_frames(transfer: Sequence[Curve], s: ReportSettings) -> tuple[list[float] | None, str]:
+    """Frames of source training behind each transfer run, and where they come from."""
+    if s.source_frames is not None:
+        return [float(s.source_frames)] * len(transfer), "--source-frames"
+    frames = []
+    for c in transfer:
+        if c.config is None:
+            return None, "not given: pass --source-frames N for logs without a drltg config.yaml"
+        source = (c.config.get("transfer") or {}).get("source")
+        if source is None or str(source).startswith("demonstrator:"):
+            frames.append(0.0)
+            continue
+        found = _frames_of_run(Path(c.source).parent, str(source))
+        if found is None:
+            return None, (f"unknown: the source run '{source}' of {_name(c)} has no readable config.yaml "
+                          "with frames; pass --source-frames N")
+        frames.append(found)
+    return frames, "the source run's config.yaml frames (transfer.source of each run; 0 without a source run)"
+
+
+def _frames_of_run(run_dir: Path, source: str) -> float | None:
+    import yaml
+
+    path = Path(source).expanduser()
+    for candidate in ([path] if path.is_absolute() else [Path.cwd() / path, run_dir / path, run_dir.parent / path]):
+        config = candidate / "config.yaml"
+        if config.is_file():
+            try:
+                frames = (yaml.safe_load(config.read_text()) or {}).get("frames")
+            except (yaml.YAMLError, AttributeError):
+                return None
+            return float(frames) if isinstance(frames, (int, float)) else None
+    return None
+
+
+def _with_source(transfer: Sequence[Curve], scores: pd.DataFrame, frames: list[float], *, start, budget,
+                 threshold, filler: float, s: ReportSettings) -> None:
+    """Taylor & Stone's total-time view on one budget: run i first spends ``S_i`` frames on the source
+    task (counted at ``filler``, the baseline's mean initial performance: no target skill yet), then
+    learns the target over the remaining ``budget - S_i`` frames.
+
+    :math:`A^{src}_i = S_i \\bar I_B + \\int_{start}^{budget - S_i} y_i\\,df`; time to threshold
+    :math:`\\tau_i + S_i` with :math:`\\tau_i` reached within ``budget - S_i`` frames."""
+    span = budget - start
+    areas, times = [], []
+    for c, source in zip(transfer, frames):
+        used = min(source, span)
+        stop = budget - used
+        area = used * filler
+        if stop > start:
+            area += M.area_under_curve(c.frames, c.values, start, min(stop, c.frames[-1]))
+        y = M.moving_average(c.values, s.smooth) if s.smooth and s.smooth > 1 else c.values
+        crossed = _crossing(c.frames, y, threshold, stop, s)
+        areas.append(area)
+        times.append(None if crossed is None else _num(crossed + source))
+    scores["source_frames"] = [_num(f) for f in frames]
+    scores["total_reward_with_source"] = areas
+    scores["mean_return_with_source"] = np.asarray(areas) / span
+    scores["time_to_threshold_with_source"] = pd.Series(times, dtype=object)
+
+
+@dataclass(frozen=True)
+class Metric:
+    """A transfer metric over per-seed scores: the table's one entry per metric.
+
+    ``kind``: ``difference`` (L(T) - L(B), or L(d_i) over pairs), ``ratio`` (transfer_ratio) or
+    ``poi`` (probability of improvement); ``score`` names the per-seed column (``baseline_score`` the
+    baseline's, when it differs)."""
+
+    name: str
+    score: str
+    kind: str
+    baseline_score: str | None = None
+    iqm: bool = False
+
+
+METRICS = (
+    Metric("mean_return_gain", "mean_return", "difference", iqm=True),
+    Metric("jumpstart", "initial_performance", "difference", iqm=True),
+    Metric("asymptotic_performance", "final_performance", "difference", iqm=True),
+    Metric("transfer_ratio", "total_reward", "ratio", iqm=True),
+    Metric("probability_of_improvement", "total_reward", "poi"),
+    Metric("probability_of_improvement_initial", "initial_performance", "poi"),
+    Metric("probability_of_improvement_final", "final_performance", "poi"),
+    Metric("mean_return_gain_with_source", "mean_return_with_source", "difference", "mean_return"),
+)
+
+
+def _estimate(metric: Metric, b: np.ndarray, t: np.ndarray, paired: bool, location, scale, eps):
+    if metric.kind == "difference":
+        return float(location(t - b)) if paired else float(location(t) - location(b))
+    if metric.kind == "ratio":
+        return M.transfer_ratio(b, t, location=location, scale=scale, eps=eps)
+    return M.paired_probability_of_improvement(b, t) if paired else M.probability_of_improvement(b, t)
+
+
+def _confidence_interval(metric: Metric, value, b, t, paired: bool, s: ReportSettings) -> tuple[list | None, str | None]:
+    """``([low, high], None)``, or ``(None, reason)`` where no honest interval exists."""
+    conf = float(s.confidence)
+    if metric.kind == "poi":
+        return list(M.poi_interval(value, len(b), len(t), paired, conf)), None
+    if metric.kind == "ratio":
+        if value is None:
+            return None, None
+        lo, hi = M.ratio_interval(b, t, paired, conf)
+        if math.isnan(lo):
+            return None, (f"{metric.name} has no interval: the interval of the baseline's mean area "
+                          "contains 0, so the ratio's would be unbounded.")
+        return [lo, hi], None
+    kw = {} if s.interval in ("t", "welch") else dict(n_resamples=int(s.bootstrap), seed=int(s.seed))
+    lo, hi = (float(x) for x in M.INTERVALS[s.interval](b, t, paired=paired, confidence=conf, **kw))
+    if math.isfinite(lo) and math.isfinite(hi) and hi > lo:
+        return [lo, hi], None
+    if paired and np.ptp(t - b) == 0:
+        why = f"every pair gives the same difference ({float(t[0] - b[0]):.4g}), so there is no spread to scale"
+    elif not paired and np.ptp(b) == 0 and np.ptp(t) == 0:
+        why = "each side's seeds give identical values, so there is no spread to scale"
+    else:
+        why = f"the {s.interval} interval is undefined for these scores"
+    return None, f"{metric.name} has no interval: {why}."
+
+
+def _trend(curves: Sequence[Curve], start: float, budget: float, s: ReportSettings) -> dict:
+    """Is the side's mean curve still changing over the last ``trend_window`` of the budget?
+
+    Least-squares line through the mean over seeds at every evaluation frame of that window; the
+    change over the window, :math:`\\hat\\beta (f_1 - f_0)`, with its t-interval (n - 2 degrees of
+    freedom). An interval excluding 0 means the curve still rises (or falls): its final performance
+    is not an asymptote."""
+    lo = budget - float(s.trend_window) * (budget - start)
+    frames = np.unique(np.concatenate([c.frames[(c.frames >= lo) & (c.frames <= budget)] for c in curves]))
+    out = dict(window=[_num(lo), _num(budget)], n_points=int(frames.size))
+    if frames.size < MIN_TREND_POINTS:
+        return {**out, "change": None, "ci": None,
+                "verdict": f"not tested (fewer than {MIN_TREND_POINTS} evaluations in the window)"}
+    mean = _on_grid(curves, frames).mean(axis=0)
+    slope, se, df = M.trend(frames, mean)
+    span = budget - lo
+    half = M.t_quantile(0.5 + float(s.confidence) / 2, df) * se * span
+    change = slope * span
+    verdict = "no significant trend" if abs(change) <= half else ("still rising" if change > 0 else "still falling")
+    return {**out, "change": change, "ci": [change - half, change + half], "verdict": verdict}
+
+
+def compute(baseline: Sequence[Curve], transfer: Sequence[Curve], **settings) -> dict:
     """Metrics of ``transfer`` against ``baseline`` (lists of curves, one per seed), without writing.
 
-    Returns ``{"metrics", "settings", "per_seed", "curves"}``; ``curves`` holds the arrays the plot
-    draws. Keyword settings: see ``SETTINGS_DEFAULTS`` and ``add_arguments``.
-    """
+    Returns ``{"metrics", "settings", "per_seed", "scores", "curves"}``: ``scores`` is the per-seed
+    DataFrame (a ``side`` column), ``curves`` the arrays the plot draws. Keyword settings: the fields
+    of :class:`ReportSettings`."""
     unknown = set(settings) - set(SETTINGS_DEFAULTS)
     if unknown:
         raise TypeError(f"unknown report settings: {', '.join(sorted(unknown))}")
-    s = {**SETTINGS_DEFAULTS, **settings}
+    s = ReportSettings(**settings)
     baseline, transfer = list(baseline), list(transfer)
     if not baseline or not transfer:
         raise UsageError("both a baseline and a transfer run set are needed.")
-    k, fraction, smooth = int(s["jumpstart_window"]), float(s["asymptote_window"]), s["smooth"]
-    if k < 1:
-        raise UsageError(f"--jumpstart-window must be at least 1, got {k}.")
-    if not 0.0 < fraction <= 1.0:
-        raise UsageError(f"--asymptote-window must lie in (0, 1], got {fraction}.")
-    if smooth is not None and int(smooth) < 1:
-        raise UsageError(f"--smooth must be at least 1 evaluation, got {smooth}.")
-    if not 0.0 < float(s["confidence"]) < 1.0:
-        raise UsageError(f"--confidence must lie in (0, 1), got {s['confidence']}.")
-    if int(s["bootstrap"]) < 100:
-        raise UsageError(f"--bootstrap needs at least 100 resamples, got {s['bootstrap']}.")
-    smooth = int(smooth) if smooth else None
     warnings: list[str] = []
+    _check_duplicates(baseline, transfer)
     task = _check_tasks(baseline, transfer)
-    start, budget, budget_source = _interval(baseline + transfer, parse_frames(s["budget"]), warnings)
+    for side, runs in (("baseline", baseline), ("transfer", transfer)):
+        _check_configs(side, runs, bool(s.allow_mixed), warnings)
+    paired, pairing, transfer = _pairing(baseline, transfer, s.paired)
+    start, budget, budget_source = _interval(baseline + transfer, parse_frames(s.budget), warnings)
+    k = int(s.jumpstart_window)
     no_zero = [c for c in baseline + transfer if c.frames[0] > 0]
     if no_zero:
         frames = sorted({c.frames[0] for c in no_zero})
@@ -260,133 +570,186 @@ def compute(
             f"{len(no_zero)} of {len(baseline) + len(transfer)} runs have no frame-0 evaluation; the "
             f"jumpstart compares their first {k} evaluation(s) (from frame {_fmt(frames[0])})."
         )
+    threshold, basis = _threshold(baseline, start, budget, s)
 
-    absolute, frac = _parse_threshold(s["threshold"])
-    grid_b = _grid(baseline, start, budget)
-    if frac is not None:
-        best = float(_on_grid(baseline, grid_b, smooth).mean(axis=0).max())
-        if best <= 0:
-            raise UsageError(
-                f"--threshold {s['threshold']} is a fraction of the best baseline performance, which is "
-                f"{best:.4g} (not positive); give an absolute threshold instead."
-            )
-        absolute = frac * best
-    threshold = absolute
-
-    common = dict(start=start, budget=budget, k=k, fraction=fraction, threshold=threshold, smooth=smooth)
-    per_b, per_t = _scores(baseline, **common), _scores(transfer, **common)
-    col = lambda rows, key: np.array([r[key] for r in rows], dtype=np.float64)  # noqa: E731
-    ib, it = col(per_b, "initial_performance"), col(per_t, "initial_performance")
-    fb, ft = col(per_b, "final_performance"), col(per_t, "final_performance")
-    ab, at = col(per_b, "total_reward"), col(per_t, "total_reward")
+    scores = {side: _scores(runs, start=start, budget=budget, threshold=threshold, s=s)
+              for side, runs in (("baseline", baseline), ("transfer", transfer))}
+    source_frames, source_basis = _source_frames(transfer, s)
+    if source_frames is not None and not any(source_frames):
+        source_basis += "; no source training, so the total-time view equals the target-only one"
+    elif source_frames is not None:
+        _with_source(transfer, scores["transfer"], source_frames, start=start, budget=budget,
+                     threshold=threshold, filler=float(scores["baseline"]["initial_performance"].mean()), s=s)
     scale = (budget - start) * max(
-        float(np.abs(c.values[(c.frames >= start) & (c.frames <= budget)]).max()) for c in baseline + transfer
-    )
-    eps = float(s["ratio_eps"])
-
-    m: dict = {"n_seeds_baseline": len(baseline), "n_seeds_transfer": len(transfer)}
-    m["jumpstart"] = M.jumpstart(ib, it)
-    m["asymptotic_performance"] = M.asymptotic_performance(fb, ft)
-    m["total_reward_baseline"] = float(ab.mean())
-    m["total_reward_transfer"] = float(at.mean())
-    m["transfer_ratio"] = M.transfer_ratio(ab, at, scale=scale, eps=eps)
-    if m["transfer_ratio"] is None:
-        warnings.append(
-            f"the baseline area ({ab.mean():.4g}) is within {eps:g} of the largest possible area "
-            f"({scale:.4g}) from zero, so transfer_ratio is undefined (null); compare total_reward_* instead."
-        )
-    ttt = {}
-    for side, rows in (("baseline", per_b), ("transfer", per_t)):
-        times = [r["time_to_threshold"] for r in rows]
-        ttt[side] = times
-        m[f"time_to_threshold_{side}"] = None if threshold is None else _num(M.censored_median(times))
-        m[f"threshold_reached_{side}"] = (
-            None if threshold is None else sum(t is not None for t in times) / len(times)
-        )
-    m["initial_performance_baseline"], m["initial_performance_transfer"] = float(ib.mean()), float(it.mean())
-    m["final_performance_baseline"], m["final_performance_transfer"] = float(fb.mean()), float(ft.mean())
-    m["probability_of_improvement"] = M.probability_of_improvement(ab, at)
-    m["probability_of_improvement_initial"] = M.probability_of_improvement(ib, it)
-    m["probability_of_improvement_final"] = M.probability_of_improvement(fb, ft)
-    iqm = M.interquartile_mean
-    m["jumpstart_iqm"] = M.jumpstart(ib, it, location=iqm)
-    m["asymptotic_performance_iqm"] = M.asymptotic_performance(fb, ft, location=iqm)
-    m["transfer_ratio_iqm"] = M.transfer_ratio(ab, at, location=iqm, scale=scale, eps=eps)
-
-    boot = dict(n_resamples=int(s["bootstrap"]), confidence=float(s["confidence"]), seed=int(s["seed"]))
-    if len(baseline) >= 2 and len(transfer) >= 2:
-        diff = M.difference_statistic()
-        for name, b, t, stat in (
-            ("jumpstart", ib, it, diff),
-            ("asymptotic_performance", fb, ft, diff),
-            ("transfer_ratio", ab, at, M.ratio_statistic(scale=scale, eps=eps)),
-            ("probability_of_improvement", ab, at, M.poi_statistic),
-            ("probability_of_improvement_initial", ib, it, M.poi_statistic),
-            ("probability_of_improvement_final", fb, ft, M.poi_statistic),
-        ):
-            lo, hi = M.bootstrap_ci(stat, b, t, **boot)
-            m[f"{name}_ci"] = None if math.isnan(lo) else [lo, hi]
-    else:
-        warnings.append(
-            f"confidence intervals need at least 2 seeds per side (got {len(baseline)} baseline, "
-            f"{len(transfer)} transfer); none are reported."
-        )
+        float(np.abs(c.values[(c.frames >= start) & (c.frames <= budget)]).max()) for c in baseline + transfer)
+    m = _metrics(scores, paired, scale, threshold, s, warnings)
+    trends = {side: _trend(runs, start, budget, s) for side, runs in (("baseline", baseline), ("transfer", transfer))}
+    for side, tr in trends.items():
+        m[f"final_trend_{side}"] = tr["change"]
+        if tr["ci"] is not None:
+            m[f"final_trend_{side}_ci"] = tr["ci"]
+        if tr["verdict"].startswith("still"):
+            warnings.append(
+                f"the {side} mean curve is {tr['verdict']} over the last {100 * float(s.trend_window):g}% of the "
+                f"budget ({tr['change']:+.4g} [{tr['ci'][0]:+.4g}, {tr['ci'][1]:+.4g}] from frame "
+                f"{_fmt(tr['window'][0])} to {_fmt(tr['window'][1])}): asymptotic_performance compares final "
+                "performances, not asymptotes.")
 
     labels = {
-        "baseline": s["baseline_label"] or _side_label(baseline, "baseline"),
-        "transfer": s["transfer_label"] or _side_label(transfer, "transfer"),
+        "baseline": s.baseline_label or _side_label(baseline, "baseline"),
+        "transfer": s.transfer_label or _side_label(transfer, "transfer"),
     }
-    lo, hi = M.final_window(start, budget, fraction)
+    lo, hi = M.final_window(start, budget, float(s.asymptote_window))
     settings_out = {
         "baseline": [str(c.source) for c in baseline],
         "transfer": [str(c.source) for c in transfer],
         "baseline_label": labels["baseline"],
         "transfer_label": labels["transfer"],
         "task": task,
-        "format": s["format"],
-        "tag": s["tag"],
+        "format": s.format,
+        "tag": s.tag,
         "start": _num(start),
         "budget": _num(budget),
         "budget_source": budget_source,
+        "paired": paired,
+        "pairing": pairing,
         "jumpstart_window": k,
-        "asymptote_window": fraction,
+        "asymptote_window": float(s.asymptote_window),
         "asymptote_frames": [_num(lo), _num(hi)],
+        "trend_window": float(s.trend_window),
+        "convergence": {side: tr["verdict"] for side, tr in trends.items()},
         "threshold": threshold,
-        "threshold_given": s["threshold"],
-        "threshold_basis": None if threshold is None else (
-            "absolute" if frac is None else f"{frac:g} x best baseline mean performance ({best:.6g})"
-        ),
-        "smooth": smooth,
-        "ratio_eps": eps,
+        "threshold_given": s.threshold,
+        "threshold_basis": basis,
+        "crossing": s.crossing,
+        "sustain": s.sustain,
+        "time_to_threshold_rule": _crossing_rule(s),
+        "median_rule": ("upper median over seeds: the earliest of the runs' own crossing frames by which a "
+                        "strict majority of seeds has crossed; null when no strict majority does"),
+        "source_frames": None if source_frames is None else [_num(f) for f in source_frames],
+        "source_frames_basis": source_basis,
+        "smooth": int(s.smooth) if s.smooth else None,
+        "ratio_eps": float(s.ratio_eps),
         "ratio_scale": scale,
-        "bootstrap": boot["n_resamples"],
-        "confidence": boot["confidence"],
-        "seed": boot["seed"],
-        "location": "mean over seeds (and interquartile mean in *_iqm)",
+        "interval": _interval_rule(s, paired),
+        "confidence": float(s.confidence),
+        "bootstrap": int(s.bootstrap),
+        "seed": int(s.seed),
+        "location": "mean over seeds (over pairs when paired), and the interquartile mean in *_iqm",
         "warnings": warnings,
     }
+    curves = _plot_curves(baseline, transfer, start, budget, scores, s, settings_out)
+    per_seed = {side: _records(df) for side, df in scores.items()}
+    table = pd.concat([df.assign(side=side) for side, df in scores.items()], ignore_index=True)
+    return {"metrics": m, "settings": settings_out, "per_seed": per_seed, "scores": table, "curves": curves}
+
+
+def _threshold(baseline, start, budget, s: ReportSettings) -> tuple[float | None, str | None]:
+    absolute, frac = _parse_threshold(s.threshold)
+    if frac is None:
+        return absolute, None if absolute is None else "absolute"
+    smooth = int(s.smooth) if s.smooth else None
+    best = float(_on_grid(baseline, _grid(baseline, start, budget), smooth).mean(axis=0).max())
+    if best <= 0:
+        raise UsageError(
+            f"--threshold {s.threshold} is a fraction of the best baseline performance, which is "
+            f"{best:.4g} (not positive); give an absolute threshold instead."
+        )
+    return frac * best, f"{frac:g} x best baseline mean performance ({best:.6g})"
+
+
+def _crossing_rule(s: ReportSettings) -> str:
+    if s.crossing == "first":
+        return "first evaluation at or above the threshold (--crossing first)"
+    if s.sustain:
+        return f"first evaluation from which the run stays at or above the threshold for {s.sustain} evaluations"
+    return "first evaluation from which the run stays at or above the threshold until the budget"
+
+
+def _interval_rule(s: ReportSettings, paired: bool) -> str:
+    level = f"{100 * float(s.confidence):g}%"
+    diff = {"t": "paired t-interval on the per-pair differences" if paired else
+            "t-interval with Welch's standard error and Hsu's min(n_B, n_T) - 1 degrees of freedom",
+            "welch": "paired t-interval" if paired else "Welch t-interval",
+            "studentized": "studentized (bootstrap-t) interval", "bca": "BCa bootstrap interval",
+            "percentile": "percentile bootstrap interval"}[s.interval]
+    return (f"{level}: {diff} for the mean differences; Fieller's interval for transfer_ratio; a score "
+            f"interval ({'Wilson' if paired else 'Newcombe'}) for the probabilities of improvement; none "
+            f"with fewer than {MIN_SEEDS} seeds on a side")
+
+
+def _metrics(scores: dict, paired: bool, scale: float, threshold, s: ReportSettings, warnings: list[str]) -> dict:
+    sb, st = scores["baseline"], scores["transfer"]
+    eps = float(s.ratio_eps)
+    m: dict = {"n_seeds_baseline": len(sb), "n_seeds_transfer": len(st)}
+    enough = min(len(sb), len(st)) >= MIN_SEEDS
+    if not enough:
+        warnings.append(f"intervals need at least {MIN_SEEDS} seeds per side (got {len(sb)} baseline, "
+                        f"{len(st)} transfer); none are reported.")
+    for metric in METRICS:
+        if metric.score not in st:
+            continue
+        b = sb[metric.baseline_score or metric.score].to_numpy(np.float64)
+        t = st[metric.score].to_numpy(np.float64)
+        m[metric.name] = value = _estimate(metric, b, t, paired, M.mean, scale, eps)
+        if metric.kind == "ratio" and value is None:
+            warnings.append(
+                f"the baseline area ({b.mean():.4g}) is within {eps:g} of the largest possible area "
+                f"({scale:.4g}) from zero, so transfer_ratio is undefined (null); compare mean_return_gain instead.")
+        if enough:
+            ci, why = _confidence_interval(metric, value, b, t, paired, s)
+            if ci is not None:
+                m[f"{metric.name}_ci"] = ci
+            elif why:
+                warnings.append(why)
+        if metric.iqm:
+            m[f"{metric.name}_iqm"] = _estimate(metric, b, t, paired, M.interquartile_mean, scale, eps)
+    for side, df in scores.items():
+        m[f"total_reward_{side}"] = float(df["total_reward"].mean())
+        m[f"initial_performance_{side}"] = float(df["initial_performance"].mean())
+        m[f"final_performance_{side}"] = float(df["final_performance"].mean())
+        times = [None if _missing(x) else x for x in df["time_to_threshold"]]
+        m[f"time_to_threshold_{side}"] = None if threshold is None else _num(M.censored_median(times, upper=True))
+        m[f"threshold_reached_{side}"] = (
+            None if threshold is None else sum(x is not None for x in times) / len(times))
+    if "total_reward_with_source" in st:
+        m["total_reward_transfer_with_source"] = float(st["total_reward_with_source"].mean())
+        times = [None if _missing(x) else x for x in st["time_to_threshold_with_source"]]
+        m["time_to_threshold_transfer_with_source"] = (
+            None if threshold is None else _num(M.censored_median(times, upper=True)))
+    return m
+
+
+def _missing(x) -> bool:
+    return x is None or (isinstance(x, float) and math.isnan(x))
+
+
+def _records(df: pd.DataFrame) -> list[dict]:
+    """JSON-ready rows: NaN cells as None, numpy scalars as Python numbers."""
+    out = []
+    for row in df.to_dict("records"):
+        out.append({k: (None if _missing(v) else v.item() if isinstance(v, np.generic) else v)
+                    for k, v in row.items()})
+    return out
+
+
+def _plot_curves(baseline, transfer, start, budget, scores, s: ReportSettings, settings_out: dict) -> dict:
+    smooth = int(s.smooth) if s.smooth else None
     n_evals = int(np.median([int((c.frames <= budget).sum()) for c in baseline + transfer]))
-    w = s["plot_smooth"] or smooth or max(1, n_evals // PLOT_POINTS)
+    w = int(s.plot_smooth or smooth or max(1, n_evals // PLOT_POINTS))
     settings_out["plot_smooth"] = w
     curves = {}
-    for side, runs, grid in (("baseline", baseline, grid_b), ("transfer", transfer, _grid(transfer, start, budget))):
+    for side, runs in (("baseline", baseline), ("transfer", transfer)):
+        grid = _grid(runs, start, budget)
         ys = _on_grid(runs, grid, w)
         band = None
-        if len(runs) >= 2:
-            band = _band(ys, boot)
+        if len(runs) >= MIN_SEEDS:
+            half = M.t_quantile(0.5 + float(s.confidence) / 2, len(runs) - 1) * ys.std(0, ddof=1) / math.sqrt(len(runs))
+            band = (ys.mean(0) - half, ys.mean(0) + half)
+        times = [None if _missing(x) else x for x in scores[side]["time_to_threshold"]]
         curves[side] = dict(grid=grid, mean=ys.mean(axis=0), band=band, smooth=w,
-                            runs=[(c.frames, c.values) for c in runs], times=ttt[side])
-    return {"metrics": m, "settings": settings_out, "per_seed": {"baseline": per_b, "transfer": per_t},
-            "curves": curves}
-
-
-def _band(ys: np.ndarray, boot: dict, chunk: int = 64) -> tuple[np.ndarray, np.ndarray]:
-    """Bootstrap interval of the mean over seeds at every grid point (same resamples everywhere)."""
-    lows, highs = [], []
-    for j in range(0, ys.shape[1], chunk):
-        lo, hi = M.bootstrap_ci(lambda x: x.mean(axis=1), ys[:, j:j + chunk], **boot)
-        lows.append(lo), highs.append(hi)
-    return np.concatenate(lows), np.concatenate(highs)
+                            runs=[(c.frames, c.values) for c in runs], times=times)
+    return curves
 
 
 def _side_label(curves: Sequence[Curve], default: str) -> str:
@@ -416,29 +779,51 @@ def _fmt(x, digits: int = 4) -> str:
 
 
 METRIC_ORDER = (
-    "jumpstart", "asymptotic_performance", "transfer_ratio",
+    "mean_return_gain", "jumpstart", "asymptotic_performance", "transfer_ratio",
     "total_reward_baseline", "total_reward_transfer",
     "time_to_threshold_baseline", "time_to_threshold_transfer",
     "threshold_reached_baseline", "threshold_reached_transfer",
     "initial_performance_baseline", "initial_performance_transfer",
     "final_performance_baseline", "final_performance_transfer",
+    "final_trend_baseline", "final_trend_transfer",
     "probability_of_improvement", "probability_of_improvement_initial", "probability_of_improvement_final",
-    "jumpstart_iqm", "asymptotic_performance_iqm", "transfer_ratio_iqm",
+    "mean_return_gain_iqm", "jumpstart_iqm", "asymptotic_performance_iqm", "transfer_ratio_iqm",
+    "mean_return_gain_with_source", "total_reward_transfer_with_source", "time_to_threshold_transfer_with_source",
     "n_seeds_baseline", "n_seeds_transfer",
 )
+WITH_SOURCE = ("mean_return_gain_with_source", "total_reward_transfer_with_source",
+               "time_to_threshold_transfer_with_source")
 
 
 def metrics_rows(metrics: dict) -> list[tuple[str, object, object, object]]:
-    """``(metric, value, ci_low, ci_high)`` rows in a fixed order."""
+    """``(metric, value, ci_low, ci_high)`` rows in a fixed order (total-time rows only when known)."""
     rows = []
     for name in METRIC_ORDER:
+        if name in WITH_SOURCE and name not in metrics:
+            continue
         ci = metrics.get(f"{name}_ci") or (None, None)
-        rows.append((name, metrics[name], ci[0], ci[1]))
+        rows.append((name, metrics.get(name), ci[0], ci[1]))
     return rows
 
 
+def _note(name: str, st: dict) -> str:
+    conv = st.get("convergence", {})
+    if name == "asymptotic_performance":
+        moving = [f"{side} {v}" for side, v in conv.items() if v.startswith("still")]
+        return f"final performance, not an asymptote: {', '.join(moving)}" if moving else ""
+    if name.startswith("final_trend_"):
+        return conv.get(name.rsplit("_", 1)[1], "")
+    if name == "mean_return_gain_with_source":
+        return "total time: source frames counted"
+    if name.endswith("_with_source"):
+        return "total time: source frames counted"
+    if name == "transfer_ratio":
+        return "changes when a constant is added to rewards"
+    return ""
+
+
 def format_table(result: dict) -> str:
-    """The metrics as an aligned text table."""
+    """The metrics as an aligned text table (intervals only where they exist; notes on the right)."""
     m, st = result["metrics"], result["settings"]
     conf = f"{round(100 * st['confidence'])}% CI"
     lines = [
@@ -446,22 +831,24 @@ def format_table(result: dict) -> str:
         f"{st['baseline_label']} (baseline, {m['n_seeds_baseline']} seed(s))"
         + (f" on {st['task']}" if st["task"] else ""),
         f"budget {_fmt(st['budget'])} frames from frame {_fmt(st['start'])}"
-        + ("" if st["threshold"] is None else f"; threshold {st['threshold']:.4g}"),
+        + ("" if st["threshold"] is None else f"; threshold {st['threshold']:.4g}")
+        + f"; {st.get('pairing', 'unpaired').split(':')[0]}",
     ]
-    rows = [("metric", "value", conf)]
+    rows = [("metric", "value", conf, "note")]
     for name, value, lo, hi in metrics_rows(m):
         if name.startswith("time_to_threshold") and st["threshold"] is None:
             shown = "-"
         elif name.startswith("threshold_reached") and value is None:
             shown = "-"
         elif value is None:
-            shown = "null" if not name.startswith("time_to") else "not reached"
+            shown = "not reached" if name.startswith("time_to") else "null"
         else:
             shown = _fmt(value)
-        rows.append((name, shown, "" if lo is None else f"[{_fmt(lo)}, {_fmt(hi)}]"))
-    w0, w1 = max(len(r[0]) for r in rows), max(len(r[1]) for r in rows)
+        ci = "" if lo is None or hi is None or lo == hi else f"[{_fmt(lo)}, {_fmt(hi)}]"
+        rows.append((name, shown, ci, _note(name, st)))
+    w0, w1, w2 = (max(len(r[i]) for r in rows) for i in range(3))
     lines.append("")
-    lines += [f"{a:<{w0}}  {b:>{w1}}  {c}".rstrip() for a, b, c in rows]
+    lines += [f"{a:<{w0}}  {b:>{w1}}  {c:<{w2}}  {d}".rstrip() for a, b, c, d in rows]
     lines[3:4] = [lines[3], "-" * len(lines[3])]
     return "\n".join(lines)
 
@@ -537,10 +924,11 @@ def transfer_report(
     ``baseline`` and ``transfer`` are paths (runs, directories of runs, globs) or lists of
     :class:`~drltg.curves.Curve`. ``out_dir`` defaults to a fresh folder named after the runs in the
     working directory. Keyword settings are those of ``drltg report`` (``threshold=150`` or ``"80%"``,
-    ``budget``, ``jumpstart_window``, ``asymptote_window``, ``smooth``, ``plot_smooth``, ``format``,
-    ``tag``, ``bootstrap``, ``confidence``, ``seed``, ``ratio_eps``, ``baseline_label``,
-    ``transfer_label``). The returned dict also holds ``"out_dir"``.
+    ``budget``, ``crossing``, ``paired``, ``source_frames``, ...: the fields of :class:`ReportSettings`).
+    The returned dict also holds ``"scores"`` (the per-seed DataFrame) and ``"out_dir"``.
     """
+    if out_dir is not None:
+        check_out_dir(Path(out_dir))
     read = dict(format=settings.get("format", "auto"), tag=settings.get("tag"))
     runs_b = _as_curves(baseline, **read)
     runs_t = _as_curves(transfer, **read)
@@ -549,9 +937,23 @@ def transfer_report(
     st = result["settings"]
     out = Path(out_dir) if out_dir is not None else fresh_dir(
         f"report-{st['transfer_label']}-vs-{st['baseline_label']}")
-    write_files(out, files)
+    try:
+        write_files(out, files)
+    except OSError as err:
+        raise UsageError(f"cannot write the report to '{out}': {err.strerror or err}.") from None
     return {"metrics": result["metrics"], "settings": st, "per_seed": result["per_seed"],
-            "out_dir": str(out)}
+            "scores": result["scores"], "out_dir": str(out)}
+
+
+def check_out_dir(out: Path, option: str = "--out") -> None:
+    """An output folder must be a folder (or creatable as one) that this process can write."""
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"{option} '{out}' is a file, not a folder.")
+    existing = next((p for p in [out, *out.parents] if p.exists()), None)
+    if existing is not None and not existing.is_dir():
+        raise UsageError(f"{option} '{out}' lies inside '{existing}', which is a file, not a folder.")
+    if existing is not None and not os.access(existing, os.W_OK | os.X_OK):
+        raise UsageError(f"{option} '{out}' cannot be written: '{existing}' is read-only for this user.")
 
 
 def _as_curves(runs, format: str, tag: str | None) -> list[Curve]:
@@ -584,7 +986,7 @@ def find_matrix_cells(directory: str | Path) -> dict[tuple[str, str], tuple[Path
     return cells
 
 
-MATRIX_METRICS = ("jumpstart", "asymptotic_performance", "transfer_ratio", "total_reward_transfer",
+MATRIX_METRICS = ("mean_return_gain", "jumpstart", "asymptotic_performance", "transfer_ratio", "total_reward_transfer",
                   "time_to_threshold_transfer", "probability_of_improvement")
 
 
@@ -597,6 +999,8 @@ def transfer_matrix(
     """One report per (source, target) cell, summarised as a heatmap of ``metric`` plus CSV and JSON."""
     if metric not in METRIC_ORDER:
         raise UsageError(f"unknown --metric '{metric}'; choose one of {', '.join(METRIC_ORDER)}.")
+    if out_dir is not None:
+        check_out_dir(Path(out_dir))
     read = dict(format=settings.get("format", "auto"), tag=settings.get("tag"))
     results = {}
     for (source, target), (b, t) in sorted(cells.items()):
@@ -630,7 +1034,10 @@ def transfer_matrix(
 
 # ---------------------------------------------------------------------------------------------- CLI
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    io_ = parser.add_argument_group("runs")
+    """``drltg report``'s options: the run sets, ``--out`` and ``--matrix``, then one option per
+    :class:`ReportSettings` field that has a flag."""
+    groups = {"runs": parser.add_argument_group("runs"), "metrics": parser.add_argument_group("metrics")}
+    io_ = groups["runs"]
     io_.add_argument("--baseline", nargs="+", metavar="PATH",
                      help="baseline (no transfer) runs: run dirs, a dir of seed runs, log files or globs")
     io_.add_argument("--transfer", nargs="+", metavar="PATH", help="transfer runs, same forms as --baseline")
@@ -638,40 +1045,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help="DIR/<source>/<target>/{baseline,transfer}: a heatmap of --metric over all pairs")
     io_.add_argument("--metric", default="transfer_ratio", help="metric for the --matrix heatmap "
                      "(default: transfer_ratio)")
-    io_.add_argument("--format", choices=FORMATS, default="auto", help="log format (default: auto-detect)")
-    io_.add_argument("--tag", help="column / scalar tag to read (defaults: return_mean in eval.csv, "
-                     "eval/mean_reward in progress.csv, r in monitor.csv, eval/return_mean or "
-                     "eval/mean_reward in TensorBoard / CSVLogger logs)")
     io_.add_argument("--out", metavar="DIR", help="output folder (default: a fresh folder named after the runs)")
-    io_.add_argument("--baseline-label", help="name of the baseline in the plot and table")
-    io_.add_argument("--transfer-label", help="name of the transfer runs in the plot and table")
-    mt = parser.add_argument_group("metrics")
-    mt.add_argument("--threshold", help="return to reach for time-to-threshold: a number (150) or a "
-                    "percentage of the best baseline mean performance (80%%)")
-    mt.add_argument("--budget", help="compare over the first FRAMES frames (default: the shortest run's "
-                    "last evaluation); accepts 200000, 200k, 1.5M")
-    mt.add_argument("--jumpstart-window", type=int, default=1, metavar="K",
-                    help="jumpstart = mean of the first K evaluations (default: 1)")
-    mt.add_argument("--asymptote-window", type=float, default=0.1, metavar="FRAC",
-                    help="asymptotic performance = mean over the last FRAC of the budget (default: 0.1)")
-    mt.add_argument("--smooth", type=int, metavar="W", help="moving average over W evaluations before "
-                    "time-to-threshold (and a fractional threshold's best baseline); default: raw curve")
-    mt.add_argument("--plot-smooth", type=int, metavar="W", help="moving average for the plotted lines "
-                    f"only (default: --smooth, else about {PLOT_POINTS} windows per curve; 1 = raw)")
-    mt.add_argument("--bootstrap", type=int, default=10_000, metavar="N",
-                    help="bootstrap resamples of the seeds (default: 10000)")
-    mt.add_argument("--confidence", type=float, default=0.95, help="confidence level (default: 0.95)")
-    mt.add_argument("--seed", type=int, default=0, help="bootstrap seed (default: 0)")
+    for f in fields(ReportSettings):
+        meta = f.metadata
+        if meta.get("flag"):
+            groups[meta["group"]].add_argument(meta["flag"], dest=f.name, default=f.default, **meta["kwargs"])
 
 
 def _settings_from(args) -> dict:
-    return dict(
-        format=args.format, tag=args.tag, threshold=args.threshold, budget=args.budget,
-        jumpstart_window=args.jumpstart_window, asymptote_window=args.asymptote_window,
-        smooth=args.smooth, plot_smooth=args.plot_smooth, bootstrap=args.bootstrap,
-        confidence=args.confidence, seed=args.seed, baseline_label=args.baseline_label,
-        transfer_label=args.transfer_label,
-    )
+    return {f.name: getattr(args, f.name) for f in fields(ReportSettings) if f.metadata.get("flag")}
 
 
 def run(args) -> int:
@@ -680,6 +1062,7 @@ def run(args) -> int:
         if args.baseline or args.transfer:
             raise UsageError("--matrix builds its own baseline/transfer pairs; drop --baseline and --transfer.")
         settings.pop("baseline_label"), settings.pop("transfer_label")
+        ReportSettings(**settings)
         result = transfer_matrix(find_matrix_cells(args.matrix), args.out, args.metric, **settings)
         for cell in result["cells"]:
             for w in cell["settings"]["warnings"]:
@@ -695,6 +1078,7 @@ def run(args) -> int:
         return 0
     if not args.baseline or not args.transfer:
         raise UsageError("give both --baseline and --transfer runs (or --matrix DIR).")
+    ReportSettings(**settings)
     result = transfer_report(args.baseline, args.transfer, args.out, **settings)
     for w in result["settings"]["warnings"]:
         print(f"warning: {w}", file=sys.stderr)

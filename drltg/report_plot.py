@@ -42,8 +42,9 @@ def _signed(x) -> str:
 
 
 def plot_transfer(result: dict) -> tuple[bytes, bytes]:
-    """Mean curve per side (CI band over seeds where there are >= 2), faint raw runs, the threshold
-    line, time-to-threshold markers, jumpstart and asymptotic gaps as annotated segments."""
+    """Mean curve per side (t-interval band over seeds where there are >= 3), faint raw runs, the
+    threshold line with each run's crossing and the median crossing, jumpstart and asymptotic gaps as
+    annotated segments, and a box of the differences with their intervals (mean return gain first)."""
     from matplotlib.ticker import FuncFormatter
 
     m, st, curves = result["metrics"], result["settings"], result["curves"]
@@ -63,7 +64,7 @@ def plot_transfer(result: dict) -> tuple[bytes, bytes]:
                 label=f"{st[side + '_label']} ({side}; {what}{smooth})")
         if c["band"] is not None:
             ax.fill_between(c["grid"], *c["band"], color=color, alpha=0.2, lw=0, zorder=2,
-                            label=f"{round(100 * st['confidence'])}% bootstrap CI of the mean")
+                            label=f"{round(100 * st['confidence'])}% t-interval of the mean over seeds")
 
     ax.plot([], [], color="0.4", lw=0.6, alpha=0.4, label="raw evaluations, one line per seed")
     # asymptotic performance: the window, both levels, and the gap at the budget
@@ -72,7 +73,9 @@ def plot_transfer(result: dict) -> tuple[bytes, bytes]:
     fb, ft = m["final_performance_baseline"], m["final_performance_transfer"]
     for side, level in (("baseline", fb), ("transfer", ft)):
         ax.hlines(level, lo_w, hi_w, colors=COLORS[side], lw=2.2, linestyles=(0, (4, 2)), zorder=4)
-    _gap(ax, hi_w, fb, ft, f"asymptotic\n{_signed(m['asymptotic_performance'])}", side="left")
+    moving = {side: v for side, v in st.get("convergence", {}).items() if v.startswith("still")}
+    what_gap = "asymptotic" if not moving else "final performance\n(not converged)"
+    _gap(ax, hi_w, fb, ft, f"{what_gap}\n{_signed(m['asymptotic_performance'])}", side="left")
 
     # jumpstart: the first evaluations of both sides
     x0 = min(min(r[0][0] for r in curves[s]["runs"]) for s in curves)
@@ -82,32 +85,23 @@ def plot_transfer(result: dict) -> tuple[bytes, bytes]:
     _gap(ax, x0, ib, it, f"jumpstart\n{_signed(m['jumpstart'])}", side="right")
 
     if st["threshold"] is not None:
-        thr = st["threshold"]
-        how = f" (moving average of {st['smooth']})" if st["smooth"] else " (raw evaluations)"
-        if len(curves["baseline"]["runs"]) + len(curves["transfer"]["runs"]) > 2:
-            how = ", median over seeds" + how
-        basis = st["threshold_basis"]
-        of_best = "" if basis == "absolute" else f" ({basis.split(' x ')[0]} x best baseline mean)"
-        ax.axhline(thr, color="0.15", lw=1.1, ls="--", zorder=2, label=f"threshold {thr:.4g}{of_best}")
-        for side in ("baseline", "transfer"):
-            t = m[f"time_to_threshold_{side}"]
-            if t is not None:
-                ax.axvline(t, color=COLORS[side], lw=1.0, ls=":", zorder=2)
-                ax.plot([t], [thr], marker="v", ms=11, color=COLORS[side], mec="black", mew=0.8, zorder=7,
-                        label=f"{side} first reaches it at {_frames(t)} frames{how}")
-            else:
-                ax.plot([], [], marker="v", ls="", ms=9, color=COLORS[side], mec="black", mew=0.8,
-                        label=f"{side} never reaches it (within budget)")
+        _threshold_marks(ax, m, st, curves)
 
-    ci_note = f", [{round(100 * st['confidence'])}% CI]" if m.get("jumpstart_ci") else ""
+    asym = "asymptotic" if not moving else "final perf. (not converged)"
+    conf = round(100 * st["confidence"])
     summary = [
-        f"transfer - baseline{ci_note}",
+        f"transfer - baseline [{conf}% CI]" + (", paired by seed" if st.get("paired") else ""),
+        f"mean return gain {_signed(m.get('mean_return_gain'))}" + _ci(m, "mean_return_gain"),
         f"jumpstart {_signed(m['jumpstart'])}" + _ci(m, "jumpstart"),
-        f"asymptotic {_signed(m['asymptotic_performance'])}" + _ci(m, "asymptotic_performance"),
-        f"transfer ratio {_signed(m['transfer_ratio'])}" + _ci(m, "transfer_ratio"),
-        f"P(improvement) {m['probability_of_improvement']:.2f}",
-        f"area B {m['total_reward_baseline']:.4g}, T {m['total_reward_transfer']:.4g}",
+        f"{asym} {_signed(m['asymptotic_performance'])}" + _ci(m, "asymptotic_performance"),
+        f"transfer ratio {_signed(m['transfer_ratio'])}" + _ci(m, "transfer_ratio") + " (offset-dependent)",
+        f"P(T > B) {m['probability_of_improvement']:.2f}" + _ci(m, "probability_of_improvement", sign=""),
     ]
+    if "mean_return_gain_with_source" in m:
+        summary.append(f"total time (source frames counted): gain {_signed(m['mean_return_gain_with_source'])}"
+                       + _ci(m, "mean_return_gain_with_source"))
+    for side, verdict in moving.items():
+        summary.append(f"warning: {side} {verdict} at the budget")
     ax.text(1.0, -0.12, "\n".join(summary), transform=ax.transAxes, ha="right", va="top",
             fontsize=9, family="monospace", zorder=8,
             bbox=dict(boxstyle="round,pad=0.4", fc="white", ec="0.7", alpha=0.9))
@@ -126,9 +120,37 @@ def plot_transfer(result: dict) -> tuple[bytes, bytes]:
     return _save(plt, fig)
 
 
-def _ci(m: dict, name: str) -> str:
+def _ci(m: dict, name: str, sign: str = "+") -> str:
     ci = m.get(f"{name}_ci")
-    return f" [{ci[0]:+.3g}, {ci[1]:+.3g}]" if ci else ""
+    return f" [{ci[0]:{sign}.3g}, {ci[1]:{sign}.3g}]" if ci else " [no CI]"
+
+
+def _threshold_marks(ax, m: dict, st: dict, curves: dict) -> None:
+    """The threshold line; on each run, a small marker where that run crosses (by the report's rule,
+    so the run is at or above the threshold there); the median over seeds as a vertical line."""
+    thr = st["threshold"]
+    basis = st["threshold_basis"]
+    of_best = "" if basis == "absolute" else f" ({basis.split(' x ')[0]} x best baseline mean)"
+    ax.axhline(thr, color="0.15", lw=1.1, ls="--", zorder=2, label=f"threshold {thr:.4g}{of_best}")
+    rule = "first crossing" if st.get("crossing") == "first" else "stays above from here"
+    for side in ("baseline", "transfer"):
+        c, color = curves[side], COLORS[side]
+        xs, ys = [], []
+        for (frames, values), t in zip(c["runs"], c["times"]):
+            if t is not None:
+                xs.append(t)
+                ys.append(float(np.interp(t, frames, values)))
+        if xs:
+            ax.plot(xs, ys, "v", ms=7, color=color, mec="black", mew=0.6, zorder=7)
+        t = m[f"time_to_threshold_{side}"]
+        n, reached = len(c["times"]), len(xs)
+        if t is not None:
+            ax.axvline(t, color=color, lw=1.2, ls=":", zorder=2,
+                       label=f"{side}: median crossing {_frames(t)} frames ({reached} of {n} runs cross; "
+                             f"{rule})")
+        else:
+            ax.plot([], [], marker="v", ls="", ms=7, color=color, mec="black", mew=0.6,
+                    label=f"{side}: no majority of runs crosses within the budget ({reached} of {n} do)")
 
 
 def _gap(ax, x, y_from, y_to, text, side):

@@ -68,9 +68,12 @@ def test_hand_computed_metrics_with_seeds_and_uneven_grids(two_by_two, tmp_path)
                  "probability_of_improvement_final"):
         assert m[name] == 1.0
     assert m["jumpstart_iqm"] == pytest.approx(m["jumpstart"])  # n = 2: IQM is the mean
-    # bootstrap over two seeds per side: every extreme has probability 1/16 > 2.5 %
-    assert m["jumpstart_ci"] == pytest.approx([2, 6])
-    assert m["transfer_ratio_ci"] == pytest.approx([(320 - 240) / 240, (400 - 160) / 160])
+    # average returns over the budget: areas / 40 = 4, 6 and 8, 10
+    assert m["mean_return_gain"] == pytest.approx(9 - 5)
+    # two seeds per side: no interval, and the settings say why
+    assert not any(k.endswith("_ci") for k in m)
+    assert any("at least 3 seeds per side" in w for w in st["warnings"])
+    assert st["paired"] is False and "do not match one to one" in st["pairing"]  # every run says seed 0
     saved = json.loads((out / "transfer_metrics.json").read_text())
     assert saved["metrics"] == json.loads(json.dumps(m))
     assert saved["metrics"]["time_to_threshold_baseline"] is None
@@ -89,7 +92,8 @@ def test_jumpstart_window_budget_and_fraction_threshold(two_by_two, tmp_path):
     # best baseline mean within [0, 20] is (4 + 6) / 2 = 5, so 40 % of it is 2
     assert m["settings"]["threshold"] == pytest.approx(2)
     assert [s["time_to_threshold"] for s in m["per_seed"]["baseline"]] == [10, 0]
-    assert m["metrics"]["time_to_threshold_baseline"] == pytest.approx(5)  # median of 10 and 0
+    # the upper median of (0, 10): by frame 10 both seeds have crossed (the mean, 5, is no run's frame)
+    assert m["metrics"]["time_to_threshold_baseline"] == 10
 
 
 def _read(path):
@@ -102,14 +106,16 @@ def test_smoothing_shapes_time_to_threshold_only():
     f = np.arange(6) * 100.0
     b = Curve(f, [0, 9, 0, 5, 6, 7], "b.csv", "b")
     t = Curve(f, [0, 0, 0, 8, 8, 8], "t.csv", "t")
-    raw = report.compute([b], [t], threshold=5)
+    raw = report.compute([b], [t], threshold=5, crossing="first")
     smooth = report.compute([b], [t], threshold=5, smooth=2)
     assert raw["metrics"]["time_to_threshold_baseline"] == 100  # a single noisy spike
+    # sustained (the default): from 300 on the run stays >= 5
+    assert report.compute([b], [t], threshold=5)["metrics"]["time_to_threshold_baseline"] == 300
     assert smooth["metrics"]["time_to_threshold_baseline"] == 400
     assert smooth["metrics"]["time_to_threshold_transfer"] == 400  # (0 + 8) / 2 = 4 < 5 at 300
     assert raw["metrics"]["total_reward_baseline"] == smooth["metrics"]["total_reward_baseline"]
     assert "_ci" not in "".join(raw["metrics"])  # one seed per side: no intervals
-    assert any("at least 2 seeds" in w for w in raw["settings"]["warnings"])
+    assert any("at least 3 seeds" in w for w in raw["settings"]["warnings"])
 
 
 def test_bootstrap_is_reproducible_and_seeded(tmp_path):
@@ -117,9 +123,9 @@ def test_bootstrap_is_reproducible_and_seeded(tmp_path):
     f = np.arange(0, 101, 10.0)
     base = [Curve(f, f / 10 + rng.normal(0, 1, f.size), f"b{i}", f"b{i}") for i in range(5)]
     tran = [Curve(f, f / 8 + rng.normal(0, 1, f.size), f"t{i}", f"t{i}") for i in range(4)]
-    a = report.compute(base, tran, bootstrap=1000, seed=1)["metrics"]
-    b = report.compute(base, tran, bootstrap=1000, seed=1)["metrics"]
-    c = report.compute(base, tran, bootstrap=1000, seed=2)["metrics"]
+    a = report.compute(base, tran, interval="bca", bootstrap=1000, seed=1)["metrics"]
+    b = report.compute(base, tran, interval="bca", bootstrap=1000, seed=1)["metrics"]
+    c = report.compute(base, tran, interval="bca", bootstrap=1000, seed=2)["metrics"]
     assert a == b
     assert a["asymptotic_performance_ci"] != c["asymptotic_performance_ci"]
     lo, hi = a["asymptotic_performance_ci"]
@@ -281,3 +287,245 @@ def test_transfer_matrix(sb3_runs, tmp_path, capsys):
     assert not (tmp_path / "m2").exists()
     with pytest.raises(UsageError, match="holds no <source>/<target>"):
         report.find_matrix_cells(tmp_path / "matrix")
+
+
+# ------------------------------------------------------------------------- statistics of issue 13
+def flat(values, seeds=None, frames=(0, 10, 20, 30), prefix="run", **config):
+    """One constant curve per value: every per-seed score (initial, final, mean return) is the value."""
+    return [Curve(frames, [v] * len(frames), f"{prefix}{i}", f"{prefix}{i}",
+                  config=None if seeds is None else {"seed": seeds[i], **config})
+            for i, v in enumerate(values)]
+
+
+def test_paired_by_seed_uses_the_per_pair_differences():
+    b = flat([1.0, 2.0, 3.0], seeds=[0, 100, 200], prefix="b")
+    t = flat([6.0, 2.0, 4.0], seeds=[200, 0, 100], prefix="t")  # listed in another order
+    res = report.compute(b, t)
+    m, st = res["metrics"], res["settings"]
+    assert st["paired"] is True and "paired by seed" in st["pairing"]
+    assert [r["seed"] for r in res["per_seed"]["transfer"]] == [0, 100, 200]  # aligned with the baseline
+    # pairs (1, 2), (2, 4), (3, 6): d = 1, 2, 3, mean 2, s_d = 1; t_{0.975, 2} = 4.302653
+    half = 4.302653 / np.sqrt(3)
+    assert m["mean_return_gain"] == pytest.approx(2)
+    assert m["mean_return_gain_ci"] == pytest.approx([2 - half, 2 + half], abs=1e-5)
+    assert m["jumpstart_ci"] == pytest.approx(m["mean_return_gain_ci"])
+    # every pair improves: P = 1, Wilson lower bound n / (n + z^2) = 3 / (3 + 1.959964^2)
+    assert m["probability_of_improvement"] == 1.0
+    assert m["probability_of_improvement_ci"] == pytest.approx([3 / (3 + 1.959964 ** 2), 1.0], abs=1e-4)
+    # areas 30, 60, 90 vs 60, 120, 180: ratio 1, but the baseline mean area's interval contains 0
+    assert m["transfer_ratio"] == pytest.approx(1.0)
+    assert "transfer_ratio_ci" not in m
+    assert any("transfer_ratio has no interval" in w and "contains 0" in w for w in st["warnings"])
+
+
+def test_unpaired_uses_welch_standard_error_with_hsu_degrees_of_freedom():
+    b = flat([1.0, 2.0, 3.0], prefix="b")
+    t = flat([2.0, 4.0, 6.0], prefix="t")
+    res = report.compute(b, t)
+    m, st = res["metrics"], res["settings"]
+    assert st["paired"] is False and "foreign logs" in st["pairing"]
+    # se = sqrt(1/3 + 4/3); df = min(3, 3) - 1 = 2
+    half = 4.302653 * np.sqrt(5 / 3)
+    assert m["mean_return_gain_ci"] == pytest.approx([2 - half, 2 + half], abs=1e-5)
+    # all 9 (b, t) combinations: 7 wins and one tie (2, 2) -> 7.5 / 9
+    assert m["probability_of_improvement"] == pytest.approx(7.5 / 9)
+    lo, hi = m["probability_of_improvement_ci"]
+    assert 0 < lo < 7.5 / 9 < hi < 1
+    forced = report.compute(b, t, paired=True)
+    assert forced["settings"]["paired"] and "in the order given" in forced["settings"]["pairing"]
+    assert forced["metrics"]["mean_return_gain_ci"] == pytest.approx(
+        [2 - 4.302653 / np.sqrt(3), 2 + 4.302653 / np.sqrt(3)], abs=1e-5)
+    with pytest.raises(UsageError, match="as many transfer runs as baseline runs"):
+        report.compute(b, t[:2], paired=True)
+
+
+def test_seeds_that_do_not_match_are_unpaired_and_refused_with_paired():
+    b = flat([1.0, 2.0, 3.0], seeds=[0, 1, 2], prefix="b")
+    t = flat([2.0, 4.0, 6.0], seeds=[0, 1, 5], prefix="t")
+    st = report.compute(b, t)["settings"]
+    assert st["paired"] is False and "[0, 1, 2]" in st["pairing"] and "[0, 1, 5]" in st["pairing"]
+    with pytest.raises(UsageError, match="--paired cannot pair these runs"):
+        report.compute(b, t, paired=True)
+
+
+def test_no_degenerate_intervals():
+    # policy reuse: each transfer run starts where its baseline twin starts, so the jumpstart is 0
+    f = (0, 10, 20, 30)
+    b = [Curve(f, [v, 1, 2, 3], f"b{i}", f"b{i}", config={"seed": i}) for i, v in enumerate([0.1, 0.5, 0.2])]
+    t = [Curve(f, [v, 2, 3, 5 + i], f"t{i}", f"t{i}", config={"seed": i}) for i, v in enumerate([0.1, 0.5, 0.2])]
+    res = report.compute(b, t)
+    m, st = res["metrics"], res["settings"]
+    assert m["jumpstart"] == 0 and "jumpstart_ci" not in m
+    assert any("jumpstart has no interval: every pair gives the same difference (0)" in w for w in st["warnings"])
+    # every run of each side identical: no spread at all
+    same = report.compute(flat([1.0] * 3, prefix="b"), flat([2.0] * 3, prefix="t"))
+    assert "mean_return_gain_ci" not in same["metrics"]
+    assert any("identical values" in w for w in same["settings"]["warnings"])
+    table = report.format_table(same)
+    assert "[1, 1]" not in table and "[2, 2]" not in table
+    # P(T > B) = 1 keeps an interval that is not [1, 1]
+    assert same["metrics"]["probability_of_improvement_ci"][0] < 1
+
+
+def test_mean_return_gain_is_offset_free_and_the_ratio_is_not():
+    b = flat([1.0, 2.0, 3.0], prefix="b")
+    t = flat([2.0, 4.0, 6.0], prefix="t")
+    shifted_b = flat([11.0, 12.0, 13.0], prefix="b")
+    shifted_t = flat([12.0, 14.0, 16.0], prefix="t")
+    m, s = report.compute(b, t)["metrics"], report.compute(shifted_b, shifted_t)["metrics"]
+    assert m["mean_return_gain"] == pytest.approx(s["mean_return_gain"]) == pytest.approx(2)
+    assert m["mean_return_gain_ci"] == pytest.approx(s["mean_return_gain_ci"])
+    assert m["transfer_ratio"] == pytest.approx(1.0) and s["transfer_ratio"] == pytest.approx(2 / 12)
+    assert report.metrics_rows(m)[0][0] == "mean_return_gain"
+
+
+def test_sustained_crossing_by_default_first_on_request():
+    f = np.arange(9) * 100.0
+    y = [0, 6, 0, 6, 6, 0, 6, 6, 6]
+    b, t = [Curve(f, y, "b", "b")], [Curve(f, [6] * 9, "t", "t")]
+    assert report.compute(b, t, threshold=5)["metrics"]["time_to_threshold_baseline"] == 600
+    assert report.compute(b, t, threshold=5, sustain=2)["metrics"]["time_to_threshold_baseline"] == 300
+    first = report.compute(b, t, threshold=5, crossing="first")
+    assert first["metrics"]["time_to_threshold_baseline"] == 100
+    assert first["settings"]["time_to_threshold_rule"].startswith("first evaluation at or above")
+    with pytest.raises(UsageError, match="--sustain applies to a sustained crossing"):
+        report.compute(b, t, threshold=5, crossing="first", sustain=2)
+
+
+def test_median_time_is_a_frame_a_run_had():
+    f = np.arange(5) * 100.0
+    runs = [Curve(f, [0] * i + [9] * (5 - i), f"b{i}", f"b{i}") for i in (1, 2, 3)]
+    runs.append(Curve(f, [0] * 5, "b9", "b9"))  # never reaches it
+    res = report.compute(runs, flat([9.0], frames=tuple(f)), threshold=5)
+    assert [r["time_to_threshold"] for r in res["per_seed"]["baseline"]] == [100, 200, 300, None]
+    # upper median: by frame 300, 3 of 4 runs (a strict majority) stay above; the mean of 200 and 300
+    # would be a frame no run was evaluated at
+    assert res["metrics"]["time_to_threshold_baseline"] == 300
+    assert "upper median" in res["settings"]["median_rule"]
+
+
+def test_a_curve_still_rising_at_the_budget_is_flagged():
+    f = np.arange(0, 101, 5.0)
+    rising = [Curve(f, f / 10 + 0.1 * i, f"b{i}", f"b{i}") for i in range(3)]
+    level = flat([1.0, 2.0, 3.0], frames=tuple(f), prefix="t")
+    res = report.compute(rising, level)
+    st, m = res["settings"], res["metrics"]
+    assert st["convergence"] == {"baseline": "still rising", "transfer": "no significant trend"}
+    # last 25 % = frames 75..100 (6 evaluations) on a line of slope 0.1 per frame: +2.5 over the window
+    assert st["convergence"] == {"baseline": "still rising", "transfer": "no significant trend"}
+    assert m["final_trend_baseline"] == pytest.approx(2.5)
+    assert any("baseline mean curve is still rising" in w and "not asymptotes" in w for w in st["warnings"])
+    assert "final performance, not an asymptote: baseline still rising" in report.format_table(res)
+
+
+def _source_run(path: Path, frames: int) -> Path:
+    path.mkdir(parents=True)
+    (path / "config.yaml").write_text(f"task: fourrooms/source\nseed: 50\nframes: {frames}\n")
+    return path
+
+
+def test_total_time_counts_the_source_frames(tmp_path):
+    source = _source_run(tmp_path / "source" / "seed-50", frames=10)
+    f = [0, 10, 20, 30]
+    write_run(tmp_path / "b" / "seed-0", f, [1, 1, 1, 1], "fourrooms/near")
+    t = write_run(tmp_path / "t" / "seed-0", f, [0, 1, 2, 3], "fourrooms/near")
+    (t / "config.yaml").write_text(
+        f"task: fourrooms/near\nseed: 0\ntransfer:\n  method: policy-reuse\n  source: {source}\n")
+    res = report.compute(_read(tmp_path / "b"), _read(tmp_path / "t"), threshold=2)
+    m, st = res["metrics"], res["settings"]
+    assert st["source_frames"] == [10]
+    # target only: transfer mean return 45 / 30 = 1.5 against 1
+    assert m["mean_return_gain"] == pytest.approx(0.5)
+    # total time: 10 source frames at the baseline's initial 1, then y = f/10 over [0, 20]: 10 + 20
+    assert m["total_reward_transfer_with_source"] == pytest.approx(30)
+    assert m["mean_return_gain_with_source"] == pytest.approx(0)
+    # it stays >= 2 from target frame 20, within the 20 target frames left: 20 + 10
+    assert m["time_to_threshold_transfer"] == 20
+    assert m["time_to_threshold_transfer_with_source"] == 30
+    assert res["per_seed"]["transfer"][0]["source_frames"] == 10
+    assert "total time: source frames counted" in report.format_table(res)
+    foreign = report.compute([Curve(f, [1] * 4, "b", "b")], [Curve(f, [0, 1, 2, 3], "t", "t")],
+                             threshold=2, source_frames="10")
+    assert foreign["metrics"]["mean_return_gain_with_source"] == pytest.approx(0)
+    assert foreign["settings"]["source_frames_basis"] == "--source-frames"
+    without = report.compute([Curve(f, [1] * 4, "b", "b")], [Curve(f, [0, 1, 2, 3], "t", "t")])
+    assert "mean_return_gain_with_source" not in without["metrics"]
+    assert "--source-frames" in without["settings"]["source_frames_basis"]
+
+
+def test_a_demonstrator_source_costs_no_frames(tmp_path):
+    f = [0, 10, 20, 30]
+    write_run(tmp_path / "b" / "seed-0", f, [1, 1, 1, 1], "lift")
+    t = write_run(tmp_path / "t" / "seed-0", f, [0, 1, 2, 3], "lift")
+    (t / "config.yaml").write_text(
+        "task: lift\nseed: 0\ntransfer:\n  method: policy-reuse\n  source: demonstrator:lift\n")
+    res = report.compute(_read(tmp_path / "b"), _read(tmp_path / "t"))
+    assert res["settings"]["source_frames"] == [0]
+    assert "no source training" in res["settings"]["source_frames_basis"]
+
+
+def test_the_same_run_twice_is_refused(two_by_two, tmp_path):
+    b, t = two_by_two
+    msg = _bad_report(tmp_path, [b / "seed_0", b / "seed_0" / "eval.csv", b / "seed_1"], t)
+    assert "is given twice among the baseline runs" in msg
+    assert "both a baseline and a transfer run" in _bad_report(tmp_path, b, [t, b / "seed_1"])
+
+
+def test_runs_of_different_configs_under_one_side(tmp_path):
+    f = [0, 10, 20]
+    for i, lr in enumerate(["0.001", "0.001", "0.0003"]):
+        run = write_run(tmp_path / "b" / f"seed-{i}", f, [0, 1, 2])
+        (run / "config.yaml").write_text(f"task: x\nseed: {i}\noptim:\n  lr: {lr}\n")
+        run = write_run(tmp_path / "t" / f"seed-{i}", f, [1, 2, 3])
+        (run / "config.yaml").write_text(f"task: x\nseed: {i}\noptim:\n  lr: 0.001\n"
+                                         f"transfer:\n  method: policy-reuse\n  source: /src/{i}\n")
+    msg = _bad_report(tmp_path, tmp_path / "b", tmp_path / "t")
+    assert "the baseline runs mix configurations" in msg and "optim.lr" in msg and "--allow-mixed" in msg
+    res = report.compute(_read(tmp_path / "b"), _read(tmp_path / "t"), allow_mixed=True,
+                         source_frames=0)
+    assert any("accepted by --allow-mixed" in w for w in res["settings"]["warnings"])
+
+
+def test_out_that_is_a_file_exits_2(two_by_two, tmp_path, capsys):
+    b, t = two_by_two
+    afile = tmp_path / "afile"
+    afile.write_text("keep")
+    for out in (afile, afile / "sub"):
+        assert report.main(["--baseline", str(b), "--transfer", str(t), "--out", str(out)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "is a file, not a folder" in err and "\n" not in err
+    assert afile.read_text() == "keep"
+
+
+def test_settings_define_the_cli_options(capsys):
+    import argparse
+
+    parser = argparse.ArgumentParser()
+    report.add_arguments(parser)
+    args = parser.parse_args(["--baseline", "b", "--transfer", "t", "--paired", "--source-frames", "40k",
+                              "--sustain", "3"])
+    s = report.ReportSettings.from_args(args)
+    assert (s.crossing, s.paired, s.source_frames, s.sustain, s.interval) == ("sustained", True, 40_000, 3, "t")
+    assert report.ReportSettings.from_args(parser.parse_args(["--crossing", "first"])).crossing == "first"
+    for bad, text in ((["--sustain", "0"], "--sustain must be at least 1"),
+                      (["--trend-window", "2"], "--trend-window must lie in (0, 1]"),
+                      (["--source-frames", "lots"], "--source-frames 'lots' is not a number")):
+        assert report.main(["--baseline", "b", "--transfer", "t", *bad]) == 2
+        assert text in capsys.readouterr().err
+
+
+def test_sb3_fixture_first_crossing_reproduces(sb3_runs, tmp_path):
+    """``--crossing first`` keeps the seed project's rule: the first evaluation at or above 150."""
+    import csv as csv_
+
+    res = report.compute(_read(sb3_runs / "liftplace_sac"), _read(sb3_runs / "liftplace_sac_policyreuse"),
+                         threshold=150, crossing="first")
+    budget = res["settings"]["budget"]
+    for side, name in (("baseline", "liftplace_sac"), ("transfer", "liftplace_sac_policyreuse")):
+        with open(sb3_runs / name / "progress.csv", newline="") as fh:
+            rows = [(float(r["time/total_timesteps"]), float(r["eval/mean_reward"]))
+                    for r in csv_.DictReader(fh) if r["eval/mean_reward"] != ""]
+        expected = next((x for x, y in rows if y >= 150 and x <= budget), None)
+        assert res["metrics"][f"time_to_threshold_{side}"] == expected
+    assert res["metrics"]["jumpstart"] == pytest.approx(24.81896 - 4.3869472)
+    assert res["settings"]["paired"] is False
