@@ -243,3 +243,10 @@ def test_cli_refuses_a_config_file_with_a_scalar_hidden(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and len(err.strip().splitlines()) == 1 and "'network.hidden'" in err
     assert not run_dir.exists()
+
+
+def test_manipulation_env_keys_are_checked_against_robosuite_env_defaults():
+    with pytest.raises(UsageError, match=r"config key 'env.horizon' must be an integer .*horizon=500"):
+        config_lib.resolve(task="lift", overrides=["env.horizon=abc"])
+    assert config_lib.resolve(task="lift", overrides=["env.horizon=100"])["env"] == {"horizon": 100}
+    assert config_lib.resolve(task="lift-dense")["env"] == {}

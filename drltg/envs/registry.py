@@ -296,6 +296,24 @@ def _robosuite(**options):
     return make_robosuite_env(**options)
 
 
+def _robosuite_signature() -> inspect.Signature:
+    """``make_robosuite_env``'s keywords and ``RobosuiteEnv``'s, so configs can check their types
+    (robosuite's own task keywords stay open: ``**task_kwargs``)."""
+    from drltg.envs.robosuite.env import RobosuiteEnv, make_robosuite_env
+
+    outer = [p for p in inspect.signature(make_robosuite_env).parameters.values() if p.kind is not p.VAR_KEYWORD]
+    names = {p.name for p in outer}
+    inner = [
+        p if p.kind is p.VAR_KEYWORD else p.replace(kind=p.KEYWORD_ONLY)
+        for p in inspect.signature(RobosuiteEnv.__init__).parameters.values()
+        if p.name not in names | {"self"}
+    ]
+    return inspect.Signature(outer + sorted(inner, key=lambda p: p.kind))
+
+
+_robosuite.__signature__ = _robosuite_signature()
+
+
 def _manipulation_potential(options: dict[str, Any]):
     from drltg.envs.robosuite.potentials import potential_for
 
