@@ -15,6 +15,9 @@ Per-run scores
                               ``budget - w (budget - start) <= f <= budget``.
     ``time_to_threshold``     the first evaluation frame ``f <= budget`` with ``y(f) >= threshold``,
                               or ``None`` when it is never reached (a censored run, never a number).
+    ``sustained_time_to_threshold``  the first evaluation frame from which ``y >= threshold`` holds
+                              until the budget (or for ``K`` consecutive evaluations): a run that
+                              touches the threshold and collapses has not reached it.
     ``moving_average``        trailing mean over the last ``W`` evaluations (fewer at the start).
 
 Transfer metrics over sets of per-seed scores (a single run is a set of one), with a location
@@ -38,7 +41,20 @@ Multi-seed statistics
     ``bootstrap_ci``                percentile bootstrap: each side's seeds are resampled with
                                     replacement, independently, from a seeded generator.
     ``censored_median``             median time to threshold, a run that never reaches it counting as
-                                    infinitely late; ``None`` when that median is infinite.
+                                    infinitely late; ``None`` when that median is infinite (``upper``:
+                                    the upper median, a frame one of the runs had).
+
+Intervals (vectorised over leading axes, so a coverage simulation is one call; ``tests/test_coverage.py``
+measures them and chose ``t_interval`` as the default)
+    ``t_interval``            paired: :math:`\bar d \pm t_{n-1} s_d/\sqrt n`; unpaired: Welch's standard
+                              error with Hsu's :math:`\min(n_B, n_T) - 1` degrees of freedom.
+    ``welch_interval``, ``studentized_interval``, ``bca_interval``, ``percentile_interval``: the
+                              other candidates (they under-cover with 3 to 10 seeds).
+    ``ratio_interval``        Fieller's interval of a ratio of means, mapped to ``transfer_ratio``; NaN
+                              when the baseline mean's own interval contains 0 (unbounded).
+    ``poi_interval``          score interval of a probability of improvement (Wilson for pairs,
+                              Newcombe's method 5 for the Mann-Whitney estimate); never ``[1, 1]``.
+    ``trend``                 least-squares slope and its standard error (is a curve still changing?).
 """
 from __future__ import annotations
 

@@ -7,42 +7,41 @@ Both sides are read with :func:`drltg.curves.read_curves` (run directories, dire
 globs, SB3 / TensorBoard / CSVLogger logs). Curves are compared on the target task over a common
 interval ``[start, budget]``: ``start`` is the latest first evaluation of any run (frame 0 for drltg
 runs), ``budget`` the shortest run's last evaluation unless ``--budget`` sets it; nothing is invented
-past a run's last evaluation. Every score is computed per seed, then aggregated over seeds (B =
-baseline, T = transfer, L = mean over seeds; formulas in :mod:`drltg.metrics`):
+past a run's last evaluation. Every score is computed per seed (a DataFrame, ``result["scores"]``),
+then aggregated (B = baseline, T = transfer, A = area, span = budget - start, L = mean over seeds, or
+over pairs ``d_i = T_i - B_i`` when paired; formulas in :mod:`drltg.metrics`):
 
+``mean_return_gain``          L(A_T / span) - L(A_B / span): return gained per frame on average over the
+                              budget; unchanged when a constant is added to every reward (the headline)
 ``jumpstart``                 L(mean of the first K evaluations of T) - L(same of B)
-``asymptotic_performance``    L(mean of T's evaluations in [budget - FRAC (budget - start), budget]) - same of B
-``total_reward_<side>``       L(A), A = trapezoid area under the curve on the real frame axis over
-                              [start, budget] (the value at the budget interpolated between evaluations)
-``transfer_ratio``            (L(A_T) - L(A_B)) / |L(A_B)| = A_T / A_B - 1 when A_B > 0; stays positive
-                              for a better transfer curve when A_B < 0; null (with a warning) when
-                              |L(A_B)| <= 0.01 x (budget - start) x max |y|
-``time_to_threshold_<side>``  median over seeds of the first evaluation frame <= budget whose (raw, or
-                              ``--smooth`` W) value is >= threshold; a seed that never reaches it counts
-                              as infinitely late, and null means "not reached" (the median is infinite)
-``threshold_reached_<side>``  fraction of seeds that reach the threshold within the budget
-``initial_performance_<side>``, ``final_performance_<side>``  the per-side terms of the two differences
-``probability_of_improvement`` P(T > B) = mean over all (baseline seed, transfer seed) pairs of
-                              1[a_T > a_B] + 0.5 x 1[a_T = a_B], on the areas (``_initial``, ``_final``:
-                              on the initial / final performances)
-``<name>_iqm``                the same difference with the interquartile mean over seeds as L
-``<name>_ci``                 percentile bootstrap interval (each side's seeds resampled with replacement,
-                              ``--bootstrap`` N times, seeded by ``--seed``), where both sides have >= 2 seeds
-``n_seeds_baseline``, ``n_seeds_transfer``
+``asymptotic_performance``    L(mean of T's evaluations in [budget - FRAC span, budget]) - same of B; a
+                              final performance, not an asymptote, where a side's trend test says its
+                              mean curve still rises or falls over the last ``--trend-window``
+``transfer_ratio``            (L(A_T) - L(A_B)) / |L(A_B)|; changes when a constant is added to rewards;
+                              null when |L(A_B)| <= 0.01 x span x max |y|
+``time_to_threshold_<side>``  per run: the first evaluation from which it stays >= threshold until the
+                              budget (``--sustain K``: for K evaluations; ``--crossing first``: the first
+                              evaluation >= threshold); per side: the upper median over seeds, a frame a
+                              run had, by which a strict majority of seeds has crossed; null = no majority
+``final_trend_<side>``        change of the mean curve over the last ``--trend-window`` (least squares)
+``probability_of_improvement`` P(T > B): paired, the fraction of pairs with T_i > B_i; unpaired, over all
+                              (B seed, T seed) combinations; ties 1/2; on the areas (``_initial``,
+                              ``_final``: on the initial / final performances)
+``*_with_source``             total time (Taylor & Stone 2009, sec. 3.1): each transfer run first spends
+                              its source run's frames (from ``transfer.source`` or ``--source-frames``)
+``<name>_ci``                 ``--confidence`` interval: paired t or Welch/Hsu t for mean differences,
+                              Fieller for the ratio, a score interval for P(T > B); absent (with the
+                              reason in ``settings.warnings``) below 3 seeds a side, without spread, or
+                              for a ratio whose denominator's interval contains 0
 
-Options: ``--baseline``/``--transfer`` PATH... (runs, directories of seed runs, files or globs),
-``--format`` {auto,drltg,sb3,sb3-monitor,tensorboard,csvlogger}, ``--tag`` (column or scalar tag),
-``--threshold`` (a number, or ``P%`` of the highest value of the baseline's mean-over-seeds curve),
-``--budget`` FRAMES, ``--jumpstart-window`` K (default 1), ``--asymptote-window`` FRAC (default 0.1),
-``--smooth`` W (trailing moving average before time-to-threshold), ``--plot-smooth`` W (drawn lines
-only), ``--bootstrap`` N (10000), ``--confidence`` (0.95), ``--seed`` (0), ``--baseline-label``,
-``--transfer-label``, ``--out`` DIR (default: a fresh ``report-<transfer>-vs-<baseline>`` folder in the
-working directory), ``--matrix`` DIR with ``--metric`` NAME.
+Pairing: drltg runs are paired when every baseline seed (``config.yaml``) has exactly one transfer run
+with the same seed; ``--paired`` pairs foreign logs in the order given. ``settings.pairing`` says which
+and why. A side must hold one configuration (``--allow-mixed`` to override) and no run twice.
 
 Outputs (written through temporary files and ``os.replace``, and only once every input is read and
 checked): ``transfer_metrics.json`` (``metrics``, ``settings`` with every choice and warning,
 ``per_seed``), ``transfer_metrics.csv`` (``metric,value,ci_low,ci_high``), ``transfer_plot.png`` and
-``.svg``; ``--matrix`` writes ``transfer_matrix.{png,svg,csv,json}``.
+``.svg``; ``--matrix`` writes ``transfer_matrix.{png,svg,csv,json}``. All options: :class:`ReportSettings`.
 """
 from __future__ import annotations
 

@@ -6,6 +6,8 @@ import io
 
 import numpy as np
 
+DIFFERENCES = ("mean_return_gain", "jumpstart", "asymptotic_performance", "transfer_ratio",
+               "probability_of_improvement")
 COLORS = {"baseline": "#0072B2", "transfer": "#D55E00"}  # colour-blind safe blue / vermillion
 
 
@@ -89,8 +91,10 @@ def plot_transfer(result: dict) -> tuple[bytes, bytes]:
 
     asym = "asymptotic" if not moving else "final perf. (not converged)"
     conf = round(100 * st["confidence"])
+    any_ci = _has_intervals(m)
     summary = [
-        f"transfer - baseline [{conf}% CI]" + (", paired by seed" if st.get("paired") else ""),
+        "transfer - baseline" + (f" [{conf}% CI]" if any_ci else " (no CI: < 3 seeds a side)")
+        + (", paired" if st.get("paired") else ""),
         f"mean return gain {_signed(m.get('mean_return_gain'))}" + _ci(m, "mean_return_gain"),
         f"jumpstart {_signed(m['jumpstart'])}" + _ci(m, "jumpstart"),
         f"{asym} {_signed(m['asymptotic_performance'])}" + _ci(m, "asymptotic_performance"),
@@ -102,7 +106,7 @@ def plot_transfer(result: dict) -> tuple[bytes, bytes]:
                        + _ci(m, "mean_return_gain_with_source"))
     for side, verdict in moving.items():
         summary.append(f"warning: {side} {verdict} at the budget")
-    ax.text(1.0, -0.12, "\n".join(summary), transform=ax.transAxes, ha="right", va="top",
+    ax.text(1.02, 1.0, "\n".join(summary), transform=ax.transAxes, ha="left", va="top",
             fontsize=9, family="monospace", zorder=8,
             bbox=dict(boxstyle="round,pad=0.4", fc="white", ec="0.7", alpha=0.9))
 
@@ -122,7 +126,13 @@ def plot_transfer(result: dict) -> tuple[bytes, bytes]:
 
 def _ci(m: dict, name: str, sign: str = "+") -> str:
     ci = m.get(f"{name}_ci")
-    return f" [{ci[0]:{sign}.3g}, {ci[1]:{sign}.3g}]" if ci else " [no CI]"
+    if ci:
+        return f" [{ci[0]:{sign}.3g}, {ci[1]:{sign}.3g}]"
+    return " [no CI]" if _has_intervals(m) else ""
+
+
+def _has_intervals(m: dict) -> bool:
+    return any(f"{name}_ci" in m for name in DIFFERENCES)
 
 
 def _threshold_marks(ax, m: dict, st: dict, curves: dict) -> None:

@@ -154,3 +154,101 @@ def test_bootstrap_of_a_curve_band_has_one_interval_per_point():
     lo, hi = M.bootstrap_ci(lambda x: x.mean(axis=1), runs, seed=0)
     np.testing.assert_allclose(lo, [0, 1, 2])
     np.testing.assert_allclose(hi, [2, 3, 4])
+
+
+def test_sustained_time_to_threshold():
+    f, y = np.arange(6) * 100, [0, 9, 0, 5, 6, 7]
+    assert M.sustained_time_to_threshold(f, y, 5) == 300  # the spike at 100 is followed by a 0
+    assert M.sustained_time_to_threshold(f, y, 5, sustain=1) == M.time_to_threshold(f, y, 5) == 100
+    assert M.sustained_time_to_threshold(f, y, 5, sustain=2) == 300
+    assert M.sustained_time_to_threshold(f, y, 5, stop=350) == 300  # 5 at 300 is the last one inside
+    assert M.sustained_time_to_threshold(f, y, 5, stop=400, sustain=3) is None  # only 300, 400 inside
+    assert M.sustained_time_to_threshold(f, y, 8) is None
+    assert M.sustained_time_to_threshold(f, y, 7) == 500  # the last evaluation alone holds to the end
+
+
+def test_upper_median_is_one_of_the_frames():
+    assert M.censored_median([10, 20, 30, None], upper=True) == 30
+    assert M.censored_median([10, 20], upper=True) == 20
+    assert M.censored_median([10, None], upper=True) is None
+    assert M.censored_median([30, 10, 20], upper=True) == 20
+
+
+def test_t_quantiles():
+    assert M.t_quantile(0.975, 1) == pytest.approx(12.7062047, abs=1e-6)
+    assert M.t_quantile(0.975, 4) == pytest.approx(2.7764451, abs=1e-6)
+    assert M.t_quantile(0.95, 10) == pytest.approx(1.8124611, abs=1e-6)
+    assert M.t_quantile(0.975, 1e6) == pytest.approx(1.959966, abs=1e-5)
+    np.testing.assert_allclose(M.t_quantile(0.975, np.array([[4.0], [1.0]])), [[2.7764451], [12.7062047]],
+                               atol=1e-6)
+
+
+def test_t_interval_by_hand():
+    b, t = np.array([1.0, 2.0, 3.0]), np.array([2.0, 4.0, 6.0])
+    # paired: d = 1, 2, 3; mean 2, s_d = 1, t_{0.975, 2} = 4.302653
+    lo, hi = M.t_interval(b, t, paired=True)
+    assert (lo, hi) == pytest.approx((2 - 4.302653 / np.sqrt(3), 2 + 4.302653 / np.sqrt(3)), abs=1e-6)
+    # unpaired: se = sqrt(1/3 + 4/3); Hsu df 2; Welch df = (5/3)^2 / ((1/3)^2/2 + (4/3)^2/2) = 2.941
+    lo, hi = M.t_interval(b, t)
+    assert hi - 2 == pytest.approx(4.302653 * np.sqrt(5 / 3), abs=1e-6)
+    lo_w, hi_w = M.welch_interval(b, t)
+    assert hi_w - 2 == pytest.approx(M.t_quantile(0.975, (5 / 3) ** 2 / ((1 / 9 + 16 / 9) / 2)) * np.sqrt(5 / 3))
+    assert hi_w < hi
+    # no spread: no interval
+    assert np.isnan(M.t_interval([1.0, 1.0, 1.0], [2.0, 2.0, 2.0])[0])
+    assert np.isnan(M.t_interval([1.0, 2.0, 3.0], [2.0, 3.0, 4.0], paired=True)[0])
+    # vectorised over experiments
+    lo, hi = M.t_interval(np.zeros((4, 3)) + b, np.zeros((4, 3)) + t, paired=True)
+    assert lo.shape == (4,)
+
+
+def test_bootstrap_candidates_are_seeded_and_bracket_the_estimate():
+    b, t = np.array([1.0, 2.0, 4.0, 3.0, 2.5]), np.array([3.0, 5.0, 4.0, 6.0, 7.0])
+    for method in ("bca", "studentized", "percentile"):
+        fn = M.INTERVALS[method]
+        lo, hi = fn(b, t, seed=3)
+        assert (lo, hi) == fn(b, t, seed=3)
+        assert lo < t.mean() - b.mean() < hi
+
+
+def test_bootstrap_ci_keeps_undefined_resamples():
+    # a resample of only the first seed has a NaN statistic: the interval is undefined, not shrunk
+    stat = lambda x: np.where(x.min(axis=1) > 0, x.mean(axis=1), np.nan)  # noqa: E731
+    lo, hi = M.bootstrap_ci(stat, np.array([0.0, 1.0, 2.0]), n_resamples=500)
+    assert np.isnan(lo) and np.isnan(hi)
+
+
+def test_fieller_ratio_interval():
+    b, t = np.array([10.0, 11.0, 12.0, 10.5]), np.array([20.0, 23.0, 21.0, 22.0])
+    lo, hi = M.fieller_interval(b, t)
+    q2 = M.t_quantile(0.975, 3) ** 2
+    vb, vt = b.var(ddof=1) / 4, t.var(ddof=1) / 4
+    for rho in (lo, hi):  # the bounds solve (t - rho b)^2 = q^2 (v_t + rho^2 v_b)
+        assert (t.mean() - rho * b.mean()) ** 2 == pytest.approx(q2 * (vt + rho ** 2 * vb))
+    assert lo < t.mean() / b.mean() < hi
+    r_lo, r_hi = M.ratio_interval(b, t)
+    assert (r_lo, r_hi) == pytest.approx((lo - 1, hi - 1))
+    # negative areas: r = -(rho - 1), so the interval flips
+    assert M.ratio_interval(-b, -t) == pytest.approx((1 - hi, 1 - lo))
+    # the baseline mean's interval contains 0: no bounded interval
+    assert np.isnan(M.ratio_interval([-1.0, 0.5, 1.0], [2.0, 3.0, 4.0])[0])
+
+
+def test_probability_of_improvement_score_intervals():
+    z2 = 1.959964 ** 2
+    assert M.poi_interval(1.0, 5, 5, paired=True) == pytest.approx((5 / (5 + z2), 1.0), abs=1e-4)
+    lo, hi = M.poi_interval(0.6, 5, 5, paired=True)
+    # Wilson: (p + z^2/2n -+ z sqrt(p(1-p)/n + z^2/4n^2)) / (1 + z^2/n)
+    c = (0.6 + z2 / 10) / (1 + z2 / 5)
+    h = 1.959964 * np.sqrt(0.24 / 5 + z2 / 100) / (1 + z2 / 5)
+    assert (lo, hi) == pytest.approx((c - h, c + h), abs=1e-4)
+    lo, hi = M.poi_interval(1.0, 5, 5)
+    assert 0.5 < lo < 1.0 and hi == 1.0  # never [1, 1]
+    assert M.paired_probability_of_improvement([1, 2, 3], [2, 2, 1]) == pytest.approx(1.5 / 3)
+
+
+def test_trend_by_hand():
+    slope, se, df = M.trend([0, 1, 2, 3], [0, 1, 1, 3])
+    # centred frames -1.5, -.5, .5, 1.5; slope 4.5 / 5; residuals .1, .2, -.7, .4
+    assert (slope, se, df) == pytest.approx((0.9, np.sqrt(0.7 / 2 / 5), 2))
+    assert M.trend([0, 1, 2], [1, 1, 1]) == (0.0, 0.0, 1)
