@@ -58,6 +58,7 @@ measures them and chose ``t_interval`` as the default)
 """
 from __future__ import annotations
 
+import functools
 import math
 from statistics import NormalDist
 from typing import Callable, Sequence
@@ -310,7 +311,17 @@ def t_quantile(p: float, df) -> Array | float:
     """Quantile ``p`` in (0.5, 1) of Student's t with real ``df`` > 0 (bisection on the CDF)."""
     if not 0.5 < p < 1.0:
         raise ValueError(f"p must lie in (0.5, 1), got {p}")
-    df = _as_array(df)
+    if np.ndim(df) == 0:
+        return _t_quantile_scalar(float(p), float(df))
+    return _t_quantiles(p, _as_array(df))
+
+
+@functools.lru_cache(maxsize=1024)
+def _t_quantile_scalar(p: float, df: float) -> float:
+    return float(_t_quantiles(p, np.array(df)))
+
+
+def _t_quantiles(p: float, df: Array) -> Array:
     flat, inverse = np.unique(df.ravel(), return_inverse=True)
     log_c = _lgamma((flat + 1) / 2) - _lgamma(flat / 2) - 0.5 * np.log(flat * np.pi)
     lo, hi = np.zeros_like(flat), np.ones_like(flat)
@@ -320,8 +331,7 @@ def t_quantile(p: float, df) -> Array | float:
         mid = (lo + hi) / 2.0
         below = _t_cdf_from_zero(mid, flat, log_c) < p - 0.5
         lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
-    out = ((lo + hi) / 2.0)[inverse].reshape(df.shape)
-    return float(out) if out.ndim == 0 else out
+    return ((lo + hi) / 2.0)[inverse].reshape(df.shape)
 
 
 def _normal_cdf(z: Array) -> Array:

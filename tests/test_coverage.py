@@ -8,6 +8,8 @@ are one vectorised call, so thousands run in well under a second for the t-inter
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -62,6 +64,52 @@ def test_percentile_bootstrap_under_covers_with_five_seeds():
     assert coverage("percentile", "normal", "unpaired", n=5, experiments=1000, n_resamples=500) < 0.91
 
 
+@functools.lru_cache
+def true_probability_of_improvement(shape: str, samples: int = 1_000_000) -> float:
+    """P(T > B) for one baseline and one transfer draw; the shared seed effect of a pair cancels, so
+    the paired P(T_i > B_i) is the same number."""
+    b, t = draw(shape, "unpaired", samples, 1, np.random.default_rng(99))
+    return float((t > b).mean())
+
+
+def poi_coverage(shape: str, design: str, n: int, experiments: int = 2000, seed: int = 0) -> float:
+    """Coverage of the score interval of P(T > B) (Wilson over pairs, Newcombe unpaired)."""
+    truth = true_probability_of_improvement(shape)
+    b, t = draw(shape, design, n, experiments, np.random.default_rng(seed))
+    paired = design == "paired"
+    hits = 0
+    for bi, ti in zip(b, t):
+        p = M.paired_probability_of_improvement(bi, ti) if paired else M.probability_of_improvement(bi, ti)
+        lo, hi = M.poi_interval(p, n, n, paired)
+        hits += lo <= truth <= hi
+    return hits / experiments
+
+
+def ratio_coverage(shape: str, design: str, n: int, experiments: int = 2000, seed: int = 0,
+                   baseline_mean: float = 5.0) -> tuple[float, float]:
+    """Fieller's interval of transfer_ratio with the baseline mean at ``baseline_mean`` (true ratio
+    1 / baseline_mean): (coverage among bounded intervals, fraction reported as null)."""
+    b, t = draw(shape, design, n, experiments, np.random.default_rng(seed))
+    b, t = b + baseline_mean, t + baseline_mean
+    truth = TRUE_DIFFERENCE / baseline_mean
+    hits = nulls = 0
+    for bi, ti in zip(b, t):
+        lo, hi = M.ratio_interval(bi, ti, design == "paired")
+        if np.isnan(lo):
+            nulls += 1
+        else:
+            hits += lo <= truth <= hi
+    bounded = experiments - nulls
+    return (hits / bounded if bounded else float("nan")), nulls / experiments
+
+
+def test_ratio_and_probability_intervals_at_five_seeds():
+    for design in ("paired", "unpaired"):
+        covered, nulls = ratio_coverage("normal", design, 5, experiments=1000)
+        assert covered >= 0.93 and nulls < 0.05
+        assert poi_coverage("normal", design, 5, experiments=500) >= 0.93
+
+
 def table(experiments: int = 4000) -> str:
     rows = ["| scores | design | seeds | " + " | ".join(M.INTERVALS) + " |",
             "|---|---|---|" + "---|" * len(M.INTERVALS)]
@@ -70,6 +118,14 @@ def table(experiments: int = 4000) -> str:
             for n in (3, 5, 10):
                 cells = [f"{coverage(m, shape, design, n, experiments):.3f}" for m in M.INTERVALS]
                 rows.append(f"| {shape} | {design} | {n} | " + " | ".join(cells) + " |")
+    rows += ["", "| scores | design | seeds | transfer_ratio (Fieller; null share) | P(T > B) (score) |",
+             "|---|---|---|---|---|"]
+    for shape in ("normal", "skewed"):
+        for design in ("paired", "unpaired"):
+            for n in (3, 5, 10):
+                covered, nulls = ratio_coverage(shape, design, n)
+                rows.append(f"| {shape} | {design} | {n} | {covered:.3f} ({nulls:.0%} null) | "
+                            f"{poi_coverage(shape, design, n):.3f} |")
     return "\n".join(rows)
 
 
