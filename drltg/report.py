@@ -541,6 +541,20 @@ def _trend(curves: Sequence[Curve], start: float, budget: float, s: ReportSettin
     return {**out, "change": change, "ci": [change - half, change + half], "verdict": verdict}
 
 
+def _report_trends(m: dict, trends: dict, s: ReportSettings, warnings: list[str]) -> None:
+    """``final_trend_<side>`` with its interval, and a warning for a side whose curve still moves."""
+    for side, tr in trends.items():
+        m[f"final_trend_{side}"] = tr["change"]
+        if tr["ci"] is not None:
+            m[f"final_trend_{side}_ci"] = tr["ci"]
+        if tr["verdict"].startswith("still"):
+            warnings.append(
+                f"the {side} mean curve is {tr['verdict']} over the last {100 * float(s.trend_window):g}% of the "
+                f"budget ({tr['change']:+.4g} [{tr['ci'][0]:+.4g}, {tr['ci'][1]:+.4g}] from frame "
+                f"{_fmt(tr['window'][0])} to {_fmt(tr['window'][1])}): asymptotic_performance compares final "
+                "performances, not asymptotes.")
+
+
 def compute(baseline: Sequence[Curve], transfer: Sequence[Curve], **settings) -> dict:
     """Metrics of ``transfer`` against ``baseline`` (lists of curves, one per seed), without writing.
 
@@ -583,17 +597,21 @@ def compute(baseline: Sequence[Curve], transfer: Sequence[Curve], **settings) ->
         float(np.abs(c.values[(c.frames >= start) & (c.frames <= budget)]).max()) for c in baseline + transfer)
     m = _metrics(scores, paired, scale, threshold, s, warnings)
     trends = {side: _trend(runs, start, budget, s) for side, runs in (("baseline", baseline), ("transfer", transfer))}
-    for side, tr in trends.items():
-        m[f"final_trend_{side}"] = tr["change"]
-        if tr["ci"] is not None:
-            m[f"final_trend_{side}_ci"] = tr["ci"]
-        if tr["verdict"].startswith("still"):
-            warnings.append(
-                f"the {side} mean curve is {tr['verdict']} over the last {100 * float(s.trend_window):g}% of the "
-                f"budget ({tr['change']:+.4g} [{tr['ci'][0]:+.4g}, {tr['ci'][1]:+.4g}] from frame "
-                f"{_fmt(tr['window'][0])} to {_fmt(tr['window'][1])}): asymptotic_performance compares final "
-                "performances, not asymptotes.")
+    _report_trends(m, trends, s, warnings)
 
+    settings_out = _describe(s, baseline, transfer, task=task, start=start, budget=budget,
+                             budget_source=budget_source, paired=paired, pairing=pairing, trends=trends,
+                             threshold=threshold, basis=basis, source_frames=source_frames,
+                             source_basis=source_basis, scale=scale, warnings=warnings)
+    curves = _plot_curves(baseline, transfer, start, budget, scores, s, settings_out)
+    per_seed = {side: _records(df) for side, df in scores.items()}
+    table = pd.concat([df.assign(side=side) for side, df in scores.items()], ignore_index=True)
+    return {"metrics": m, "settings": settings_out, "per_seed": per_seed, "scores": table, "curves": curves}
+
+
+def _describe(s: ReportSettings, baseline, transfer, *, task, start, budget, budget_source, paired, pairing,
+              trends, threshold, basis, source_frames, source_basis, scale, warnings) -> dict:
+    """The report's ``settings``: every choice made, with the reasons and warnings."""
     labels = {
         "baseline": s.baseline_label or _side_label(baseline, "baseline"),
         "transfer": s.transfer_label or _side_label(transfer, "transfer"),
@@ -612,7 +630,7 @@ def compute(baseline: Sequence[Curve], transfer: Sequence[Curve], **settings) ->
         "budget_source": budget_source,
         "paired": paired,
         "pairing": pairing,
-        "jumpstart_window": k,
+        "jumpstart_window": int(s.jumpstart_window),
         "asymptote_window": float(s.asymptote_window),
         "asymptote_frames": [_num(lo), _num(hi)],
         "trend_window": float(s.trend_window),
@@ -637,10 +655,7 @@ def compute(baseline: Sequence[Curve], transfer: Sequence[Curve], **settings) ->
         "location": "mean over seeds (over pairs when paired), and the interquartile mean in *_iqm",
         "warnings": warnings,
     }
-    curves = _plot_curves(baseline, transfer, start, budget, scores, s, settings_out)
-    per_seed = {side: _records(df) for side, df in scores.items()}
-    table = pd.concat([df.assign(side=side) for side, df in scores.items()], ignore_index=True)
-    return {"metrics": m, "settings": settings_out, "per_seed": per_seed, "scores": table, "curves": curves}
+    return settings_out
 
 
 def _threshold(baseline, start, budget, s: ReportSettings) -> tuple[float | None, str | None]:

@@ -142,7 +142,8 @@ def _threshold_marks(ax, m: dict, st: dict, curves: dict) -> None:
     basis = st["threshold_basis"]
     of_best = "" if basis == "absolute" else f" ({basis.split(' x ')[0]} x best baseline mean)"
     ax.axhline(thr, color="0.15", lw=1.1, ls="--", zorder=2, label=f"threshold {thr:.4g}{of_best}")
-    rule = "first crossing" if st.get("crossing") == "first" else "stays above from here"
+    rule = ("first crossing" if st.get("crossing") == "first" else
+            f"stays above for {st['sustain']} evals" if st.get("sustain") else "stays above from here")
     for side in ("baseline", "transfer"):
         c, color = curves[side], COLORS[side]
         xs, ys = [], []
