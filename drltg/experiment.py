@@ -13,11 +13,16 @@ manipulation tasks) serves every transfer run, and no source runs are trained. B
 share the seed ``seed + 100 i`` (paired runs); source run i uses ``seed + 100 i + 50``, so no source
 and target run share a seed. A completed run is reused; an interrupted one resumes from its checkpoint,
 so re-running the same command finishes what is missing.
+
+Every run's config is built and checked (its task, env settings and learner) and the report settings
+are parsed before anything is written; the folder is then owned by one ``drltg experiment`` at a time
+(:func:`drltg.rundir.lock`). A run that fails leaves its traceback in ``DIR/logs/<role>/seed-<s>.log``.
 """
 from __future__ import annotations
 
 import argparse
 import concurrent.futures as cf
+import json
 import multiprocessing as mp
 import traceback
 from pathlib import Path
@@ -25,6 +30,7 @@ from pathlib import Path
 import yaml
 
 from drltg import config as config_lib
+from drltg import rundir
 from drltg.errors import UsageError
 
 METHODS = ("reward-shaping", "policy-reuse", "model-reuse")
@@ -107,28 +113,50 @@ def plan_runs(
     return runs
 
 
-def _train_one(cfg: dict, run_dir: Path) -> str:
-    from drltg.train import is_complete, train
+def check_runs(runs: list[tuple[str, dict, Path]]) -> None:
+    """Build the task env and the learner of every distinct run config, and check the transfer section
+    of those whose source is not one of ``runs``: a mistake fails here, before anything is written."""
+    from drltg import transfer
+    from drltg.train import check_config
 
-    if is_complete(run_dir):
+    planned = {str(d) for _, _, d in runs}
+    seen = set()
+    for _, cfg, _ in runs:
+        source = cfg["transfer"]["source"]
+        if source is None or str(source) not in planned:
+            transfer.check(cfg)
+        key = json.dumps({**cfg, "seed": 0, "frames": 0, "transfer": None}, sort_keys=True, default=str)
+        if key not in seen:
+            seen.add(key)
+            check_config(cfg)
+
+
+def _train_one(cfg: dict, run_dir: Path) -> str:
+    from drltg.train import train
+
+    if rundir.is_complete(run_dir):
         return "reused"
-    train(cfg, run_dir, resume=(run_dir / "config.yaml").is_file(), progress=False)
+    train(cfg, run_dir, resume=(run_dir / rundir.CONFIG).is_file(), progress=False)
     return "trained"
 
 
-def _run_all(runs, workers: int) -> list[str]:
+def _log_path(out: Path, role: str, run_dir: Path) -> Path:
+    return out / "logs" / role / f"{run_dir.name}.log"
+
+
+def _run_all(runs, workers: int, out: Path) -> list[str]:
     """Train the runs (sources before the runs that need them); return the failures."""
     from tqdm.auto import tqdm
 
     failures: list[str] = []
     bar = tqdm(total=len(runs), unit="run", desc="experiment")
     for stage in (("source",), ("baseline", "transfer")):
-        todo = [(role, cfg, d) for role, cfg, d in runs if role in stage]
+        todo = [(cfg, d, _log_path(out, role, d)) for role, cfg, d in runs if role in stage]
         if workers <= 1:
-            results = ((d, _call(cfg, d)) for _, cfg, d in todo)
+            results = ((d, _call(cfg, d, log)) for cfg, d, log in todo)
         else:
             pool = cf.ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"))
-            futures = {pool.submit(_call, cfg, d): d for _, cfg, d in todo}
+            futures = {pool.submit(_call, cfg, d, log): d for cfg, d, log in todo}
             results = ((futures[f], f.result()) for f in cf.as_completed(futures))
         for run_dir, (status, detail) in results:
             bar.update()
@@ -143,42 +171,64 @@ def _run_all(runs, workers: int) -> list[str]:
     return failures
 
 
-def _call(cfg: dict, run_dir: Path) -> tuple[str, str]:
+def _call(cfg: dict, run_dir: Path, log: Path) -> tuple[str, str]:
     try:
         return _train_one(cfg, run_dir), ""
     except UsageError as err:
         return "failed", str(err)
-    except Exception:  # isolate one broken run; its traceback goes to the run directory
-        run_dir.mkdir(parents=True, exist_ok=True)
-        (run_dir / "error.log").write_text(traceback.format_exc())
-        return "failed", f"see {run_dir / 'error.log'}"
+    except Exception:  # isolate one broken run; its traceback goes to the experiment's logs
+        rundir.atomic_write(log, traceback.format_exc())
+        return "failed", f"see {log}"
+
+
+def _settings(args: argparse.Namespace) -> dict:
+    """What must match to continue an experiment (the folder itself may be named any way)."""
+    return {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()
+            if k not in ("out", "workers", "threshold", "_module", "command")}
+
+
+def _check_settings(path: Path, settings: dict) -> None:
+    if not path.is_file():
+        return
+    try:
+        saved = yaml.safe_load(path.read_text())
+    except yaml.YAMLError:
+        raise UsageError(f"'{path}' is not valid YAML; choose another --out.") from None
+    saved = {k: v for k, v in saved.items() if k != "out"} if isinstance(saved, dict) else saved
+    if saved != settings:
+        raise UsageError(f"'{path.parent}' holds an experiment with other settings; choose another --out.")
 
 
 def run(args: argparse.Namespace) -> int:
-    from drltg.report import format_table, transfer_report
+    from drltg.report import _parse_threshold, format_table, transfer_report
 
+    if args.workers < 1:
+        raise UsageError("--workers must be at least 1.")
+    _parse_threshold(args.threshold)
+    out = rundir.check_directory(args.out, "--out")
     runs = plan(args)
-    out = args.out.expanduser().resolve()
-    settings = {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()
-                if k not in ("workers", "threshold", "_module", "command")}
-    saved = out / "experiment.yaml"
-    if saved.is_file() and yaml.safe_load(saved.read_text()) != settings:
-        raise UsageError(f"'{out}' holds an experiment with other settings; choose another --out.")
-    out.mkdir(parents=True, exist_ok=True)
-    saved.write_text(yaml.safe_dump(settings, sort_keys=False))
-
-    failures = _run_all(runs, args.workers)
-    if failures:
-        print("failed runs:\n  " + "\n  ".join(failures))
-        return 1
-    result = transfer_report(
-        [d for role, _, d in runs if role == "baseline"],
-        [d for role, _, d in runs if role == "transfer"],
-        out / "report",
-        threshold=args.threshold,
-        baseline_label="no transfer",
-        transfer_label=args.method,
-    )
+    check_runs(runs)
+    settings, saved = _settings(args), out / "experiment.yaml"
+    _check_settings(saved, settings)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise UsageError(f"cannot create --out '{out}' ({err.strerror}).") from None
+    with rundir.lock(out, "experiment folder"):
+        _check_settings(saved, settings)  # another process may have started it meanwhile
+        rundir.atomic_write(saved, yaml.safe_dump(settings, sort_keys=False))
+        failures = _run_all(runs, args.workers, out)
+        if failures:
+            print("failed runs:\n  " + "\n  ".join(failures))
+            return 1
+        result = transfer_report(
+            [d for role, _, d in runs if role == "baseline"],
+            [d for role, _, d in runs if role == "transfer"],
+            out / "report",
+            threshold=args.threshold,
+            baseline_label="no transfer",
+            transfer_label=args.method,
+        )
     print(format_table(result))
     print(f"\nreport: {out / 'report'}")
     return 0

@@ -39,12 +39,16 @@ class LoadReport:
     frozen: list[str] = field(default_factory=list)
     input_map: list[int | None] | None = None
 
-    def __str__(self) -> str:
-        lines = [
+    def summary(self) -> str:
+        """The one-line count of what was loaded."""
+        return (
             f"model reuse: {len(self.loaded)} loaded, {len(self.widened)} widened, "
             f"{len(self.narrowed)} narrowed, {len(self.skipped)} skipped (kept as initialised), "
             f"{len(self.unused)} unused, {len(self.frozen)} frozen"
-        ]
+        )
+
+    def __str__(self) -> str:
+        lines = [self.summary()]
         if self.input_map is not None:
             shown = ["new" if i is None else str(i) for i in self.input_map]
             lines.append(f"  target observation entries read source entries [{', '.join(shown)}]")
@@ -125,6 +129,7 @@ def load_weights(
     input_map: Sequence[int | None] | None = None,
     exclude: Sequence[str] = (),
     freeze: Sequence[str] = (),
+    partial: bool = False,
 ) -> LoadReport:
     """Copy ``source_state`` into ``target`` where names match; map observation-size changes.
 
@@ -137,9 +142,14 @@ def load_weights(
         exclude: entries to leave as initialised: ``fnmatch`` patterns or name prefixes.
         freeze: parameters to stop training (``requires_grad=False``): patterns or prefixes, e.g.
             ``"actor_network_params"`` for a loss module's whole actor.
+        partial: accept a load that leaves trainable parameters of the target (not excluded) as
+            initialised because the source has no such entry, as between two kinds of learner
+            (``soc`` -> ``sac``, ``td3`` -> ``sac``). Without it such a load is refused: the target
+            would silently start mostly from scratch.
 
     Raises:
-        UsageError: no entry matches, or an entry differs in more than its input size.
+        UsageError: no entry matches, an entry differs in more than its input size, or trainable
+            parameters are missing from the source and ``partial`` is false.
     """
     target_state = target.state_dict()
     names = list(target_state)
@@ -148,6 +158,16 @@ def load_weights(
     common = [k for k in names if k in source_state and k not in excluded]
     if not common:
         raise UsageError("no entry of the source weights matches the target's names; is it the same kind of learner?")
+
+    trainable = {n for n, _ in target.named_parameters()}
+    missing = [n for n in names if n in trainable and n not in source_state and n not in excluded]
+    if missing and not partial:
+        groups = ", ".join(dict.fromkeys(n.split(".")[0] for n in missing))
+        raise UsageError(
+            f"the source holds {len(common)} of the target's {len(names)} entries and lacks trainable "
+            f"ones ({groups}), so the learner would start partly untrained; reuse a run of the same "
+            "learner, or accept a partial load (partial=True, or transfer.partial=true)."
+        )
 
     resized = {}
     for name in common:
@@ -190,13 +210,7 @@ def load_from_run(loss_module: nn.Module, run_dir: str | Path, **kwargs) -> Load
 
     Keyword arguments go to :func:`load_weights`. The checkpoint is unpickled: load only runs you trust.
     """
-    path = Path(run_dir).expanduser() / "checkpoints" / "last.pt"
-    if not path.is_file():
-        raise UsageError(f"'{run_dir}' holds no checkpoints/last.pt; train the source run first or fix the path.")
-    try:
-        checkpoint = torch.load(path, map_location="cpu", weights_only=False)
-    except Exception as err:  # a truncated or foreign file
-        raise UsageError(f"cannot read checkpoint '{path}' ({type(err).__name__}).") from None
-    if not isinstance(checkpoint, Mapping) or "loss" not in checkpoint:
-        raise UsageError(f"checkpoint '{path}' has no 'loss' entry; is it a drltg training checkpoint?")
+    from drltg.rundir import load_checkpoint
+
+    checkpoint = load_checkpoint(Path(run_dir).expanduser())
     return load_weights(loss_module, checkpoint["loss"], **kwargs)

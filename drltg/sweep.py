@@ -52,6 +52,7 @@ from typing import Any
 
 import yaml
 
+from drltg import rundir
 from drltg.errors import UsageError
 
 KEYS = ("pairs", "methods", "algos", "seeds", "seed", "frames", "source_frames", "overrides", "grid",
@@ -109,6 +110,7 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
     from drltg.agents import ALGOS
     from drltg.envs import get_pair
     from drltg.experiment import METHODS
+    from drltg.report import _parse_threshold
 
     if not isinstance(data, dict):
         raise UsageError(f"{where} must be a YAML mapping with keys like pairs, methods, seeds, frames.")
@@ -151,6 +153,10 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
     threshold = data.get("threshold")
     if threshold is not None and (isinstance(threshold, bool) or not isinstance(threshold, (int, float, str))):
         raise UsageError(f"{where}: 'threshold' must be a number or a percentage like \"80%\".")
+    try:
+        _parse_threshold(threshold)
+    except UsageError as err:
+        raise UsageError(f"{where}: {err}".replace("--threshold", "threshold")) from None
     spec.threshold = threshold
     resources = data.get("resources") or {}
     if not isinstance(resources, dict):
@@ -259,17 +265,20 @@ def plan(spec: Spec, out: Path) -> tuple[list[Run], list[Cell]]:
 
 def check_existing(runs: list[Run]) -> None:
     """Refuse, before anything runs, a directory that holds a run with another config."""
-    from drltg.train import _diff_keys
+    from drltg.train import config_changes
 
     for run in runs:
-        saved = run.path / "config.yaml"
+        saved = rundir.check_directory(run.path, "run directory") / rundir.CONFIG
         if saved.is_file():
-            old = yaml.safe_load(saved.read_text())
-            if old != run.cfg:
-                keys = ", ".join(sorted(_diff_keys(old, run.cfg)))
-                raise UsageError(f"'{run.path}' holds a run with another config (differs in {keys}); "
+            try:
+                old = yaml.safe_load(saved.read_text())
+            except yaml.YAMLError:
+                raise UsageError(f"'{saved}' is not valid YAML; move the run away or use another --out.") from None
+            keys = config_changes(old if isinstance(old, dict) else {}, run.cfg)
+            if keys:
+                raise UsageError(f"'{run.path}' holds a run with another config (differs in {', '.join(keys)}); "
                                  "use another --out.")
-        elif run.path.exists() and any(run.path.iterdir()):
+        elif rundir.entries(run.path):
             raise UsageError(f"'{run.path}' exists but holds no config.yaml; move it away or use another --out.")
 
 
@@ -297,12 +306,15 @@ def run_one(cfg: dict, run_dir: str, log_path: str) -> tuple[str, str]:
 
     run_dir, log_path = Path(run_dir), Path(log_path)
     log_path.parent.mkdir(parents=True, exist_ok=True)
-    resume = (run_dir / "config.yaml").is_file()
+    resume = (run_dir / rundir.CONFIG).is_file()
     with open(log_path, "a", buffering=1) as log, _output_to(log):
         print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] {'resume' if resume else 'start'} {run_dir} "
               f"(pid {os.getpid()})", flush=True)
         try:
             train(cfg, run_dir, resume=resume, progress=False)
+        except UsageError as err:
+            print(f"error: {err}", flush=True)
+            return "failed", str(err)
         except Exception as err:
             traceback.print_exc()
             return "failed", f"{type(err).__name__}: {err}"
@@ -313,11 +325,10 @@ def run_one(cfg: dict, run_dir: str, log_path: str) -> tuple[str, str]:
 def _frames_done(run: Run) -> int:
     """Frames a run has reached so far (its last evaluation; 0 before the first)."""
     try:
-        with open(run.path / "eval.csv") as f:
-            last = f.read().rstrip().rsplit("\n", 1)[-1]
-        return min(int(last.split(",", 1)[0]), run.frames)
-    except (OSError, ValueError):
+        rows = rundir.read_eval_csv(run.path / rundir.EVAL)
+    except (OSError, UsageError):
         return 0
+    return min(rows[-1]["frames"], run.frames) if rows else 0
 
 
 # --------------------------------------------------------------------------------------- backends
@@ -443,9 +454,7 @@ def execute(runs: list[Run], backend, poll: float = 1.0) -> dict[Path, tuple[str
     with status ``skipped`` (complete before), ``done`` or ``failed``."""
     from tqdm.auto import tqdm
 
-    from drltg.train import is_complete
-
-    status: dict[Path, tuple[str, str]] = {r.path: ("skipped", "") for r in runs if is_complete(r.path)}
+    status: dict[Path, tuple[str, str]] = {r.path: ("skipped", "") for r in runs if rundir.is_complete(r.path)}
     todo = [r for r in runs if r.path not in status]
     reached = {r.path: _frames_done(r) for r in todo}
     bar = tqdm(total=sum(r.frames for r in todo), initial=sum(reached.values()), unit="frame",
@@ -587,14 +596,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drltg.report import _csv_text, write_files
-
-    spec = load_spec(args.spec)
     if args.workers is not None and args.workers < 1:
         raise UsageError("--workers must be at least 1.")
+    spec = load_spec(args.spec)
     resources = {**spec.resources, **{k: v for k, v in (("num_cpus", args.num_cpus),
                                                          ("num_gpus", args.num_gpus)) if v is not None}}
-    out = args.out.expanduser().resolve()
+    out = rundir.check_directory(args.out, "--out")
     runs, cells = plan(spec, out)
     if args.dry_run:
         for r in runs:
@@ -602,12 +609,24 @@ def run(args: argparse.Namespace) -> int:
         print(f"{len(runs)} runs, {len(cells)} reports")
         return 0
     check_existing(runs)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise UsageError(f"cannot create --out '{out}' ({err.strerror}).") from None
+    with rundir.lock(out, "sweep folder"):
+        return _execute_and_report(args, spec, out, runs, cells, resources)
+
+
+def _execute_and_report(args, spec: Spec, out: Path, runs: list[Run], cells: list[Cell], resources: dict) -> int:
+    from drltg.report import _csv_text
+
+    check_existing(runs)  # another sweep may have written them meanwhile
     if args.backend == "ray":
         backend = RayBackend(args.address, resources, num_cpus=args.workers)
     else:
         backend = LocalBackend(args.workers)
     try:
-        write_files(out, {"sweep.yaml": Path(args.spec).read_bytes()})
+        rundir.write_files(out, {"sweep.yaml": Path(args.spec).read_bytes()})
         status = execute(runs, backend)
     finally:
         backend.close()
@@ -619,7 +638,7 @@ def run(args: argparse.Namespace) -> int:
     files = {"summary.csv": csv_text.encode(), "summary.md": md_text.encode(), "runs.csv": runs_csv.encode()}
     if any(r["metrics"] for r in rows):
         files["transfer_matrix.png"] = plot_transfer_matrix(rows)
-    write_files(out, files)
+    rundir.write_files(out, files)
     counts = [s for s, _ in status.values()]
     print(md_text)
     failed = [r for r in runs if status[r.path][0] == "failed"]

@@ -2,23 +2,16 @@
 
 Evaluation runs at frame 0 (before any update) and every ``eval.every`` frames, with the deterministic
 actor on a separate evaluation env that measures the task's own reward (never a shaped one) and
-success. A run directory holds:
-
-    config.yaml          the resolved config; `drltg train --config config.yaml` reproduces the run
-    eval.csv             frames,return_mean,return_std,episodes[,success_rate]  (one row per evaluation)
-    logs/csv/, logs/tensorboard/   training scalars (TorchRL CSVLogger + TensorboardLogger)
-    checkpoints/last.pt  weights, optimizer, replay buffer and RNG state (for --resume and model reuse)
-    summary.json         written last: the run is complete when it exists
+success. What a run directory holds is described in :mod:`drltg.rundir`; :func:`train` owns it (its
+lock) while it runs, checks everything it can before creating it, and removes what a failed start
+wrote before its first checkpoint, so a retry is never blocked.
 """
 from __future__ import annotations
 
-import csv
-import io
+import contextlib
 import json
 import math
-import os
 import shutil
-import tempfile
 import time
 from collections import defaultdict
 from pathlib import Path
@@ -33,73 +26,47 @@ from torchrl.envs import EnvBase, ExplorationType, RewardSum, TransformedEnv, se
 from torchrl.record.loggers import CSVLogger, TensorboardLogger
 from tqdm.auto import tqdm
 
-from drltg import transfer
+from drltg import rundir, transfer
 from drltg.agents import make_agent
-from drltg.config import dump
+from drltg.config import DEFAULTS, dump
 from drltg.envs import make_env
 from drltg.errors import UsageError
 from drltg.fast import UpdateStep, sample_batches
+from drltg.rundir import CHECKPOINT, CONFIG, EVAL, MODEL_REUSE, SUMMARY, is_complete, read_eval_csv
 
-EVAL_COLUMNS = ["frames", "return_mean", "return_std", "episodes", "success_rate"]
-
-
-# ----------------------------------------------------------------------------- files
-def atomic_write(path: Path, data: str | bytes) -> None:
-    """Write to a temporary file in the same folder, then rename: readers never see half a file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    with os.fdopen(fd, "wb") as f:
-        f.write(data.encode() if isinstance(data, str) else data)
-    os.replace(tmp, path)
-
-
-def atomic_torch_save(obj, path: Path) -> None:
-    buf = io.BytesIO()
-    torch.save(obj, buf)
-    atomic_write(path, buf.getvalue())
-
-
-def write_eval_csv(path: Path, rows: list[dict]) -> None:
-    columns = [c for c in EVAL_COLUMNS if any(c in r for r in rows)]
-    out = io.StringIO()
-    writer = csv.DictWriter(out, fieldnames=columns, lineterminator="\n")
-    writer.writeheader()
-    for r in rows:
-        writer.writerow({c: r[c] for c in columns})
-    atomic_write(path, out.getvalue())
-
-
-def read_eval_csv(path: Path) -> list[dict]:
-    with open(path) as f:
-        return [
-            {k: (int(v) if k in ("frames", "episodes") else float(v)) for k, v in row.items()}
-            for row in csv.DictReader(f)
-        ]
-
-
-def is_complete(run_dir: str | Path) -> bool:
-    return (Path(run_dir) / "summary.json").is_file()
+__all__ = ["train", "evaluate", "make_envs", "build_env", "check_config", "is_complete", "read_eval_csv"]
 
 
 # ----------------------------------------------------------------------------- envs
+def build_env(cfg: dict, **kwargs) -> EnvBase:
+    """``make_env`` of the config's task with its ``env`` settings; a setting the task cannot take
+    (``env.horizon=abc``) is one :class:`UsageError` sentence."""
+    try:
+        return make_env(cfg["task"], device=cfg["device"], **{**cfg["env"], **kwargs})
+    except UsageError:
+        raise
+    except (TypeError, ValueError) as err:
+        raise UsageError(f"task '{cfg['task']}' cannot be built with env settings {cfg['env']} ({err}).") from None
+
+
 def make_envs(cfg: dict, agent_transforms=()) -> tuple[EnvBase, EnvBase]:
     """Training env (``num_envs`` batched, episode-return tracking) and a separate evaluation env
     (``eval.episodes`` batched, seeded apart from the training env)."""
-    seed, device = cfg["seed"], cfg["device"]
-    train_env = make_env(
-        cfg["task"], batch_size=(cfg["collector"]["num_envs"],), device=device, seed=seed, **cfg["env"]
-    )
-    eval_env = make_env(
-        cfg["task"], batch_size=(cfg["eval"]["episodes"],), device=device, seed=seed + 10_000, **cfg["env"]
-    )
-    train_env = TransformedEnv(train_env)
-    eval_env = TransformedEnv(eval_env)
+    seed = cfg["seed"]
+    train_env = TransformedEnv(build_env(cfg, batch_size=(cfg["collector"]["num_envs"],), seed=seed))
+    eval_env = TransformedEnv(build_env(cfg, batch_size=(cfg["eval"]["episodes"],), seed=seed + 10_000))
     for t in agent_transforms:
         train_env.append_transform(t.clone())
         eval_env.append_transform(t.clone())
     train_env.append_transform(RewardSum())
     return train_env, eval_env
+
+
+def check_config(cfg: dict):
+    """Build the task's env and the learner of ``cfg`` (writing nothing): the checks a config can
+    fail before any run directory is created. Returns the env and the agent."""
+    probe = build_env(cfg, seed=cfg["seed"])
+    return probe, make_agent(probe, cfg)
 
 
 @torch.no_grad()
@@ -137,34 +104,87 @@ def evaluate(env: EnvBase, actor: Callable, max_steps: int = 100_000) -> dict:
     return row
 
 
-# ----------------------------------------------------------------------------- loop
-def _prepare_run_dir(cfg: dict, run_dir: Path, resume: bool) -> dict | None:
-    """Validate the run directory; return the checkpoint to resume from (or None)."""
-    config_path = run_dir / "config.yaml"
-    if not resume:
-        if run_dir.exists() and any(run_dir.iterdir()):
-            raise UsageError(f"run directory '{run_dir}' already exists; pass --resume to continue it or choose another --run-dir.")
-        return None
-    if not config_path.is_file():
-        raise UsageError(f"cannot resume: '{run_dir}' holds no config.yaml (is it a drltg run directory?).")
-    saved = yaml.safe_load(config_path.read_text())
-    if saved != cfg:
-        changed = sorted(_diff_keys(saved, cfg))
-        raise UsageError(
-            f"cannot resume '{run_dir}': the config differs from the saved one in {', '.join(changed)}."
-        )
-    ckpt = run_dir / "checkpoints" / "last.pt"
-    return torch.load(ckpt, weights_only=False) if ckpt.is_file() else None
+# ----------------------------------------------------------------------------- run directory
+def _lookup(cfg: dict, dotted: str):
+    node = cfg
+    for part in dotted.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return KeyError
+        node = node[part]
+    return node
+
+
+def config_changes(saved: dict, cfg: dict) -> list[str]:
+    """The keys in which ``cfg`` differs from a run's saved config. A key the saved config lacks
+    counts only when ``cfg`` sets it to something else than its default (runs saved before the key
+    existed stay resumable)."""
+    return sorted(
+        key for key in _diff_keys(saved, cfg)
+        if not (_lookup(saved, key) is KeyError and _lookup(cfg, key) == _lookup(DEFAULTS, key))
+    )
 
 
 def _diff_keys(a, b, prefix=""):
     if isinstance(a, dict) and isinstance(b, dict):
         for k in set(a) | set(b):
-            yield from _diff_keys(a.get(k), b.get(k), f"{prefix}{k}.")
+            yield from _diff_keys(a.get(k, KeyError), b.get(k, KeyError), f"{prefix}{k}.")
     elif a != b:
         yield prefix.rstrip(".")
 
 
+def _refuse_existing(run_dir: Path) -> None:
+    if rundir.entries(run_dir):
+        raise UsageError(f"run directory '{run_dir}' already exists; pass --resume to continue it or choose another --run-dir.")
+
+
+def _check_saved_config(cfg: dict, run_dir: Path) -> None:
+    try:
+        saved = yaml.safe_load((run_dir / CONFIG).read_text())
+    except yaml.YAMLError:
+        raise UsageError(f"cannot resume: '{run_dir / CONFIG}' is not valid YAML.") from None
+    changed = config_changes(saved if isinstance(saved, dict) else {}, cfg)
+    if changed:
+        raise UsageError(f"cannot resume '{run_dir}': the config differs from the saved one in {', '.join(changed)}.")
+
+
+def _resume_state(cfg: dict, run_dir: Path) -> tuple[dict | None, list[dict]]:
+    """The checkpoint to continue from (``None``: start over) and the evaluations up to it."""
+    if not (run_dir / CHECKPOINT).is_file():
+        return None, []
+    ckpt = rundir.load_checkpoint(run_dir, map_location=cfg["device"])
+    frames = ckpt["frames"]
+    if not (run_dir / EVAL).is_file():
+        raise UsageError(
+            f"cannot resume '{run_dir}': its {EVAL} is missing, so the curve up to the checkpoint at frame "
+            f"{frames} is lost; start the run again in another --run-dir."
+        )
+    rows = [r for r in read_eval_csv(run_dir / EVAL) if r["frames"] <= frames]
+    found, expected = [r["frames"] for r in rows], ckpt.get("evaluations", [0])
+    missing = sorted(set(expected) - set(found))
+    if missing or (len(found) != len(set(found))):
+        raise UsageError(
+            f"cannot resume '{run_dir}': {EVAL} lacks the evaluations at frames {missing} before the checkpoint "
+            f"at frame {frames} (rows dropped or duplicated); restore it or start the run again in another --run-dir."
+            if missing else
+            f"cannot resume '{run_dir}': {EVAL} repeats frames before the checkpoint at frame {frames}; restore "
+            "it or start the run again in another --run-dir."
+        )
+    return ckpt, rows
+
+
+def _remove_start(run_dir: Path, created: bool) -> None:
+    """Remove what a failed start wrote, so that the same command can be run again."""
+    if created:
+        shutil.rmtree(run_dir, ignore_errors=True)
+        return
+    for path in rundir.entries(run_dir):
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            path.unlink(missing_ok=True)
+
+
+# ----------------------------------------------------------------------------- loop
 def train(
     cfg: dict,
     run_dir: str | Path,
@@ -173,52 +193,88 @@ def train(
     progress: bool = True,
 ) -> Path:
     """Train ``cfg["algo"]`` on ``cfg["task"]`` for ``cfg["frames"]`` frames, with the transfer method
-    of ``cfg["transfer"]``; return the run directory."""
-    run_dir = Path(run_dir).expanduser().resolve()
-    ckpt = _prepare_run_dir(cfg, run_dir, resume)
-    if resume and is_complete(run_dir):
-        return run_dir
+    of ``cfg["transfer"]``; return the run directory.
 
-    torch.set_num_threads(cfg["threads"])
-    torch.manual_seed(cfg["seed"])
-    # Build everything before writing anything: a bad config fails with nothing on disk.
-    transfer.check(cfg)
-    probe = make_env(cfg["task"], seed=cfg["seed"], device=cfg["device"], **cfg["env"])
-    agent = make_agent(probe, cfg)
-    train_env, eval_env = make_envs(cfg, agent.env_transforms)
-    method = cfg["transfer"]["method"]
-    policy, mixer, reuse_report = agent.policy, None, None
-    if method == "reward-shaping":  # after RewardSum: train/episode_return stays the task's return
-        train_env.append_transform(transfer.shaping(cfg))
-    elif method == "policy-reuse":
-        policy, mixer = transfer.reuse_policy(cfg, agent)
-    elif method == "model-reuse" and ckpt is None:
-        reuse_report = transfer.reuse_weights(cfg, agent)
+    The directory is locked while the run writes it (a second process is refused). Everything the
+    config can fail on is built before a new directory is created; if a new run fails before its first
+    checkpoint, what it wrote is removed, and after it the directory can be resumed.
+    """
+    run_dir = rundir.check_directory(run_dir, "--run-dir")
+    with contextlib.ExitStack() as owned:
+        if resume:
+            if not (run_dir / CONFIG).is_file():
+                raise UsageError(f"cannot resume: '{run_dir}' holds no {CONFIG} (is it a drltg run directory?).")
+            _check_saved_config(cfg, run_dir)
+            owned.enter_context(rundir.lock(run_dir))
+            if is_complete(run_dir):
+                return run_dir
+            ckpt, rows = _resume_state(cfg, run_dir)
+        else:
+            _refuse_existing(run_dir)
+            ckpt, rows = None, []
 
+        torch.set_num_threads(cfg["threads"])
+        torch.manual_seed(cfg["seed"])
+        # Build everything before writing anything: a bad config fails with nothing on disk.
+        transfer.check(cfg)
+        probe, agent = check_config(cfg)
+        train_env, eval_env = make_envs(cfg, agent.env_transforms)
+        method = cfg["transfer"]["method"]
+        policy, mixer, reuse_report = agent.policy, None, None
+        if method == "reward-shaping":  # after RewardSum: train/episode_return stays the task's return
+            train_env.append_transform(transfer.shaping(cfg))
+        elif method == "policy-reuse":
+            policy, mixer = transfer.reuse_policy(cfg, agent, probe)
+        elif method == "model-reuse" and ckpt is None:
+            reuse_report = transfer.reuse_weights(cfg, agent)
+            print(reuse_report.summary(), flush=True)
+        buffer = ReplayBuffer(
+            storage=LazyTensorStorage(cfg["buffer"]["size"], device=cfg["device"]),
+            batch_size=cfg["buffer"]["batch_size"],
+        )
+        if ckpt is not None:
+            try:
+                agent.loss.load_state_dict(ckpt["loss"])
+                agent.optimizer.load_state_dict(ckpt["optimizer"])
+                buffer.load_state_dict(ckpt["buffer"])
+            except (KeyError, RuntimeError, ValueError) as err:
+                raise UsageError(f"checkpoint '{run_dir / CHECKPOINT}' does not fit the run's config ({type(err).__name__}).") from None
+
+        created = False
+        if resume:
+            rundir.truncate_logs(run_dir, ckpt["frames"] if ckpt is not None else -1)
+        else:
+            created = not run_dir.exists()
+            try:
+                run_dir.mkdir(parents=True, exist_ok=True)
+            except OSError as err:
+                raise UsageError(f"cannot create --run-dir '{run_dir}' ({err.strerror}).") from None
+            owned.enter_context(rundir.lock(run_dir))
+            _refuse_existing(run_dir)  # another process started it first
+        try:
+            if reuse_report is not None:
+                rundir.atomic_write(run_dir / MODEL_REUSE, f"{reuse_report}\n")
+            _loop(cfg, run_dir, agent, train_env, eval_env, policy, mixer, buffer, ckpt, rows, progress)
+        except BaseException:
+            if not resume and not (run_dir / CHECKPOINT).is_file():
+                _remove_start(run_dir, created)
+            raise
+    return run_dir
+
+
+def _loop(cfg, run_dir, agent, train_env, eval_env, policy, mixer, buffer, ckpt, rows, progress) -> None:
     col, opt = cfg["collector"], cfg["optim"]
     fpb = col["frames_per_batch"]
     init_random = math.ceil(col["init_random_frames"] / fpb) * fpb
-    buffer = ReplayBuffer(
-        storage=LazyTensorStorage(cfg["buffer"]["size"], device=cfg["device"]),
-        batch_size=cfg["buffer"]["batch_size"],
-    )
     frames = updates = 0
-    rows: list[dict] = []
     if ckpt is not None:
-        agent.loss.load_state_dict(ckpt["loss"])
-        agent.optimizer.load_state_dict(ckpt["optimizer"])
-        buffer.load_state_dict(ckpt["buffer"])
         torch.set_rng_state(ckpt["rng"])
         frames, updates = ckpt["frames"], ckpt["updates"]
-        rows = [r for r in read_eval_csv(run_dir / "eval.csv") if r["frames"] <= frames]
 
-    run_dir.mkdir(parents=True, exist_ok=True)
-    atomic_write(run_dir / "config.yaml", dump(cfg))
-    if reuse_report is not None:
-        atomic_write(run_dir / "model_reuse.txt", f"{reuse_report}\n")
-    loggers = [CSVLogger("csv", log_dir=str(run_dir / "logs"))]
+    rundir.atomic_write(run_dir / CONFIG, dump(cfg))
+    loggers = [CSVLogger("csv", log_dir=str(run_dir / rundir.LOGS))]
     if cfg["log"]["tensorboard"]:
-        loggers.append(TensorboardLogger("tensorboard", log_dir=str(run_dir / "logs")))
+        loggers.append(TensorboardLogger("tensorboard", log_dir=str(run_dir / rundir.LOGS)))
 
     def log(metrics: dict, step: int) -> None:
         for logger in loggers:
@@ -228,12 +284,12 @@ def train(
     def run_eval() -> None:
         row = {"frames": frames, **evaluate(eval_env, agent.actor)}
         rows.append(row)
-        write_eval_csv(run_dir / "eval.csv", rows)
+        rundir.write_eval_csv(run_dir / EVAL, rows)
         log({f"eval/{k}": v for k, v in row.items() if k != "frames"}, frames)
         bar.set_postfix(eval_return=f"{row['return_mean']:.3f}", refresh=False)
 
     def save_checkpoint() -> None:
-        atomic_torch_save(
+        rundir.atomic_torch_save(
             {
                 "loss": agent.loss.state_dict(),
                 "optimizer": agent.optimizer.state_dict(),
@@ -241,8 +297,9 @@ def train(
                 "rng": torch.get_rng_state(),
                 "frames": frames,
                 "updates": updates,
+                "evaluations": [r["frames"] for r in rows],
             },
-            run_dir / "checkpoints" / "last.pt",
+            run_dir / CHECKPOINT,
         )
 
     collector = Collector(
@@ -255,43 +312,48 @@ def train(
         auto_register_policy_transforms=False,
     )
     bar = tqdm(total=cfg["frames"], initial=frames, unit="frame", disable=not progress, dynamic_ncols=True)
-    if not rows:
-        run_eval()
-    next_eval = (frames // cfg["eval"]["every"] + 1) * cfg["eval"]["every"]
-    next_ckpt = (frames // cfg["checkpoint"]["every"] + 1) * cfg["checkpoint"]["every"]
-    next_log = frames + cfg["log"]["every"]
-    stats: dict[str, list[float]] = defaultdict(list)
-    update = UpdateStep(agent)
-    start, start_frames = time.perf_counter(), frames
-
-    for data in collector:
-        data = data.reshape(-1)
-        frames += data.numel()
-        if mixer is not None:
-            mixer.set_progress(frames)
-        buffer.extend(data.select(*agent.loss.in_keys))  # only what the loss reads is stored
-        _episode_stats(data, stats)
-        if frames >= init_random:
-            for batch in sample_batches(buffer, opt["updates_per_batch"]):
-                losses = update(batch, update_actor=updates % agent.actor_delay == 0)
-                updates += 1
-                for k, v in losses.items():
-                    if v.numel() == 1:
-                        stats[f"train/{k}"].append(v.item())
-        bar.update(data.numel())
-        if frames >= next_log:
-            fps = (frames - start_frames) / (time.perf_counter() - start)
-            log({k: sum(v) / len(v) for k, v in stats.items() if v} | {"train/fps": fps}, frames)
-            stats.clear()
-            next_log = frames + cfg["log"]["every"]
-        if frames >= next_eval or frames >= cfg["frames"]:
+    try:
+        if not rows:
             run_eval()
-            next_eval = (frames // cfg["eval"]["every"] + 1) * cfg["eval"]["every"]
-        if frames >= next_ckpt or frames >= cfg["frames"]:
-            save_checkpoint()
-            next_ckpt = (frames // cfg["checkpoint"]["every"] + 1) * cfg["checkpoint"]["every"]
-    collector.shutdown()
-    bar.close()
+        next_eval = (frames // cfg["eval"]["every"] + 1) * cfg["eval"]["every"]
+        next_ckpt = (frames // cfg["checkpoint"]["every"] + 1) * cfg["checkpoint"]["every"]
+        next_log = frames + cfg["log"]["every"]
+        stats: dict[str, list[float]] = defaultdict(list)
+        update = UpdateStep(agent)
+        start, start_frames = time.perf_counter(), frames
+
+        for data in collector:
+            data = data.reshape(-1)
+            frames += data.numel()
+            if mixer is not None:
+                mixer.set_progress(frames)
+            buffer.extend(data.select(*agent.loss.in_keys))  # only what the loss reads is stored
+            _episode_stats(data, stats)
+            if frames >= init_random:
+                for batch in sample_batches(buffer, opt["updates_per_batch"]):
+                    losses = update(batch, update_actor=updates % agent.actor_delay == 0)
+                    updates += 1
+                    for k, v in losses.items():
+                        if v.numel() == 1:
+                            stats[f"train/{k}"].append(v.item())
+            bar.update(data.numel())
+            if frames >= next_log:
+                fps = (frames - start_frames) / (time.perf_counter() - start)
+                log({k: sum(v) / len(v) for k, v in stats.items() if v} | {"train/fps": fps}, frames)
+                stats.clear()
+                next_log = frames + cfg["log"]["every"]
+            if frames >= next_eval or frames >= cfg["frames"]:
+                run_eval()
+                next_eval = (frames // cfg["eval"]["every"] + 1) * cfg["eval"]["every"]
+            if frames >= next_ckpt or frames >= cfg["frames"]:
+                save_checkpoint()
+                next_ckpt = (frames // cfg["checkpoint"]["every"] + 1) * cfg["checkpoint"]["every"]
+    finally:
+        collector.shutdown()
+        bar.close()
+        for logger in loggers:
+            if isinstance(logger, TensorboardLogger):
+                logger.experiment.close()
     if rows[-1]["frames"] != frames:
         run_eval()
     save_checkpoint()
@@ -306,8 +368,7 @@ def train(
         "frames_per_s": round((frames - start_frames) / max(wall, 1e-9), 1),
         "final_eval": rows[-1],
     }
-    atomic_write(run_dir / "summary.json", json.dumps(summary, indent=2) + "\n")
-    return run_dir
+    rundir.atomic_write(run_dir / SUMMARY, json.dumps(summary, indent=2) + "\n")
 
 
 def _episode_stats(data: TensorDictBase, stats: dict) -> None:
@@ -318,7 +379,3 @@ def _episode_stats(data: TensorDictBase, stats: dict) -> None:
             stats["train/success_rate"].extend(data["next", "success"][done].float().flatten().tolist())
     if "reused" in data.keys():
         stats["train/reused_fraction"].append(data["reused"].float().mean().item())
-
-
-def remove_run(run_dir: Path) -> None:
-    shutil.rmtree(run_dir, ignore_errors=True)

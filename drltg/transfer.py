@@ -14,14 +14,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import torch
 import yaml
 from tensordict.nn import TensorDictModuleBase, TensorDictSequential
+from torchrl.envs import EnvBase
 
 from drltg.agents import Agent, make_agent
 from drltg.envs import get_task, make_env
 from drltg.envs.robosuite.layout import TASKS as MANIPULATION
 from drltg.errors import UsageError
+from drltg.rundir import CHECKPOINT, CONFIG, SUMMARY, is_complete, load_checkpoint
 
 METHODS = ("none", "reward-shaping", "policy-reuse", "model-reuse")
 DEMONSTRATOR = "demonstrator:"
@@ -39,11 +40,23 @@ def check(cfg: dict) -> None:
         if demonstrated is not None:
             _check_demonstrator(cfg, demonstrated)
             return
-        ckpt = Path(t["source"]).expanduser() / "checkpoints" / "last.pt"
-        if not ckpt.is_file():
-            raise UsageError(f"transfer.source '{t['source']}' holds no checkpoints/last.pt; train the source first.")
+        _check_source_run(Path(t["source"]).expanduser(), t)
     if t["method"] == "reward-shaping" and get_task(cfg["task"]).potential is None:
         raise UsageError(f"task '{cfg['task']}' has no shaping potential registered.")
+
+
+def _check_source_run(run: Path, t: dict) -> None:
+    if not (run / CHECKPOINT).is_file():
+        raise UsageError(f"transfer.source '{t['source']}' holds no {CHECKPOINT.as_posix()}; train the source first.")
+    if not (run / CONFIG).is_file():
+        raise UsageError(f"transfer.source '{t['source']}' holds no {CONFIG}; is it a drltg run directory?")
+    if not is_complete(run) and not t.get("allow_incomplete"):
+        frames = load_checkpoint(run, mmap=True).get("frames", "?")
+        raise UsageError(
+            f"transfer.source '{t['source']}' did not finish (no {SUMMARY}; its checkpoint is at frame {frames}); "
+            f"finish it with `drltg train --resume --run-dir {t['source']}`, or reuse it as it is with "
+            "transfer.allow_incomplete=true."
+        )
 
 
 def shaping(cfg: dict):
@@ -72,35 +85,57 @@ def _check_demonstrator(cfg: dict, task: str) -> None:
         )
 
 
-def source_actor(cfg: dict) -> TensorDictModuleBase:
+def _spaces(env: EnvBase) -> tuple[str, tuple[int, ...]]:
+    """What a policy of ``env`` reads and writes: the observation size, the action spec's kind and size."""
+    action = env.full_action_spec_unbatched["action"]
+    return (f"{env.full_observation_spec_unbatched['observation'].shape[-1]} observation entries",
+            f"{type(action).__name__} actions of shape {tuple(action.shape)}")
+
+
+def check_same_spaces(source: EnvBase, target: EnvBase, source_name: str, target_name: str) -> None:
+    """Refuse to run a policy of ``source`` on ``target`` when they differ in observation or action space."""
+    for mine, theirs in zip(_spaces(source), _spaces(target)):
+        if mine != theirs:
+            raise UsageError(
+                f"the policy of {source_name} reads {_spaces(source)[0]} and writes {_spaces(source)[1]}, but "
+                f"{target_name} has {_spaces(target)[0]} and {_spaces(target)[1]}."
+            )
+
+
+def source_actor(cfg: dict, target_env: EnvBase | None = None) -> TensorDictModuleBase:
     """The past policy: the source run's trained actor, rebuilt from its saved config and checkpoint,
-    or the scripted demonstrator of ``demonstrator:TASK``."""
+    or the scripted demonstrator of ``demonstrator:TASK``. With ``target_env``, a source that observes
+    or acts differently is refused here rather than failing inside the first rollout."""
     task = demonstrator_task(cfg["transfer"]["source"])
     if task is not None:
         from drltg.envs.robosuite.demonstrator import demonstrator_for
 
         return demonstrator_for(task)
     run = Path(cfg["transfer"]["source"]).expanduser()
-    src_cfg = yaml.safe_load((run / "config.yaml").read_text())
+    src_cfg = yaml.safe_load((run / CONFIG).read_text())
     env = make_env(src_cfg["task"], device=cfg["device"], **src_cfg["env"])
+    if target_env is not None:
+        check_same_spaces(env, target_env, f"transfer.source '{cfg['transfer']['source']}' ({src_cfg['task']})",
+                          f"task '{cfg['task']}'")
     agent = make_agent(env, src_cfg)
-    state = torch.load(run / "checkpoints" / "last.pt", map_location=cfg["device"], weights_only=False)
-    agent.loss.load_state_dict(state["loss"])
+    agent.loss.load_state_dict(load_checkpoint(run, map_location=cfg["device"])["loss"])
     return agent.actor
 
 
-def reuse_policy(cfg: dict, agent: Agent):
+def reuse_policy(cfg: dict, agent: Agent, target_env: EnvBase | None = None):
     """The learner's exploration policy followed by the pi-reuse mixer over the source actor."""
     from drltg.collectors import PiReuse, PolicyReuse
 
     t = cfg["transfer"]
     schedule = PiReuse(t["psi"], t["upsilon"], psi_end=t["psi_end"], annealing_frames=t["annealing_frames"])
-    mixer = PolicyReuse(source_actor(cfg), schedule=schedule)
+    mixer = PolicyReuse(source_actor(cfg, target_env), schedule=schedule)
     return TensorDictSequential(agent.policy, mixer), mixer
 
 
 def reuse_weights(cfg: dict, agent: Agent):
-    """Initialise every network of the learner (actor, critics, targets) from the source run."""
+    """Initialise every network of the learner (actor, critics, targets) from the source run; a source
+    of another kind of learner is refused unless ``transfer.partial`` accepts a partial load."""
     from drltg.model_reuse import load_from_run
 
-    return load_from_run(agent.loss, cfg["transfer"]["source"], freeze=cfg["transfer"]["freeze"])
+    t = cfg["transfer"]
+    return load_from_run(agent.loss, t["source"], freeze=t["freeze"], partial=t.get("partial", False))

@@ -13,11 +13,11 @@ from __future__ import annotations
 import argparse
 import io
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from drltg import rundir
 from drltg.errors import UsageError
 
 
@@ -38,7 +38,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def _policy_and_env(args):
     """The acting policy, the env to step (with the agent's transforms), the env that renders, the
     policy's name and the task."""
-    import torch
     import yaml
     from torchrl.envs import TransformedEnv
 
@@ -58,17 +57,21 @@ def _policy_and_env(args):
         return policy, env, env, "demonstrator", args.task
 
     from drltg.agents import make_agent
+    from drltg.train import build_env
+    from drltg.transfer import check_same_spaces
 
     run = Path(args.source).expanduser().resolve()
-    config, checkpoint = run / "config.yaml", run / "checkpoints" / "last.pt"
+    config, checkpoint = run / rundir.CONFIG, run / rundir.CHECKPOINT
     if not config.is_file() or not checkpoint.is_file():
-        raise UsageError(f"'{run}' is not a run directory with config.yaml and checkpoints/last.pt.")
+        raise UsageError(f"'{run}' is not a run directory with {rundir.CONFIG} and {rundir.CHECKPOINT.as_posix()}.")
     cfg = yaml.safe_load(config.read_text())
     task = args.task or cfg["task"]
-    base = make_env(task, seed=args.seed, **cfg["env"])
+    base = build_env({**cfg, "task": task, "device": "cpu"}, seed=args.seed)
+    if task != cfg["task"]:
+        check_same_spaces(build_env({**cfg, "device": "cpu"}), base, f"run '{run.name}' ({cfg['task']})",
+                          f"task '{task}'")
     agent = make_agent(base, cfg)
-    state = torch.load(checkpoint, map_location="cpu", weights_only=False)
-    agent.loss.load_state_dict(state["loss"])
+    agent.loss.load_state_dict(rundir.load_checkpoint(run)["loss"])
     env = TransformedEnv(base)
     for transform in agent.env_transforms:
         env.append_transform(transform.clone())
@@ -95,28 +98,21 @@ def record(policy, env, render_env, max_steps: int | None = None) -> tuple[list[
     return frames, success
 
 
-def _atomic_save(path: Path, write) -> None:
-    """``write(tmp_path)`` into a temporary file beside ``path``, then rename it to ``path``."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
-    os.close(fd)
-    try:
-        write(tmp)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-
-
 def write_video(path: Path, frames: list[np.ndarray], fps: int) -> None:
     import imageio.v2 as imageio
 
-    if path.suffix == ".gif":
-        _atomic_save(path, lambda tmp: imageio.mimsave(tmp, frames, duration=1000 / fps, loop=0))
-    else:
-        _atomic_save(path, lambda tmp: imageio.mimsave(tmp, frames, fps=fps, macro_block_size=1))
+    # imageio picks the writer from the file's suffix: the temporary file gets the video's own
+    with rundir.atomic_path(path) as tmp:
+        video = f"{tmp}{path.suffix}"
+        try:
+            if path.suffix == ".gif":
+                imageio.mimsave(video, frames, duration=1000 / fps, loop=0)
+            else:
+                imageio.mimsave(video, frames, fps=fps, macro_block_size=1)
+            os.replace(video, tmp)
+        finally:
+            if os.path.exists(video):
+                os.remove(video)
 
 
 def write_filmstrip(path: Path, frames: list[np.ndarray], success: list[bool], count: int, title: str) -> None:
@@ -138,7 +134,7 @@ def write_filmstrip(path: Path, frames: list[np.ndarray], success: list[bool], c
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100)
     plt.close(fig)
-    _atomic_save(path, lambda tmp: Path(tmp).write_bytes(buf.getvalue()))
+    rundir.atomic_write(path, buf.getvalue())
 
 
 GL_LIBRARIES = {"egl": ("EGL", "Mesa's libEGL, Debian package libegl1"),
@@ -165,8 +161,7 @@ def run(args: argparse.Namespace) -> int:
     policy, env, render_env, name, task = _policy_and_env(args)
     if hasattr(render_env, "render_camera"):
         render_env.render_camera, render_env.render_size = args.camera, (args.size, args.size)
-    out = (args.out or Path(args.source) / "videos").expanduser().resolve()
-    out.mkdir(parents=True, exist_ok=True)
+    out = rundir.check_directory(args.out or Path(args.source) / "videos", "--out")
     for episode in range(args.episodes):
         try:
             frames, success = record(policy, env, render_env, args.max_steps)

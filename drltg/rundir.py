@@ -1,0 +1,305 @@
+"""A run directory on disk: its file names, atomic writes, its owner lock, eval.csv and log truncation.
+
+    config.yaml          the resolved config; `drltg train --config config.yaml` reproduces the run
+    eval.csv             frames,return_mean,return_std,episodes[,success_rate]  (one row per evaluation)
+    logs/csv/, logs/tensorboard/   training scalars (TorchRL CSVLogger + TensorboardLogger)
+    checkpoints/last.pt  weights, optimizer, replay buffer and RNG state (for --resume and model reuse)
+    model_reuse.txt      what model reuse loaded (model-reuse runs)
+    summary.json         written last: the run is complete when it exists
+    .drltg.lock          the pid and host of the process writing the directory, while it runs
+
+Every file is written through a temporary file in the same folder and a rename, so a reader never sees
+half a file and a failed write leaves the previous version. Experiment and sweep folders are owned
+through the same lock.
+"""
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import os
+import socket
+import tempfile
+import time
+import uuid
+from pathlib import Path
+from typing import Iterator
+
+from drltg.errors import UsageError
+
+CONFIG = "config.yaml"
+EVAL = "eval.csv"
+SUMMARY = "summary.json"
+CHECKPOINT = Path("checkpoints") / "last.pt"
+LOGS = "logs"
+MODEL_REUSE = "model_reuse.txt"
+LOCK = ".drltg.lock"
+EVAL_COLUMNS = ["frames", "return_mean", "return_std", "episodes", "success_rate"]
+
+__all__ = ["atomic_write", "atomic_torch_save", "atomic_path", "write_files", "read_eval_csv", "write_eval_csv",
+           "is_complete", "check_directory", "lock", "load_checkpoint", "truncate_logs"]
+
+
+# ------------------------------------------------------------------------------------- atomic files
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | Path) -> Iterator[str]:
+    """Yield a temporary path beside ``path``; once the block has written it, rename it to ``path``.
+
+    The file gets the mode the umask gives any new file (``mkstemp`` makes it 0600). On any failure
+    the temporary file is removed and ``path`` is left as it was; an ``OSError`` (a full disk, a
+    read-only folder) becomes one :class:`UsageError` sentence.
+    """
+    path = Path(path)
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        os.close(fd)
+        yield tmp
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, path)
+    except BaseException as err:
+        if tmp is not None:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(tmp)
+        if isinstance(err, OSError):
+            raise UsageError(f"cannot write '{path}' ({err.strerror or err}).") from None
+        raise
+
+
+def atomic_write(path: str | Path, data: str | bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file and a rename: readers never see half a file."""
+    data = data.encode() if isinstance(data, str) else data
+    with atomic_path(path) as tmp:
+        fd = os.open(tmp, os.O_WRONLY)
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view):]
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+def atomic_torch_save(obj, path: str | Path) -> None:
+    import torch
+
+    buf = io.BytesIO()
+    torch.save(obj, buf)
+    atomic_write(path, buf.getvalue())
+
+
+def write_files(directory: str | Path, files: dict[str, bytes | str]) -> None:
+    """Create ``directory`` and write every file atomically."""
+    for name, data in files.items():
+        atomic_write(Path(directory) / name, data)
+
+
+# ---------------------------------------------------------------------------------------- eval.csv
+def write_eval_csv(path: str | Path, rows: list[dict]) -> None:
+    columns = [c for c in EVAL_COLUMNS if any(c in r for r in rows)]
+    out = io.StringIO()
+    writer = csv.DictWriter(out, fieldnames=columns, lineterminator="\n")
+    writer.writeheader()
+    for r in rows:
+        writer.writerow({c: r[c] for c in columns})
+    atomic_write(path, out.getvalue())
+
+
+def read_eval_csv(path: str | Path) -> list[dict]:
+    """The rows of a run's eval.csv; a truncated or foreign file is one :class:`UsageError` sentence."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise UsageError(f"'{path}' is missing.") from None
+    except UnicodeDecodeError:
+        raise UsageError(f"'{path}' is not a text file.") from None
+    reader = csv.DictReader(io.StringIO(text))
+    if reader.fieldnames is None or "frames" not in reader.fieldnames:
+        raise UsageError(f"'{path}' is not a drltg eval.csv (no 'frames' column).")
+    rows = []
+    try:
+        if not text.endswith("\n"):  # every write ends with a newline
+            raise ValueError
+        for row in reader:
+            if None in row or None in row.values():
+                raise ValueError
+            rows.append({k: int(v) if k in ("frames", "episodes") else float(v) for k, v in row.items()})
+    except ValueError:
+        raise UsageError(f"'{path}' is truncated or malformed at line {max(reader.line_num, 1)}.") from None
+    return rows
+
+
+def is_complete(run_dir: str | Path) -> bool:
+    return (Path(run_dir) / SUMMARY).is_file()
+
+
+# ---------------------------------------------------------------------------------------- ownership
+def check_directory(path: str | Path, option: str) -> Path:
+    """``path`` resolved; refuse one that exists but is not a directory."""
+    path = Path(path).expanduser().resolve()
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"{option} '{path}' is a file, not a directory; choose another {option}.")
+    return path
+
+
+def _alive(pid: int, host: str) -> bool:
+    if host != socket.gethostname():
+        return True  # cannot tell from here
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def _holder(path: Path) -> tuple[str, int, str] | None:
+    """(text, pid, host) of the lock file, ``None`` if it is gone; pid 0 while it is being written."""
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        return None
+    parts = text.split()
+    try:
+        return text, int(parts[0]), parts[1]
+    except (IndexError, ValueError):
+        return text, 0, ""
+
+
+def _break_stale(path: Path, seen: str) -> None:
+    """Remove a dead owner's lock, unless another process replaced it in the meantime."""
+    grave = path.with_name(f"{path.name}.{os.getpid()}.{uuid.uuid4().hex}.stale")
+    try:
+        os.rename(path, grave)
+    except FileNotFoundError:
+        return
+    if grave.read_text() != seen:  # a live lock, taken over by another process: put it back
+        with contextlib.suppress(FileExistsError):
+            os.link(grave, path)
+    os.unlink(grave)
+
+
+def _acquire(directory: Path, what: str) -> str:
+    path = directory / LOCK
+    token = f"{os.getpid()} {socket.gethostname()} {uuid.uuid4().hex}\n"
+    for _ in range(10):
+        try:
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+        except FileExistsError:
+            held = _holder(path)
+            if held is None:
+                continue
+            text, pid, host = held
+            if pid == 0:  # written right now, or left empty by a crash
+                with contextlib.suppress(FileNotFoundError):
+                    if time.time() - path.stat().st_mtime > 10:
+                        _break_stale(path, text)
+                time.sleep(0.05)
+                continue
+            if _alive(pid, host):
+                raise UsageError(
+                    f"{what} '{directory}' is in use by process {pid} on {host}; wait for it to end, or "
+                    f"delete '{path}' if that process is gone."
+                ) from None
+            _break_stale(path, text)
+            continue
+        except OSError as err:
+            raise UsageError(f"cannot write to {what} '{directory}' ({err.strerror}).") from None
+        with os.fdopen(fd, "w") as f:
+            f.write(token)
+        return token
+    raise UsageError(f"cannot take the lock of {what} '{directory}'; another process keeps changing '{path}'.")
+
+
+@contextlib.contextmanager
+def lock(directory: str | Path, what: str = "run directory") -> Iterator[None]:
+    """Own ``directory`` (it must exist) while the block runs; a second owner is refused in one sentence.
+
+    The lock file is created with ``O_CREAT | O_EXCL``, so of two processes exactly one gets it; it
+    holds the owner's pid and host and is removed on exit. A lock left by a process that no longer
+    runs on this host is taken over.
+    """
+    directory = Path(directory)
+    token = _acquire(directory, what)
+    try:
+        yield
+    finally:
+        path = directory / LOCK
+        held = _holder(path)
+        if held is not None and held[0] == token:
+            with contextlib.suppress(FileNotFoundError):
+                path.unlink()
+
+
+def entries(directory: Path) -> list[Path]:
+    """What ``directory`` holds besides its lock (nothing when it does not exist)."""
+    if not directory.is_dir():
+        return []
+    return [p for p in directory.iterdir() if p.name != LOCK]
+
+
+# -------------------------------------------------------------------------------------- checkpoint
+def load_checkpoint(run_dir: str | Path, map_location="cpu", mmap: bool = False) -> dict:
+    """``checkpoints/last.pt`` of a run; a truncated or foreign file is one :class:`UsageError` sentence."""
+    import torch
+
+    path = Path(run_dir) / CHECKPOINT
+    if not path.is_file():
+        raise UsageError(f"'{run_dir}' holds no {CHECKPOINT.as_posix()}; train the run first or fix the path.")
+    try:
+        ckpt = torch.load(path, map_location=map_location, weights_only=False, mmap=mmap)
+    except Exception as err:  # a truncated or foreign file surfaces as one of many library errors
+        raise UsageError(f"cannot read checkpoint '{path}' ({type(err).__name__}); is it truncated?") from None
+    if not isinstance(ckpt, dict) or "loss" not in ckpt:
+        raise UsageError(f"checkpoint '{path}' has no 'loss' entry; is it a drltg training checkpoint?")
+    return ckpt
+
+
+# -------------------------------------------------------------------------------------------- logs
+def truncate_logs(run_dir: str | Path, frame: int) -> None:
+    """Drop every logged scalar after ``frame`` (CSVLogger files and TensorBoard event files).
+
+    A resumed run logs again from its checkpoint's frame; without this the logs would hold those
+    steps twice and their curves would run backwards.
+    """
+    logs = Path(run_dir) / LOGS
+    for path in sorted((logs / "csv").rglob("*.csv")):
+        _truncate_csv(path, frame)
+    for path in sorted((logs / "tensorboard").rglob("*tfevents*")):
+        _truncate_events(path, frame)
+
+
+def _truncate_csv(path: Path, frame: int) -> None:
+    text = path.read_text(errors="replace")
+    kept = []
+    for line in text.splitlines(keepends=True):
+        step = line.split(",", 1)[0]
+        if line.endswith("\n") and step.strip().lstrip("-").isdigit() and int(step) <= frame:
+            kept.append(line)
+    if "".join(kept) != text:
+        atomic_write(path, "".join(kept))
+
+
+def _truncate_events(path: Path, frame: int) -> None:
+    from tensorboard.backend.event_processing.event_file_loader import RawEventFileLoader
+    from tensorboard.compat.proto.event_pb2 import Event
+    from tensorboard.summary.writer.record_writer import RecordWriter
+
+    records = list(RawEventFileLoader(str(path)).Load())
+    kept = [r for r in records if Event.FromString(r).step <= frame]
+    if len(kept) == len(records) and path.stat().st_size == sum(len(r) + 16 for r in records):
+        return
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        writer = RecordWriter(f)
+        for record in kept:
+            writer.write(record)
+        f.flush()

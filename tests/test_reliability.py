@@ -1,0 +1,330 @@
+"""Runs own their directories, nothing is lost or mixed, and every mistake is one sentence (exit 2)."""
+import errno
+import os
+import shutil
+import subprocess
+import sys
+import types
+from pathlib import Path
+
+import pytest
+import torch
+import yaml
+
+import drltg.train as train_mod
+from drltg import rundir
+from drltg.cli import main
+from drltg.curves import read_csvlogger, read_tensorboard
+from drltg.errors import UsageError
+
+TINY = ["network.hidden=[16,16]", "collector.num_envs=4", "collector.frames_per_batch=16",
+        "collector.init_random_frames=32", "optim.updates_per_batch=1", "buffer.batch_size=16",
+        "eval.every=128", "eval.episodes=2", "checkpoint.every=256", "log.every=64"]
+OPTS = [a for o in TINY for a in ("-o", o)]
+
+
+def train_args(run_dir, *extra, task="fourrooms/northeast", frames=64):
+    return ["train", task, "--frames", str(frames), "--run-dir", str(run_dir), "--no-progress", *OPTS, *extra]
+
+
+def one_sentence(capsys, code, expected, *fragments):
+    err = capsys.readouterr().err
+    assert code == expected
+    if expected == 2:
+        assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    for fragment in fragments:
+        assert fragment in err, err
+    return err
+
+
+def tree(path: Path) -> dict:
+    return {str(p.relative_to(path)): p.read_bytes() for p in sorted(path.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def source(tmp_path_factory):
+    """A complete tiny SAC run on fourrooms/northeast."""
+    run = tmp_path_factory.mktemp("source") / "sac"
+    assert main(train_args(run, frames=128)) == 0
+    return run
+
+
+@pytest.fixture(scope="module")
+def killed(tmp_path_factory):
+    """A run killed at frame 448 of 512: checkpoint at 256, evaluations and logs up to 384."""
+    run = tmp_path_factory.mktemp("killed") / "run"
+    real, calls = train_mod._episode_stats, {"n": 0}
+
+    def kill_at_frame_448(data, stats):
+        calls["n"] += 1
+        if calls["n"] == 28:
+            raise KeyboardInterrupt
+        return real(data, stats)
+
+    train_mod._episode_stats = kill_at_frame_448
+    try:
+        assert main(train_args(run, "-o", "log.tensorboard=true", frames=512)) == 130
+    finally:
+        train_mod._episode_stats = real
+    assert [r["frames"] for r in rundir.read_eval_csv(run / "eval.csv")] == [0, 128, 256, 384]
+    assert torch.load(run / "checkpoints" / "last.pt", weights_only=False)["frames"] == 256
+    return run
+
+
+@pytest.fixture
+def copy_of_killed(killed, tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(killed, run)
+    return run
+
+
+# -------------------------------------------------------------------------------- 1: ownership
+def test_two_processes_into_one_run_dir_one_is_refused(tmp_path):
+    run = tmp_path / "run"
+    procs = [subprocess.Popen([sys.executable, "-m", "drltg.cli", *train_args(run, "--seed", str(seed), frames=128)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for seed in (1, 2)]
+    results = [(p.wait(timeout=300), p.stderr.read(), seed) for p, seed in zip(procs, (1, 2))]
+    assert sorted(code for code, _, _ in results) == [0, 2]
+    (_, _, winner), = [r for r in results if r[0] == 0]
+    (_, refusal, _), = [r for r in results if r[0] == 2]
+    assert len(refusal.strip().splitlines()) == 1
+    assert "is in use by process" in refusal or "already exists" in refusal
+    assert yaml.safe_load((run / "config.yaml").read_text())["seed"] == winner
+    assert '"seed": %d' % winner in (run / "summary.json").read_text()
+    assert not (run / rundir.LOCK).exists()
+
+
+def test_a_live_owner_is_refused_and_a_dead_one_taken_over(copy_of_killed, tmp_path, capsys):
+    run = copy_of_killed
+    before = tree(run)
+    (run / rundir.LOCK).write_text(f"{os.getpid()} {os.uname().nodename} x\n")
+    one_sentence(capsys, main(["train", "--resume", "--run-dir", str(run), "--no-progress"]), 2,
+                 f"is in use by process {os.getpid()}")
+    assert tree(run) == before | {rundir.LOCK: (run / rundir.LOCK).read_bytes()}
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    (run / rundir.LOCK).write_text(f"{dead.pid} {os.uname().nodename} x\n")
+    one_sentence(capsys, main(["train", "--resume", "--run-dir", str(run), "--no-progress"]), 0)
+    assert rundir.is_complete(run) and not (run / rundir.LOCK).exists()
+
+
+def test_lock_file_is_exclusive_and_released(tmp_path):
+    with rundir.lock(tmp_path):
+        assert (tmp_path / rundir.LOCK).read_text().split()[0] == str(os.getpid())
+        with pytest.raises(UsageError, match="is in use by process"):
+            with rundir.lock(tmp_path):
+                pass
+    assert not (tmp_path / rundir.LOCK).exists()
+
+
+@pytest.mark.parametrize("command", [
+    ["experiment", "gridrooms/northeast", "--method", "reward-shaping", "--seeds", "1", "--frames", "64"],
+    ["sweep", "SPEC"],
+])
+def test_experiment_and_sweep_folders_are_owned(command, tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / rundir.LOCK).write_text(f"{os.getpid()} {os.uname().nodename} x\n")
+    spec = tmp_path / "spec.yaml"
+    spec.write_text(yaml.safe_dump({"pairs": ["gridrooms-near"], "methods": ["reward-shaping"], "seeds": 1,
+                                    "frames": 64}))
+    command = [str(spec) if a == "SPEC" else a for a in command]
+    one_sentence(capsys, main(command + ["--out", str(out)]), 2, "folder", "is in use by process")
+    assert os.listdir(out) == [rundir.LOCK]
+
+
+# ------------------------------------------------------------------------------- 2, 3: model reuse
+@pytest.fixture(scope="module")
+def soc_source(tmp_path_factory):
+    run = tmp_path_factory.mktemp("soc") / "run"
+    assert main(train_args(run, "--algo", "soc", "--options", "2", frames=64)) == 0
+    return run
+
+
+def test_model_reuse_across_learners_is_refused_unless_partial(soc_source, tmp_path, capsys):
+    target = tmp_path / "target"
+    reuse = ["-o", "transfer.method=model-reuse", "-o", f"transfer.source={soc_source}"]
+    one_sentence(capsys, main(train_args(target, *reuse)), 2, "lacks trainable ones", "transfer.partial=true")
+    assert not target.exists()
+    assert main(train_args(target, *reuse, "-o", "transfer.partial=true")) == 0
+    assert "model reuse: 2 loaded" in capsys.readouterr().out
+
+
+def test_model_reuse_prints_its_load_summary(source, tmp_path, capsys):
+    assert main(train_args(tmp_path / "t", "-o", "transfer.method=model-reuse", "-o", f"transfer.source={source}")) == 0
+    assert "model reuse: 22 loaded, 0 widened, 0 narrowed, 0 skipped" in capsys.readouterr().out
+
+
+def test_an_unfinished_source_is_refused_naming_its_frames(copy_of_killed, tmp_path, capsys):
+    target = tmp_path / "target"
+    reuse = ["-o", "transfer.method=policy-reuse", "-o", f"transfer.source={copy_of_killed}"]
+    one_sentence(capsys, main(train_args(target, *reuse)), 2, "did not finish", "checkpoint is at frame 256",
+                 "transfer.allow_incomplete=true")
+    assert not target.exists()
+    assert main(train_args(target, *reuse, "-o", "transfer.allow_incomplete=true")) == 0
+
+
+# ------------------------------------------------------------------------------------ 4, 5: resume
+def test_resume_rewrites_the_logs_to_the_checkpoint(copy_of_killed, capsys):
+    run = copy_of_killed
+    one_sentence(capsys, main(["train", "--resume", "--run-dir", str(run), "--no-progress"]), 0)
+    assert [r["frames"] for r in rundir.read_eval_csv(run / "eval.csv")] == [0, 128, 256, 384, 512]
+    for path in (run / "logs" / "csv" / "scalars").rglob("*.csv"):
+        steps = [int(line.split(",")[0]) for line in path.read_text().splitlines()]
+        assert steps == sorted(set(steps)), path
+    csv_curve = read_csvlogger(run / "logs" / "csv" / "scalars", tag="eval/return_mean")
+    tb_curve = read_tensorboard(run / "logs" / "tensorboard", tag="eval/return_mean")
+    assert list(csv_curve.frames) == list(tb_curve.frames) == [0, 128, 256, 384, 512]
+    assert list(read_tensorboard(run / "logs" / "tensorboard", tag="train/fps").frames) == list(range(64, 513, 64))
+
+
+@pytest.mark.parametrize("damage, message", [
+    (lambda run: (run / "eval.csv").write_text(
+        "".join(line for line in (run / "eval.csv").read_text().splitlines(True) if not line.startswith("128,"))),
+     "lacks the evaluations at frames [128]"),
+    (lambda run: (run / "eval.csv").unlink(), "eval.csv is missing"),
+    (lambda run: (run / "eval.csv").write_bytes((run / "eval.csv").read_bytes()[:-9]), "is truncated or malformed"),
+    (lambda run: (run / "checkpoints" / "last.pt").write_bytes((run / "checkpoints" / "last.pt").read_bytes()[:5000]),
+     "cannot read checkpoint"),
+])
+def test_resume_of_a_damaged_run_is_one_sentence(copy_of_killed, damage, message, capsys):
+    damage(copy_of_killed)
+    before = tree(copy_of_killed)
+    one_sentence(capsys, main(["train", "--resume", "--run-dir", str(copy_of_killed), "--no-progress"]), 2, message)
+    assert tree(copy_of_killed) == before
+
+
+def test_resume_in_a_read_only_run_dir_is_one_sentence(copy_of_killed, monkeypatch, capsys):
+    real = os.open
+
+    def read_only(path, flags, *args, **kwargs):
+        if str(path).startswith(str(copy_of_killed)) and flags & (os.O_WRONLY | os.O_RDWR | os.O_CREAT):
+            raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(path))
+        return real(path, flags, *args, **kwargs)
+
+    before = tree(copy_of_killed)
+    monkeypatch.setattr(os, "open", read_only)
+    one_sentence(capsys, main(["train", "--resume", "--run-dir", str(copy_of_killed), "--no-progress"]), 2,
+                 "cannot write to run directory", "Read-only file system")
+    assert tree(copy_of_killed) == before
+
+
+# ---------------------------------------------------------------------------------- 6, 7: files
+def full_disk(monkeypatch):
+    """Every write of drltg's run files fails as on a full disk."""
+    def write(fd, data):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(rundir, "os", types.SimpleNamespace(**{**vars(os), "write": write}))
+
+
+def test_a_full_disk_leaves_no_temporary_file_and_the_old_content(tmp_path, monkeypatch):
+    path = tmp_path / "eval.csv"
+    path.write_text("old\n")
+    full_disk(monkeypatch)
+    with pytest.raises(UsageError, match="No space left on device"):
+        rundir.atomic_write(path, "new\n")
+    assert os.listdir(tmp_path) == ["eval.csv"] and path.read_text() == "old\n"
+
+
+def test_a_full_disk_during_train_is_one_sentence_and_leaves_nothing(tmp_path, monkeypatch, capsys):
+    full_disk(monkeypatch)
+    one_sentence(capsys, main(train_args(tmp_path / "run")), 2, "cannot write", "No space left on device")
+    assert os.listdir(tmp_path) == []
+
+
+def test_run_files_respect_the_umask(tmp_path):
+    old = os.umask(0o002)
+    try:
+        assert main(train_args(tmp_path / "run")) == 0
+    finally:
+        os.umask(old)
+    for name in ("config.yaml", "eval.csv", "summary.json", "checkpoints/last.pt"):
+        assert (tmp_path / "run" / name).stat().st_mode & 0o777 == 0o664, name
+
+
+# ---------------------------------------------------------------------------- 8, 9: checked early
+@pytest.mark.parametrize("extra, message", [
+    (["-o", "env.horizon=abc"], "horizon"),
+    (["-o", "env.colour=red"], "colour"),
+])
+def test_env_settings_are_checked_before_the_run_dir_exists(extra, message, tmp_path, capsys):
+    one_sentence(capsys, main(train_args(tmp_path / "run", *extra)), 2, message)
+    assert not (tmp_path / "run").exists()
+
+
+def test_an_env_the_task_cannot_build_is_one_sentence():
+    cfg = {"task": "fourrooms/northeast", "device": "cpu", "env": {"goal": "x"}}
+    with pytest.raises(UsageError, match=r"cannot be built with env settings \{'goal': 'x'\}"):
+        train_mod.build_env(cfg)
+
+
+def test_a_run_dir_or_out_that_is_a_file(tmp_path, capsys):
+    file = tmp_path / "file"
+    file.write_text("mine\n")
+    one_sentence(capsys, main(train_args(file)), 2, "is a file, not a directory")
+    one_sentence(capsys, main(["experiment", "gridrooms/northeast", "--method", "reward-shaping", "--frames", "64",
+                               "--out", str(file)]), 2, "is a file, not a directory")
+    assert file.read_text() == "mine\n"
+
+
+def test_video_on_a_task_with_another_observation_size(source, tmp_path, capsys):
+    one_sentence(capsys, main(["video", str(source), "--task", "gridrooms/northeast", "--out", str(tmp_path / "v")]),
+                 2, "reads 2 observation entries", "has 104 observation entries")
+    assert not (tmp_path / "v").exists()
+
+
+def test_policy_reuse_from_another_observation_space_is_checked_first(source, tmp_path, capsys):
+    target = tmp_path / "target"
+    one_sentence(capsys, main(train_args(target, "-o", "transfer.method=policy-reuse", "-o", f"transfer.source={source}",
+                                         task="gridrooms/northeast")), 2, "reads 2 observation entries")
+    assert not target.exists()
+
+
+def test_a_failed_start_removes_what_it_wrote(tmp_path, monkeypatch):
+    def broken(data, stats):
+        raise RuntimeError("broken")
+
+    monkeypatch.setattr(train_mod, "_episode_stats", broken)
+    with pytest.raises(RuntimeError):
+        main(train_args(tmp_path / "run"))
+    assert not (tmp_path / "run").exists()
+    monkeypatch.undo()
+    assert main(train_args(tmp_path / "run")) == 0  # the same command again
+
+
+# -------------------------------------------------------------------- 10, 11, 12: experiment, sweep
+EXPERIMENT = ["experiment", "gridrooms/northeast", "--method", "reward-shaping", "--seeds", "1", "--frames", "64"] + OPTS
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--threshold", "abc"], "--threshold 'abc' is neither a number"),
+    (["--workers", "0"], "--workers must be at least 1"),
+    (["--algo", "ppo"], "'ppo'"),
+    (["-o", "env.horizon=abc"], "horizon"),
+])
+def test_experiment_checks_everything_before_writing(extra, message, tmp_path, capsys):
+    one_sentence(capsys, main(EXPERIMENT + extra + ["--out", str(tmp_path / "exp")]), 2, message)
+    assert not (tmp_path / "exp").exists()
+
+
+def test_experiment_out_relative_or_absolute_is_the_same_experiment(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(EXPERIMENT + ["--out", "exp"]) == 0
+    stamps = {p: p.stat().st_mtime_ns for p in (tmp_path / "exp").glob("*/seed-*/summary.json")}
+    assert len(stamps) == 2
+    capsys.readouterr()
+    assert main(EXPERIMENT + ["--out", str(tmp_path / "exp")]) == 0
+    assert stamps == {p: p.stat().st_mtime_ns for p in stamps}
+
+
+@pytest.mark.parametrize("spec, extra, message", [
+    ({"threshold": "abc"}, [], "threshold 'abc' is neither a number"),
+    ({}, ["--workers", "0"], "--workers must be at least 1"),
+])
+def test_sweep_checks_its_settings_before_training(spec, extra, message, tmp_path, capsys):
+    path = tmp_path / "spec.yaml"
+    path.write_text(yaml.safe_dump({"pairs": ["gridrooms-near"], "methods": ["reward-shaping"], "seeds": 1,
+                                    "frames": 64, **spec}))
+    one_sentence(capsys, main(["sweep", str(path), "--out", str(tmp_path / "out")] + extra), 2, message)
+    assert not (tmp_path / "out").exists()
