@@ -27,8 +27,11 @@ over pairs ``d_i = T_i - B_i`` when paired; formulas in :mod:`drltg.metrics`):
 ``probability_of_improvement`` P(T > B): paired, the fraction of pairs with T_i > B_i; unpaired, over all
                               (B seed, T seed) combinations; ties 1/2; on the areas (``_initial``,
                               ``_final``: on the initial / final performances)
-``*_with_source``             total time (Taylor & Stone 2009, sec. 3.1): each transfer run first spends
-                              its source run's frames (from ``transfer.source`` or ``--source-frames``)
+``*_with_source``             total time (Taylor & Stone 2009, sec. 3.1): a transfer run has first spent
+                              S source frames (``transfer.source``'s config or ``--source-frames``), so
+                              both sides are compared at equal total frames: mean return over
+                              [start + S, budget] of B against T's first span - S target frames; the
+                              transfer's time to threshold + S
 ``<name>_ci``                 ``--confidence`` interval: paired t or Welch/Hsu t for mean differences,
                               Fieller for the ratio, a score interval for P(T > B); absent (with the
                               reason in ``settings.warnings``) below 3 seeds a side, without spread, or
@@ -432,30 +435,38 @@ def _frames_of_run(run_dir: Path, source: str) -> float | None:
     return None
 
 
-def _with_source(transfer: Sequence[Curve], scores: pd.DataFrame, frames: list[float], *, start, budget,
-                 threshold, filler: float, s: ReportSettings) -> None:
-    """Taylor & Stone's total-time view on one budget: run i first spends ``S_i`` frames on the source
-    task (counted at ``filler``, the baseline's mean initial performance: no target skill yet), then
-    learns the target over the remaining ``budget - S_i`` frames.
+def _with_source(baseline: Sequence[Curve], transfer: Sequence[Curve], scores: dict, frames: list[float], *,
+                 start, budget, threshold, s: ReportSettings, warnings: list[str]) -> None:
+    """Taylor & Stone's total-time view on one budget: a transfer run has first spent ``S`` frames
+    on the source task, so after ``x`` frames in total it has ``x - S`` target frames.
 
-    :math:`A^{src}_i = S_i \\bar I_B + \\int_{start}^{budget - S_i} y_i\\,df`; time to threshold
-    :math:`\\tau_i + S_i` with :math:`\\tau_i` reached within ``budget - S_i`` frames."""
+    Both sides are compared at equal total experience, over the window ``[start + S, budget]``:
+    ``mean_return_total_time`` is the baseline's mean return there, and the transfer run's over its
+    first ``budget - S - start`` target frames, :math:`\frac{1}{span - S}\int_{start}^{budget - S} y_T`.
+    Time to threshold with source: :math:`\tau + S`, with :math:`\tau` reached within
+    ``budget - S`` target frames."""
     span = budget - start
-    areas, times = [], []
-    for c, source in zip(transfer, frames):
-        used = min(source, span)
-        stop = budget - used
-        area = used * filler
-        if stop > start:
-            area += M.area_under_curve(c.frames, c.values, start, min(stop, c.frames[-1]))
+    if len(set(frames)) > 1:
+        warnings.append(f"the transfer runs' source runs differ in length ({', '.join(_fmt(f) for f in frames)} "
+                        "frames); the total-time metrics need one source budget and are left out.")
+        return
+    source = frames[0]
+    if source >= span:
+        warnings.append(f"the source training ({_fmt(source)} frames) uses up the whole budget of {_fmt(span)} "
+                        "frames, so there is no total-time comparison within it; compare longer runs.")
+        return
+    width = span - source
+    scores["baseline"]["mean_return_total_time"] = [
+        M.area_under_curve(c.frames, c.values, start + source, budget) / width for c in baseline]
+    scores["transfer"]["mean_return_total_time"] = [
+        M.area_under_curve(c.frames, c.values, start, budget - source) / width for c in transfer]
+    times = []
+    for c in transfer:
         y = M.moving_average(c.values, s.smooth) if s.smooth and s.smooth > 1 else c.values
-        crossed = _crossing(c.frames, y, threshold, stop, s)
-        areas.append(area)
+        crossed = _crossing(c.frames, y, threshold, budget - source, s)
         times.append(None if crossed is None else _num(crossed + source))
-    scores["source_frames"] = [_num(f) for f in frames]
-    scores["total_reward_with_source"] = areas
-    scores["mean_return_with_source"] = np.asarray(areas) / span
-    scores["time_to_threshold_with_source"] = pd.Series(times, dtype=object)
+    scores["transfer"]["source_frames"] = _num(source)
+    scores["transfer"]["time_to_threshold_with_source"] = pd.Series(times, dtype=object)
 
 
 @dataclass(frozen=True)
@@ -481,7 +492,7 @@ METRICS = (
     Metric("probability_of_improvement", "total_reward", "poi"),
     Metric("probability_of_improvement_initial", "initial_performance", "poi"),
     Metric("probability_of_improvement_final", "final_performance", "poi"),
-    Metric("mean_return_gain_with_source", "mean_return_with_source", "difference", "mean_return"),
+    Metric("mean_return_gain_with_source", "mean_return_total_time", "difference"),
 )
 
 
@@ -591,8 +602,8 @@ def compute(baseline: Sequence[Curve], transfer: Sequence[Curve], **settings) ->
     if source_frames is not None and not any(source_frames):
         source_basis += "; no source training, so the total-time view equals the target-only one"
     elif source_frames is not None:
-        _with_source(transfer, scores["transfer"], source_frames, start=start, budget=budget,
-                     threshold=threshold, filler=float(scores["baseline"]["initial_performance"].mean()), s=s)
+        _with_source(baseline, transfer, scores, source_frames, start=start, budget=budget,
+                     threshold=threshold, s=s, warnings=warnings)
     scale = (budget - start) * max(
         float(np.abs(c.values[(c.frames >= start) & (c.frames <= budget)]).max()) for c in baseline + transfer)
     m = _metrics(scores, paired, scale, threshold, s, warnings)
@@ -726,8 +737,7 @@ def _metrics(scores: dict, paired: bool, scale: float, threshold, s: ReportSetti
         m[f"time_to_threshold_{side}"] = None if threshold is None else _num(M.censored_median(times, upper=True))
         m[f"threshold_reached_{side}"] = (
             None if threshold is None else sum(x is not None for x in times) / len(times))
-    if "total_reward_with_source" in st:
-        m["total_reward_transfer_with_source"] = float(st["total_reward_with_source"].mean())
+    if "time_to_threshold_with_source" in st:
         times = [None if _missing(x) else x for x in st["time_to_threshold_with_source"]]
         m["time_to_threshold_transfer_with_source"] = (
             None if threshold is None else _num(M.censored_median(times, upper=True)))
@@ -802,11 +812,10 @@ METRIC_ORDER = (
     "final_trend_baseline", "final_trend_transfer",
     "probability_of_improvement", "probability_of_improvement_initial", "probability_of_improvement_final",
     "mean_return_gain_iqm", "jumpstart_iqm", "asymptotic_performance_iqm", "transfer_ratio_iqm",
-    "mean_return_gain_with_source", "total_reward_transfer_with_source", "time_to_threshold_transfer_with_source",
+    "mean_return_gain_with_source", "time_to_threshold_transfer_with_source",
     "n_seeds_baseline", "n_seeds_transfer",
 )
-WITH_SOURCE = ("mean_return_gain_with_source", "total_reward_transfer_with_source",
-               "time_to_threshold_transfer_with_source")
+WITH_SOURCE = ("mean_return_gain_with_source", "time_to_threshold_transfer_with_source")
 
 
 def metrics_rows(metrics: dict) -> list[tuple[str, object, object, object]]:
@@ -827,8 +836,6 @@ def _note(name: str, st: dict) -> str:
         return f"final performance, not an asymptote: {', '.join(moving)}" if moving else ""
     if name.startswith("final_trend_"):
         return conv.get(name.rsplit("_", 1)[1], "")
-    if name == "mean_return_gain_with_source":
-        return "total time: source frames counted"
     if name.endswith("_with_source"):
         return "total time: source frames counted"
     if name == "transfer_ratio":

@@ -427,26 +427,31 @@ def _source_run(path: Path, frames: int) -> Path:
 def test_total_time_counts_the_source_frames(tmp_path):
     source = _source_run(tmp_path / "source" / "seed-50", frames=10)
     f = [0, 10, 20, 30]
-    write_run(tmp_path / "b" / "seed-0", f, [1, 1, 1, 1], "fourrooms/near")
+    write_run(tmp_path / "b" / "seed-0", f, [0, 0, 3, 3], "fourrooms/near")
     t = write_run(tmp_path / "t" / "seed-0", f, [0, 1, 2, 3], "fourrooms/near")
     (t / "config.yaml").write_text(
         f"task: fourrooms/near\nseed: 0\ntransfer:\n  method: policy-reuse\n  source: {source}\n")
     res = report.compute(_read(tmp_path / "b"), _read(tmp_path / "t"), threshold=2)
     m, st = res["metrics"], res["settings"]
     assert st["source_frames"] == [10]
-    # target only: transfer mean return 45 / 30 = 1.5 against 1
-    assert m["mean_return_gain"] == pytest.approx(0.5)
-    # total time: 10 source frames at the baseline's initial 1, then y = f/10 over [0, 20]: 10 + 20
-    assert m["total_reward_transfer_with_source"] == pytest.approx(30)
-    assert m["mean_return_gain_with_source"] == pytest.approx(0)
-    # it stays >= 2 from target frame 20, within the 20 target frames left: 20 + 10
-    assert m["time_to_threshold_transfer"] == 20
+    # target frames only: areas 15 + 30 = 45 and 45 over 30 frames, no gain
+    assert m["mean_return_gain"] == pytest.approx(0)
+    # equal total frames: the baseline over [10, 30] (area 45, mean 2.25) against the transfer run's
+    # first 20 target frames (area 20, mean 1), which follow its 10 source frames
+    assert res["per_seed"]["baseline"][0]["mean_return_total_time"] == pytest.approx(2.25)
+    assert res["per_seed"]["transfer"][0]["mean_return_total_time"] == pytest.approx(1)
+    assert m["mean_return_gain_with_source"] == pytest.approx(-1.25)
+    # the transfer run stays >= 2 from target frame 20, within its 20 target frames: 20 + 10
+    assert m["time_to_threshold_baseline"] == 20 and m["time_to_threshold_transfer"] == 20
     assert m["time_to_threshold_transfer_with_source"] == 30
     assert res["per_seed"]["transfer"][0]["source_frames"] == 10
     assert "total time: source frames counted" in report.format_table(res)
-    foreign = report.compute([Curve(f, [1] * 4, "b", "b")], [Curve(f, [0, 1, 2, 3], "t", "t")],
+    foreign = report.compute([Curve(f, [0, 0, 3, 3], "b", "b")], [Curve(f, [0, 1, 2, 3], "t", "t")],
                              threshold=2, source_frames="10")
-    assert foreign["metrics"]["mean_return_gain_with_source"] == pytest.approx(0)
+    assert foreign["metrics"]["mean_return_gain_with_source"] == pytest.approx(-1.25)
+    assert "whole budget" in " ".join(report.compute(
+        [Curve(f, [0, 0, 3, 3], "b", "b")], [Curve(f, [0, 1, 2, 3], "t", "t")],
+        source_frames=30)["settings"]["warnings"])
     assert foreign["settings"]["source_frames_basis"] == "--source-frames"
     without = report.compute([Curve(f, [1] * 4, "b", "b")], [Curve(f, [0, 1, 2, 3], "t", "t")])
     assert "mean_return_gain_with_source" not in without["metrics"]
