@@ -6,6 +6,7 @@ from pathlib import Path
 
 from drltg import config as config_lib
 from drltg.errors import UsageError
+from drltg.rundir import CONFIG, check_directory
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -27,10 +28,12 @@ def run(args: argparse.Namespace) -> int:
 
     if args.resume and args.run_dir is None:
         raise UsageError("--resume needs --run-dir, the run directory to continue.")
+    if args.run_dir is not None:
+        args.run_dir = check_directory(args.run_dir, "--run-dir")
     if args.config is not None:
         base = config_lib.load_yaml(args.config)
-    elif args.resume and (args.run_dir / "config.yaml").is_file():
-        base = config_lib.load_yaml(args.run_dir / "config.yaml")
+    elif args.resume and (args.run_dir / CONFIG).is_file():
+        base = config_lib.load_yaml(args.run_dir / CONFIG)
     else:
         base = {}
     if args.task is None and "task" not in base:

@@ -263,6 +263,7 @@ def test_a_run_dir_or_out_that_is_a_file(tmp_path, capsys):
     file = tmp_path / "file"
     file.write_text("mine\n")
     one_sentence(capsys, main(train_args(file)), 2, "is a file, not a directory")
+    one_sentence(capsys, main(["train", "--resume", "--run-dir", str(file)]), 2, "is a file, not a directory")
     one_sentence(capsys, main(["experiment", "gridrooms/northeast", "--method", "reward-shaping", "--frames", "64",
                                "--out", str(file)]), 2, "is a file, not a directory")
     assert file.read_text() == "mine\n"
