@@ -42,6 +42,15 @@ __all__ = ["atomic_write", "atomic_torch_save", "atomic_path", "write_files", "r
 
 # ------------------------------------------------------------------------------------- atomic files
 def _umask() -> int:
+    """The process's umask, read without changing it where the system allows (other threads may be
+    creating files)."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except OSError:
+        pass
     mask = os.umask(0o022)
     os.umask(mask)
     return mask

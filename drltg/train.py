@@ -152,6 +152,8 @@ def _resume_state(cfg: dict, run_dir: Path) -> tuple[dict | None, list[dict]]:
     if not (run_dir / CHECKPOINT).is_file():
         return None, []
     ckpt = rundir.load_checkpoint(run_dir, map_location=cfg["device"])
+    if not {"frames", "updates", "optimizer", "buffer", "rng"} <= set(ckpt):
+        raise UsageError(f"cannot resume '{run_dir}': its checkpoint is not a training checkpoint of drltg train.")
     frames = ckpt["frames"]
     if not (run_dir / EVAL).is_file():
         raise UsageError(
@@ -161,11 +163,13 @@ def _resume_state(cfg: dict, run_dir: Path) -> tuple[dict | None, list[dict]]:
     rows = [r for r in read_eval_csv(run_dir / EVAL) if r["frames"] <= frames]
     found, expected = [r["frames"] for r in rows], ckpt.get("evaluations", [0])
     missing = sorted(set(expected) - set(found))
-    if missing or (len(found) != len(set(found))):
+    if missing:
         raise UsageError(
             f"cannot resume '{run_dir}': {EVAL} lacks the evaluations at frames {missing} before the checkpoint "
-            f"at frame {frames} (rows dropped or duplicated); restore it or start the run again in another --run-dir."
-            if missing else
+            f"at frame {frames}; restore it or start the run again in another --run-dir."
+        )
+    if len(found) != len(set(found)):
+        raise UsageError(
             f"cannot resume '{run_dir}': {EVAL} repeats frames before the checkpoint at frame {frames}; restore "
             "it or start the run again in another --run-dir."
         )

@@ -329,3 +329,21 @@ def test_sweep_checks_its_settings_before_training(spec, extra, message, tmp_pat
                                     "frames": 64, **spec}))
     one_sentence(capsys, main(["sweep", str(path), "--out", str(tmp_path / "out")] + extra), 2, message)
     assert not (tmp_path / "out").exists()
+
+
+def test_truncated_logs_drop_later_steps_and_torn_records(tmp_path):
+    from torch.utils.tensorboard import SummaryWriter
+
+    writer = SummaryWriter(str(tmp_path / "logs" / "tensorboard"))
+    for step in range(5):
+        writer.add_scalar("eval/return_mean", float(step), step)
+    writer.close()
+    (event,) = (tmp_path / "logs" / "tensorboard").glob("*tfevents*")
+    with open(event, "ab") as f:
+        f.write(b"\x20\x00\x00")  # a record torn by a kill
+    scalars = tmp_path / "logs" / "csv" / "scalars" / "eval"
+    scalars.mkdir(parents=True)
+    (scalars / "return_mean.csv").write_text("0,0.0\n1,1.0\n2,2.0\n3,3.0\n4,4")
+    rundir.truncate_logs(tmp_path, 2)
+    assert list(read_tensorboard(tmp_path / "logs" / "tensorboard", tag="eval/return_mean").frames) == [0, 1, 2]
+    assert (scalars / "return_mean.csv").read_text() == "0,0.0\n1,1.0\n2,2.0\n"
