@@ -101,6 +101,63 @@ def test_horizon_is_a_truncation_not_a_termination(envs, monkeypatch):
     assert env.reset()["step_count"].item() == 0
 
 
+def _random_actions(seed):
+    rng = np.random.default_rng(seed)
+    return lambda td: torch.as_tensor(rng.uniform(-1.0, 1.0, 7), dtype=torch.float32)
+
+
+@pytest.mark.parametrize("task", TASKS)
+def test_fast_step_reproduces_robosuites_step_exactly(envs, task):
+    """The lean step (the default) and robosuite's ``env.step`` (``fast=False``), same seed and actions:
+    identical positions, velocities, observations, rewards and success, step for step, over two episodes
+    (robosuite rebuilds its controllers at each reset; the first step after a reset uses the state the
+    controller saw at reset)."""
+    fast, robosuite = envs[task], RobosuiteEnv(task, seed=0, fast=False)
+    assert fast._lean is not None and robosuite._lean is None
+    fast.set_seed(1)
+    robosuite.set_seed(1)
+    demonstrator = demonstrator_for(task)
+    grasped = []
+    try:
+        for policy, steps in ((demonstrator.act, 50), (_random_actions(0), 30)):
+            a, b = fast.reset(), robosuite.reset()
+            for _ in range(steps):
+                action = policy(a["observation"])
+                a = fast.step(a.set("action", action))["next"]
+                b = robosuite.step(b.set("action", action.clone()))["next"]
+                sa, sb = fast.robosuite_env.sim.data, robosuite.robosuite_env.sim.data
+                assert np.array_equal(sa.qpos, sb.qpos) and np.array_equal(sa.qvel, sb.qvel)
+                for key in ("observation", "reward", "success", "done"):
+                    assert torch.equal(a[key], b[key]), key
+                grasped.append(part(a, "cube_grasped").item())
+    finally:
+        robosuite.close()
+    assert any(grasped[:50]), "the demonstrator never grasped: the contact-rich part went untested"
+    # robosuite's own observation dict, read without an update, holds what the lean step computed
+    raw = fast.robosuite_env._get_observations()
+    for name, where in fast.layout.items():
+        assert np.array_equal(np.ravel(raw[name]).astype(np.float32), a["observation"][where].numpy()), name
+
+
+def test_fast_step_refuses_a_controller_it_does_not_reproduce():
+    from robosuite.controllers.parts.arm.osc import OperationalSpaceController
+
+    from drltg.envs.robosuite.fast_osc import LeanStep, unsupported_reason
+    from drltg.errors import UsageError
+
+    env = RobosuiteEnv("lift", seed=0, fast=False)
+    try:
+        rs = env.robosuite_env
+        assert unsupported_reason(rs) is None
+        arm = rs.robots[0].composite_controller.part_controllers["right"]
+        assert isinstance(arm, OperationalSpaceController)
+        arm.impedance_mode = "variable_kp"
+        with pytest.raises(UsageError, match="fixed impedance.*fast=False"):
+            LeanStep(rs, env.observables)
+    finally:
+        env.close()
+
+
 def test_set_seed_reproduces_and_varies_the_initial_state(envs):
     env = envs["lift"]
     env.set_seed(5)

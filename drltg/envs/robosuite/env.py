@@ -3,6 +3,10 @@
 robosuite runs with ``ignore_done=True`` and this env counts steps itself: the horizon is reported as
 ``truncated`` (bootstrapping continues through it), never as ``terminated``. ``terminated`` is set only
 by a true task end, which these tasks do not have unless ``terminate_on_success=True``.
+
+Steps go through :class:`~drltg.envs.robosuite.fast_osc.LeanStep` by default: robosuite's physics,
+controller arithmetic, rewards and success checks with its per-substep Python bookkeeping cut out,
+bit-identical to robosuite's ``env.step`` (``fast=False`` steps through robosuite itself).
 """
 from __future__ import annotations
 
@@ -82,6 +86,8 @@ class RobosuiteEnv(EnvBase):
         seed: seeds the episodes (cube placement and yaw, joint noise); ``None`` draws fresh entropy.
             The scene itself is always built with seed 0, so the cube's size (robosuite samples it
             once per model, 0.020-0.022 m) is the same in every env and worker.
+        fast: step with :class:`~drltg.envs.robosuite.fast_osc.LeanStep` (the same trajectories as
+            robosuite's ``env.step``, several times faster); ``False`` calls robosuite's ``env.step``.
         **task_kwargs: passed to the robosuite environment (e.g. ``reward_shaping=True`` for ``lift``).
     """
 
@@ -97,6 +103,7 @@ class RobosuiteEnv(EnvBase):
         render_camera: str = "frontview",
         render_size: tuple[int, int] = (256, 256),
         seed: int | None = None,
+        fast: bool = True,
         device=None,
         **task_kwargs,
     ):
@@ -127,6 +134,11 @@ class RobosuiteEnv(EnvBase):
         if missing:
             raise UsageError(f"task {task!r} has no observables {missing}; it has {', '.join(sorted(raw))}.")
         self.layout = layout_of({name: np.size(raw[name]) for name in self.observables})
+        self._lean = None
+        if fast:
+            from drltg.envs.robosuite.fast_osc import LeanStep
+
+            self._lean = LeanStep(self._env, self.observables)
         self._step_count = 0
         self._make_specs(sum(s.stop - s.start for s in self.layout.values()))
         self._set_seed(seed)
@@ -179,7 +191,10 @@ class RobosuiteEnv(EnvBase):
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         action = tensordict.get("action").detach().cpu().numpy().astype(np.float64)
-        raw, reward, _, _ = self._env.step(action)
+        if self._lean is not None:
+            reward, raw = self._lean.step(action), self._lean.values
+        else:
+            raw, reward, _, _ = self._env.step(action)
         self._step_count += 1
         success = bool(self._env._check_success())
         terminated = self.terminate_on_success and success
