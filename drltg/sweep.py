@@ -33,6 +33,8 @@ policy and model reuse) trains once, in the first place the expansion order puts
 Re-running is safe: complete runs (``summary.json`` in place, written last) are skipped, interrupted
 ones resume from ``checkpoints/last.pt``, a failed run is reported with its log and the others go on.
 The same spec gives the same run directories and, run by run, the same numbers on both backends.
+Every run's task, env settings and learner are built once and the threshold parsed before anything is
+written, and one sweep at a time owns DIR (:func:`drltg.rundir.lock`).
 """
 from __future__ import annotations
 
@@ -596,6 +598,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from drltg.experiment import check_runs
+
     if args.workers is not None and args.workers < 1:
         raise UsageError("--workers must be at least 1.")
     spec = load_spec(args.spec)
@@ -608,6 +612,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"{r.role:<9} {r.frames:>9} frames  {r.path.relative_to(out)}")
         print(f"{len(runs)} runs, {len(cells)} reports")
         return 0
+    check_runs([(r.role, r.cfg, r.path) for r in runs])
     check_existing(runs)
     try:
         out.mkdir(parents=True, exist_ok=True)
