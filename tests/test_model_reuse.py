@@ -110,6 +110,17 @@ def test_refuses_different_action_sizes():
     assert report.loaded == ["0.weight", "0.bias"] and report.skipped == ["2.weight", "2.bias"]
 
 
+def test_refuses_a_partial_load_across_learners_unless_asked():
+    source, target = agent("td3", seed=0), agent("sac", seed=1)
+    with pytest.raises(UsageError, match=r"lacks trainable ones \(log_alpha, actor_network_params\)"):
+        load_weights(target.loss, source.loss.state_dict())
+    report = load_weights(target.loss, source.loss.state_dict(), partial=True)
+    assert all(name.startswith("qvalue") or name.startswith("target_qvalue") or name == "_value_estimator.gamma"
+               for name in report.loaded)
+    assert "actor_network_params.module.0.module.0.0.weight" in report.skipped
+    assert report.summary() == str(report).splitlines()[0]
+
+
 def test_refuses_when_nothing_matches():
     with pytest.raises(UsageError, match="no entry"):
         load_weights(nn.Linear(2, 2), nn.Sequential(nn.Linear(2, 2)).state_dict())

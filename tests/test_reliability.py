@@ -83,7 +83,8 @@ def test_two_processes_into_one_run_dir_one_is_refused(tmp_path):
     run = tmp_path / "run"
     procs = [subprocess.Popen([sys.executable, "-m", "drltg.cli", *train_args(run, "--seed", str(seed), frames=128)],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for seed in (1, 2)]
-    results = [(p.wait(timeout=300), p.stderr.read(), seed) for p, seed in zip(procs, (1, 2))]
+    results = [(p.communicate(timeout=300)[1], seed) for p, seed in zip(procs, (1, 2))]
+    results = [(p.returncode, err, seed) for p, (err, seed) in zip(procs, results)]
     assert sorted(code for code, _, _ in results) == [0, 2]
     (_, _, winner), = [r for r in results if r[0] == 0]
     (_, refusal, _), = [r for r in results if r[0] == 2]
