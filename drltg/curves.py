@@ -232,10 +232,6 @@ def _task_in(config: dict | None) -> str | None:
     return str(task) if task is not None else None
 
 
-def _task_of(directory: Path) -> str | None:
-    return _task_in(_config_of(directory))
-
-
 # ----------------------------------------------------------------------------------------- readers
 def _lines(path: Path) -> list[tuple[int, list[str]]]:
     """The non-blank lines of a CSV file as ``(line number, cells)``: a byte-order mark is dropped
