@@ -152,13 +152,13 @@ def _threshold_marks(ax, m: dict, st: dict, curves: dict) -> None:
                 xs.append(t)
                 ys.append(float(np.interp(t, frames, values)))
         if xs:
-            ax.plot(xs, ys, "v", ms=7, color=color, mec="black", mew=0.6, zorder=7)
+            ax.plot(xs, ys, "v", ms=7, color=color, mec="black", mew=0.6, zorder=7,
+                    label=f"{side}: where each run crosses ({rule})")
         t = m[f"time_to_threshold_{side}"]
         n, reached = len(c["times"]), len(xs)
         if t is not None:
             ax.axvline(t, color=color, lw=1.2, ls=":", zorder=2,
-                       label=f"{side}: median crossing {_frames(t)} frames ({reached} of {n} runs cross; "
-                             f"{rule})")
+                       label=f"{side}: upper median crossing, {_frames(t)} frames ({reached} of {n} runs cross)")
         else:
             ax.plot([], [], marker="v", ls="", ms=7, color=color, mec="black", mew=0.6,
                     label=f"{side}: no majority of runs crosses within the budget ({reached} of {n} do)")

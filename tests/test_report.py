@@ -534,3 +534,14 @@ def test_sb3_fixture_first_crossing_reproduces(sb3_runs, tmp_path):
         assert res["metrics"][f"time_to_threshold_{side}"] == expected
     assert res["metrics"]["jumpstart"] == pytest.approx(24.81896 - 4.3869472)
     assert res["settings"]["paired"] is False
+
+
+def test_out_that_cannot_be_written_exits_2(two_by_two, tmp_path, capsys, monkeypatch):
+    b, t = two_by_two
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    monkeypatch.setattr(report.os, "access", lambda path, mode: Path(path) != locked)
+    assert report.main(["--baseline", str(b), "--transfer", str(t), "--out", str(locked / "rep")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "cannot be written" in err and "read-only" in err and "\n" not in err
+    assert list(locked.iterdir()) == []
