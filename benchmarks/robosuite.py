@@ -175,7 +175,8 @@ def equivalence(steps: int = HORIZON, seed: int = 0) -> dict:
 
     out = {}
     for task in TASKS:
-        fast, slow = RobosuiteEnv(task, seed=seed, horizon=steps), RobosuiteEnv(task, seed=seed, horizon=steps, fast=False)
+        fast = RobosuiteEnv(task, seed=seed, horizon=steps)
+        slow = RobosuiteEnv(task, seed=seed, horizon=steps, fast=False)
         rng = np.random.default_rng(seed)
         policies = {"demonstrator": demonstrator_for(task).act,
                     "random": lambda obs: torch.as_tensor(rng.uniform(-1, 1, 7), dtype=torch.float32)}
@@ -190,7 +191,8 @@ def equivalence(steps: int = HORIZON, seed: int = 0) -> dict:
                 da, db = fast.robosuite_env.sim.data, slow.robosuite_env.sim.data
                 worst["qpos"] = max(worst["qpos"], float(np.abs(da.qpos - db.qpos).max()))
                 worst["qvel"] = max(worst["qvel"], float(np.abs(da.qvel - db.qvel).max()))
-                worst["observation"] = max(worst["observation"], (a["observation"] - b["observation"]).abs().max().item())
+                difference = (a["observation"] - b["observation"]).abs().max().item()
+                worst["observation"] = max(worst["observation"], difference)
                 worst["reward"] = max(worst["reward"], (a["reward"] - b["reward"]).abs().item())
                 success_mismatch += int(a["success"].item() != b["success"].item())
                 successes += int(a["success"].item())
@@ -230,7 +232,8 @@ def run(device: str = "cpu", quick: bool = False) -> dict:
         "split_ms_per_step": split(50 if quick else 200),
         "equivalence": equivalence(100 if quick else HORIZON),
         "target": "drltg >= 2x raw with identical trajectories; parallel_2 >= 1.6x parallel_1",
-        "note": "cpu-clock rates of ParallelEnv count only the main process, not its workers: compare parallel cases on the wall clock",
+        "note": "cpu-clock rates of ParallelEnv count only the main process, not its workers: "
+                "compare parallel cases on the wall clock",
     }
 
 

@@ -6,7 +6,10 @@ history buffers. :class:`LeanStep` computes the same torques from MuJoCo's array
 index arrays and per-step quantities cached, then lets robosuite finish the step (``_post_action``:
 reward, task latches). The same floating-point operations run in the same order on arrays of the
 same layout, and robosuite's own numba kernels are reused, so the trajectory is bit-identical to
-``env.step`` for the same actions (the equivalence is tested).
+``env.step`` for the same actions. One assumption is checked rather than guaranteed: the few
+matrix-vector products robosuite does in NumPy run here inside numba, whose BLAS (SciPy's OpenBLAS)
+must round as NumPy's does for these shapes; ``tests/test_robosuite.py`` compares whole trajectories
+bit for bit, so a machine where they differ fails it.
 
 Per policy step (the goal, in the arm's base frame ``(p_b, R_b)``, from the achieved pose ``(p, R)``
 and the scaled action ``(dp, dr)``):
@@ -77,14 +80,16 @@ def _indexer(indexes: Sequence[int]):
 
 @numba.njit(cache=True)
 def osc_torques(fresh, jacp, jacr, full_mass, site_xpos, site_xmat, qpos, qvel, qfrc_bias, site, dofs, qadr,
-                x, R, v, w, J_full, J_pos, J_ori, mass, joint_pos, joint_vel, x_d, R_d, kp, kd, initial_joint, low, high):
+                x, R, v, w, J_full, J_pos, J_ori, mass, joint_pos, joint_vel,
+                x_d, R_d, kp, kd, initial_joint, low, high):
     """The arm's clipped OSC torque for one substep, built on robosuite's own numba kernels.
 
     With ``fresh`` the arm state (``x, R, v, w``, the Jacobians, the arm's block of the mass matrix, joint
     positions and velocities) is first read into the given buffers from MuJoCo's arrays; otherwise the
-    buffers hold it already. The matrix products run on the same array layouts as robosuite's numpy
-    ones (the mass matrix Fortran-ordered, ``J^T`` a transposed view), so BLAS takes the same routines
-    and the torques agree bit for bit with robosuite's.
+    buffers hold it already. The matrix products run on the same array layouts as robosuite's NumPy
+    ones (the mass matrix Fortran-ordered, as robosuite's fancy indexing leaves it; ``J^T`` a transposed
+    view), so BLAS takes the same routines (``gemv`` transposed or not) and the torques agree bit for
+    bit with robosuite's.
     """
     if fresh:
         for i in range(3):
@@ -111,6 +116,7 @@ def osc_torques(fresh, jacp, jacr, full_mass, site_xpos, site_xmat, qpos, qvel, 
     tau += nullspace_torques(mass, nullspace, initial_joint, joint_pos, joint_vel)
     return np.clip(tau, low, high)
 
+
 def unsupported_reason(env) -> str | None:
     """Why :class:`LeanStep` cannot step ``env`` exactly as robosuite does, or ``None`` if it can."""
     from robosuite.controllers.parts.arm.osc import OperationalSpaceController
@@ -118,6 +124,10 @@ def unsupported_reason(env) -> str | None:
     from robosuite.robots.fixed_base_robot import FixedBaseRobot
     from robosuite.utils import observables as rs_obs
 
+    from robosuite import macros
+
+    if not macros.ENABLE_NUMBA:
+        return "robosuite's numba kernels (robosuite.macros.ENABLE_NUMBA)"
     if len(env.robots) != 1 or not isinstance(env.robots[0], FixedBaseRobot):
         return "one fixed-base robot"
     robot = env.robots[0]
@@ -275,7 +285,8 @@ class LeanStep:
         parts = self._robot.composite_controller.part_controllers
         arm = parts[self._arm_name]
         step1, step2, jac_site, full_m = mujoco.mj_step1, mujoco.mj_step2, mujoco.mj_jacSite, mujoco.mj_fullM
-        site, jacp, jacr, full_mass, dofs, qadr = self._site, self._jacp, self._jacr, self._full_mass, self._dofs, self._qadr
+        site, jacp, jacr, full_mass = self._site, self._jacp, self._jacr, self._full_mass
+        dofs, qadr = self._dofs, self._qadr
         site_xpos, site_xmat, qpos, qvel, qfrc_bias, qM, ctrl = (
             data.site_xpos, data.site_xmat, data.qpos, data.qvel, data.qfrc_bias, data.qM, data.ctrl,
         )
