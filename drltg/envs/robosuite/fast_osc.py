@@ -131,8 +131,8 @@ def unsupported_reason(env) -> str | None:
     if len(env.robots) != 1 or not isinstance(env.robots[0], FixedBaseRobot):
         return "one fixed-base robot"
     robot = env.robots[0]
-    if not env.lite_physics or env.viewer is not None:
-        return "lite_physics and no viewer"
+    if not env.lite_physics or env.viewer is not None or env.hard_reset:
+        return "lite_physics, no viewer and hard_reset=False (one simulation for the env's lifetime)"
     parts = robot.composite_controller.part_controllers
     if type(robot.composite_controller).__name__ != "CompositeController" or len(robot.arms) != 1:
         return "robosuite's BASIC composite controller on one arm"
@@ -201,7 +201,8 @@ class LeanStep:
             grip_actuators = robot._ref_actuators_indexes_dict[gripper_name]
             self._grip_ctrl = _indexer(grip_actuators)
             self._grip_range = env.sim.model.actuator_ctrlrange[grip_actuators].T.copy()
-        self._model, self._data = model, _ = env.sim.model._model, env.sim.data._data
+        self._model = model = env.sim.model._model
+        self._data = env.sim.data._data
         self._substeps = int(env.control_timestep / env.model_timestep)
 
         self._site = model.site(arm.ref_name).id
