@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
 
 from drltg.errors import UsageError
@@ -35,6 +36,7 @@ def main(argv: list[str] | None = None) -> int:
         if argv[:1] == [name]:  # import only the module that runs (keeps `drltg tasks` fast)
             importlib.import_module(module).add_arguments(p)
     args = parser.parse_args(argv)
+    previous = signal.signal(signal.SIGTERM, _terminate)
     try:
         return importlib.import_module(args._module).run(args) or 0
     except UsageError as err:
@@ -43,6 +45,13 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"drltg {args.command}: interrupted", file=sys.stderr)
         return 130
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _terminate(signum, frame):
+    """SIGTERM unwinds like Ctrl-C: locks are released and a failed start is removed."""
+    raise SystemExit(128 + signum)
 
 
 if __name__ == "__main__":

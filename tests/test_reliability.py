@@ -2,8 +2,10 @@
 import errno
 import os
 import shutil
+import signal
 import subprocess
 import sys
+import time
 import types
 from pathlib import Path
 
@@ -93,6 +95,18 @@ def test_two_processes_into_one_run_dir_one_is_refused(tmp_path):
     assert yaml.safe_load((run / "config.yaml").read_text())["seed"] == winner
     assert '"seed": %d' % winner in (run / "summary.json").read_text()
     assert not (run / rundir.LOCK).exists()
+
+
+def test_a_terminated_start_releases_its_lock_and_removes_what_it_wrote(tmp_path):
+    run = tmp_path / "run"
+    args = train_args(run, "-o", "checkpoint.every=1000000", frames=10**6)
+    proc = subprocess.Popen([sys.executable, "-m", "drltg.cli", *args], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    while not (run / "eval.csv").exists() and proc.poll() is None:
+        time.sleep(0.1)
+    proc.terminate()
+    assert proc.wait(timeout=60) == 128 + signal.SIGTERM
+    assert not run.exists()
 
 
 def test_a_live_owner_is_refused_and_a_dead_one_taken_over(copy_of_killed, tmp_path, capsys):
