@@ -242,7 +242,9 @@ def train(
                 agent.optimizer.load_state_dict(ckpt["optimizer"])
                 buffer.load_state_dict(ckpt["buffer"])
             except (KeyError, RuntimeError, ValueError) as err:
-                raise UsageError(f"checkpoint '{run_dir / CHECKPOINT}' does not fit the run's config ({type(err).__name__}).") from None
+                raise UsageError(
+                    f"checkpoint '{run_dir / CHECKPOINT}' does not fit the run's config ({type(err).__name__})."
+                ) from None
 
         created = False
         if resume:

@@ -292,8 +292,8 @@ def test_video_on_a_task_with_another_observation_size(source, tmp_path, capsys)
 
 def test_policy_reuse_from_another_observation_space_is_checked_first(source, tmp_path, capsys):
     target = tmp_path / "target"
-    one_sentence(capsys, main(train_args(target, "-o", "transfer.method=policy-reuse", "-o", f"transfer.source={source}",
-                                         task="gridrooms/northeast")), 2, "reads 2 observation entries")
+    reuse = ["-o", "transfer.method=policy-reuse", "-o", f"transfer.source={source}"]
+    one_sentence(capsys, main(train_args(target, *reuse, task="gridrooms/northeast")), 2, "reads 2 observation entries")
     assert not target.exists()
 
 
@@ -310,7 +310,8 @@ def test_a_failed_start_removes_what_it_wrote(tmp_path, monkeypatch):
 
 
 # -------------------------------------------------------------------- 10, 11, 12: experiment, sweep
-EXPERIMENT = ["experiment", "gridrooms/northeast", "--method", "reward-shaping", "--seeds", "1", "--frames", "64"] + OPTS
+EXPERIMENT = ["experiment", "gridrooms/northeast", "--method", "reward-shaping", "--seeds", "1",
+              "--frames", "64"] + OPTS
 
 
 @pytest.mark.parametrize("extra, message", [
