@@ -209,9 +209,9 @@ def train(
             if not (run_dir / CONFIG).is_file():
                 raise UsageError(f"cannot resume: '{run_dir}' holds no {CONFIG} (is it a drltg run directory?).")
             _check_saved_config(cfg, run_dir)
-            owned.enter_context(rundir.lock(run_dir))
-            if is_complete(run_dir):
+            if is_complete(run_dir):  # nothing to write: a finished run may sit in a read-only archive
                 return run_dir
+            owned.enter_context(rundir.lock(run_dir))
             ckpt, rows = _resume_state(cfg, run_dir)
         else:
             _refuse_existing(run_dir)
