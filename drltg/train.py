@@ -212,6 +212,8 @@ def train(
             if is_complete(run_dir):  # nothing to write: a finished run may sit in a read-only archive
                 return run_dir
             owned.enter_context(rundir.lock(run_dir))
+            if is_complete(run_dir):  # finished by its previous owner meanwhile
+                return run_dir
             ckpt, rows = _resume_state(cfg, run_dir)
         else:
             _refuse_existing(run_dir)
