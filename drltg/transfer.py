@@ -85,7 +85,7 @@ def _check_demonstrator(cfg: dict, task: str) -> None:
         )
 
 
-def _spaces(env: EnvBase) -> tuple[str, tuple[int, ...]]:
+def _spaces(env: EnvBase) -> tuple[str, str]:
     """What a policy of ``env`` reads and writes: the observation size, the action spec's kind and size."""
     action = env.full_action_spec_unbatched["action"]
     return (f"{env.full_observation_spec_unbatched['observation'].shape[-1]} observation entries",
@@ -94,12 +94,12 @@ def _spaces(env: EnvBase) -> tuple[str, tuple[int, ...]]:
 
 def check_same_spaces(source: EnvBase, target: EnvBase, source_name: str, target_name: str) -> None:
     """Refuse to run a policy of ``source`` on ``target`` when they differ in observation or action space."""
-    for mine, theirs in zip(_spaces(source), _spaces(target)):
-        if mine != theirs:
-            raise UsageError(
-                f"the policy of {source_name} reads {_spaces(source)[0]} and writes {_spaces(source)[1]}, but "
-                f"{target_name} has {_spaces(target)[0]} and {_spaces(target)[1]}."
-            )
+    mine, theirs = _spaces(source), _spaces(target)
+    if mine != theirs:
+        raise UsageError(
+            f"the policy of {source_name} reads {mine[0]} and writes {mine[1]}, but {target_name} has "
+            f"{theirs[0]} and {theirs[1]}."
+        )
 
 
 def source_actor(cfg: dict, target_env: EnvBase | None = None) -> TensorDictModuleBase:
