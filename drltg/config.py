@@ -60,6 +60,7 @@ DEFAULTS: dict[str, Any] = {
     "checkpoint": {"every": 10_000},
     "log": {"tensorboard": True, "every": 1_000},
     # How this run transfers knowledge (drltg.transfer): none | reward-shaping | policy-reuse | model-reuse
+    # | demonstrations
     "transfer": {
         "method": "none",
         "source": None,  # source run directory (policy-reuse, model-reuse)
@@ -70,6 +71,8 @@ DEFAULTS: dict[str, Any] = {
         "freeze": [],  # model reuse: parameter name patterns to keep fixed
         "partial": False,  # model reuse: accept a source whose core networks cannot all be loaded
         "allow_incomplete": False,  # reuse a source run that did not finish (no summary.json)
+        "demo_episodes": 10,  # demonstrations: episodes of the source policy kept in their own buffer ...
+        "demo_ratio": 0.25,  # ... and the share of every batch drawn from them
     },
 }
 
@@ -163,7 +166,7 @@ def _number_text(x: float | None) -> str | None:
 
 
 ALGOS = ("sac", "td3", "soc")
-TRANSFER_METHODS = ("none", "reward-shaping", "policy-reuse", "model-reuse")
+TRANSFER_METHODS = ("none", "reward-shaping", "policy-reuse", "model-reuse", "demonstrations")
 OPTION_POLICIES = ("soft", "egreedy")
 _PROB = dict(low=0.0, high=1.0)
 _POSITIVE = dict(low=0.0, open_low=True)
@@ -220,6 +223,8 @@ SCHEMA: dict[str, Field] = {
                              what="a list of parameter-name patterns (e.g. [actor_network_params])"),
     "transfer.partial": Field(bool, "model reuse: accept a source whose core networks cannot all be loaded"),
     "transfer.allow_incomplete": Field(bool, "reuse a source run that did not finish (no summary.json)"),
+    "transfer.demo_episodes": Field(int, "demonstrations: episodes of the source policy collected", low=1),
+    "transfer.demo_ratio": Field(float, "demonstrations: share of every batch drawn from them", **_PROB),
 }
 """Every config key (dotted) with its type and range; ``validate`` checks a config against it."""
 

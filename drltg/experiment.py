@@ -33,7 +33,7 @@ from drltg import config as config_lib
 from drltg import rundir
 from drltg.errors import UsageError
 
-METHODS = ("reward-shaping", "policy-reuse", "model-reuse")
+METHODS = ("reward-shaping", "policy-reuse", "model-reuse", "demonstrations")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

@@ -31,6 +31,7 @@ from drltg.agents import make_agent
 from drltg.config import DEFAULTS, dump
 from drltg.envs import make_env
 from drltg.errors import UsageError
+from drltg.collectors.demonstrations import mixed_batches
 from drltg.fast import UpdateStep, sample_batches
 from drltg.rundir import CHECKPOINT, CONFIG, EVAL, MODEL_REUSE, SUMMARY, is_complete, read_eval_csv
 
@@ -226,7 +227,7 @@ def train(
         probe, agent = check_config(cfg)
         train_env, eval_env = make_envs(cfg, agent.env_transforms)
         method = cfg["transfer"]["method"]
-        policy, mixer, reuse_report = agent.policy, None, None
+        policy, mixer, reuse_report, demos = agent.policy, None, None, None
         if method == "reward-shaping":  # after RewardSum: train/episode_return stays the task's return
             train_env.append_transform(transfer.shaping(cfg))
         elif method == "policy-reuse":
@@ -234,6 +235,8 @@ def train(
         elif method == "model-reuse" and ckpt is None:
             reuse_report = transfer.reuse_weights(cfg, agent)
             print(reuse_report.summary(), flush=True)
+        elif method == "demonstrations":
+            demos = transfer.demonstrations(cfg, agent, probe)
         buffer = ReplayBuffer(
             storage=LazyTensorStorage(cfg["buffer"]["size"], device=cfg["device"]),
             batch_size=cfg["buffer"]["batch_size"],
@@ -262,7 +265,7 @@ def train(
         try:
             if reuse_report is not None:
                 rundir.atomic_write(run_dir / MODEL_REUSE, f"{reuse_report}\n")
-            _loop(cfg, run_dir, agent, train_env, eval_env, policy, mixer, buffer, ckpt, rows, progress)
+            _loop(cfg, run_dir, agent, train_env, eval_env, policy, mixer, buffer, demos, ckpt, rows, progress)
         except BaseException:
             if not resume and not (run_dir / CHECKPOINT).is_file():
                 _remove_start(run_dir, created)
@@ -270,7 +273,7 @@ def train(
     return run_dir
 
 
-def _loop(cfg, run_dir, agent, train_env, eval_env, policy, mixer, buffer, ckpt, rows, progress) -> None:
+def _loop(cfg, run_dir, agent, train_env, eval_env, policy, mixer, buffer, demos, ckpt, rows, progress) -> None:
     col, opt = cfg["collector"], cfg["optim"]
     fpb = col["frames_per_batch"]
     init_random = math.ceil(col["init_random_frames"] / fpb) * fpb
@@ -338,7 +341,11 @@ def _loop(cfg, run_dir, agent, train_env, eval_env, policy, mixer, buffer, ckpt,
             buffer.extend(data.select(*agent.loss.in_keys))  # only what the loss reads is stored
             _episode_stats(data, stats)
             if frames >= init_random:
-                for batch in sample_batches(buffer, opt["updates_per_batch"]):
+                if demos is None:
+                    batches = sample_batches(buffer, opt["updates_per_batch"])
+                else:
+                    batches = mixed_batches(buffer, demos[0], opt["updates_per_batch"], cfg["transfer"]["demo_ratio"])
+                for batch in batches:
                     losses = update(batch, update_actor=updates % agent.actor_delay == 0)
                     updates += 1
                     for k, v in losses.items():
@@ -376,6 +383,8 @@ def _loop(cfg, run_dir, agent, train_env, eval_env, policy, mixer, buffer, ckpt,
         "frames_per_s": round((frames - start_frames) / max(wall, 1e-9), 1),
         "final_eval": rows[-1],
     }
+    if demos is not None:
+        summary["demonstration_frames"] = demos[1]
     rundir.atomic_write(run_dir / SUMMARY, json.dumps(summary, indent=2) + "\n")
 
 

@@ -4,11 +4,13 @@
                     = reward-shaping  PotentialShaping(task potential) on the training env
                     = policy-reuse    PolicyReuse(source actor, PiReuse(psi, upsilon)) after the policy
                     = model-reuse     the learner starts from the source run's weights
+                    = demonstrations  episodes of the source policy in a buffer of their own, a fixed
+                                      share of every batch (drltg.collectors.demonstrations)
 
 Each method is one of drltg's parts (``drltg.transforms``, ``drltg.collectors``, ``drltg.model_reuse``);
 this module only reads the config and builds them. ``transfer.source`` is a run directory, or for
-policy reuse on the manipulation tasks ``demonstrator:TASK``, the scripted policy of ``TASK``
-(``drltg.envs.robosuite.demonstrator_for``) acting as the past policy.
+policy reuse and demonstrations on the manipulation tasks ``demonstrator:TASK``, the scripted policy of
+``TASK`` (``drltg.envs.robosuite.demonstrator_for``) acting as the past policy.
 """
 from __future__ import annotations
 
@@ -16,7 +18,7 @@ from pathlib import Path
 
 import yaml
 from tensordict.nn import TensorDictModuleBase, TensorDictSequential
-from torchrl.envs import EnvBase
+from torchrl.envs import EnvBase, TransformedEnv
 
 from drltg.agents import Agent, make_agent
 from drltg.envs import get_task, make_env
@@ -24,7 +26,8 @@ from drltg.envs.robosuite.layout import TASKS as MANIPULATION
 from drltg.errors import UsageError
 from drltg.rundir import CHECKPOINT, CONFIG, SUMMARY, is_complete, load_checkpoint
 
-METHODS = ("none", "reward-shaping", "policy-reuse", "model-reuse")
+METHODS = ("none", "reward-shaping", "policy-reuse", "model-reuse", "demonstrations")
+NEEDS_SOURCE = ("policy-reuse", "model-reuse", "demonstrations")
 DEMONSTRATOR = "demonstrator:"
 
 
@@ -33,7 +36,9 @@ def check(cfg: dict) -> None:
     t = cfg["transfer"]
     if t["method"] not in METHODS:
         raise UsageError(f"unknown transfer method '{t['method']}'; choose one of: {', '.join(METHODS)}.")
-    if t["method"] in ("policy-reuse", "model-reuse"):
+    if t["method"] == "demonstrations" and cfg["algo"] not in ("sac", "td3"):
+        raise UsageError(f"transfer.method=demonstrations needs an algo without options (sac or td3), got '{cfg['algo']}'.")
+    if t["method"] in NEEDS_SOURCE:
         if not t["source"]:
             raise UsageError(f"transfer.method={t['method']} needs transfer.source, the source run directory.")
         demonstrated = demonstrator_task(t["source"])
@@ -76,8 +81,8 @@ def demonstrator_task(source) -> str | None:
 
 
 def _check_demonstrator(cfg: dict, task: str) -> None:
-    if cfg["transfer"]["method"] != "policy-reuse":
-        raise UsageError("a demonstrator has no weights to reuse; use it with transfer.method=policy-reuse.")
+    if cfg["transfer"]["method"] == "model-reuse":
+        raise UsageError("a demonstrator has no weights to reuse; use it with policy-reuse or demonstrations.")
     if task not in MANIPULATION or cfg["task"] not in MANIPULATION:
         raise UsageError(
             f"transfer.source=demonstrator:{task} on task '{cfg['task']}': the demonstrator reads the "
@@ -139,3 +144,21 @@ def reuse_weights(cfg: dict, agent: Agent):
 
     t = cfg["transfer"]
     return load_from_run(agent.loss, t["source"], freeze=t["freeze"], partial=t.get("partial", False))
+
+
+def demonstrations(cfg: dict, agent: Agent, target_env: EnvBase):
+    """``transfer.demo_episodes`` episodes of the source policy (deterministic) on the training task,
+    from an env seeded apart from the training and evaluation envs, in a buffer of their own; returns
+    it and the frames they took."""
+    from drltg.collectors.demonstrations import collect_demonstrations, demonstration_buffer
+
+    policy = source_actor(cfg, target_env)
+    env = TransformedEnv(make_env(cfg["task"], batch_size=(cfg["collector"]["num_envs"],), device=cfg["device"],
+                                  seed=cfg["seed"] + 20_000, **cfg["env"]))
+    for t in agent.env_transforms:
+        env.append_transform(t.clone())
+    try:
+        data = collect_demonstrations(env, policy, cfg["transfer"]["demo_episodes"])
+    finally:
+        env.close()
+    return demonstration_buffer(data, agent.loss.in_keys), data.numel()

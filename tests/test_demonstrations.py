@@ -1,4 +1,5 @@
 """Learning from demonstrations: collecting demonstrator episodes and the mixed batches."""
+import json
 import pytest
 import torch
 from tensordict import TensorDict
@@ -51,3 +52,49 @@ def test_demonstration_buffer_keeps_only_the_given_keys():
     data = TensorDict({"observation": torch.zeros(4, 2), "extra": torch.zeros(4)}, [4])
     buffer = demonstration_buffer(data, ["observation"])
     assert len(buffer) == 4 and set(buffer.sample(2).keys()) == {"observation"}
+
+
+# ------------------------------------------------------------------ the method in drltg train
+from drltg import config as config_lib  # noqa: E402
+from drltg.errors import UsageError  # noqa: E402
+from drltg.train import read_eval_csv, train  # noqa: E402
+
+TINY = ["network.hidden=[16,16]", "collector.num_envs=4", "collector.frames_per_batch=16",
+        "collector.init_random_frames=64", "optim.updates_per_batch=2", "buffer.batch_size=32",
+        "eval.every=128", "eval.episodes=4", "checkpoint.every=256", "log.tensorboard=false",
+        "env.horizon=20"]
+
+
+@pytest.fixture(scope="module")
+def source_run(tmp_path_factory):
+    cfg = config_lib.resolve({}, TINY, task="fourrooms/northeast", frames=256, seed=1)
+    return train(cfg, tmp_path_factory.mktemp("src") / "source", progress=False)
+
+
+def test_demonstrations_of_a_source_run_train_the_target_reproducibly(source_run, tmp_path):
+    cfg = config_lib.resolve({}, TINY + [f"transfer.source={source_run}", "transfer.method=demonstrations",
+                                         "transfer.demo_episodes=5", "transfer.demo_ratio=0.5"],
+                             task="fourrooms/northeast-shifted", frames=256, seed=2)
+    a, b = (train(cfg, tmp_path / name, progress=False) for name in ("a", "b"))
+    summary = json.loads((a / "summary.json").read_text())
+    # 4 envs in batches of 50 steps, every episode truncated at 20 steps: one batch ends 8 episodes.
+    assert summary["demonstration_frames"] == 4 * 50
+    assert read_eval_csv(a / "eval.csv") == read_eval_csv(b / "eval.csv")
+    plain = config_lib.resolve({}, TINY, task="fourrooms/northeast-shifted", frames=256, seed=2)
+    c = train(plain, tmp_path / "c", progress=False)
+    weights = [torch.load(run / "checkpoints" / "last.pt", weights_only=False)["loss"] for run in (a, b, c)]
+    same = [all(torch.equal(w[k], weights[0][k]) for k in w) for w in weights]
+    assert same == [True, True, False]  # the same demonstrations each time; the updates saw them
+
+
+@pytest.mark.parametrize("override, message", [
+    (["algo=soc"], "needs an algo without options"),
+    (["transfer.source=demonstrator:lift"], "solves lift"),
+    ([], "needs transfer.source"),
+])
+def test_demonstrations_refuse_what_they_cannot_use(override, message, tmp_path):
+    cfg = config_lib.resolve({}, TINY + ["transfer.method=demonstrations", *override],
+                             task="fourrooms/northeast", frames=256, seed=0)
+    with pytest.raises(UsageError, match=message):
+        train(cfg, tmp_path / "run", progress=False)
+    assert not (tmp_path / "run").exists()

@@ -19,7 +19,7 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, ReplayBuffer
-from torchrl.envs import EnvBase
+from torchrl.envs import EnvBase, ExplorationType
 
 __all__ = ["collect_demonstrations", "demonstration_buffer", "mixed_batches"]
 
@@ -28,7 +28,7 @@ __all__ = ["collect_demonstrations", "demonstration_buffer", "mixed_batches"]
 def collect_demonstrations(env: EnvBase, policy, episodes: int, *, steps_per_batch: int = 50) -> TensorDictBase:
     """Runs ``policy`` on the batched ``env`` until at least ``episodes`` episodes have ended and
     returns every transition collected, flat (``[frames]``), in the collector's layout (``"next"``
-    entries included). Batches of ``steps_per_batch`` steps per environment are collected until the
+    entries included). A learned policy acts deterministically (its mode), as a demonstrator would. Batches of ``steps_per_batch`` steps per environment are collected until the
     count is reached, so a few transitions of unfinished episodes may follow the last ended one."""
     if episodes < 1:
         raise ValueError(f"demonstrations need at least one episode, got {episodes}.")
@@ -38,6 +38,7 @@ def collect_demonstrations(env: EnvBase, policy, episodes: int, *, steps_per_bat
         policy,
         frames_per_batch=n_envs * steps_per_batch,
         total_frames=-1,
+        exploration_type=ExplorationType.DETERMINISTIC,
         auto_register_policy_transforms=False,
     )
     parts, ended = [], 0
