@@ -1,7 +1,7 @@
 r"""``drltg report``: did the transfer method help? Metrics, a plot and tables from learning curves.
 
     drltg report --baseline RUNS... --transfer RUNS... [--threshold 150 | --threshold 80%] [--out DIR]
-    drltg report --matrix DIR [--metric transfer_ratio] [--out DIR]
+    drltg report --matrix DIR [--metric mean_return_gain] [--out DIR]
 
 Both sides are read with :func:`drltg.curves.read_curves` (run directories, directories of seed runs,
 globs, SB3 / TensorBoard / CSVLogger logs). Curves are compared on the target task over a common
@@ -1014,7 +1014,7 @@ MATRIX_METRICS = ("mean_return_gain", "jumpstart", "asymptotic_performance", "tr
 def transfer_matrix(
     cells: dict[tuple[str, str], tuple],
     out_dir: str | Path | None = None,
-    metric: str = "transfer_ratio",
+    metric: str = "mean_return_gain",
     **settings,
 ) -> dict:
     """One report per (source, target) cell, summarised as a heatmap of ``metric`` plus CSV and JSON."""
@@ -1064,8 +1064,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     io_.add_argument("--transfer", nargs="+", metavar="PATH", help="transfer runs, same forms as --baseline")
     io_.add_argument("--matrix", metavar="DIR",
                      help="DIR/<source>/<target>/{baseline,transfer}: a heatmap of --metric over all pairs")
-    io_.add_argument("--metric", default="transfer_ratio", help="metric for the --matrix heatmap "
-                     "(default: transfer_ratio)")
+    io_.add_argument("--metric", default="mean_return_gain", help="metric for the --matrix heatmap "
+                     "(default: mean_return_gain)")
     io_.add_argument("--out", metavar="DIR", help="output folder (default: a fresh folder named after the runs)")
     for f in fields(ReportSettings):
         meta = f.metadata

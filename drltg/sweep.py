@@ -520,8 +520,8 @@ def write_reports(cells: list[Cell], status: dict, threshold) -> list[dict]:
     return rows
 
 
-SUMMARY_COLUMNS = ("jumpstart", "asymptotic_performance", "transfer_ratio", "probability_of_improvement",
-                   "time_to_threshold_baseline", "time_to_threshold_transfer")
+SUMMARY_COLUMNS = ("mean_return_gain", "jumpstart", "asymptotic_performance", "transfer_ratio",
+                   "probability_of_improvement", "time_to_threshold_baseline", "time_to_threshold_transfer")
 
 
 def summary_tables(rows: list[dict]) -> tuple[str, str]:
@@ -556,7 +556,7 @@ def summary_tables(rows: list[dict]) -> tuple[str, str]:
     return _csv_text(csv_rows), "\n".join(md) + "\n"
 
 
-def plot_transfer_matrix(rows: list[dict], metric: str = "transfer_ratio") -> bytes:
+def plot_transfer_matrix(rows: list[dict], metric: str = "mean_return_gain") -> bytes:
     """Heatmap PNG of ``metric`` over (pair, algo, variant) rows x method columns, mean and CI per cell."""
     import numpy as np
 
@@ -578,7 +578,7 @@ def plot_transfer_matrix(rows: list[dict], metric: str = "transfer_ratio") -> by
             ci = r["metrics"].get(f"{metric}_ci")
             table[i, j] = value
             text[i, j] = f"{value:+.2f}" + (f"\n[{ci[0]:+.2f}, {ci[1]:+.2f}]" if ci else "")
-    title = f"{metric}: mean over seeds [bootstrap CI where both sides have 2+ seeds]"
+    title = f"{metric}, transfer - baseline [95% CI; none below 3 seeds a side]"
     return plot_matrix(table, labels, methods, metric, text=text, axis_labels=("pair", "method"), title=title)[0]
 
 
@@ -594,14 +594,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--address", help="ray: a running cluster ('auto' or HOST:PORT); default: start a local one")
     p.add_argument("--num-cpus", type=float, help="ray: CPUs per run (overrides the spec's resources)")
     p.add_argument("--num-gpus", type=float, help="ray: GPUs per run (overrides the spec's resources)")
+    p.add_argument("--metric", default="mean_return_gain",
+                   help="the metric of the transfer-matrix heatmap (default: mean_return_gain)")
     p.add_argument("--dry-run", action="store_true", help="list the runs and reports, run nothing")
 
 
 def run(args: argparse.Namespace) -> int:
     from drltg.experiment import check_runs
 
+    from drltg.report import METRIC_ORDER
+
     if args.workers is not None and args.workers < 1:
         raise UsageError("--workers must be at least 1.")
+    if args.metric not in METRIC_ORDER:
+        raise UsageError(f"unknown --metric '{args.metric}'; choose one of {', '.join(METRIC_ORDER)}.")
     spec = load_spec(args.spec)
     resources = {**spec.resources, **{k: v for k, v in (("num_cpus", args.num_cpus),
                                                          ("num_gpus", args.num_gpus)) if v is not None}}
@@ -642,7 +648,7 @@ def _execute_and_report(args, spec: Spec, out: Path, runs: list[Run], cells: lis
         (r.path.relative_to(out), r.role, *status[r.path], r.log.relative_to(out)) for r in runs])
     files = {"summary.csv": csv_text.encode(), "summary.md": md_text.encode(), "runs.csv": runs_csv.encode()}
     if any(r["metrics"] for r in rows):
-        files["transfer_matrix.png"] = plot_transfer_matrix(rows)
+        files["transfer_matrix.png"] = plot_transfer_matrix(rows, args.metric)
     rundir.write_files(out, files)
     counts = [s for s, _ in status.values()]
     print(md_text)
