@@ -616,7 +616,7 @@ def compute(baseline: Sequence[Curve], transfer: Sequence[Curve], **settings) ->
                              source_basis=source_basis, scale=scale, warnings=warnings)
     curves = _plot_curves(baseline, transfer, start, budget, scores, s, settings_out)
     per_seed = {side: _records(df) for side, df in scores.items()}
-    table = pd.concat([df.assign(side=side) for side, df in scores.items()], ignore_index=True)
+    table = pd.DataFrame([{**row, "side": side} for side, df in scores.items() for row in df.to_dict("records")])
     return {"metrics": m, "settings": settings_out, "per_seed": per_seed, "scores": table, "curves": curves}
 
 

@@ -84,8 +84,15 @@ def test_register_a_user_task_and_pair(scratch_registry):
     assert scratch_registry.make_env("mine/west", batch_size=(3,)).goal.tolist() == [2.0, 4.0]
     scratch_registry.register_pair("mine", "fourrooms/northeast", "mine/west", "to the west door")
     assert scratch_registry.get_pair("mine").target == "mine/west"
-    with pytest.raises(UsageError, match="already registered"):
+    with pytest.raises(UsageError, match="already registered; pass replace=True"):
         scratch_registry.register_task("mine/west", factory, "again")
+    again = scratch_registry.register_task("mine/west", factory, "goal moved", goal=(2.0, 3.0), replace=True)
+    assert scratch_registry.TASKS["mine/west"] is again
+    assert scratch_registry.make_env("mine/west").goal.tolist() == [2.0, 3.0]
+    with pytest.raises(UsageError, match="pair 'mine' is already registered"):
+        scratch_registry.register_pair("mine", "fourrooms/northeast", "mine/west", "again")
+    scratch_registry.register_pair("mine", "mine/west", "fourrooms/northeast", "reversed", replace=True)
+    assert scratch_registry.get_pair("mine").source == "mine/west"
     with pytest.raises(UsageError, match="unknown task 'mine/east'"):
         scratch_registry.register_pair("bad", "fourrooms/northeast", "mine/east", "no such target")
     assert "bad" not in scratch_registry.PAIRS

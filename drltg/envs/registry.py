@@ -78,21 +78,23 @@ def register_task(
     *,
     train: dict[str, Any] | None = None,
     potential: Callable[[dict[str, Any]], Callable] | None = None,
+    replace: bool = False,
     **defaults,
 ) -> TaskSpec:
     """Registers a task; ``defaults`` are keyword arguments of ``factory``, ``train`` config overrides,
-    ``potential(env_options)`` builds its reward-shaping potential."""
-    if name in TASKS:
-        raise UsageError(f"task {name!r} is already registered.")
+    ``potential(env_options)`` builds its reward-shaping potential. ``replace=True`` redefines a
+    registered task (a notebook cell run twice)."""
+    if name in TASKS and not replace:
+        raise UsageError(f"task {name!r} is already registered; pass replace=True to redefine it.")
     spec = TaskSpec(name, factory, description, dict(defaults), dict(train or {}), potential)
     TASKS[name] = spec
     return spec
 
 
-def register_pair(name: str, source: str, target: str, description: str) -> PairSpec:
-    """Registers a task pair; both tasks must already be registered."""
-    if name in PAIRS:
-        raise UsageError(f"pair {name!r} is already registered.")
+def register_pair(name: str, source: str, target: str, description: str, *, replace: bool = False) -> PairSpec:
+    """Registers a task pair; both tasks must already be registered; ``replace=True`` redefines it."""
+    if name in PAIRS and not replace:
+        raise UsageError(f"pair {name!r} is already registered; pass replace=True to redefine it.")
     get_task(source), get_task(target)
     spec = PairSpec(name, source, target, description)
     PAIRS[name] = spec

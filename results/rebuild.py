@@ -1,0 +1,78 @@
+"""Keep a sweep's curves in results/ and rebuild every report and table from them.
+
+    python results/rebuild.py results/NAME [--from runs/SWEEP] [--threshold 0.5]
+
+``--from`` copies, for every run of a ``drltg sweep`` folder, the files that define and record it
+(``config.yaml``, ``eval.csv``, ``summary.json``: small text; no checkpoints or logs) into
+``results/NAME`` with the same layout, and writes ``transfer.source`` relative to the run directory, so
+the folder can be moved and read anywhere. Then, with or without ``--from``, every
+``PAIR/ALGO/METHOD/transfer`` is reported against its ``PAIR/ALGO/baseline`` with ``drltg report``
+into ``PAIR/ALGO/METHOD/report/``, and the folder gets ``summary.{csv,md}`` and the
+``transfer_matrix.png`` heatmap, as ``drltg sweep`` writes them. The same curves always give the same
+reports (a test re-runs one and compares it with the committed JSON).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+from pathlib import Path
+
+import yaml
+
+from drltg import rundir
+from drltg.report import transfer_report
+from drltg.sweep import plot_transfer_matrix, summary_tables
+
+KEPT = ("config.yaml", "eval.csv", "summary.json")
+
+
+def keep_curves(sweep: Path, dest: Path) -> int:
+    """Copy every complete run's defining files from ``sweep`` to ``dest``; returns how many runs."""
+    count = 0
+    for summary in sorted(sweep.rglob("summary.json")):
+        run = summary.parent
+        target = dest / run.relative_to(sweep)
+        target.mkdir(parents=True, exist_ok=True)
+        for name in KEPT:
+            shutil.copyfile(run / name, target / name)
+        cfg = yaml.safe_load((target / "config.yaml").read_text())
+        source = cfg["transfer"].get("source")
+        if source and Path(source).is_absolute():
+            cfg["transfer"]["source"] = os.path.relpath(dest / Path(source).relative_to(sweep), target)
+            rundir.atomic_write(target / "config.yaml", yaml.safe_dump(cfg, sort_keys=False))
+        count += 1
+    return count
+
+
+def rebuild(root: Path, threshold) -> list[dict]:
+    """Report every transfer folder under ``root`` against its baseline; write the summary files."""
+    rows = []
+    for transfer in sorted(root.glob("*/*/*/transfer")):
+        method_dir = transfer.parent
+        algo_dir = method_dir.parent
+        result = transfer_report(algo_dir / "baseline", transfer, method_dir / "report", threshold=threshold,
+                                 baseline_label="no transfer", transfer_label=method_dir.name)
+        rows.append({"pair": algo_dir.parent.name, "algo": algo_dir.name, "variant": "",
+                     "method": method_dir.name, "report": str((method_dir / "report").relative_to(root)),
+                     "metrics": result["metrics"]})
+    csv_text, md_text = summary_tables(rows)
+    rundir.write_files(root, {"summary.csv": csv_text.encode(), "summary.md": md_text.encode(),
+                              "transfer_matrix.png": plot_transfer_matrix(rows)})
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("root", type=Path, help="the results folder, e.g. results/sweep-fourrooms-graded")
+    parser.add_argument("--from", dest="sweep", type=Path, help="a drltg sweep folder to take the curves from")
+    parser.add_argument("--threshold", default="0.5", help="report threshold (default 0.5)")
+    args = parser.parse_args()
+    if args.sweep is not None:
+        print(f"kept {keep_curves(args.sweep.resolve(), args.root.resolve())} runs from {args.sweep}")
+    rows = rebuild(args.root, float(args.threshold) if not args.threshold.endswith("%") else args.threshold)
+    print(f"rebuilt {len(rows)} reports and {args.root / 'summary.md'}")
+
+
+if __name__ == "__main__":
+    main()
