@@ -375,6 +375,8 @@ def validate(cfg: dict) -> None:
             f"collector.frames_per_batch ({fpb}) must be a multiple of collector.num_envs ({n})."
         )
     t = cfg["transfer"]
+    if t["method"] == "demonstrations" and cfg["algo"] not in ("sac", "td3"):
+        raise UsageError(f"transfer.method=demonstrations needs an algo without options (sac or td3), got '{cfg['algo']}'.")
     if t["psi_end"] is not None and t["psi_end"] != t["psi"] and t["annealing_frames"] <= 0:
         raise UsageError("config key 'transfer.psi_end' needs transfer.annealing_frames > 0, the frames over "
                          "which psi decays.")

@@ -36,8 +36,6 @@ def check(cfg: dict) -> None:
     t = cfg["transfer"]
     if t["method"] not in METHODS:
         raise UsageError(f"unknown transfer method '{t['method']}'; choose one of: {', '.join(METHODS)}.")
-    if t["method"] == "demonstrations" and cfg["algo"] not in ("sac", "td3"):
-        raise UsageError(f"transfer.method=demonstrations needs an algo without options (sac or td3), got '{cfg['algo']}'.")
     if t["method"] in NEEDS_SOURCE:
         if not t["source"]:
             raise UsageError(f"transfer.method={t['method']} needs transfer.source, the source run directory.")

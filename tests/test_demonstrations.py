@@ -87,8 +87,12 @@ def test_demonstrations_of_a_source_run_train_the_target_reproducibly(source_run
     assert same == [True, True, False]  # the same demonstrations each time; the updates saw them
 
 
+def test_demonstrations_need_a_learner_without_options():
+    with pytest.raises(UsageError, match="needs an algo without options"):
+        config_lib.resolve({}, TINY + ["transfer.method=demonstrations"], task="fourrooms/northeast", algo="soc")
+
+
 @pytest.mark.parametrize("override, message", [
-    (["algo=soc"], "needs an algo without options"),
     (["transfer.source=demonstrator:lift"], "solves lift"),
     ([], "needs transfer.source"),
 ])
