@@ -7,6 +7,7 @@ import importlib
 import signal
 import sys
 
+from drltg import plugins
 from drltg.errors import UsageError
 
 SUBCOMMANDS = {
@@ -30,14 +31,19 @@ def main(argv: list[str] | None = None) -> int:
     parser = _Parser(prog="drltg", description="DRL Transfer Gym: transfer learning for deep RL on TorchRL.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
+    plugin_options = _Parser(add_help=False)
+    plugin_options.add_argument("--import", dest="imports", action="append", default=[], metavar="MODULE",
+                                help="import MODULE first, e.g. one that registers your tasks (repeatable; "
+                                     "also DRLTG_IMPORT=a,b and the drltg.plugins entry points)")
     for name, (module, help_text) in SUBCOMMANDS.items():
-        p = sub.add_parser(name, help=help_text, description=help_text)
+        p = sub.add_parser(name, help=help_text, description=help_text, parents=[plugin_options])
         p.set_defaults(_module=module)
         if argv[:1] == [name]:  # import only the module that runs (keeps `drltg tasks` fast)
             importlib.import_module(module).add_arguments(p)
     args = parser.parse_args(argv)
     previous = signal.signal(signal.SIGTERM, _terminate)
     try:
+        plugins.load(args.imports)
         return importlib.import_module(args._module).run(args) or 0
     except UsageError as err:
         print(f"drltg {args.command}: error: {err}", file=sys.stderr)

@@ -132,8 +132,10 @@ def check_runs(runs: list[tuple[str, dict, Path]]) -> None:
 
 
 def _train_one(cfg: dict, run_dir: Path) -> str:
+    from drltg import plugins
     from drltg.train import train
 
+    plugins.load()  # a worker process registers the user's tasks too
     if rundir.is_complete(run_dir):
         return "reused"
     train(cfg, run_dir, resume=(run_dir / rundir.CONFIG).is_file(), progress=False)

@@ -304,8 +304,10 @@ def run_one(cfg: dict, run_dir: str, log_path: str) -> tuple[str, str]:
 
     Never raises for a broken run: the traceback goes to the log, the sweep goes on.
     """
+    from drltg import plugins
     from drltg.train import train
 
+    plugins.load()  # a worker process registers the user's tasks too
     run_dir, log_path = Path(run_dir), Path(log_path)
     log_path.parent.mkdir(parents=True, exist_ok=True)
     resume = (run_dir / rundir.CONFIG).is_file()
@@ -427,7 +429,9 @@ class RayBackend:
                 ray.init(address=address, configure_logging=False, log_to_driver=False)
             except (ConnectionError, ValueError, RuntimeError) as err:
                 raise UsageError(f"cannot join the Ray cluster at '{address}' ({err}).") from None
-        self.task = ray.remote(run_one).options(max_retries=0, **resources)
+        imports = os.environ.get("DRLTG_IMPORT")  # workers on other nodes import the same plugins
+        runtime_env = {"env_vars": {"DRLTG_IMPORT": imports}} if imports else None
+        self.task = ray.remote(run_one).options(max_retries=0, runtime_env=runtime_env, **resources)
 
     capacity = math.inf  # Ray queues the tasks and runs as many as the cluster's resources allow
 

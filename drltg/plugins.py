@@ -1,0 +1,60 @@
+"""Users' own tasks, pairs and potentials on every command: plugins imported before a command runs.
+
+A plugin is any importable module that registers things when imported (``register_task``,
+``register_pair``). drltg imports
+
+- every entry point of the group ``drltg.plugins`` of the installed distributions, e.g. in the
+  plugin's ``pyproject.toml``::
+
+      [project.entry-points."drltg.plugins"]
+      my_tasks = "my_package.tasks"
+
+- the modules named by ``--import MODULE`` (any command, repeatable) and by the environment variable
+  ``DRLTG_IMPORT`` (comma-separated).
+
+``--import`` modules are added to ``DRLTG_IMPORT`` of this process, so the worker processes of
+``drltg experiment`` and ``drltg sweep`` (which call :func:`load` too) register the same things.
+"""
+from __future__ import annotations
+
+import importlib
+import os
+from importlib.metadata import entry_points
+
+from drltg.errors import UsageError
+
+GROUP = "drltg.plugins"
+ENV_VAR = "DRLTG_IMPORT"
+
+
+def _modules_from_env() -> list[str]:
+    return [m.strip() for m in os.environ.get(ENV_VAR, "").split(",") if m.strip()]
+
+
+def load(modules=()) -> list[str]:
+    """Import the entry-point plugins, ``DRLTG_IMPORT`` and ``modules``; export ``modules`` to
+    ``DRLTG_IMPORT``; returns the names imported. Importing twice is harmless (modules are cached)."""
+    names = list(dict.fromkeys([*_modules_from_env(), *modules]))
+    if modules:
+        os.environ[ENV_VAR] = ",".join(names)
+    loaded = []
+    for ep in entry_points(group=GROUP):
+        try:
+            ep.load()
+        except Exception as err:
+            raise UsageError(f"the drltg plugin '{ep.name}' ({ep.value}) failed to load: {err}") from None
+        loaded.append(ep.value)
+    for name in names:
+        try:
+            importlib.import_module(name)
+        except ModuleNotFoundError as err:
+            if err.name and name.startswith(err.name):
+                raise UsageError(f"cannot import plugin module '{name}': no module named '{err.name}' "
+                                 "(is it installed or on PYTHONPATH?).") from None
+            raise UsageError(f"plugin module '{name}' failed to import: {err}") from None
+        except UsageError:
+            raise
+        except Exception as err:
+            raise UsageError(f"plugin module '{name}' failed to import: {type(err).__name__}: {err}") from None
+        loaded.append(name)
+    return loaded
