@@ -7,7 +7,7 @@
 ``results/NAME`` with the same layout, and writes ``transfer.source`` relative to the run directory, so
 the folder can be moved and read anywhere. Then, with or without ``--from``, every
 ``PAIR/ALGO/METHOD/transfer`` is reported against its ``PAIR/ALGO/baseline`` with ``drltg report``
-into ``PAIR/ALGO/METHOD/report/``, and the folder gets ``summary.{csv,md}`` and the
+into ``PAIR/ALGO/METHOD/report/`` (JSON, CSV and the PNG plot), and the folder gets ``summary.{csv,md}`` and the
 ``transfer_matrix.png`` heatmap, as ``drltg sweep`` writes them. The same curves always give the same
 reports (a test re-runs one and compares it with the committed JSON).
 """
@@ -53,6 +53,7 @@ def rebuild(root: Path, threshold) -> list[dict]:
         algo_dir = method_dir.parent
         result = transfer_report(algo_dir / "baseline", transfer, method_dir / "report", threshold=threshold,
                                  baseline_label="no transfer", transfer_label=method_dir.name)
+        (method_dir / "report" / "transfer_plot.svg").unlink()  # the PNG is kept; the SVG is rebuilt on demand
         rows.append({"pair": algo_dir.parent.name, "algo": algo_dir.name, "variant": "",
                      "method": method_dir.name, "report": str((method_dir / "report").relative_to(root)),
                      "metrics": result["metrics"]})
