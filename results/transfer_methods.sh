@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Reproduces the transfer-method results, 5 seeds per side:
+# Reproduces the grid transfer-method results, 5 seeds per side (FourRooms: examples/sweeps/fourrooms-graded.yaml):
 #   bash results/transfer_methods.sh        (RUNS=runs/results WORKERS=2 by default)
 # Every experiment trains 5 source runs (40k frames), 5 baseline and 5 transfer runs (20k frames)
 # and writes RUNS/<pair>/<method>/report/. Policy reuse reuses the model-reuse experiment's source and
@@ -9,8 +9,8 @@ set -euo pipefail
 RUNS=${RUNS:-runs/results}
 WORKERS=${WORKERS:-2}
 DRLTG=${DRLTG:-drltg}
-REUSE_PAIRS=${REUSE_PAIRS-fourrooms-near fourrooms-far gridrooms-near gridrooms-far}
-SHAPING_PAIRS=${SHAPING_PAIRS-fourrooms-near fourrooms-far gridrooms-near gridrooms-far}
+REUSE_PAIRS=${REUSE_PAIRS-gridrooms-near gridrooms-far}
+SHAPING_PAIRS=${SHAPING_PAIRS-gridrooms-near gridrooms-far}
 COMMON=(--seeds 5 --frames 20000 --source-frames 40000 --threshold 0.5 -o eval.every=1000 --workers "$WORKERS")
 mkdir -p "$RUNS/logs"
 
