@@ -35,8 +35,6 @@ def load(modules=()) -> list[str]:
     """Import the entry-point plugins, ``DRLTG_IMPORT`` and ``modules``; export ``modules`` to
     ``DRLTG_IMPORT``; returns the names imported. Importing twice is harmless (modules are cached)."""
     names = list(dict.fromkeys([*_modules_from_env(), *modules]))
-    if modules:
-        os.environ[ENV_VAR] = ",".join(names)
     loaded = []
     for ep in entry_points(group=GROUP):
         try:
@@ -57,4 +55,6 @@ def load(modules=()) -> list[str]:
         except Exception as err:
             raise UsageError(f"plugin module '{name}' failed to import: {type(err).__name__}: {err}") from None
         loaded.append(name)
+    if modules:  # only what imported: a worker process must not fail on a name the parent refused
+        os.environ[ENV_VAR] = ",".join(names)
     return loaded

@@ -46,8 +46,10 @@ def test_drltg_import_variable_reaches_every_command():
     assert "line-shift" not in _drltg("tasks").stdout
 
 
-def test_a_missing_plugin_module_is_one_sentence(capsys):
+def test_a_missing_plugin_module_is_one_sentence(capsys, monkeypatch):
+    monkeypatch.setenv("DRLTG_IMPORT", "")  # restored after the test: a successful load exports its modules
     assert main(["tasks", "--import", "no_such_plugin_module"]) == 2
+    assert os.environ["DRLTG_IMPORT"] == ""
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "cannot import plugin module 'no_such_plugin_module'" in err
 
@@ -56,7 +58,7 @@ def test_entry_point_plugins_are_loaded(monkeypatch):
     monkeypatch.setattr(registry, "TASKS", dict(registry.TASKS))
     monkeypatch.setattr(registry, "PAIRS", dict(registry.PAIRS))
     monkeypatch.syspath_prepend(str(PLUGIN_DIR))
-    monkeypatch.delenv("DRLTG_IMPORT", raising=False)
+    monkeypatch.setenv("DRLTG_IMPORT", "")
     sys.modules.pop("drltg_example_plugin", None)
     ep = importlib.metadata.EntryPoint(name="line", value="drltg_example_plugin", group=plugins.GROUP)
     monkeypatch.setattr(plugins, "entry_points", lambda group: [ep] if group == plugins.GROUP else [])
@@ -66,6 +68,7 @@ def test_entry_point_plugins_are_loaded(monkeypatch):
 
 
 def test_a_broken_entry_point_is_one_sentence(monkeypatch):
+    monkeypatch.setenv("DRLTG_IMPORT", "")
     ep = importlib.metadata.EntryPoint(name="broken", value="no_such_module_xyz", group=plugins.GROUP)
     monkeypatch.setattr(plugins, "entry_points", lambda group: [ep])
     with pytest.raises(plugins.UsageError, match="the drltg plugin 'broken' .* failed to load"):
