@@ -17,3 +17,15 @@ for seed in $SEEDS; do
     -o eval.every=10000 -o checkpoint.every=10000 &
 done
 wait
+
+# Keep the curves and configs, and set them beside the seed project's SB3 SAC curve on the same
+# frame axis (its one run as "baseline", drltg's runs as "transfer"; unpaired).
+mkdir -p results/lift-dense/sac
+for seed in $SEEDS; do
+  src="$RUNS/lift-dense/sac/seed-$seed"; dst="results/lift-dense/sac/seed-$seed"; mkdir -p "$dst"
+  for f in config.yaml eval.csv summary.json; do [ -f "$src/$f" ] && cp "$src/$f" "$dst/"; done
+done
+budget=$(for seed in $SEEDS; do tail -n 1 "results/lift-dense/sac/seed-$seed/eval.csv" | cut -d, -f1; done | sort -n | head -n 1)
+$DRLTG report --baseline tests/data/sb3_runs/lift_shaped_sac --transfer results/lift-dense/sac \
+  --baseline-label "seed project, SB3 SAC (1 run)" --transfer-label "drltg SAC" \
+  --threshold 50 --budget "$budget" --out results/lift-dense/vs-seed
