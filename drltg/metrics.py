@@ -300,7 +300,7 @@ _NORMAL = NormalDist()
 
 
 def _t_cdf_from_zero(x: Array, df: Array, log_c: Array) -> Array:
-    """``P(0 <= T <= x)`` for Student's t: 64-point Gauss-Legendre quadrature of the density
+    r"""``P(0 <= T <= x)`` for Student's t: 64-point Gauss-Legendre quadrature of the density
     :math:`c (1 + u^2/\nu)^{-(\nu+1)/2}` on ``[0, x]``."""
     u = (x[..., None] / 2.0) * (_GL_X + 1.0)
     nu = df[..., None]
@@ -353,7 +353,7 @@ def _check_confidence(confidence: float) -> float:
 
 
 def _difference_and_se(b: Array, t: Array, paired: bool, df: str = "hsu") -> tuple[Array, Array, Array]:
-    """Mean difference, its standard error and the t degrees of freedom.
+    r"""Mean difference, its standard error and the t degrees of freedom.
 
     Paired: :math:`\bar d`, :math:`s_d/\sqrt n`, :math:`n-1` with :math:`d_i = t_i - b_i`.
     Unpaired: :math:`\bar t - \bar b`, :math:`\sqrt{s_b^2/n_b + s_t^2/n_t}` and either Hsu's
@@ -418,7 +418,7 @@ def percentile_interval(b, t, paired: bool = False, confidence: float = 0.95, n_
 
 def bca_interval(b, t, paired: bool = False, confidence: float = 0.95, n_resamples: int = 2000,
                  seed: int = 0) -> tuple[Array, Array]:
-    """Bias-corrected and accelerated bootstrap (Efron 1987) of the mean difference.
+    r"""Bias-corrected and accelerated bootstrap (Efron 1987) of the mean difference.
 
     :math:`z_0 = \Phi^{-1}(P^*(\hat\theta^* < \hat\theta))`, acceleration
     :math:`a = \sum U^3 / (6 (\sum U^2)^{3/2})` from the empirical influence values :math:`U`
@@ -454,7 +454,7 @@ def bca_interval(b, t, paired: bool = False, confidence: float = 0.95, n_resampl
 
 def studentized_interval(b, t, paired: bool = False, confidence: float = 0.95, n_resamples: int = 2000,
                          seed: int = 0) -> tuple[Array, Array]:
-    """Bootstrap-t: :math:`\hat\theta - q^*_{1-a/2}\,se,\ \hat\theta - q^*_{a/2}\,se` with
+    r"""Bootstrap-t: :math:`\hat\theta - q^*_{1-a/2}\,se,\ \hat\theta - q^*_{a/2}\,se` with
     :math:`q^*` the quantiles of :math:`(\theta^* - \hat\theta)/se^*`. A resample without spread
     has :math:`se^* = 0` and counts as an infinite ratio (kept, not dropped), so the interval is
     NaN (unbounded) when such resamples reach a tail."""
@@ -484,7 +484,7 @@ INTERVALS = {"t": t_interval, "welch": welch_interval, "studentized": studentize
 
 
 def fieller_interval(b, t, paired: bool = False, confidence: float = 0.95) -> tuple[float, float]:
-    """Fieller's interval for the ratio of means :math:`\rho = \mu_T / \mu_B`.
+    r"""Fieller's interval for the ratio of means :math:`\rho = \mu_T / \mu_B`.
 
     The set of :math:`\rho` with :math:`(\bar t - \rho \bar b)^2 \le q^2 (v_t - 2\rho c + \rho^2 v_b)`
     (:math:`v` = squared standard errors, :math:`c` their covariance when paired, :math:`q` the t
@@ -510,7 +510,7 @@ def fieller_interval(b, t, paired: bool = False, confidence: float = 0.95) -> tu
 
 def ratio_interval(area_baseline, area_transfer, paired: bool = False,
                    confidence: float = 0.95) -> tuple[float, float]:
-    """Interval of :func:`transfer_ratio` :math:`r = \mathrm{sign}(\mu_B)(\rho - 1)` from
+    r"""Interval of :func:`transfer_ratio` :math:`r = \mathrm{sign}(\mu_B)(\rho - 1)` from
     :func:`fieller_interval`; ``(nan, nan)`` when the baseline area's interval contains 0."""
     lo, hi = fieller_interval(area_baseline, area_transfer, paired, confidence)
     if math.isnan(lo):
@@ -521,14 +521,14 @@ def ratio_interval(area_baseline, area_transfer, paired: bool = False,
 
 
 def paired_probability_of_improvement(baseline, transfer) -> float:
-    """:math:`\frac1n\sum_i 1[t_i > b_i] + \tfrac12 1[t_i = b_i]` over pairs ``(b_i, t_i)``."""
+    r""":math:`\frac1n\sum_i 1[t_i > b_i] + \tfrac12 1[t_i = b_i]` over pairs ``(b_i, t_i)``."""
     d = _as_array(transfer) - _as_array(baseline)
     return float(((d > 0) + 0.5 * (d == 0)).mean())
 
 
 def poi_interval(p_hat: float, n_baseline: int, n_transfer: int, paired: bool = False,
                  confidence: float = 0.95) -> tuple[float, float]:
-    """Score interval of a probability of improvement: all :math:`p` with
+    r"""Score interval of a probability of improvement: all :math:`p` with
     :math:`(\hat p - p)^2 \le z^2 V(p)`, never degenerate at 0 or 1.
 
     Paired (a proportion of ``n`` pairs): Wilson, :math:`V = p(1-p)/n`. Unpaired (the Mann-Whitney

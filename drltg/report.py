@@ -437,7 +437,7 @@ def _frames_of_run(run_dir: Path, source: str) -> float | None:
 
 def _with_source(baseline: Sequence[Curve], transfer: Sequence[Curve], scores: dict, frames: list[float], *,
                  start, budget, threshold, s: ReportSettings, warnings: list[str]) -> None:
-    """Taylor & Stone's total-time view on one budget: a transfer run has first spent ``S`` frames
+    r"""Taylor & Stone's total-time view on one budget: a transfer run has first spent ``S`` frames
     on the source task, so after ``x`` frames in total it has ``x - S`` target frames.
 
     Both sides are compared at equal total experience, over the window ``[start + S, budget]``:
@@ -531,7 +531,7 @@ def _confidence_interval(metric: Metric, value, b, t, paired: bool, s: ReportSet
 
 
 def _trend(curves: Sequence[Curve], start: float, budget: float, s: ReportSettings) -> dict:
-    """Is the side's mean curve still changing over the last ``trend_window`` of the budget?
+    r"""Is the side's mean curve still changing over the last ``trend_window`` of the budget?
 
     Least-squares line through the mean over seeds at every evaluation frame of that window; the
     change over the window, :math:`\\hat\\beta (f_1 - f_0)`, with its t-interval (n - 2 degrees of

@@ -605,7 +605,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from drltg.experiment import check_runs
-
     from drltg.report import METRIC_ORDER
 
     if args.workers is not None and args.workers < 1:

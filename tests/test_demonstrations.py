@@ -1,5 +1,6 @@
 """Learning from demonstrations: collecting demonstrator episodes and the mixed batches."""
 import json
+
 import pytest
 import torch
 from tensordict import TensorDict

@@ -7,9 +7,9 @@ from torchrl.envs import TransformedEnv
 from torchrl.envs.utils import step_mdp
 from torchrl.record import PixelRenderTransform
 
+from drltg.envs import FourRoomsEnv, GridFourRoomsEnv
 from drltg.envs import fourrooms as fr
 from drltg.envs import gridrooms as gr
-from drltg.envs import FourRoomsEnv, GridFourRoomsEnv
 from drltg.errors import UsageError
 
 

@@ -6,8 +6,7 @@ import torch
 from torchrl.envs.utils import check_env_specs
 
 from drltg import tasks_cmd
-from drltg.envs import PAIRS, TASKS, FourRoomsEnv, get_pair, get_task, make_env
-from drltg.envs import registry
+from drltg.envs import PAIRS, TASKS, FourRoomsEnv, get_pair, get_task, make_env, registry
 from drltg.errors import UsageError
 
 # robosuite tasks take seconds to build; tests/test_robosuite.py checks their specs and workers.

@@ -9,7 +9,7 @@ from torch import nn
 from torchrl.collectors import Collector
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase, SerialEnv, TransformedEnv
-from torchrl.envs.utils import check_env_specs, step_mdp
+from torchrl.envs.utils import check_env_specs
 
 from drltg.envs import FourRoomsEnv, GridFourRoomsEnv, fourrooms, gridrooms
 from drltg.transforms import FourRoomsPotential, GridFourRoomsPotential, PotentialShaping, TimeDependentPotential

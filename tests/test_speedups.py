@@ -6,7 +6,6 @@ import pytest
 import torch
 from tensordict import TensorDict
 from torchrl.data import LazyTensorStorage, ReplayBuffer
-from torchrl.objectives import SoftUpdate
 
 import drltg.train as train_mod
 from drltg import config as config_lib

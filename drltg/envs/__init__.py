@@ -1,7 +1,6 @@
 """Task environments (TorchRL ``EnvBase``) and the registry of tasks and task pairs."""
 from drltg.envs.fourrooms import FourRoomsEnv
 from drltg.envs.gridrooms import GridFourRoomsEnv
-from drltg.envs.robosuite import RobosuiteEnv  # robosuite itself is imported when one is built
 from drltg.envs.registry import (
     PAIRS,
     TASKS,
@@ -13,6 +12,7 @@ from drltg.envs.registry import (
     register_pair,
     register_task,
 )
+from drltg.envs.robosuite import RobosuiteEnv  # robosuite itself is imported when one is built
 
 __all__ = [
     "FourRoomsEnv",

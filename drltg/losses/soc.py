@@ -82,7 +82,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from torchrl.objectives import SoftUpdate
 from torchrl.objectives.common import LossModule
 from torchrl.objectives.sac import compute_rsample_log_prob
-from torchrl.objectives.utils import _vmap_func, dispatch_value_estimator, distance_loss, ValueEstimators
+from torchrl.objectives.utils import ValueEstimators, _vmap_func, dispatch_value_estimator, distance_loss
 
 from drltg.config import DEFAULTS
 from drltg.errors import UsageError

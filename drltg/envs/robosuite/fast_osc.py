@@ -119,12 +119,11 @@ def osc_torques(fresh, jacp, jacr, full_mass, site_xpos, site_xmat, qpos, qvel, 
 
 def unsupported_reason(env) -> str | None:
     """Why :class:`LeanStep` cannot step ``env`` exactly as robosuite does, or ``None`` if it can."""
+    from robosuite import macros
     from robosuite.controllers.parts.arm.osc import OperationalSpaceController
     from robosuite.controllers.parts.gripper.simple_grip import SimpleGripController
     from robosuite.robots.fixed_base_robot import FixedBaseRobot
     from robosuite.utils import observables as rs_obs
-
-    from robosuite import macros
 
     if not macros.ENABLE_NUMBA:
         return "robosuite's numba kernels (robosuite.macros.ENABLE_NUMBA)"
