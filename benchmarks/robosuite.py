@@ -33,44 +33,37 @@ def _actions(n: int = 64) -> np.ndarray:
     return np.random.default_rng(0).uniform(-1.0, 1.0, (n, 7))
 
 
-def raw_case(steps: int):
-    from drltg.envs.robosuite import RobosuiteEnv
-
-    env = RobosuiteEnv(TASK, horizon=HORIZON, seed=0, fast=False).robosuite_env
-    env.reset()
+def _episodes(step, reset, steps: int):
+    """A timed loop of ``steps`` calls of ``step`` on the fixed actions, ``reset`` every HORIZON steps."""
     actions = _actions()
     state = {"t": 0}
 
     def run() -> int:
         for i in range(steps):
-            env.step(actions[i % len(actions)])
+            step(actions[i % len(actions)])
             state["t"] += 1
             if state["t"] >= HORIZON:
-                env.reset()
+                reset()
                 state["t"] = 0
         return steps
 
-    return run, env
+    return run
+
+
+def raw_case(steps: int):
+    from drltg.envs.robosuite import RobosuiteEnv
+
+    env = RobosuiteEnv(TASK, horizon=HORIZON, seed=0, fast=False).robosuite_env
+    env.reset()
+    return _episodes(env.step, env.reset, steps), env
 
 
 def lean_case(steps: int):
     from drltg.envs.robosuite import RobosuiteEnv
 
     drltg_env = RobosuiteEnv(TASK, horizon=HORIZON, seed=0)
-    env, lean = drltg_env.robosuite_env, drltg_env._lean
-    actions = _actions()
-    state = {"t": 0}
-
-    def run() -> int:
-        for i in range(steps):
-            lean.step(actions[i % len(actions)])
-            state["t"] += 1
-            if state["t"] >= HORIZON:
-                env.reset()
-                state["t"] = 0
-        return steps
-
-    return run, drltg_env
+    env = drltg_env.robosuite_env
+    return _episodes(drltg_env._lean.step, env.reset, steps), drltg_env
 
 
 def drltg_case(steps: int, workers: int | None = None, fast: bool = True):
