@@ -37,7 +37,8 @@ METHODS = ("reward-shaping", "policy-reuse", "model-reuse", "demonstrations")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("pair", help="registered task pair (see `drltg tasks`); reward-shaping also takes a task")
+    p.add_argument("pair", help="registered task pair (see `drltg tasks`); a task alone for reward-shaping "
+                   "or with -o transfer.source=...")
     p.add_argument("--method", required=True, choices=METHODS, help="transfer method")
     p.add_argument("--algo", default="sac", help="learner (default sac)")
     p.add_argument("--seeds", type=int, default=5, help="runs per side (default 5)")
@@ -84,15 +85,18 @@ def plan_runs(
         raise UsageError("--seeds and --frames must be positive.")
     if pair in PAIRS:
         source_task, target_task = PAIRS[pair].source, PAIRS[pair].target
-    elif method == "reward-shaping" and pair in TASKS:
+    elif pair in TASKS:  # a task alone: the method needs no source, or the config names one
         source_task, target_task = None, pair
     else:
         from drltg.envs import get_pair
 
         get_pair(pair)  # raises the "unknown pair" sentence
+    given_source = config_lib.resolve(base, overrides, task=target_task, algo=algo)["transfer"]["source"]
+    if source_task is None and method != "reward-shaping" and given_source is None:
+        raise UsageError(f"'{pair}' is a task, not a pair: {method} on it needs -o transfer.source=RUN_DIR "
+                         f"(or demonstrator:TASK); `drltg tasks` lists the pairs.")
     out = Path(out).expanduser().resolve()
     shared = out if shared is None else Path(shared).expanduser().resolve()
-    given_source = config_lib.resolve(base, overrides, task=target_task, algo=algo)["transfer"]["source"]
 
     def cfg(task, seed, frames, **transfer):
         over = list(overrides) + [f"transfer.{k}={v}" for k, v in transfer.items()]

@@ -427,3 +427,15 @@ def test_lift_to_place_experiment_plans_sources_or_reuses_the_demonstrator(tmp_p
     shaping = plan_runs("lift", "reward-shaping", frames=100, seeds=1, out=tmp_path)
     assert [(role, cfg["task"], cfg["transfer"]["method"]) for role, cfg, _ in shaping] == [
         ("baseline", "lift", "none"), ("transfer", "lift", "reward-shaping")]
+
+
+def test_an_experiment_on_a_task_alone_needs_a_given_source(tmp_path):
+    from drltg.errors import UsageError
+    from drltg.experiment import plan_runs
+
+    demos = plan_runs("lift", "demonstrations", frames=100, seeds=2, out=tmp_path,
+                      overrides=["transfer.source=demonstrator:lift"])
+    assert [(role, cfg["task"], cfg["transfer"]["method"]) for role, cfg, _ in demos] == [
+        ("baseline", "lift", "none"), ("transfer", "lift", "demonstrations")] * 2
+    with pytest.raises(UsageError, match="'lift' is a task, not a pair: policy-reuse on it needs"):
+        plan_runs("lift", "policy-reuse", frames=100, seeds=1, out=tmp_path)
