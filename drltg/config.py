@@ -59,22 +59,16 @@ DEFAULTS: dict[str, Any] = {
     "eval": {"every": 5_000, "episodes": 16},
     "checkpoint": {"every": 10_000},
     "log": {"tensorboard": True, "every": 1_000},
-    # How this run transfers knowledge (drltg.transfer): none | reward-shaping | policy-reuse | model-reuse
-    # | demonstrations
+    # How this run transfers knowledge: a method of drltg.methods (none: the baseline); each method adds
+    # its own transfer.* keys to this section when it is registered
     "transfer": {
         "method": "none",
-        "source": None,  # source run directory (policy-reuse, model-reuse)
-        "psi": 1.0,  # pi-reuse: probability of reusing at an episode's first step ...
-        "upsilon": 0.95,  # ... decaying as psi * upsilon^h within the episode
-        "psi_end": None,  # optional decay of psi across training, reached after annealing_frames
-        "annealing_frames": 0,
-        "freeze": [],  # model reuse: parameter name patterns to keep fixed
-        "partial": False,  # model reuse: accept a source whose core networks cannot all be loaded
+        "source": None,  # source run directory, or demonstrator:TASK (methods with a source)
         "allow_incomplete": False,  # reuse a source run that did not finish (no summary.json)
-        "demo_episodes": 10,  # demonstrations: episodes of the source policy kept in their own buffer ...
-        "demo_ratio": 0.25,  # ... and the share of every batch drawn from them
     },
 }
+TRANSFER_KEYS = tuple(DEFAULTS["transfer"])
+"""The ``transfer.*`` keys of every method; the others belong to one method (``TransferMethod.options``)."""
 
 
 @dataclass(frozen=True)
@@ -166,7 +160,6 @@ def _number_text(x: float | None) -> str | None:
 
 
 ALGOS = ("sac", "td3", "soc")
-TRANSFER_METHODS = ("none", "reward-shaping", "policy-reuse", "model-reuse", "demonstrations")
 OPTION_POLICIES = ("soft", "egreedy")
 _PROB = dict(low=0.0, high=1.0)
 _POSITIVE = dict(low=0.0, open_low=True)
@@ -212,21 +205,14 @@ SCHEMA: dict[str, Field] = {
     "checkpoint.every": Field(int, "frames between checkpoints", low=1),
     "log.tensorboard": Field(bool, "also log to TensorBoard"),
     "log.every": Field(int, "frames between logged training scalars", low=1),
-    "transfer.method": Field(str, "transfer method", choices=TRANSFER_METHODS, noun="transfer method"),
+    "transfer.method": Field(str, "transfer method (`drltg tasks` lists them)", choices=("none",),
+                             noun="transfer method"),
     "transfer.source": Field(str, "source run directory, or demonstrator:TASK", nullable=True,
                              what="a source run directory, demonstrator:TASK"),
-    "transfer.psi": Field(float, "pi-reuse: probability of reusing at an episode's first step", **_PROB),
-    "transfer.upsilon": Field(float, "pi-reuse: decay of psi within the episode", **_PROB),
-    "transfer.psi_end": Field(float, "psi after annealing_frames; null: no decay", **_PROB, nullable=True),
-    "transfer.annealing_frames": Field(int, "frames over which psi decays to psi_end", low=0),
-    "transfer.freeze": Field(list, "model reuse: parameter-name patterns to keep fixed", item=Field(str),
-                             what="a list of parameter-name patterns (e.g. [actor_network_params])"),
-    "transfer.partial": Field(bool, "model reuse: accept a source whose core networks cannot all be loaded"),
     "transfer.allow_incomplete": Field(bool, "reuse a source run that did not finish (no summary.json)"),
-    "transfer.demo_episodes": Field(int, "demonstrations: episodes of the source policy collected", low=1),
-    "transfer.demo_ratio": Field(float, "demonstrations: share of every batch drawn from them", **_PROB),
 }
-"""Every config key (dotted) with its type and range; ``validate`` checks a config against it."""
+"""Every config key (dotted) with its type and range; ``validate`` checks a config against it. The
+registered transfer methods add their ``transfer.*`` keys (:func:`drltg.methods.register_method`)."""
 
 _SECTIONS = {k for k, v in DEFAULTS.items() if isinstance(v, dict) and v}
 _ENV_RESERVED = {"batch_size": "collector.num_envs and eval.episodes", "device": "device", "seed": "seed"}
@@ -374,12 +360,9 @@ def validate(cfg: dict) -> None:
         raise UsageError(
             f"collector.frames_per_batch ({fpb}) must be a multiple of collector.num_envs ({n})."
         )
-    t = cfg["transfer"]
-    if t["method"] == "demonstrations" and cfg["algo"] not in ("sac", "td3"):
-        raise UsageError(f"transfer.method=demonstrations needs an algo without options (sac or td3), got '{cfg['algo']}'.")
-    if t["psi_end"] is not None and t["psi_end"] != t["psi"] and t["annealing_frames"] <= 0:
-        raise UsageError("config key 'transfer.psi_end' needs transfer.annealing_frames > 0, the frames over "
-                         "which psi decays.")
+    from drltg.methods import get_method
+
+    get_method(cfg["transfer"]["method"]).validate(cfg)
     cfg["frames"] = -(-cfg["frames"] // fpb) * fpb  # whole collector batches: the budget is exact
 
 
@@ -501,3 +484,6 @@ def describe() -> str:
 
 def dump(cfg: dict) -> str:
     return yaml.safe_dump(cfg, sort_keys=False)
+
+
+import drltg.methods  # noqa: E402,F401  (registers the built-in methods and their transfer.* keys)

@@ -1,15 +1,17 @@
 """`drltg experiment PAIR --method M --seeds N --frames F --out DIR`: one transfer experiment.
 
     DIR/experiment.yaml        the experiment's settings (re-running with other settings is refused)
-    DIR/source/seed-<s>/       source runs (policy-reuse, model-reuse): the source task, no transfer
+    DIR/source/seed-<s>/       source runs (methods with a source): the source task, no transfer
     DIR/baseline/seed-<s>/     target task, no transfer
     DIR/transfer/seed-<s>/     target task with the method; run i transfers from source run i
     DIR/report/                transfer_metrics.{json,csv}, transfer_plot.{png,svg} (drltg report)
 
-Reward shaping has no source: its baseline is the target task's plain reward and its transfer run
-learns from the shaped reward (both evaluated on the task's own reward). A source given in the config
-(``-o transfer.source=RUN_DIR``, or ``-o transfer.source=demonstrator:lift`` for policy reuse on the
-manipulation tasks) serves every transfer run, and no source runs are trained. Baseline and transfer run i
+A method without a source (reward shaping) needs only the target task, a pair's or one given alone:
+its baseline learns from the task's plain reward and its transfer run with the method (both evaluated
+on the task's own reward). A source given in the config
+(``-o transfer.source=RUN_DIR``, or ``-o transfer.source=demonstrator:lift`` for the methods that reuse a
+policy on the manipulation tasks) serves every transfer run, no source runs are trained, and a task
+alone is a target. Baseline and transfer run i
 share the seed ``seed + 100 i`` (paired runs); source run i uses ``seed + 100 i + 50``, so no source
 and target run share a seed. A completed run is reused; an interrupted one resumes from its checkpoint,
 so re-running the same command finishes what is missing.
@@ -33,13 +35,11 @@ from drltg import config as config_lib
 from drltg import rundir
 from drltg.errors import UsageError
 
-METHODS = ("reward-shaping", "policy-reuse", "model-reuse", "demonstrations")
-
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("pair", help="registered task pair (see `drltg tasks`); a task alone for reward-shaping "
-                   "or with -o transfer.source=...")
-    p.add_argument("--method", required=True, choices=METHODS, help="transfer method")
+    p.add_argument("pair", help="registered task pair (see `drltg tasks`); a task alone for a method without a "
+                   "source, or with -o transfer.source=...")
+    p.add_argument("--method", required=True, help="transfer method (`drltg tasks` lists them)")
     p.add_argument("--algo", default="sac", help="learner (default sac)")
     p.add_argument("--seeds", type=int, default=5, help="runs per side (default 5)")
     p.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
@@ -80,7 +80,10 @@ def plan_runs(
     config keys (``{"eval.every": 1000}``) applied before the ``KEY=VALUE`` ``overrides``.
     """
     from drltg.envs import PAIRS, TASKS
+    from drltg.methods import get_method
 
+    if get_method(method).name == "none":
+        raise UsageError("--method none has nothing to compare; choose a transfer method (`drltg tasks`).")
     if seeds < 1 or frames < 1:
         raise UsageError("--seeds and --frames must be positive.")
     if pair in PAIRS:
@@ -92,7 +95,8 @@ def plan_runs(
 
         get_pair(pair)  # raises the "unknown pair" sentence
     given_source = config_lib.resolve(base, overrides, task=target_task, algo=algo)["transfer"]["source"]
-    if source_task is None and method != "reward-shaping" and given_source is None:
+    needs_source = get_method(method).source is not None
+    if source_task is None and needs_source and given_source is None:
         raise UsageError(f"'{pair}' is a task, not a pair: {method} on it needs -o transfer.source=RUN_DIR "
                          f"(or demonstrator:TASK); `drltg tasks` lists the pairs.")
     out = Path(out).expanduser().resolve()
@@ -106,7 +110,7 @@ def plan_runs(
     for i in range(seeds):
         seed_i = seed + 100 * i
         baseline = ("baseline", cfg(target_task, seed_i, frames), shared / "baseline" / f"seed-{seed_i}")
-        if method == "reward-shaping" or given_source is not None:  # no source runs to train
+        if not needs_source or given_source is not None:  # no source runs to train
             sources, transfer = [], {"method": method}
         else:
             source = shared / "source" / f"seed-{seed_i + 50}"
@@ -120,7 +124,7 @@ def plan_runs(
 def check_runs(runs: list[tuple[str, dict, Path]]) -> None:
     """Build the task env and the learner of every distinct run config, and check the transfer section
     of those whose source is not one of ``runs``: a mistake fails here, before anything is written."""
-    from drltg import transfer
+    from drltg.methods.source import check as check_source
     from drltg.train import check_config
 
     planned = {str(d) for _, _, d in runs}
@@ -128,7 +132,7 @@ def check_runs(runs: list[tuple[str, dict, Path]]) -> None:
     for _, cfg, _ in runs:
         source = cfg["transfer"]["source"]
         if source is None or str(source) not in planned:
-            transfer.check(cfg)
+            check_source(cfg)
         key = json.dumps({**cfg, "seed": 0, "frames": 0, "transfer": None}, sort_keys=True, default=str)
         if key not in seen:
             seen.add(key)

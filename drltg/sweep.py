@@ -111,7 +111,7 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
     """Validate a loaded spec; every mistake is one :class:`UsageError` sentence."""
     from drltg.agents import ALGOS
     from drltg.envs import get_pair
-    from drltg.experiment import METHODS
+    from drltg.methods import METHODS
     from drltg.report import _parse_threshold
 
     if not isinstance(data, dict):
@@ -130,8 +130,8 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
         except UsageError as err:
             raise UsageError(f"{where}: {err}") from None
     for method in spec.methods:
-        if method not in METHODS:
-            raise UsageError(f"{where}: unknown method '{method}'{_hint(method, METHODS)}")
+        if method not in METHODS or method == "none":
+            raise UsageError(f"{where}: unknown method '{method}'{_hint(method, [m for m in METHODS if m != 'none'])}")
     if "algos" in data:
         spec.algos = _axis(data, "algos", str, where)
     for algo in spec.algos:

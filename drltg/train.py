@@ -26,14 +26,15 @@ from torchrl.envs import EnvBase, ExplorationType, RewardSum, TransformedEnv, se
 from torchrl.record.loggers import CSVLogger, TensorboardLogger
 from tqdm.auto import tqdm
 
-from drltg import rundir, transfer
+from drltg import rundir
 from drltg.agents import make_agent
-from drltg.collectors.demonstrations import mixed_batches
 from drltg.config import DEFAULTS, dump
 from drltg.envs import make_env
 from drltg.errors import UsageError
 from drltg.fast import UpdateStep, sample_batches
-from drltg.rundir import CHECKPOINT, CONFIG, EVAL, MODEL_REUSE, SUMMARY, is_complete, read_eval_csv
+from drltg.methods import Transfer, get_method
+from drltg.methods.source import check as check_source
+from drltg.rundir import CHECKPOINT, CONFIG, EVAL, SUMMARY, is_complete, read_eval_csv
 
 __all__ = ["train", "evaluate", "make_envs", "build_env", "check_config", "is_complete", "read_eval_csv"]
 
@@ -223,20 +224,12 @@ def train(
         torch.set_num_threads(cfg["threads"])
         torch.manual_seed(cfg["seed"])
         # Build everything before writing anything: a bad config fails with nothing on disk.
-        transfer.check(cfg)
+        check_source(cfg)
         probe, agent = check_config(cfg)
         train_env, eval_env = make_envs(cfg, agent.env_transforms)
-        method = cfg["transfer"]["method"]
-        policy, mixer, reuse_report, demos = agent.policy, None, None, None
-        if method == "reward-shaping":  # after RewardSum: train/episode_return stays the task's return
-            train_env.append_transform(transfer.shaping(cfg))
-        elif method == "policy-reuse":
-            policy, mixer = transfer.reuse_policy(cfg, agent, probe)
-        elif method == "model-reuse" and ckpt is None:
-            reuse_report = transfer.reuse_weights(cfg, agent)
-            print(reuse_report.summary(), flush=True)
-        elif method == "demonstrations":
-            demos = transfer.demonstrations(cfg, agent, probe)
+        transfer = get_method(cfg["transfer"]["method"]).build(cfg, agent, probe, resuming=ckpt is not None)
+        for t in transfer.train_transforms:  # after RewardSum: train/episode_return stays the task's return
+            train_env.append_transform(t)
         buffer = ReplayBuffer(
             storage=LazyTensorStorage(cfg["buffer"]["size"], device=cfg["device"]),
             batch_size=cfg["buffer"]["batch_size"],
@@ -263,9 +256,9 @@ def train(
             owned.enter_context(rundir.lock(run_dir))
             _refuse_existing(run_dir)  # another process started it first
         try:
-            if reuse_report is not None:
-                rundir.atomic_write(run_dir / MODEL_REUSE, f"{reuse_report}\n")
-            _loop(cfg, run_dir, agent, train_env, eval_env, policy, mixer, buffer, demos, ckpt, rows, progress)
+            for name, text in transfer.files.items():
+                rundir.atomic_write(run_dir / name, text)
+            _loop(cfg, run_dir, agent, train_env, eval_env, transfer, buffer, ckpt, rows, progress)
         except BaseException:
             if not resume and not (run_dir / CHECKPOINT).is_file():
                 _remove_start(run_dir, created)
@@ -273,7 +266,7 @@ def train(
     return run_dir
 
 
-def _loop(cfg, run_dir, agent, train_env, eval_env, policy, mixer, buffer, demos, ckpt, rows, progress) -> None:
+def _loop(cfg, run_dir, agent, train_env, eval_env, transfer: Transfer, buffer, ckpt, rows, progress) -> None:
     col, opt = cfg["collector"], cfg["optim"]
     fpb = col["frames_per_batch"]
     init_random = math.ceil(col["init_random_frames"] / fpb) * fpb
@@ -315,7 +308,7 @@ def _loop(cfg, run_dir, agent, train_env, eval_env, policy, mixer, buffer, demos
 
     collector = Collector(
         train_env,
-        policy,
+        agent.policy if transfer.policy is None else transfer.policy,
         frames_per_batch=fpb,
         total_frames=cfg["frames"] - frames,
         init_random_frames=max(init_random - frames, 0),
@@ -336,16 +329,12 @@ def _loop(cfg, run_dir, agent, train_env, eval_env, policy, mixer, buffer, demos
         for data in collector:
             data = data.reshape(-1)
             frames += data.numel()
-            if mixer is not None:
-                mixer.set_progress(frames)
+            if transfer.on_frames is not None:
+                transfer.on_frames(frames)
             buffer.extend(data.select(*agent.loss.in_keys))  # only what the loss reads is stored
             _episode_stats(data, stats)
             if frames >= init_random:
-                if demos is None:
-                    batches = sample_batches(buffer, opt["updates_per_batch"])
-                else:
-                    batches = mixed_batches(buffer, demos[0], opt["updates_per_batch"], cfg["transfer"]["demo_ratio"])
-                for batch in batches:
+                for batch in (transfer.batches or sample_batches)(buffer, opt["updates_per_batch"]):
                     losses = update(batch, update_actor=updates % agent.actor_delay == 0)
                     updates += 1
                     for k, v in losses.items():
@@ -382,9 +371,8 @@ def _loop(cfg, run_dir, agent, train_env, eval_env, policy, mixer, buffer, demos
         "wall_time_s": round(wall, 2),
         "frames_per_s": round((frames - start_frames) / max(wall, 1e-9), 1),
         "final_eval": rows[-1],
+        **transfer.summary,
     }
-    if demos is not None:
-        summary["demonstration_frames"] = demos[1]
     rundir.atomic_write(run_dir / SUMMARY, json.dumps(summary, indent=2) + "\n")
 
 

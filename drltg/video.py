@@ -57,8 +57,8 @@ def _policy_and_env(args):
         return policy, env, env, "demonstrator", args.task
 
     from drltg.agents import make_agent
+    from drltg.methods.source import check_same_spaces
     from drltg.train import build_env
-    from drltg.transfer import check_same_spaces
 
     run = Path(args.source).expanduser().resolve()
     config, checkpoint = run / rundir.CONFIG, run / rundir.CHECKPOINT

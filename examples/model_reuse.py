@@ -14,7 +14,7 @@ import torch
 from drltg.agents import make_agent
 from drltg.config import resolve
 from drltg.envs import get_pair, make_env
-from drltg.model_reuse import load_from_run
+from drltg.methods import load_from_run
 from drltg.train import evaluate, is_complete, read_eval_csv, train
 
 parser = argparse.ArgumentParser()

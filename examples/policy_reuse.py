@@ -15,10 +15,9 @@ from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, ReplayBuffer
 
 from drltg.agents import make_agent
-from drltg.collectors import PiReuse, PolicyReuse
 from drltg.config import resolve
 from drltg.envs import get_pair, make_env
-from drltg.model_reuse import load_from_run
+from drltg.methods import PiReuse, PolicyReuse, load_from_run
 from drltg.train import evaluate, is_complete, train
 
 parser = argparse.ArgumentParser()

@@ -101,11 +101,44 @@ def _leaves(d, prefix=""):
         ("env.goal.x=1", "env.goal.x", "too deep"),
         ("optim=5", "optim", "mapping of optim.lr"),
         ("task=[1]", "task", "registered task name"),
-        ("transfer.psi_end=0.1", "transfer.psi_end", "annealing_frames > 0"),
+        ("transfer.guide_steps=-1", "transfer.guide_steps", "integer >= 0"),
+        ("transfer.demo_ratio=2", "transfer.demo_ratio", "number in [0, 1]"),
     ],
 )
 def test_bad_value_is_one_sentence_naming_the_key(override, key, expected):
     assert expected in _refused(key, override)
+
+
+@pytest.mark.parametrize(
+    "overrides, key, expected",
+    [
+        (["transfer.method=policy-reuse", "transfer.psi_end=0.1"], "transfer.psi_end", "annealing_frames > 0"),
+        (["transfer.method=demonstrations", "algo=soc"], "transfer.method", "which works with algo sac or td3"),
+    ],
+)
+def test_a_methods_own_rules_hold_when_it_is_chosen(overrides, key, expected):
+    assert expected in _refused(key, *overrides)
+    assert config_lib.resolve(overrides=overrides[1:])  # another method does not read them
+
+
+def test_a_registered_method_brings_its_keys(monkeypatch):
+    import copy
+
+    from drltg.methods import Transfer, TransferMethod, register_method, registry
+
+    monkeypatch.setattr(registry, "METHODS", dict(registry.METHODS))
+    monkeypatch.setattr(config_lib, "DEFAULTS", copy.deepcopy(config_lib.DEFAULTS))
+    monkeypatch.setattr(config_lib, "SCHEMA", dict(config_lib.SCHEMA))
+    method = TransferMethod("test-scale", "scales nothing", lambda *a, **k: Transfer(),
+                            options={"scale": (2.0, config_lib.Field(float, "how much", low=0.0))})
+    register_method(method)
+    assert config_lib.resolve(overrides=["transfer.method=test-scale"])["transfer"]["scale"] == 2.0
+    assert "must be a number >= 0" in _refused("transfer.scale", "transfer.scale=-1")
+    assert "| `transfer.scale` | 2.0 |" in config_lib.describe()
+    with pytest.raises(UsageError, match="already registered; pass replace=True"):
+        register_method(method)
+    with pytest.raises(UsageError, match="'transfer.psi' already belongs to policy-reuse"):
+        register_method(TransferMethod("test-psi", "", method.build, options={"psi": (1.0, config_lib.Field(float))}))
 
 
 @pytest.mark.parametrize(
@@ -194,10 +227,10 @@ def test_every_default_key_has_a_field_and_every_default_fits():
 def test_choices_match_the_implementations():
     from drltg.agents import ALGOS
     from drltg.losses.soc import OPTION_POLICIES
-    from drltg.transfer import METHODS
+    from drltg.methods import METHODS
 
     assert set(config_lib.ALGOS) == set(ALGOS)
-    assert set(config_lib.TRANSFER_METHODS) == set(METHODS)
+    assert set(config_lib.SCHEMA["transfer.method"].choices) == set(METHODS)
     assert set(config_lib.OPTION_POLICIES) == set(OPTION_POLICIES)
 
 

@@ -7,8 +7,8 @@ from tensordict import TensorDict
 from tensordict.nn import TensorDictModule
 from torchrl.data import LazyTensorStorage, ReplayBuffer
 
-from drltg.collectors.demonstrations import collect_demonstrations, demonstration_buffer, mixed_batches
 from drltg.envs import make_env
+from drltg.methods.demonstrations import collect_demonstrations, demonstration_buffer, mixed_batches
 
 
 def test_collects_at_least_the_asked_episodes_of_the_demonstrator():
@@ -89,7 +89,7 @@ def test_demonstrations_of_a_source_run_train_the_target_reproducibly(source_run
 
 
 def test_demonstrations_need_a_learner_without_options():
-    with pytest.raises(UsageError, match="needs an algo without options"):
+    with pytest.raises(UsageError, match="which works with algo sac or td3, not .soc."):
         config_lib.resolve({}, TINY + ["transfer.method=demonstrations"], task="fourrooms/northeast", algo="soc")
 
 

@@ -8,7 +8,7 @@ from drltg.agents import make_agent
 from drltg.config import resolve
 from drltg.envs import FourRoomsEnv
 from drltg.errors import UsageError
-from drltg.model_reuse import load_from_run, load_weights
+from drltg.methods.model_reuse import load_from_run, load_weights
 
 
 def agent(algo="sac", observe_goal=False, seed=0):

@@ -26,16 +26,21 @@ def _drltg(*args, env_extra=None):
                           timeout=300)
 
 
-def test_experiment_runs_a_plugin_pair_in_worker_processes(tmp_path):
+def test_experiment_runs_a_plugin_method_on_a_plugin_pair_in_worker_processes(tmp_path):
     out = tmp_path / "exp"
-    args = ["experiment", "line-shift", "--method", "reward-shaping", "--seeds", "2", "--frames", "512",
+    args = ["experiment", "line-shift", "--method", "critic-reuse", "--seeds", "2", "--frames", "512",
             "--workers", "2", "--out", str(out), "--import", "drltg_example_plugin"]
     for o in TINY:
         args += ["-o", o]
     done = _drltg(*args)
     assert done.returncode == 0, done.stderr[-2000:]
-    configs = [yaml.safe_load(p.read_text()) for p in sorted(out.glob("*/seed-*/config.yaml"))]
-    assert len(configs) == 4 and {c["task"] for c in configs} == {"line/middle"}
+    configs = {p.parent: yaml.safe_load(p.read_text()) for p in sorted(out.glob("*/seed-*/config.yaml"))}
+    assert sorted(c["task"] for c in configs.values()) == ["line/middle"] * 4 + ["line/right"] * 2
+    for run in out.glob("transfer/seed-*"):
+        assert configs[run]["transfer"]["method"] == "critic-reuse"
+        first, *entries = (run / "model_reuse.txt").read_text().splitlines()
+        assert first.startswith("model reuse: 16 loaded") and "6 skipped" in first  # critics, targets, alpha
+        assert len(entries) == 6 and all(e.startswith("  skipped  actor_network_params.") for e in entries)
     report = json.loads((out / "report" / "transfer_metrics.json").read_text())
     assert report["metrics"]["n_seeds_transfer"] == 2
 

@@ -32,7 +32,7 @@ from drltg.envs.robosuite import (  # noqa: E402
     potential_for,
 )
 from drltg.envs.robosuite.layout import TABLE_TOP_Z, TARGET_RADIUS, TARGET_XY  # noqa: E402
-from drltg.transforms import PotentialShaping  # noqa: E402
+from drltg.methods import PotentialShaping  # noqa: E402
 
 TASKS = ("lift", "lift-place", "lift-place-barrier")
 
@@ -362,18 +362,18 @@ def _config(task, *overrides):
 def test_demonstrator_as_past_policy_acts_through_the_reuse_mixer(envs):
     from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-    from drltg import transfer
     from drltg.agents import make_agent
+    from drltg.methods import get_method, source
 
     cfg = _config("lift-place", "transfer.method=policy-reuse", "transfer.source=demonstrator:lift",
                   "transfer.upsilon=1.0", "network.hidden=[8,8]")
-    transfer.check(cfg)  # no run directory needed
-    past = transfer.source_actor(cfg)
+    source.check(cfg)  # no run directory needed
+    past = source.source_actor(cfg)
     assert isinstance(past, PickPlaceDemonstrator) and not past.place  # lift's skill: reach, grasp, lift
     env = envs["lift-place"]
     env.set_seed(0)
     td = env.reset()
-    policy, mixer = transfer.reuse_policy(cfg, make_agent(env, cfg))
+    policy = get_method("policy-reuse").build(cfg, make_agent(env, cfg), env, resuming=False).policy
     with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
         out = policy(td.clone())
     assert out["reused"].item()  # psi_h = 1 * 1^h: the demonstrator always acts
@@ -391,19 +391,18 @@ def test_demonstrator_as_past_policy_acts_through_the_reuse_mixer(envs):
     ],
 )
 def test_demonstrator_source_misuse_is_one_sentence(task, overrides, message):
-    from drltg import transfer
     from drltg.errors import UsageError
+    from drltg.methods import source
 
     with pytest.raises(UsageError, match=message):
-        transfer.check(_config(task, *overrides))
+        source.check(_config(task, *overrides))
 
 
 def test_lift_sparse_vs_shaped_uses_the_lift_potential_on_the_sparse_task():
-    from drltg import transfer
+    from drltg.methods import get_method
 
     cfg = _config("lift", "transfer.method=reward-shaping")
-    transfer.check(cfg)
-    shaping = transfer.shaping(cfg)
+    (shaping,) = get_method("reward-shaping").build(cfg, None, None, resuming=False).train_transforms
     assert isinstance(shaping.potential, LiftPotential) and shaping.gamma == cfg["optim"]["gamma"]
     assert get_task("lift").defaults == {"task": "lift"}  # the baseline learns from Lift's sparse reward
 

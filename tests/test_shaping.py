@@ -12,7 +12,9 @@ from torchrl.envs import EnvBase, SerialEnv, TransformedEnv
 from torchrl.envs.utils import check_env_specs
 
 from drltg.envs import FourRoomsEnv, GridFourRoomsEnv, fourrooms, gridrooms
-from drltg.transforms import FourRoomsPotential, GridFourRoomsPotential, PotentialShaping, TimeDependentPotential
+from drltg.envs.fourrooms import FourRoomsPotential
+from drltg.envs.gridrooms import GridFourRoomsPotential
+from drltg.methods import PotentialShaping, TimeDependentPotential
 
 GAMMA = 0.9
 

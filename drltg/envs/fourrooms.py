@@ -316,3 +316,55 @@ class FourRoomsEnv(EnvBase):
             for px, py in tensordict["position"].detach().reshape(-1, 2).cpu().tolist():
                 img[(x - px) ** 2 + (y - py) ** 2 <= agent_radius**2] = (215, 40, 40)
         return img
+
+
+class FourRoomsPotential(torch.nn.Module):
+    """``Phi(p) = -scale * d(p)``, ``d`` the shortest path to the goal through the doorway centres.
+
+    The task's shaping potential, an exact distance to the goal: an upper reference for what shaping can
+    give, not knowledge transferred from a source. Within the goal's room ``d`` is the
+    straight-line distance; from another room it is the shortest route from ``p`` to a doorway of its
+    room, then from doorway centre to doorway centre (Dijkstra on the four doorways), then to the goal.
+    It reads the ``"position"`` entry (arena units).
+
+    Args:
+        goal: the goal ``(x, y)`` in arena units.
+        scale: ``Phi`` per arena unit. Default: ``1 / max d`` over free space, so ``Phi`` ranges over
+            ``[-1, 0]`` and the shaping collected on a path from the farthest point to the goal
+            (``gamma = 1``) equals the goal reward of ``+1``.
+    """
+
+    in_keys = ["position"]
+
+    def __init__(self, goal: Sequence[float], scale: float | None = None):
+        super().__init__()
+        goal = torch.as_tensor(goal, dtype=torch.float32)
+        centres = torch.tensor([door.center for door in DOORWAYS.values()])
+        joins = torch.tensor([[room in door.rooms for door in DOORWAYS.values()] for room in ROOM_NAMES])
+        goal_room = room_of(goal)
+        to_goal = torch.where(joins[goal_room], (centres - goal).norm(dim=-1), torch.inf)
+        share_room = (joins.T.float() @ joins.float()) > 0
+        hops = torch.cdist(centres, centres).masked_fill(~share_room, torch.inf)
+        for _ in range(len(centres)):
+            to_goal = torch.minimum(to_goal, (hops + to_goal).amin(-1))
+        self.register_buffer("goal", goal)
+        self.register_buffer("goal_room", goal_room)
+        self.register_buffer("doors", centres)
+        self.register_buffer("door_to_goal", to_goal)
+        self.register_buffer("room_doors", joins)
+        if scale is None:
+            grid = torch.linspace(0.0, ARENA_SIZE, 201)
+            points = torch.cartesian_prod(grid, grid)
+            scale = 1.0 / self.distance(points[in_free_space(points)]).max().item()
+        self.scale = float(scale)
+
+    def distance(self, position: torch.Tensor) -> torch.Tensor:
+        """Shortest path length ``[...]`` from each position ``[..., 2]`` to the goal."""
+        room = room_of(position)
+        via_door = (position.unsqueeze(-2) - self.doors).norm(dim=-1) + self.door_to_goal
+        via_door = via_door.masked_fill(~self.room_doors[room], torch.inf).amin(-1)
+        direct = (position - self.goal).norm(dim=-1).masked_fill(room != self.goal_room, torch.inf)
+        return torch.minimum(direct, via_door)
+
+    def forward(self, position: torch.Tensor) -> torch.Tensor:
+        return -self.scale * self.distance(position).unsqueeze(-1)

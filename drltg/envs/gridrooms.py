@@ -266,3 +266,45 @@ class GridFourRoomsEnv(EnvBase):
             for row, col in tensordict["cell"].detach().reshape(-1, 2).cpu().tolist():
                 grid[row, col] = (215, 40, 40)
         return grid.repeat(self.cell_pixels, 0).repeat(self.cell_pixels, 1)
+
+
+class GridFourRoomsPotential(torch.nn.Module):
+    """``Phi(cell) = -scale * d(cell)``, ``d`` the number of moves to the goal (breadth-first search).
+
+    The task's shaping potential (an exact distance: an upper reference, not transfer). ``d`` is computed once, on the env's own layout
+    and move rule, into a ``13 x 13`` lookup table. It reads the ``"cell"`` entry.
+
+    Args:
+        goal: the goal cell ``(row, col)``.
+        scale: ``Phi`` per move. Default: ``1 / max d``, so ``Phi`` ranges over ``[-1, 0]`` and the
+            shaping collected on a shortest path from the farthest cell (``gamma = 1``) equals the goal
+            reward of ``+1``.
+    """
+
+    in_keys = ["cell"]
+
+    def __init__(self, goal: Sequence[int], scale: float | None = None):
+        super().__init__()
+        cells = FREE_CELLS
+        succ = CELL_INDEX[tuple(next_cell(cells[:, None], torch.arange(4)).unbind(-1))]
+        goal_index = CELL_INDEX[tuple(goal)]
+        d = torch.full((N_CELLS,), torch.inf)
+        d[goal_index] = 0.0
+        for _ in range(N_CELLS):
+            d_next = torch.minimum(d, 1.0 + d[succ].amin(-1))
+            if torch.equal(d_next, d):
+                break
+            d = d_next
+        table = torch.full(WALLS.shape, torch.inf)
+        table[cells[:, 0], cells[:, 1]] = d
+        if scale is None:
+            scale = 1.0 / d.max().item()
+        self.scale = float(scale)
+        self.register_buffer("table", table)
+
+    def distance(self, cell: torch.Tensor) -> torch.Tensor:
+        """Moves ``[...]`` from each cell ``[..., 2]`` to the goal (``inf`` on walls)."""
+        return self.table[cell[..., 0], cell[..., 1]]
+
+    def forward(self, cell: torch.Tensor) -> torch.Tensor:
+        return -self.scale * self.distance(cell).unsqueeze(-1)

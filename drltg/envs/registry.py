@@ -36,7 +36,7 @@ class TaskSpec:
     defaults: dict[str, Any] = field(default_factory=dict)
     train: dict[str, Any] = field(default_factory=dict)
     potential: Callable[[dict[str, Any]], Callable] | None = None
-    """``potential(env_options)`` builds the task's shaping potential (``drltg.transforms``)."""
+    """``potential(env_options)`` builds the task's shaping potential (``drltg.methods.reward_shaping``)."""
 
 
 @dataclass(frozen=True)
@@ -142,13 +142,13 @@ GRID_TRAIN = {**ROOMS_TRAIN, "sac": {**ROOMS_TRAIN["sac"], "fixed_alpha": True}}
 
 
 def _rooms_potential(options: dict[str, Any]):
-    from drltg.transforms.potentials import FourRoomsPotential
+    from drltg.envs.fourrooms import FourRoomsPotential
 
     return FourRoomsPotential(options["goal"])
 
 
 def _grid_potential(options: dict[str, Any]):
-    from drltg.transforms.potentials import GridFourRoomsPotential
+    from drltg.envs.gridrooms import GridFourRoomsPotential
 
     return GridFourRoomsPotential(options["goal"])
 

@@ -1,12 +1,16 @@
-"""An example drltg plugin: importing it registers a task pair on a one-dimensional corridor.
+"""An example drltg plugin: importing it registers a task pair on a one-dimensional corridor and a
+transfer method.
 
     drltg tasks --import drltg_example_plugin            (with examples/plugin on PYTHONPATH)
-    drltg experiment line-shift --method model-reuse --seeds 3 --frames 4000 --import drltg_example_plugin
+    drltg experiment line-shift --method critic-reuse --seeds 3 --frames 4000 --import drltg_example_plugin
 
 ``LineWorld`` is a point on [0, 1] that moves by 0.1 * action; inside the goal interval
 (|x - goal| <= 0.05) it gets +1 and the episode ends (``terminated``), every other step costs 0.01,
 and after ``horizon`` steps the episode is ``truncated``. The potential is minus the number of steps
 to the goal, Phi(x) = -|x - goal| / 0.1, so shaping with it is policy-invariant.
+
+``critic-reuse`` transfers the source run's critics (and temperature) and lets the actor start fresh:
+the target's first updates follow the source's values rather than a random critic.
 """
 import torch
 from tensordict import TensorDict, TensorDictBase
@@ -14,6 +18,7 @@ from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 from drltg.envs import register_pair, register_task
+from drltg.methods import Transfer, TransferMethod, load_from_run, register_method
 
 
 class LineWorld(EnvBase):
@@ -78,3 +83,14 @@ register_task("line/right", LineWorld, "a point on [0, 1] reaches the goal at 0.
 register_task("line/middle", LineWorld, "a point on [0, 1] reaches the goal at 0.6", goal=0.6, train=TRAIN,
               potential=lambda options: StepsToGoal(options["goal"]), replace=True)
 register_pair("line-shift", "line/right", "line/middle", "the goal moves from 0.9 to 0.6", replace=True)
+
+
+def critic_reuse(cfg, agent, env, *, resuming):
+    if resuming:  # the checkpoint holds the weights
+        return Transfer()
+    report = load_from_run(agent.loss, cfg["transfer"]["source"], exclude=["actor_network_params"])
+    return Transfer(files={"model_reuse.txt": f"{report}\n"})
+
+
+register_method(TransferMethod("critic-reuse", "the critics start from the source run's, the actor from scratch",
+                               critic_reuse, source="run"), replace=True)

@@ -23,6 +23,9 @@ from tensordict.utils import NestedKey
 from torchrl.data import Composite, Unbounded
 from torchrl.envs import Transform
 
+from drltg.errors import UsageError
+from drltg.methods.registry import Transfer, TransferMethod, register_method
+
 Potential = Callable[..., torch.Tensor]
 
 
@@ -147,3 +150,65 @@ class PotentialShaping(Transform):
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(gamma={self.gamma}, potential={self.potential!r})"
+
+
+class TimeDependentPotential(torch.nn.Module):
+    """A dynamic potential ``Phi(s, t) = schedule(t) * Phi(s)`` (Devlin & Kudenko 2012).
+
+    ``t`` is the step within the episode (``step_count``, 0 after a reset), so the shaping term is
+    ``F = gamma * schedule(t + 1) * Phi(s') - schedule(t) * Phi(s)``. Along any episode the discounted
+    sum of ``F`` telescopes to ``-Phi(s_0, 0)`` (plus ``gamma^N Phi(s_N, N)`` at a truncation, which the
+    learner's bootstrap absorbs), the same for every policy, so the ranking of policies is unchanged.
+    Use it, e.g., to fade a heuristic out as the episode goes on.
+
+    Args:
+        potential: the static potential, a callable on the observation tensors.
+        schedule: maps ``step_count`` (int64, ``[*batch, 1]``) to a weight of the same shape.
+        step_count_key: the entry holding ``t``, read last; ``in_keys`` are the static potential's
+            ``in_keys`` (if it has them) followed by this key.
+
+    Examples:
+        >>> fade = TimeDependentPotential(FourRoomsPotential(goal), lambda t: (1 - t / 100).clamp_min(0))
+        >>> PotentialShaping(fade, gamma=0.99)  # reads "position" and "step_count"
+    """
+
+    def __init__(
+        self,
+        potential: Callable[..., torch.Tensor],
+        schedule: Callable[[torch.Tensor], torch.Tensor],
+        *,
+        step_count_key: str = "step_count",
+    ):
+        super().__init__()
+        self.potential = potential
+        self.schedule = schedule
+        if hasattr(potential, "in_keys"):
+            self.in_keys = [*potential.in_keys, step_count_key]
+
+    def forward(self, *observation_and_step_count: torch.Tensor) -> torch.Tensor:
+        *observation, step_count = observation_and_step_count
+        return self.schedule(step_count) * self.potential(*observation)
+
+
+def _check(cfg: dict) -> None:
+    from drltg.envs import get_task
+
+    if get_task(cfg["task"]).potential is None:
+        raise UsageError(f"task '{cfg['task']}' has no shaping potential registered.")
+
+
+def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
+    """The task's own potential (registered with the task), the learner's gamma."""
+    from drltg.envs import get_task
+
+    spec = get_task(cfg["task"])
+    potential = spec.potential({**spec.defaults, **cfg["env"]})
+    return Transfer(train_transforms=[PotentialShaping(potential, gamma=cfg["optim"]["gamma"])])
+
+
+REWARD_SHAPING = register_method(TransferMethod(
+    "reward-shaping",
+    "adds gamma Phi(s') - Phi(s) to the training reward, Phi the task's registered potential",
+    _build,
+    check=_check,
+))

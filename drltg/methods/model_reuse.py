@@ -22,9 +22,12 @@ from pathlib import Path
 import torch
 from torch import nn
 
+from drltg.config import Field
 from drltg.errors import UsageError
+from drltg.methods.registry import Transfer, TransferMethod, register_method
+from drltg.rundir import MODEL_REUSE, load_checkpoint
 
-__all__ = ["LoadReport", "load_weights", "load_from_run"]
+__all__ = ["LoadReport", "load_weights", "load_from_run", "freeze_parameters"]
 
 
 @dataclass
@@ -197,12 +200,18 @@ def load_weights(
             report.loaded.append(name)
     target.load_state_dict(new_state)
 
-    frozen = _select([n for n, _ in target.named_parameters()], freeze, "freeze")
-    for name, param in target.named_parameters():
+    report.frozen = freeze_parameters(target, freeze)
+    return report
+
+
+def freeze_parameters(module: nn.Module, patterns: Sequence[str]) -> list[str]:
+    """Stop training the parameters of ``module`` named by ``patterns`` (fnmatch patterns or name
+    prefixes); returns their names."""
+    frozen = _select([n for n, _ in module.named_parameters()], patterns, "freeze")
+    for name, param in module.named_parameters():
         if name in frozen:
             param.requires_grad_(False)
-            report.frozen.append(name)
-    return report
+    return [n for n, _ in module.named_parameters() if n in frozen]
 
 
 def load_from_run(loss_module: nn.Module, run_dir: str | Path, **kwargs) -> LoadReport:
@@ -210,7 +219,30 @@ def load_from_run(loss_module: nn.Module, run_dir: str | Path, **kwargs) -> Load
 
     Keyword arguments go to :func:`load_weights`. The checkpoint is unpickled: load only runs you trust.
     """
-    from drltg.rundir import load_checkpoint
-
     checkpoint = load_checkpoint(Path(run_dir).expanduser())
     return load_weights(loss_module, checkpoint["loss"], **kwargs)
+
+
+def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
+    """Every network of the learner (actor, critics, targets) starts from the source run; a resumed
+    run has its weights already, and only its frozen parameters are frozen again."""
+    t = cfg["transfer"]
+    if resuming:
+        freeze_parameters(agent.loss, t["freeze"])
+        return Transfer()
+    report = load_from_run(agent.loss, t["source"], freeze=t["freeze"], partial=t["partial"])
+    print(report.summary(), flush=True)
+    return Transfer(files={MODEL_REUSE: f"{report}\n"})
+
+
+MODEL_REUSE_METHOD = register_method(TransferMethod(
+    "model-reuse",
+    "the learner starts from the source run's weights (observation-size changes mapped)",
+    _build,
+    source="run",
+    options={
+        "freeze": ([], Field(list, "model reuse: parameter-name patterns to keep fixed", item=Field(str),
+                             what="a list of parameter-name patterns (e.g. [actor_network_params])")),
+        "partial": (False, Field(bool, "model reuse: accept a source whose core networks cannot all be loaded")),
+    },
+))

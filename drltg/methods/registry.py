@@ -1,0 +1,140 @@
+"""Named transfer methods: what each one needs, which config keys it reads, and what it adds to a run.
+
+A transfer method changes a run in at most five places of the pipeline; its ``build`` returns a
+:class:`Transfer` that says which::
+
+    env -> [train_transforms] -> Collector([policy], on_frames) -> buffer -> [batches] -> loss
+           learner weights <- [load_weights, new runs only]
+
+``drltg train``, ``experiment`` and ``sweep`` read everything else from the :class:`TransferMethod`:
+whether it trains source runs first, its ``transfer.*`` config keys and their ranges, and the rules
+its config must follow. A new method is one module and one :func:`register_method` call::
+
+    from drltg.methods import Transfer, TransferMethod, register_method
+
+    def build(cfg, agent, env, *, resuming):
+        return Transfer(train_transforms=[MyTransform(scale=cfg["transfer"]["my_scale"])])
+
+    register_method(TransferMethod(
+        "my-method", "what it transfers, in one line", build,
+        options={"my_scale": (1.0, Field(float, "how strongly", low=0.0))},
+    ))
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable
+
+from drltg import config
+from drltg.config import Field
+from drltg.errors import UsageError
+
+__all__ = ["Transfer", "TransferMethod", "METHODS", "register_method", "get_method"]
+
+
+@dataclass
+class Transfer:
+    """What a transfer method adds to one run; every field is optional.
+
+    Attributes:
+        train_transforms: appended to the training env after the episode-return tracking, so the
+            logged ``train/episode_return`` and every evaluation stay on the task's own reward.
+        policy: the collector's policy instead of the learner's exploration policy (e.g. the learner
+            followed by a policy mixer).
+        on_frames: told the frames collected so far after every batch (schedules over training).
+        batches: ``batches(buffer, n)`` gives the ``n`` minibatches of one round of updates instead of
+            ``n`` samples of the replay buffer.
+        files: written into the run directory when the run starts (``name -> text``).
+        summary: entries added to the run's ``summary.json``.
+    """
+
+    train_transforms: list = field(default_factory=list)
+    policy: Any = None
+    on_frames: Callable[[int], None] | None = None
+    batches: Callable[[Any, int], Iterable] | None = None
+    files: dict[str, str] = field(default_factory=dict)
+    summary: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class TransferMethod:
+    """A named transfer method.
+
+    Attributes:
+        name: the value of ``transfer.method``.
+        help: one line, shown by ``drltg tasks`` and in the docs.
+        build: ``build(cfg, agent, env, *, resuming) -> Transfer``, called once a run's learner
+            (:class:`drltg.agents.Agent`) and a probe env of its task exist; ``resuming`` is true when
+            the run continues from a checkpoint (weights loaded now would be overwritten).
+        source: ``None`` (no source), ``"run"`` (a source run's weights) or ``"policy"`` (a source run's
+            actor, or ``demonstrator:TASK`` on the manipulation tasks). ``drltg experiment`` trains
+            source runs on the pair's source task for methods that have one.
+        options: the method's ``transfer.<key>`` config keys as ``key -> (default, Field)``.
+        check: ``check(cfg)`` raises one :class:`UsageError` sentence on a config the method cannot
+            run (rules that tie keys together); called by ``drltg.config.validate``.
+        algos: the learners it works with (``None``: every learner).
+    """
+
+    name: str
+    help: str
+    build: Callable[..., Transfer]
+    source: str | None = None
+    options: dict[str, tuple[Any, Field]] = field(default_factory=dict)
+    check: Callable[[dict], None] | None = None
+    algos: tuple[str, ...] | None = None
+
+    def validate(self, cfg: dict) -> None:
+        if self.algos is not None and cfg["algo"] not in self.algos:
+            raise UsageError(
+                f"config key 'transfer.method' is {self.name}, which works with algo {' or '.join(self.algos)}, "
+                f"not '{cfg['algo']}'."
+            )
+        if self.check is not None:
+            self.check(cfg)
+
+
+METHODS: dict[str, TransferMethod] = {}
+"""Every registered method by name; ``none`` is plain learning (the baseline)."""
+
+_SOURCES = (None, "run", "policy")
+
+
+def register_method(method: TransferMethod, *, replace: bool = False) -> TransferMethod:
+    """Make ``method`` a value of ``transfer.method`` and add its options to the config's ``transfer``
+    section. ``replace=True`` redefines a method of the same name (e.g. a notebook cell run twice)."""
+    if method.name in METHODS and not replace:
+        raise UsageError(f"transfer method {method.name!r} is already registered; pass replace=True to redefine it.")
+    if method.source not in _SOURCES:
+        raise UsageError(f"transfer method {method.name!r}: source must be None, 'run' or 'policy', got {method.source!r}.")
+    owners = {key: m.name for m in METHODS.values() if m.name != method.name for key in m.options}
+    for key, (default, spec) in method.options.items():
+        if key in owners or key in config.TRANSFER_KEYS:
+            raise UsageError(
+                f"transfer method {method.name!r}: config key 'transfer.{key}' already belongs to "
+                f"{owners.get(key, 'every method')}; choose another name."
+            )
+        spec.check(f"transfer.{key}", default)
+    previous = METHODS.get(method.name)
+    if previous is not None:
+        for key in previous.options:
+            config.DEFAULTS["transfer"].pop(key, None)
+            config.SCHEMA.pop(f"transfer.{key}", None)
+    METHODS[method.name] = method
+    for key, (default, spec) in method.options.items():
+        config.DEFAULTS["transfer"][key] = default
+        config.SCHEMA[f"transfer.{key}"] = spec
+    config.SCHEMA["transfer.method"] = dataclasses.replace(config.SCHEMA["transfer.method"], choices=tuple(METHODS))
+    return method
+
+
+def get_method(name: str) -> TransferMethod:
+    if name not in METHODS:
+        import difflib
+
+        hint = difflib.get_close_matches(name, list(METHODS), n=1)
+        raise UsageError(
+            f"unknown transfer method '{name}'"
+            + (f"; did you mean '{hint[0]}'?" if hint else f"; choose one of: {', '.join(METHODS)}.")
+        )
+    return METHODS[name]

@@ -1,0 +1,114 @@
+"""Transfer methods as units: the registry's contract, and the methods that read a source run."""
+import pytest
+import torch
+import yaml
+from tensordict import TensorDict
+from torchrl.envs import ExplorationType, set_exploration_type
+
+from drltg import config as config_lib
+from drltg.agents import make_agent
+from drltg.envs import make_env
+from drltg.errors import UsageError
+from drltg.methods import METHODS, JumpStart, PolicyReuse, PotentialShaping, SourceValue, Transfer, get_method
+
+SMALL = ["network.hidden=[8,8]", "collector.num_envs=2", "collector.frames_per_batch=8"]
+
+
+def _cfg(task="fourrooms/northeast", *overrides, algo="sac"):
+    return config_lib.resolve({}, [*SMALL, *overrides], task=task, algo=algo)
+
+
+def _source_run(path, task="fourrooms/northeast", algo="sac"):
+    """A finished source run directory holding an untrained learner of ``algo``."""
+    cfg = _cfg(task, algo=algo)
+    agent = make_agent(make_env(task), cfg)
+    (path / "checkpoints").mkdir(parents=True)
+    torch.save({"loss": agent.loss.state_dict(), "frames": 0}, path / "checkpoints" / "last.pt")
+    (path / "config.yaml").write_text(yaml.safe_dump(cfg))
+    (path / "summary.json").write_text("{}")
+    return path, agent
+
+
+@pytest.mark.parametrize("name", sorted(METHODS))
+def test_every_method_builds_a_transfer_for_a_run(name, tmp_path):
+    method = get_method(name)
+    overrides = [f"transfer.method={name}", "transfer.demo_episodes=1"]
+    if method.source is not None:
+        overrides.append(f"transfer.source={_source_run(tmp_path / 'src')[0]}")
+    cfg = _cfg("fourrooms/northeast", *overrides)
+    env = make_env("fourrooms/northeast")
+    transfer = method.build(cfg, make_agent(env, cfg), env, resuming=False)
+    assert isinstance(transfer, Transfer)
+    changed = {k for k, v in vars(transfer).items() if v not in (None, [], {})}
+    expected = {
+        "none": set(), "reward-shaping": {"train_transforms"}, "value-shaping": {"train_transforms"},
+        "policy-reuse": {"policy", "on_frames"}, "jumpstart": {"policy", "on_frames"},
+        "model-reuse": {"files"}, "demonstrations": {"batches", "summary"},
+    }
+    assert changed == expected[name]
+
+
+def test_source_value_is_the_smaller_critic_at_the_source_action(tmp_path):
+    run, agent = _source_run(tmp_path / "src")
+    cfg = _cfg("fourrooms/northeast", "transfer.method=value-shaping", f"transfer.source={run}",
+               "transfer.value_scale=2.0")
+    env = make_env("fourrooms/northeast", batch_size=(5,), seed=1)
+    (shaping,) = get_method("value-shaping").build(cfg, agent, env, resuming=False).train_transforms
+    assert isinstance(shaping, PotentialShaping) and isinstance(shaping.potential, SourceValue)
+    obs = env.reset()["observation"]
+    loss = agent.loss
+    td = TensorDict({"observation": obs}, batch_size=[5])
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        td = loss.actor_network(td)
+        q = []
+        for params in loss.qvalue_network_params.unbind(0):
+            with params.to_module(loss.qvalue_network):
+                q.append(loss.qvalue_network(td.clone())["state_action_value"])
+    assert torch.allclose(shaping.potential(obs), 2.0 * torch.minimum(*q))
+
+
+def test_source_value_of_discrete_sac_is_the_greedy_actions_q(tmp_path):
+    run, agent = _source_run(tmp_path / "src", task="gridrooms/northeast")
+    potential = SourceValue(agent.loss, discrete=True)
+    obs = make_env("gridrooms/northeast", batch_size=(3,), seed=0).reset()["observation"]
+    td = TensorDict({"observation": obs}, batch_size=[3])
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        greedy = agent.loss.actor_network(td.clone())["action"].argmax(-1, keepdim=True)
+        q = []
+        for params in agent.loss.qvalue_network_params.unbind(0):
+            with params.to_module(agent.loss.qvalue_network):
+                q.append(agent.loss.qvalue_network(td.clone())["action_value"].gather(-1, greedy))
+    assert torch.allclose(potential(obs), torch.minimum(*q))
+
+
+def test_value_shaping_refuses_an_options_source(tmp_path):
+    run, agent = _source_run(tmp_path / "src", algo="soc")
+    with pytest.raises(UsageError, match="reads a SAC, discrete-SAC or TD3 source"):
+        SourceValue(agent.loss, discrete=False)
+
+
+def test_jumpstart_guides_for_the_configured_steps(tmp_path):
+    run, _ = _source_run(tmp_path / "src")
+    cfg = _cfg("fourrooms/northeast", "transfer.method=jumpstart", f"transfer.source={run}",
+               "transfer.guide_steps=40", "transfer.guide_stages=4", "transfer.guide_frames=1000")
+    env = make_env("fourrooms/northeast")
+    transfer = get_method("jumpstart").build(cfg, make_agent(env, cfg), env, resuming=False)
+    mixer = transfer.policy[-1]
+    assert isinstance(mixer, PolicyReuse) and isinstance(mixer.schedule, JumpStart)
+    horizons = []
+    for frames in (0, 249, 250, 500, 999, 1000, 5000):
+        transfer.on_frames(frames)
+        horizons.append(mixer.schedule.horizon)
+    assert horizons == [40, 40, 30, 20, 10, 0, 0]  # H_k = 40 (4 - k) // 4, one stage per 250 frames
+
+
+def test_resumed_model_reuse_keeps_its_frozen_parameters_frozen(tmp_path):
+    run, _ = _source_run(tmp_path / "src")
+    cfg = _cfg("fourrooms/northeast", "transfer.method=model-reuse", f"transfer.source={run}",
+               "transfer.freeze=[actor_network_params]")
+    env = make_env("fourrooms/northeast")
+    for resuming in (False, True):
+        agent = make_agent(env, cfg)
+        get_method("model-reuse").build(cfg, agent, env, resuming=resuming)
+        frozen = {n for n, p in agent.loss.named_parameters() if not p.requires_grad}
+        assert frozen and all(n.startswith("actor_network_params") for n in frozen)
