@@ -64,7 +64,7 @@ import math
 import os
 import re
 import sys
-from dataclasses import dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -1158,12 +1158,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    settings = {f.name: getattr(args, f.name) for f in fields(ReportSettings) if f.metadata.get("flag")}
+    settings = asdict(ReportSettings.from_args(args))  # every option is checked before any run is read
     if args.matrix:
         if args.baseline or args.transfer:
             raise UsageError("--matrix builds its own baseline/transfer pairs; drop --baseline and --transfer.")
-        settings.pop("baseline_label"), settings.pop("transfer_label")
-        ReportSettings(**settings)
+        del settings["baseline_label"], settings["transfer_label"]
         result = transfer_matrix(find_matrix_cells(args.matrix), args.out, args.metric, **settings)
         for cell in result["cells"]:
             for w in cell["settings"]["warnings"]:
@@ -1177,7 +1176,6 @@ def run(args) -> int:
         return 0
     if not args.baseline or not args.transfer:
         raise UsageError("give both --baseline and --transfer runs (or --matrix DIR).")
-    ReportSettings(**settings)
     result = transfer_report(args.baseline, args.transfer, args.out, **settings)
     for w in result["settings"]["warnings"]:
         print(f"warning: {w}", file=sys.stderr)

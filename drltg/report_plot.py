@@ -6,8 +6,6 @@ import io
 
 import numpy as np
 
-DIFFERENCES = ("mean_return_gain", "jumpstart", "asymptotic_performance", "transfer_ratio",
-               "probability_of_improvement")
 COLORS = {"baseline": "#0072B2", "transfer": "#D55E00"}  # colour-blind safe blue / vermillion
 
 
@@ -132,7 +130,10 @@ def _ci(m: dict, name: str, sign: str = "+") -> str:
 
 
 def _has_intervals(m: dict) -> bool:
-    return any(f"{name}_ci" in m for name in DIFFERENCES)
+    """Whether the report gave any comparison of the sides an interval (so that a missing one is shown)."""
+    from drltg.report import COMPARISONS, METRICS
+
+    return any(f"{metric.name}_ci" in m for metric in METRICS if metric.kind in COMPARISONS)
 
 
 def _threshold_marks(ax, m: dict, st: dict, curves: dict) -> None:
