@@ -60,7 +60,7 @@ def render(rows: Sequence[Sequence], style: str = "text", align: str = "") -> st
         return "\n".join(lines) + "\n"
     if style != "text":
         raise ValueError(f"unknown table style '{style}'; choose one of {', '.join(STYLES)}.")
-    widths = [max(len(row[i]) for row in cells if i < len(row)) for i in range(len(cells[0]))]
+    widths = [max(len(row[i]) for row in cells) for i in range(len(cells[0]))]
 
     def line(row):
         return "  ".join(c.rjust(w) if align[i:i + 1] == "r" else c.ljust(w)
