@@ -642,7 +642,8 @@ def _frames_of_run(run_dir: Path, source: str) -> float | None:
 # ----------------------------------------------------------------------------- 3. per-seed scores
 def score_runs(sides: Sides, w: Window, s: ReportSettings, warnings: list[str]) -> dict[str, pd.DataFrame]:
     """Per side, one row per run (in pair order when paired): the per-seed scores every metric is built from,
-    and the total-time ones where source frames are known."""
+    and the total-time ones where source frames are known. Each side keeps its own column types, which the
+    JSON's ``per_seed`` shows (a side whose crossing frames are all whole numbers lists them as integers)."""
     by_side = {side: pd.DataFrame([_run_scores(c, w, s) for c in runs]) for side, runs in sides.items()}
     if w.source_frames is not None and any(w.source_frames):
         _with_source(sides, by_side, w, s, warnings)
