@@ -608,3 +608,13 @@ def test_runs_of_two_methods_under_one_side_need_allow_mixed(tmp_path, capsys):
     assert "\n" not in err and not (tmp_path / "r").exists()
     assert report.main(args + ["--allow-mixed"]) == 0
     assert "accepted by --allow-mixed" in capsys.readouterr().err
+
+
+def test_other_modules_use_only_public_report_names():
+    import ast
+
+    root = Path(report.__file__).resolve().parents[1]
+    for path in [*root.glob("drltg/*.py"), *root.glob("results/*.py")]:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module in ("drltg.report", "drltg.tables"):
+                assert not [a.name for a in node.names if a.name.startswith("_")], path
