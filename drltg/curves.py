@@ -26,14 +26,15 @@ raises :class:`~drltg.errors.UsageError` with one sentence naming the file and t
 """
 from __future__ import annotations
 
-import csv
 import glob as _glob
-import math
+import io
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Sequence
 
 import numpy as np
+import pandas as pd
 
 from drltg.errors import UsageError
 
@@ -157,16 +158,9 @@ def read_run(directory: str | Path, *, format: str = "auto", tag: str | None = N
     owner = _owner(d)
     config = _config_of(owner)
     label = owner.resolve().name
-    if fmt == "drltg":
-        curve = read_eval_csv(d / "eval.csv", column=tag or "return_mean")
-    elif fmt == "sb3":
-        curve = read_sb3_progress(d / "progress.csv", column=tag or _SB3_Y)
-    elif fmt == "sb3-monitor":
-        curve = read_sb3_monitor(sorted(d.glob("*monitor.csv")), column=tag or "r")
-    elif fmt == "tensorboard":
-        curve = read_tensorboard(d, tag=tag)
-    else:
-        curve = read_csvlogger(d / "scalars", tag=tag)
+    log = {"drltg": d / "eval.csv", "sb3": d / "progress.csv", "sb3-monitor": sorted(d.glob("*monitor.csv")),
+           "tensorboard": d, "csvlogger": d / "scalars"}[fmt]
+    curve = _read(fmt, log, tag)
     curve.label, curve.config = label, config
     curve.task = _task_in(config)
     return curve
@@ -182,25 +176,30 @@ def _read_file(path: Path, format: str, tag: str | None) -> Curve:
         elif name.startswith("events.out.tfevents"):
             format = "tensorboard"
         elif name.endswith(".csv"):
-            format = "sb3" if _header(path) is not None else "csvlogger"
+            format = "csvlogger" if _headerless(path) else "sb3"
         else:
             raise UsageError(f"cannot tell the log format of '{path}'; pass --format.")
-    if format == "drltg":
-        curve = read_eval_csv(path, column=tag or "return_mean")
-    elif format == "sb3":
-        curve = read_sb3_progress(path, column=tag or _SB3_Y)
-    elif format == "sb3-monitor":
-        curve = read_sb3_monitor([path], column=tag or "r")
-    elif format == "tensorboard":
-        curve = read_tensorboard(path, tag=tag)
-    else:
-        curve = read_csvlogger(path, tag=tag)
+    curve = _read(format, [path] if format == "sb3-monitor" else path, tag)
     owner = _owner(path.parent)
     curve.config = _config_of(owner)
     curve.task = _task_in(curve.config)
     if owner != path.parent.resolve():
         curve.label = owner.name
     return curve
+
+
+def _read(fmt: str, log, tag: str | None) -> Curve:
+    """One log of format ``fmt``: its file, its folder (TensorBoard, CSVLogger ``scalars/``) or, for
+    ``sb3-monitor``, its list of files."""
+    if fmt == "drltg":
+        return read_eval_csv(log, column=tag or "return_mean")
+    if fmt == "sb3":
+        return read_sb3_progress(log, column=tag or _SB3_Y)
+    if fmt == "sb3-monitor":
+        return read_sb3_monitor(log, column=tag or "r")
+    if fmt == "tensorboard":
+        return read_tensorboard(log, tag=tag)
+    return read_csvlogger(log, tag=tag)
 
 
 def _owner(directory: Path, levels: int = 3) -> Path:
@@ -233,9 +232,8 @@ def _task_in(config: dict | None) -> str | None:
 
 
 # ----------------------------------------------------------------------------------------- readers
-def _lines(path: Path) -> list[tuple[int, list[str]]]:
-    """The non-blank lines of a CSV file as ``(line number, cells)``: a byte-order mark is dropped
-    and quoted cells are unquoted by the csv module."""
+def _lines(path: Path) -> list[tuple[int, str]]:
+    """The non-blank lines of a text file, with their line numbers (a byte-order mark is dropped)."""
     try:
         text = Path(path).read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
@@ -243,74 +241,100 @@ def _lines(path: Path) -> list[tuple[int, list[str]]]:
     lines = [(i, line) for i, line in enumerate(text.splitlines(), start=1) if line.strip()]
     if not lines:
         raise UsageError(f"'{path}' is empty.")
-    cells = csv.reader([line for _, line in lines])
-    return [(i, row) for (i, _), row in zip(lines, cells)]
+    return lines
 
 
-def _header(path: Path) -> list[str] | None:
-    """The CSV header of ``path``, or None if its first line is numeric (a header-less file)."""
-    first = _lines(path)[0][1]
-    try:
-        [float(c) for c in first]
-    except ValueError:
-        return [c.strip() for c in first]
-    return None
+def _table(path: Path, comment: str | None = None,
+           columns: Sequence[str] | None = None) -> tuple[pd.DataFrame, np.ndarray]:
+    """A CSV file's cells as strings, and each row's line number in the file (for the error sentences).
 
-
-def _table(path: Path, comment: str | None = None) -> tuple[list[str], list[list[str]], list[int]]:
-    """Header, rows of string cells and each row's line number in the file."""
+    pandas parses the non-blank lines after any leading ``comment`` lines: quoted cells are unquoted. The
+    first of them is the header, or, for a header-less file of ``columns`` (CSVLogger's ``step,value``),
+    the first row. A row with another number of cells is refused."""
     lines = _lines(path)
-    skip = 0
-    while comment and skip < len(lines) and ",".join(lines[skip][1]).startswith(comment):
-        skip += 1
-    if skip == len(lines):
+    while comment and lines and lines[0][1].startswith(comment):
+        lines.pop(0)
+    if not lines:
         raise UsageError(f"'{path}' has no header.")
-    header = [c.strip() for c in lines[skip][1]]
-    body = lines[skip + 1:]
-    if not body:
-        raise UsageError(f"'{path}' has a header but no rows.")
-    for line, row in body:
-        if len(row) != len(header):
-            raise UsageError(f"'{path}' line {line} has {len(row)} cells, but the header has {len(header)}.")
-    return header, [row for _, row in body], [line for line, _ in body]
+    numbers = np.asarray([i for i, _ in lines])
 
+    def misfit(line: int, cells: int, expected: int) -> UsageError:
+        if columns:
+            return UsageError(f"'{path}' line {line} is not a '{','.join(columns)}' pair.")
+        return UsageError(f"'{path}' line {line} has {cells} cells, but the header has {expected}.")
 
-def _column(path: Path, header: list[str], name: str) -> int:
-    if name not in header:
-        raise UsageError(f"'{path}' has no column '{name}' (columns: {', '.join(header)}).")
-    return header.index(name)
-
-
-def _number(path: Path, line: int, name: str, cell: str) -> float:
     try:
-        value = float(cell)
-    except ValueError:
-        raise UsageError(f"'{path}' line {line}: column '{name}' holds '{cell}', not a number.") from None
-    if not math.isfinite(value):
-        raise UsageError(f"'{path}' line {line}: column '{name}' holds the non-finite value {cell}.")
-    return value
+        table = pd.read_csv(io.StringIO("\n".join(line for _, line in lines)), header=None, dtype=str,
+                            keep_default_na=False, engine="python")
+    except pd.errors.ParserError as err:
+        found = re.search(r"Expected (\d+) fields in line (\d+), saw (\d+)", str(err))
+        if found is None:
+            raise UsageError(f"'{path}' is not a readable CSV file ({err}).") from None
+        expected, line, saw = map(int, found.groups())
+        raise misfit(int(numbers[line - 1]), saw, expected) from None
+    if columns is None:
+        header, table, numbers = table.iloc[0], table.iloc[1:], numbers[1:]
+        table.columns = [str(c).strip() for c in header]
+        if table.empty:
+            raise UsageError(f"'{path}' has a header but no rows.")
+    counts = table.notna().sum(axis=1).to_numpy()
+    wrong = np.flatnonzero(counts != (len(columns) if columns else table.shape[1]))
+    if wrong.size:
+        raise misfit(int(numbers[wrong[0]]), int(counts[wrong[0]]), table.shape[1])
+    if columns:
+        table.columns = list(columns)
+    return table, numbers
 
 
-def _columns_xy(
-    path: Path, x_name: str, y_name: str, *, skip_empty_y: bool, comment: str | None = None
-) -> tuple[np.ndarray, np.ndarray, list[int]]:
-    header, rows, numbers = _table(path, comment)
-    ix, iy = _column(path, header, x_name), _column(path, header, y_name)
-    xs, ys, lines = [], [], []
-    for line, row in zip(numbers, rows):
-        y_cell, x_cell = row[iy].strip(), row[ix].strip()
-        if not y_cell:
-            if skip_empty_y:
-                continue
-            raise UsageError(f"'{path}' line {line}: column '{y_name}' is empty.")
-        if not x_cell:
-            raise UsageError(f"'{path}' line {line}: column '{x_name}' is empty.")
-        xs.append(_number(path, line, x_name, x_cell))
-        ys.append(_number(path, line, y_name, y_cell))
-        lines.append(line)
-    if not ys:
-        raise UsageError(f"'{path}' has no values in column '{y_name}'.")
-    return np.asarray(xs), np.asarray(ys), lines
+def _headerless(path: Path) -> bool:
+    """Whether the first line of ``path`` holds numbers only (a CSVLogger file) rather than a header."""
+    first = pd.read_csv(io.StringIO(_lines(path)[0][1]), header=None, dtype=str, keep_default_na=False)
+    return bool(pd.to_numeric(first.iloc[0].str.strip(), errors="coerce").notna().all())
+
+
+def _column(path: Path, table: pd.DataFrame, name: str) -> pd.Series:
+    """The cells of the first column called ``name``, stripped."""
+    if name not in table.columns:
+        raise UsageError(f"'{path}' has no column '{name}' (columns: {', '.join(table.columns)}).")
+    return table.iloc[:, list(table.columns).index(name)].str.strip()
+
+
+def _floats(cells: pd.Series) -> np.ndarray:
+    """Cells as floats, NaN where a cell is no number (pandas finds those; Python's own conversion gives the
+    values, exact to the last digit, where pandas' faster parser may round)."""
+    values = np.full(len(cells), np.nan)
+    numeric = pd.to_numeric(cells, errors="coerce").notna().to_numpy()
+    values[numeric] = cells[numeric].astype(np.float64)
+    return values
+
+
+def _numbers(path: Path, lines: np.ndarray, columns: Sequence[tuple[str, pd.Series]]) -> list[np.ndarray]:
+    """Each column as floats. The first row with a cell that is empty, not a number or not finite is one
+    sentence naming its line, column and cell (an empty cell first, then in the order given)."""
+    values = [_floats(cells) for _, cells in columns]
+    bad = np.logical_or.reduce([~np.isfinite(v) for v in values])
+    if bad.any():
+        i = int(np.argmax(bad))
+        wrong = [(n, c.iloc[i]) for (n, c), v in zip(columns, values) if not np.isfinite(v[i])]
+        name, cell = next(((n, c) for n, c in wrong if c == ""), wrong[0])
+        if cell == "":
+            raise UsageError(f"'{path}' line {lines[i]}: column '{name}' is empty.")
+        if cell.lower().lstrip("+-") in ("nan", "inf", "infinity"):
+            raise UsageError(f"'{path}' line {lines[i]}: column '{name}' holds the non-finite value {cell}.")
+        raise UsageError(f"'{path}' line {lines[i]}: column '{name}' holds '{cell}', not a number.")
+    return values
+
+
+def _columns_xy(path: Path, x_name: str, y_name: str, *, skip_empty_y: bool) -> tuple[np.ndarray, np.ndarray, list]:
+    table, lines = _table(path)
+    x, y = _column(path, table, x_name), _column(path, table, y_name)
+    if skip_empty_y:
+        keep = (y != "").to_numpy()
+        x, y, lines = x[keep], y[keep], lines[keep]
+        if not keep.any():
+            raise UsageError(f"'{path}' has no values in column '{y_name}'.")
+    xs, ys = _numbers(path, lines, [(x_name, x), (y_name, y)])
+    return xs, ys, list(lines)
 
 
 def _checked(path: Path, frames, values, where: Sequence | None = None, what: str = "line") -> Curve:
@@ -351,18 +375,14 @@ def read_sb3_monitor(paths: Sequence[str | Path], column: str = "r") -> Curve:
 
     x is the cumulative episode length, as in SB3's own ``load_results``/``ts2xy``.
     """
-    ts, ls, ys = [], [], []
+    files = []
     for path in map(Path, paths):
-        header, rows, numbers = _table(path, comment="#")
-        it, il, iy = (_column(path, header, c) for c in ("t", "l", column))
-        for line, row in zip(numbers, rows):
-            ts.append(_number(path, line, "t", row[it]))
-            ls.append(_number(path, line, "l", row[il]))
-            ys.append(_number(path, line, column, row[iy]))
-    order = np.argsort(np.asarray(ts), kind="stable")
-    frames = np.cumsum(np.asarray(ls)[order])
+        table, lines = _table(path, comment="#")
+        files.append(_numbers(path, lines, [(name, _column(path, table, name)) for name in ("t", "l", column)]))
+    t, lengths, y = (np.concatenate(parts) for parts in zip(*files))
+    order = np.argsort(t, kind="stable")
     source = Path(paths[0]) if len(paths) == 1 else Path(paths[0]).parent
-    return _checked(source, frames, np.asarray(ys)[order], None)
+    return _checked(source, np.cumsum(lengths[order]), y[order], None)
 
 
 def read_tensorboard(path: str | Path, tag: str | None = None) -> Curve:
@@ -407,14 +427,9 @@ def read_csvlogger(path: str | Path, tag: str | None = None) -> Curve:
         if tag not in found:
             raise UsageError(f"'{path}' has no scalar '{tag}' (scalars: {', '.join(found)}).")
         path = path / f"{tag}.csv"
-    steps, values, lines = [], [], []
-    for i, cells in _lines(Path(path)):
-        if len(cells) != 2:
-            raise UsageError(f"'{path}' line {i} is not a 'step,value' pair.")
-        steps.append(_number(path, i, "step", cells[0]))
-        values.append(_number(path, i, "value", cells[1]))
-        lines.append(i)
-    return _checked(path, steps, values, lines)
+    table, lines = _table(Path(path), columns=("step", "value"))
+    steps, values = _numbers(path, lines, [(name, table[name].str.strip()) for name in ("step", "value")])
+    return _checked(path, steps, values, list(lines))
 
 
 def _default_tag(path: Path, available: Sequence[str]) -> str:

@@ -210,11 +210,11 @@ def _check_settings(path: Path, settings: dict) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drltg.report import _parse_threshold, format_table, transfer_report
+    from drltg.report import format_table, parse_threshold, transfer_report
 
     if args.workers < 1:
         raise UsageError("--workers must be at least 1.")
-    _parse_threshold(args.threshold)
+    parse_threshold(args.threshold)
     out = rundir.check_directory(args.out, "--out")
     runs = plan(args)
     check_runs(runs)

@@ -3,13 +3,23 @@ r"""``drltg report``: did the transfer method help? Metrics, a plot and tables f
     drltg report --baseline RUNS... --transfer RUNS... [--threshold 150 | --threshold 80%] [--out DIR]
     drltg report --matrix DIR [--metric mean_return_gain] [--out DIR]
 
-Both sides are read with :func:`drltg.curves.read_curves` (run directories, directories of seed runs,
-globs, SB3 / TensorBoard / CSVLogger logs). Curves are compared on the target task over a common
-interval ``[start, budget]``: ``start`` is the latest first evaluation of any run (frame 0 for drltg
-runs), ``budget`` the shortest run's last evaluation unless ``--budget`` sets it; nothing is invented
-past a run's last evaluation. Every score is computed per seed (a DataFrame, ``result["scores"]``),
-then aggregated (B = baseline, T = transfer, A = area, span = budget - start, L = mean over seeds, or
-over pairs ``d_i = T_i - B_i`` when paired; formulas in :mod:`drltg.metrics`):
+The report is one pipeline (:func:`transfer_report`, :func:`compute`):
+
+1. read: both sides with :func:`drltg.curves.read_curves` (run directories, directories of seed runs,
+   globs, SB3 / TensorBoard / CSVLogger logs);
+2. check (:func:`check_runs`): no run twice, one task, one configuration a side, paired or not;
+3. align (:func:`align`): every curve is compared on the target task over a common interval
+   ``[start, budget]``: ``start`` is the latest first evaluation of any run (frame 0 for drltg runs),
+   ``budget`` the shortest run's last evaluation unless ``--budget`` sets it; nothing is invented past a
+   run's last evaluation;
+4. score (:func:`score_runs`): the per-seed scores, one row per run (``result["scores"]``, a DataFrame
+   with ``side`` and ``pair`` columns);
+5. metrics (:func:`metric_values`): each entry of ``METRICS`` turns score columns into a metric and its
+   interval, so a new metric is one entry there; ``TABLE_ROWS`` places it in the table;
+6. write (:func:`render`): JSON, CSV (through :mod:`drltg.tables`) and the plot.
+
+The per-seed scores are aggregated (B = baseline, T = transfer, A = area, span = budget - start, L = mean
+over seeds, or over pairs ``d_i = T_i - B_i`` when paired; formulas in :mod:`drltg.metrics`):
 
 ``mean_return_gain``          L(A_T / span) - L(A_B / span): return gained per frame on average over the
                               budget; unchanged when a constant is added to every reward (the headline)
@@ -49,25 +59,25 @@ checked): ``transfer_metrics.json`` (``metrics``, ``settings`` with every choice
 from __future__ import annotations
 
 import argparse
-import csv
-import io
 import json
 import math
 import os
 import re
 import sys
-from dataclasses import dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 import pandas as pd
 
 from drltg import metrics as M
+from drltg import rundir, tables
 from drltg.curves import FORMATS, Curve, read_curves
 from drltg.errors import UsageError
+from drltg.tables import number
 
-DIFFERENCES = ("mean_return_gain", "jumpstart", "asymptotic_performance", "transfer_ratio")
+SIDES = ("baseline", "transfer")
 MAX_LENGTH_RATIO = 2.0  # longest / shortest run beyond which a default budget would hide too much
 PLOT_POINTS = 100  # the display line is smoothed to about this many evaluation windows
 MIN_SEEDS = 3  # fewer seeds on a side leave an interval without a usable spread estimate
@@ -141,13 +151,14 @@ class ReportSettings:
             if not ok:
                 raise UsageError(text)
 
-        _parse_threshold(self.threshold)
+        parse_threshold(self.threshold)
         parse_frames(self.budget)
         need(int(self.jumpstart_window) >= 1, f"--jumpstart-window must be at least 1, got {self.jumpstart_window}.")
         for name in ("asymptote_window", "trend_window"):
             value = float(getattr(self, name))
             need(0.0 < value <= 1.0, f"--{name.replace('_', '-')} must lie in (0, 1], got {value}.")
-        need(self.smooth is None or int(self.smooth) >= 1, f"--smooth must be at least 1 evaluation, got {self.smooth}.")
+        need(self.smooth is None or int(self.smooth) >= 1,
+             f"--smooth must be at least 1 evaluation, got {self.smooth}.")
         need(self.plot_smooth is None or int(self.plot_smooth) >= 1,
              f"--plot-smooth must be at least 1 evaluation, got {self.plot_smooth}.")
         need(self.sustain is None or int(self.sustain) >= 1,
@@ -157,7 +168,8 @@ class ReportSettings:
              "--sustain applies to a sustained crossing; drop it or --crossing first.")
         need(0.0 < float(self.confidence) < 1.0, f"--confidence must lie in (0, 1), got {self.confidence}.")
         need(int(self.bootstrap) >= 100, f"--bootstrap needs at least 100 resamples, got {self.bootstrap}.")
-        need(self.interval in M.INTERVALS, f"unknown --interval '{self.interval}'; choose one of {', '.join(M.INTERVALS)}.")
+        need(self.interval in M.INTERVALS,
+             f"unknown --interval '{self.interval}'; choose one of {', '.join(M.INTERVALS)}.")
         need(self.format in FORMATS, f"unknown log format '{self.format}'; choose one of {', '.join(FORMATS)}.")
         if self.source_frames is not None:
             frames = parse_frames(self.source_frames, "--source-frames")
@@ -172,8 +184,7 @@ class ReportSettings:
 SETTINGS_DEFAULTS = {f.name: f.default for f in fields(ReportSettings)}
 
 
-# ------------------------------------------------------------------------------------------ compute
-def _parse_threshold(threshold) -> tuple[float | None, float | None]:
+def parse_threshold(threshold) -> tuple[float | None, float | None]:
     """``150`` -> (150, None); ``"80%"`` -> (None, 0.8)."""
     if threshold is None:
         return None, None
@@ -201,6 +212,191 @@ def parse_frames(text, option: str = "--budget") -> float | None:
     except (AttributeError, ValueError):
         raise UsageError(f"{option} '{text}' is not a number of frames (e.g. 200000, 200k, 1.5M).") from None
     return value
+
+
+def settings_of(settings: dict) -> ReportSettings:
+    """Keyword settings checked and completed; a name that is no setting is a programming error."""
+    unknown = set(settings) - set(SETTINGS_DEFAULTS)
+    if unknown:
+        raise TypeError(f"unknown report settings: {', '.join(sorted(unknown))}")
+    return ReportSettings(**settings)
+
+
+# ------------------------------------------------------------------------------------------ metrics
+def _asymptote_note(st: dict, side: str | None) -> str:
+    moving = [f"{s} {v}" for s, v in st.get("convergence", {}).items() if v.startswith("still")]
+    return f"final performance, not an asymptote: {', '.join(moving)}" if moving else ""
+
+
+def _trend_note(st: dict, side: str | None) -> str:
+    return st.get("convergence", {}).get(side, "")
+
+
+TOTAL_TIME = "total time: source frames counted"
+COMPARISONS = ("difference", "ratio", "poi")
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One metric of the report: how it is computed from a per-seed score column (``score``).
+
+    Comparisons of the sides (B = baseline, T = transfer, L = mean over seeds, or over pairs when paired),
+    each with its ``--confidence`` interval in ``<name>_ci`` and, where ``iqm``, the interquartile mean as L
+    in ``<name>_iqm``: ``difference`` L(T) - L(B) (paired: L(T_i - B_i)); ``ratio`` (L(A_T) - L(A_B)) /
+    |L(A_B)|; ``poi`` P(T > B). Summaries of each side in ``sides`` (``name`` holds ``{side}``): ``mean``
+    over seeds; ``time`` the upper median of the runs' crossing frames; ``reached`` the share of runs that
+    cross; ``count`` the seeds; ``trend`` the change of the mean curve over the last ``--trend-window``, with
+    its interval. ``note``: the table's remark, a text or a function of the report's settings and the side."""
+
+    name: str
+    kind: str
+    score: str | None = None
+    iqm: bool = False
+    sides: tuple[str, ...] = SIDES
+    note: str | Callable[[dict, str | None], str] = ""
+
+    def key(self, side: str | None = None) -> str:
+        return self.name.format(side=side)
+
+    def rows(self) -> list[tuple[str, str | None, bool]]:
+        """``(name, side, is_iqm)`` of each row this metric gives in the table."""
+        if self.kind in COMPARISONS:
+            return [(self.name, None, False)] + ([(f"{self.name}_iqm", None, True)] if self.iqm else [])
+        return [(self.key(side), side, False) for side in self.sides]
+
+
+METRICS = (
+    Metric("mean_return_gain", "difference", "mean_return", iqm=True),
+    Metric("jumpstart", "difference", "initial_performance", iqm=True),
+    Metric("asymptotic_performance", "difference", "final_performance", iqm=True, note=_asymptote_note),
+    Metric("transfer_ratio", "ratio", "total_reward", iqm=True, note="changes when a constant is added to rewards"),
+    Metric("probability_of_improvement", "poi", "total_reward"),
+    Metric("probability_of_improvement_initial", "poi", "initial_performance"),
+    Metric("probability_of_improvement_final", "poi", "final_performance"),
+    Metric("mean_return_gain_with_source", "difference", "mean_return_total_time", note=TOTAL_TIME),
+    Metric("total_reward_{side}", "mean", "total_reward"),
+    Metric("initial_performance_{side}", "mean", "initial_performance"),
+    Metric("final_performance_{side}", "mean", "final_performance"),
+    Metric("time_to_threshold_{side}", "time", "time_to_threshold"),
+    Metric("threshold_reached_{side}", "reached", "time_to_threshold"),
+    Metric("time_to_threshold_{side}_with_source", "time", "time_to_threshold_with_source", sides=("transfer",),
+           note=TOTAL_TIME),
+    Metric("n_seeds_{side}", "count"),
+    Metric("final_trend_{side}", "trend", note=_trend_note),
+)
+TABLE_ROWS = (
+    "mean_return_gain", "jumpstart", "asymptotic_performance", "transfer_ratio",
+    "total_reward_baseline", "total_reward_transfer",
+    "time_to_threshold_baseline", "time_to_threshold_transfer",
+    "threshold_reached_baseline", "threshold_reached_transfer",
+    "initial_performance_baseline", "initial_performance_transfer",
+    "final_performance_baseline", "final_performance_transfer",
+    "final_trend_baseline", "final_trend_transfer",
+    "probability_of_improvement", "probability_of_improvement_initial", "probability_of_improvement_final",
+    "mean_return_gain_iqm", "jumpstart_iqm", "asymptotic_performance_iqm", "transfer_ratio_iqm",
+    "mean_return_gain_with_source", "time_to_threshold_transfer_with_source",
+    "n_seeds_baseline", "n_seeds_transfer",
+)
+
+
+def table_rows() -> dict[str, tuple[Metric, str | None, bool]]:
+    """Every metric name -> (its entry, its side, whether it is the IQM version), in the order of the table
+    and the CSV: ``TABLE_ROWS`` first, then any metric it does not place, in ``METRICS`` order."""
+    rows = {name: (metric, side, iqm) for metric in METRICS for name, side, iqm in metric.rows()}
+    return {name: rows[name] for name in dict.fromkeys([*TABLE_ROWS, *rows]) if name in rows}
+
+
+def _of_kind(*kinds: str) -> list[Metric]:
+    return [metric for metric in METRICS if metric.kind in kinds]
+
+
+# ----------------------------------------------------------------------------------------- pipeline
+def transfer_report(
+    baseline: str | Path | Sequence[str | Path] | Sequence[Curve],
+    transfer: str | Path | Sequence[str | Path] | Sequence[Curve],
+    out_dir: str | Path | None = None,
+    **settings,
+) -> dict:
+    """Read both run sets, compute the metrics, write the four report files; return the JSON object.
+
+    ``baseline`` and ``transfer`` are paths (runs, directories of runs, globs) or lists of
+    :class:`~drltg.curves.Curve`. ``out_dir`` defaults to a fresh folder named after the runs in the
+    working directory. Keyword settings are those of ``drltg report`` (``threshold=150`` or ``"80%"``,
+    ``budget``, ``crossing``, ``paired``, ``source_frames``, ...: the fields of :class:`ReportSettings`).
+    The returned dict also holds ``"scores"`` (the per-seed DataFrame) and ``"out_dir"``.
+    """
+    s = settings_of(settings)
+    if out_dir is not None:
+        check_out_dir(Path(out_dir))
+    result = compute(read_runs(baseline, s), read_runs(transfer, s), **settings)
+    files = render(result)
+    st = result["settings"]
+    out = Path(out_dir) if out_dir is not None else fresh_dir(
+        f"report-{st['transfer_label']}-vs-{st['baseline_label']}")
+    rundir.write_files(out, files)
+    return {"metrics": result["metrics"], "settings": st, "per_seed": result["per_seed"],
+            "scores": result["scores"], "out_dir": str(out)}
+
+
+def compute(baseline: Sequence[Curve], transfer: Sequence[Curve], **settings) -> dict:
+    """Metrics of ``transfer`` against ``baseline`` (lists of curves, one per seed), without writing.
+
+    Returns ``{"metrics", "settings", "per_seed", "scores", "curves"}``: ``scores`` is the per-seed
+    DataFrame (one row per run), ``per_seed`` the same as JSON rows per side, ``curves`` the arrays the
+    plot draws. Keyword settings: the fields of :class:`ReportSettings`."""
+    s = settings_of(settings)
+    warnings: list[str] = []
+    sides = check_runs(baseline, transfer, s, warnings)
+    window = align(sides, s, warnings)
+    by_side = score_runs(sides, window, s, warnings)
+    scores = stack(by_side, sides.paired)
+    trends = {side: trend(runs, window, s) for side, runs in sides.items()}
+    metrics = metric_values(scores, trends, sides.paired, window, s, warnings)
+    described = describe(s, sides, window, trends, warnings)
+    return {"metrics": metrics, "settings": described, "per_seed": {side: _records(df) for side, df in by_side.items()},
+            "scores": scores, "curves": plot_curves(sides, window, scores, described)}
+
+
+def read_runs(runs, s: ReportSettings) -> list[Curve]:
+    """Curves as given, or read from paths with the settings' log format and tag."""
+    if isinstance(runs, Curve):
+        return [runs]
+    if isinstance(runs, (list, tuple)) and runs and all(isinstance(r, Curve) for r in runs):
+        return list(runs)
+    return read_curves(runs, format=s.format, tag=s.tag)
+
+
+# ------------------------------------------------------------------------------- 1. check the runs
+@dataclass
+class Sides:
+    """Both run sets once checked; when paired, ``transfer[i]`` is the pair of ``baseline[i]``."""
+
+    baseline: list[Curve]
+    transfer: list[Curve]
+    task: str | None
+    paired: bool
+    pairing: str
+
+    def items(self) -> tuple[tuple[str, list[Curve]], ...]:
+        return ("baseline", self.baseline), ("transfer", self.transfer)
+
+    @property
+    def runs(self) -> list[Curve]:
+        return self.baseline + self.transfer
+
+
+def check_runs(baseline: Sequence[Curve], transfer: Sequence[Curve], s: ReportSettings,
+               warnings: list[str]) -> Sides:
+    """No run twice, one task, one configuration a side (unless ``--allow-mixed``), and the pairing."""
+    baseline, transfer = list(baseline), list(transfer)
+    if not baseline or not transfer:
+        raise UsageError("both a baseline and a transfer run set are needed.")
+    _check_duplicates(baseline, transfer)
+    task = _check_tasks(baseline, transfer)
+    for side, runs in (("baseline", baseline), ("transfer", transfer)):
+        _check_configs(side, runs, bool(s.allow_mixed), warnings)
+    paired, pairing, transfer = _pairing(baseline, transfer, s.paired)
+    return Sides(baseline, transfer, task, paired, pairing)
 
 
 def _name(curve: Curve) -> str:
@@ -304,13 +500,50 @@ def _pairing(baseline: list[Curve], transfer: list[Curve], paired: bool | None) 
                    "both sides shares seed and initial weights"), transfer
 
 
+# ------------------------------------------------------------------------- 2. align on one window
+@dataclass
+class Window:
+    """What both sides are compared on: frames ``[start, budget]``, the threshold, the source frames
+    behind each transfer run, and ``scale`` = span x max |y| (the yardstick of a near-zero baseline area)."""
+
+    start: float
+    budget: float
+    budget_source: str
+    threshold: float | None
+    threshold_basis: str | None
+    source_frames: list[float] | None
+    source_basis: str
+    scale: float
+
+
+def align(sides: Sides, s: ReportSettings, warnings: list[str]) -> Window:
+    """The common interval of all runs, the threshold in return units and the source training behind
+    each transfer run."""
+    runs = sides.runs
+    start, budget, budget_source = _interval(runs, parse_frames(s.budget), warnings)
+    no_zero = [c for c in runs if c.frames[0] > 0]
+    if no_zero:
+        frames = sorted({c.frames[0] for c in no_zero})
+        warnings.append(
+            f"{len(no_zero)} of {len(runs)} runs have no frame-0 evaluation; the jumpstart compares their "
+            f"first {int(s.jumpstart_window)} evaluation(s) (from frame {number(frames[0])})."
+        )
+    threshold, basis = _threshold(sides.baseline, start, budget, s)
+    source_frames, source_basis = _source_frames(sides.transfer, s)
+    if source_frames is not None and not any(source_frames):
+        source_basis += "; no source training, so the total-time view equals the target-only one"
+    scale = (budget - start) * max(
+        float(np.abs(c.values[(c.frames >= start) & (c.frames <= budget)]).max()) for c in runs)
+    return Window(start, budget, budget_source, threshold, basis, source_frames, source_basis, scale)
+
+
 def _interval(curves: Sequence[Curve], budget: float | None, warnings: list[str]) -> tuple[float, float, str]:
     start = max(c.frames[0] for c in curves)
     firsts = sorted({c.frames[0] for c in curves})
     if len(firsts) > 1:
         warnings.append(
-            f"runs start at different frames ({_fmt(firsts[0])} to {_fmt(firsts[-1])}); areas and "
-            f"the asymptote window start at frame {_fmt(start)}."
+            f"runs start at different frames ({number(firsts[0])} to {number(firsts[-1])}); areas and "
+            f"the asymptote window start at frame {number(start)}."
         )
     shortest = min(curves, key=lambda c: c.frames[-1])
     longest = max(curves, key=lambda c: c.frames[-1])
@@ -318,27 +551,27 @@ def _interval(curves: Sequence[Curve], budget: float | None, warnings: list[str]
         budget, source = float(shortest.frames[-1]), "the shortest run's last evaluation"
         if longest.frames[-1] > MAX_LENGTH_RATIO * budget:
             raise UsageError(
-                f"run lengths differ too much: {_name(shortest)} ends at frame {_fmt(budget)} but "
-                f"{_name(longest)} at {_fmt(longest.frames[-1])}; pass --budget FRAMES to compare "
+                f"run lengths differ too much: {_name(shortest)} ends at frame {number(budget)} but "
+                f"{_name(longest)} at {number(longest.frames[-1])}; pass --budget FRAMES to compare "
                 "over a budget you choose."
             )
     else:
         budget, source = float(budget), "--budget"
         if shortest.frames[-1] < budget:
             raise UsageError(
-                f"{_name(shortest)} ends at frame {_fmt(shortest.frames[-1])}, before the budget of "
-                f"{_fmt(budget)} frames; lower --budget (points are never invented past a run's end)."
+                f"{_name(shortest)} ends at frame {number(shortest.frames[-1])}, before the budget of "
+                f"{number(budget)} frames; lower --budget (points are never invented past a run's end)."
             )
     if budget <= start:
         raise UsageError(
-            f"the budget ({_fmt(budget)} frames) must lie after the latest first evaluation "
-            f"({_fmt(start)}, in {_name(max(curves, key=lambda c: c.frames[0]))})."
+            f"the budget ({number(budget)} frames) must lie after the latest first evaluation "
+            f"({number(start)}, in {_name(max(curves, key=lambda c: c.frames[0]))})."
         )
     cut = [c for c in curves if c.frames[-1] > budget]
     if cut:
         warnings.append(
-            f"{len(cut)} of {len(curves)} runs truncated to the common budget of {_fmt(budget)} frames: "
-            + ", ".join(f"{c.label} (ends at {_fmt(c.frames[-1])})" for c in cut) + "."
+            f"{len(cut)} of {len(curves)} runs truncated to the common budget of {number(budget)} frames: "
+            + ", ".join(f"{c.label} (ends at {number(c.frames[-1])})" for c in cut) + "."
         )
     return float(start), budget, source
 
@@ -357,47 +590,18 @@ def _on_grid(curves: Sequence[Curve], grid: np.ndarray, smooth: int | None = Non
     return np.stack(rows)
 
 
-def _crossing(frames, y, threshold, stop, s: ReportSettings) -> float | None:
-    if threshold is None or stop < frames[0]:
-        return None
-    if s.crossing == "first":
-        return _num(M.time_to_threshold(frames, y, threshold, stop))
-    return _num(M.sustained_time_to_threshold(frames, y, threshold, stop, s.sustain))
-
-
-def _scores(curves, *, start, budget, threshold, s: ReportSettings) -> pd.DataFrame:
-    """One row per run: the per-seed scores every metric is built from."""
-    k, smooth = int(s.jumpstart_window), s.smooth
-    lo, hi = M.final_window(start, budget, float(s.asymptote_window))
-    rows = []
-    for c in curves:
-        inside = c.frames <= budget
-        if inside.sum() < k:
-            raise UsageError(
-                f"{_name(c)} has {int(inside.sum())} evaluations within the budget, fewer than "
-                f"--jumpstart-window {k}."
-            )
-        window = (c.frames >= lo) & (c.frames <= hi)
-        if not window.any():
-            raise UsageError(
-                f"{_name(c)} has no evaluation in the asymptote window [{_fmt(lo)}, {_fmt(hi)}] frames; "
-                "widen --asymptote-window."
-            )
-        y = M.moving_average(c.values, smooth) if smooth and smooth > 1 else c.values
-        area = M.area_under_curve(c.frames, c.values, start, budget)
-        rows.append(dict(
-            label=c.label,
-            source=str(c.source),
-            seed=_seed(c),
-            first_frame=_num(c.frames[0]),
-            last_frame=_num(c.frames[-1]),
-            initial_performance=M.initial_performance(c.values[inside], k),
-            final_performance=float(c.values[window].mean()),
-            total_reward=area,
-            mean_return=area / (budget - start),
-            time_to_threshold=_crossing(c.frames, y, threshold, budget, s),
-        ))
-    return pd.DataFrame(rows)
+def _threshold(baseline, start, budget, s: ReportSettings) -> tuple[float | None, str | None]:
+    absolute, frac = parse_threshold(s.threshold)
+    if frac is None:
+        return absolute, None if absolute is None else "absolute"
+    smooth = int(s.smooth) if s.smooth else None
+    best = float(_on_grid(baseline, _grid(baseline, start, budget), smooth).mean(axis=0).max())
+    if best <= 0:
+        raise UsageError(
+            f"--threshold {s.threshold} is a fraction of the best baseline performance, which is "
+            f"{best:.4g} (not positive); give an absolute threshold instead."
+        )
+    return frac * best, f"{frac:g} x best baseline mean performance ({best:.6g})"
 
 
 def _source_frames(transfer: Sequence[Curve], s: ReportSettings) -> tuple[list[float] | None, str]:
@@ -435,8 +639,67 @@ def _frames_of_run(run_dir: Path, source: str) -> float | None:
     return None
 
 
-def _with_source(baseline: Sequence[Curve], transfer: Sequence[Curve], scores: dict, frames: list[float], *,
-                 start, budget, threshold, s: ReportSettings, warnings: list[str]) -> None:
+# ----------------------------------------------------------------------------- 3. per-seed scores
+def score_runs(sides: Sides, w: Window, s: ReportSettings, warnings: list[str]) -> dict[str, pd.DataFrame]:
+    """Per side, one row per run (in pair order when paired): the per-seed scores every metric is built from,
+    and the total-time ones where source frames are known. Each side keeps its own column types, which the
+    JSON's ``per_seed`` shows (a side whose crossing frames are all whole numbers lists them as integers)."""
+    by_side = {side: pd.DataFrame([_run_scores(c, w, s) for c in runs]) for side, runs in sides.items()}
+    if w.source_frames is not None and any(w.source_frames):
+        _with_source(sides, by_side, w, s, warnings)
+    return by_side
+
+
+def stack(by_side: dict[str, pd.DataFrame], paired: bool) -> pd.DataFrame:
+    """One frame of every run: ``side``, ``pair`` (the pair's index when paired, else None), then its scores."""
+    return pd.DataFrame([{"side": side, "pair": i if paired else None, **row}
+                         for side, df in by_side.items() for i, row in enumerate(df.to_dict("records"))])
+
+
+def _smoothed(c: Curve, s: ReportSettings) -> np.ndarray:
+    return M.moving_average(c.values, s.smooth) if s.smooth and s.smooth > 1 else c.values
+
+
+def _crossing(frames, y, threshold, stop, s: ReportSettings) -> float | None:
+    if threshold is None or stop < frames[0]:
+        return None
+    if s.crossing == "first":
+        return _num(M.time_to_threshold(frames, y, threshold, stop))
+    return _num(M.sustained_time_to_threshold(frames, y, threshold, stop, s.sustain))
+
+
+def _run_scores(c: Curve, w: Window, s: ReportSettings) -> dict:
+    r"""Initial performance (mean of the first K evaluations), final performance (mean of the evaluations in
+    the asymptote window), area :math:`\int_{start}^{budget} y`, mean return = area / span, time to threshold."""
+    k = int(s.jumpstart_window)
+    lo, hi = M.final_window(w.start, w.budget, float(s.asymptote_window))
+    inside = c.frames <= w.budget
+    if inside.sum() < k:
+        raise UsageError(
+            f"{_name(c)} has {int(inside.sum())} evaluations within the budget, fewer than --jumpstart-window {k}."
+        )
+    window = (c.frames >= lo) & (c.frames <= hi)
+    if not window.any():
+        raise UsageError(
+            f"{_name(c)} has no evaluation in the asymptote window [{number(lo)}, {number(hi)}] frames; "
+            "widen --asymptote-window."
+        )
+    area = M.area_under_curve(c.frames, c.values, w.start, w.budget)
+    return dict(
+        label=c.label,
+        source=str(c.source),
+        seed=_seed(c),
+        first_frame=_num(c.frames[0]),
+        last_frame=_num(c.frames[-1]),
+        initial_performance=M.initial_performance(c.values[inside], k),
+        final_performance=float(c.values[window].mean()),
+        total_reward=area,
+        mean_return=area / (w.budget - w.start),
+        time_to_threshold=_crossing(c.frames, _smoothed(c, s), w.threshold, w.budget, s),
+    )
+
+
+def _with_source(sides: Sides, by_side: dict, w: Window, s: ReportSettings, warnings: list[str]) -> None:
     r"""Taylor & Stone's total-time view on one budget: a transfer run has first spent ``S`` frames
     on the source task, so after ``x`` frames in total it has ``x - S`` target frames.
 
@@ -445,55 +708,78 @@ def _with_source(baseline: Sequence[Curve], transfer: Sequence[Curve], scores: d
     first ``budget - S - start`` target frames, :math:`\frac{1}{span - S}\int_{start}^{budget - S} y_T`.
     Time to threshold with source: :math:`\tau + S`, with :math:`\tau` reached within
     ``budget - S`` target frames."""
+    start, budget, frames = w.start, w.budget, w.source_frames
     span = budget - start
     if len(set(frames)) > 1:
-        warnings.append(f"the transfer runs' source runs differ in length ({', '.join(_fmt(f) for f in frames)} "
+        warnings.append(f"the transfer runs' source runs differ in length ({', '.join(number(f) for f in frames)} "
                         "frames); the total-time metrics need one source budget and are left out.")
         return
     source = frames[0]
     if source >= span:
-        warnings.append(f"the source training ({_fmt(source)} frames) uses up the whole budget of {_fmt(span)} "
+        warnings.append(f"the source training ({number(source)} frames) uses up the whole budget of {number(span)} "
                         "frames, so there is no total-time comparison within it; compare longer runs.")
         return
     width = span - source
-    scores["baseline"]["mean_return_total_time"] = [
-        M.area_under_curve(c.frames, c.values, start + source, budget) / width for c in baseline]
-    scores["transfer"]["mean_return_total_time"] = [
-        M.area_under_curve(c.frames, c.values, start, budget - source) / width for c in transfer]
+    by_side["baseline"]["mean_return_total_time"] = [
+        M.area_under_curve(c.frames, c.values, start + source, budget) / width for c in sides.baseline]
+    by_side["transfer"]["mean_return_total_time"] = [
+        M.area_under_curve(c.frames, c.values, start, budget - source) / width for c in sides.transfer]
     times = []
-    for c in transfer:
-        y = M.moving_average(c.values, s.smooth) if s.smooth and s.smooth > 1 else c.values
-        crossed = _crossing(c.frames, y, threshold, budget - source, s)
+    for c in sides.transfer:
+        crossed = _crossing(c.frames, _smoothed(c, s), w.threshold, budget - source, s)
         times.append(None if crossed is None else _num(crossed + source))
-    scores["transfer"]["source_frames"] = _num(source)
-    scores["transfer"]["time_to_threshold_with_source"] = pd.Series(times, dtype=object)
+    by_side["transfer"]["source_frames"] = _num(source)
+    by_side["transfer"]["time_to_threshold_with_source"] = pd.Series(times, dtype=object)
 
 
-@dataclass(frozen=True)
-class Metric:
-    """A transfer metric over per-seed scores: the table's one entry per metric.
+# -------------------------------------------------------------------------------------- 4. metrics
+def metric_values(scores: pd.DataFrame, trends: dict, paired: bool, w: Window, s: ReportSettings,
+                  warnings: list[str]) -> dict:
+    """The ``metrics`` object, stage by stage (the JSON keeps this order): seed counts; comparisons of the
+    sides with their intervals; each side's summaries; the trends of the mean curves."""
+    sides = {side: scores[scores["side"] == side] for side in SIDES}
+    m: dict = {}
+    for metric in _of_kind("count"):
+        m.update({metric.key(side): len(sides[side]) for side in metric.sides})
+    n_b, n_t = len(sides["baseline"]), len(sides["transfer"])
+    enough = min(n_b, n_t) >= MIN_SEEDS
+    if not enough:
+        warnings.append(f"intervals need at least {MIN_SEEDS} seeds per side (got {n_b} baseline, "
+                        f"{n_t} transfer); none are reported.")
+    for metric in _of_kind(*COMPARISONS):
+        if metric.score in scores:
+            b = sides["baseline"][metric.score].to_numpy(np.float64)
+            t = sides["transfer"][metric.score].to_numpy(np.float64)
+            m.update(_compare(metric, b, t, paired, w.scale, s, enough, warnings))
+    for side in SIDES:
+        for metric in _of_kind("mean", "time", "reached"):
+            if side in metric.sides and metric.score in scores:
+                m[metric.key(side)] = _summary(metric, sides[side][metric.score], w.threshold)
+    for metric in _of_kind("trend"):
+        for side in metric.sides:
+            m.update(_trend_values(metric, side, trends[side], s, warnings))
+    return m
 
-    ``kind``: ``difference`` (L(T) - L(B), or L(d_i) over pairs), ``ratio`` (transfer_ratio) or
-    ``poi`` (probability of improvement); ``score`` names the per-seed column (``baseline_score`` the
-    baseline's, when it differs)."""
 
-    name: str
-    score: str
-    kind: str
-    baseline_score: str | None = None
-    iqm: bool = False
-
-
-METRICS = (
-    Metric("mean_return_gain", "mean_return", "difference", iqm=True),
-    Metric("jumpstart", "initial_performance", "difference", iqm=True),
-    Metric("asymptotic_performance", "final_performance", "difference", iqm=True),
-    Metric("transfer_ratio", "total_reward", "ratio", iqm=True),
-    Metric("probability_of_improvement", "total_reward", "poi"),
-    Metric("probability_of_improvement_initial", "initial_performance", "poi"),
-    Metric("probability_of_improvement_final", "final_performance", "poi"),
-    Metric("mean_return_gain_with_source", "mean_return_total_time", "difference"),
-)
+def _compare(metric: Metric, b: np.ndarray, t: np.ndarray, paired: bool, scale: float, s: ReportSettings,
+             enough: bool, warnings: list[str]) -> dict:
+    """``<name>``, ``<name>_ci`` (where an honest interval exists) and ``<name>_iqm``."""
+    eps = float(s.ratio_eps)
+    value = _estimate(metric, b, t, paired, M.mean, scale, eps)
+    out = {metric.name: value}
+    if metric.kind == "ratio" and value is None:
+        warnings.append(
+            f"the baseline area ({b.mean():.4g}) is within {eps:g} of the largest possible area "
+            f"({scale:.4g}) from zero, so transfer_ratio is undefined (null); compare mean_return_gain instead.")
+    if enough:
+        ci, why = _confidence_interval(metric, value, b, t, paired, s)
+        if ci is not None:
+            out[f"{metric.name}_ci"] = ci
+        elif why:
+            warnings.append(why)
+    if metric.iqm:
+        out[f"{metric.name}_iqm"] = _estimate(metric, b, t, paired, M.interquartile_mean, scale, eps)
+    return out
 
 
 def _estimate(metric: Metric, b: np.ndarray, t: np.ndarray, paired: bool, location, scale, eps):
@@ -504,7 +790,8 @@ def _estimate(metric: Metric, b: np.ndarray, t: np.ndarray, paired: bool, locati
     return M.paired_probability_of_improvement(b, t) if paired else M.probability_of_improvement(b, t)
 
 
-def _confidence_interval(metric: Metric, value, b, t, paired: bool, s: ReportSettings) -> tuple[list | None, str | None]:
+def _confidence_interval(metric: Metric, value, b, t, paired: bool,
+                         s: ReportSettings) -> tuple[list | None, str | None]:
     """``([low, high], None)``, or ``(None, reason)`` where no honest interval exists."""
     conf = float(s.confidence)
     if metric.kind == "poi":
@@ -530,13 +817,27 @@ def _confidence_interval(metric: Metric, value, b, t, paired: bool, s: ReportSet
     return None, f"{metric.name} has no interval: {why}."
 
 
-def _trend(curves: Sequence[Curve], start: float, budget: float, s: ReportSettings) -> dict:
+def _summary(metric: Metric, column: pd.Series, threshold: float | None):
+    """A side's mean over seeds; or its upper-median crossing frame (a frame a run had, by which a strict
+    majority has crossed) and the share of runs that cross, both null without a threshold."""
+    if metric.kind == "mean":
+        return float(column.mean())
+    if threshold is None:
+        return None
+    times = [None if _missing(x) else x for x in column]
+    if metric.kind == "time":
+        return _num(M.censored_median(times, upper=True))
+    return sum(x is not None for x in times) / len(times)
+
+
+def trend(curves: Sequence[Curve], w: Window, s: ReportSettings) -> dict:
     r"""Is the side's mean curve still changing over the last ``trend_window`` of the budget?
 
     Least-squares line through the mean over seeds at every evaluation frame of that window; the
-    change over the window, :math:`\\hat\\beta (f_1 - f_0)`, with its t-interval (n - 2 degrees of
+    change over the window, :math:`\hat\beta (f_1 - f_0)`, with its t-interval (n - 2 degrees of
     freedom). An interval excluding 0 means the curve still rises (or falls): its final performance
     is not an asymptote."""
+    start, budget = w.start, w.budget
     lo = budget - float(s.trend_window) * (budget - start)
     frames = np.unique(np.concatenate([c.frames[(c.frames >= lo) & (c.frames <= budget)] for c in curves]))
     out = dict(window=[_num(lo), _num(budget)], n_points=int(frames.size))
@@ -552,135 +853,89 @@ def _trend(curves: Sequence[Curve], start: float, budget: float, s: ReportSettin
     return {**out, "change": change, "ci": [change - half, change + half], "verdict": verdict}
 
 
-def _report_trends(m: dict, trends: dict, s: ReportSettings, warnings: list[str]) -> None:
+def _trend_values(metric: Metric, side: str, tr: dict, s: ReportSettings, warnings: list[str]) -> dict:
     """``final_trend_<side>`` with its interval, and a warning for a side whose curve still moves."""
-    for side, tr in trends.items():
-        m[f"final_trend_{side}"] = tr["change"]
-        if tr["ci"] is not None:
-            m[f"final_trend_{side}_ci"] = tr["ci"]
-        if tr["verdict"].startswith("still"):
-            warnings.append(
-                f"the {side} mean curve is {tr['verdict']} over the last {100 * float(s.trend_window):g}% of the "
-                f"budget ({tr['change']:+.4g} [{tr['ci'][0]:+.4g}, {tr['ci'][1]:+.4g}] from frame "
-                f"{_fmt(tr['window'][0])} to {_fmt(tr['window'][1])}): asymptotic_performance compares final "
-                "performances, not asymptotes.")
-
-
-def compute(baseline: Sequence[Curve], transfer: Sequence[Curve], **settings) -> dict:
-    """Metrics of ``transfer`` against ``baseline`` (lists of curves, one per seed), without writing.
-
-    Returns ``{"metrics", "settings", "per_seed", "scores", "curves"}``: ``scores`` is the per-seed
-    DataFrame (a ``side`` column), ``curves`` the arrays the plot draws. Keyword settings: the fields
-    of :class:`ReportSettings`."""
-    unknown = set(settings) - set(SETTINGS_DEFAULTS)
-    if unknown:
-        raise TypeError(f"unknown report settings: {', '.join(sorted(unknown))}")
-    s = ReportSettings(**settings)
-    baseline, transfer = list(baseline), list(transfer)
-    if not baseline or not transfer:
-        raise UsageError("both a baseline and a transfer run set are needed.")
-    warnings: list[str] = []
-    _check_duplicates(baseline, transfer)
-    task = _check_tasks(baseline, transfer)
-    for side, runs in (("baseline", baseline), ("transfer", transfer)):
-        _check_configs(side, runs, bool(s.allow_mixed), warnings)
-    paired, pairing, transfer = _pairing(baseline, transfer, s.paired)
-    start, budget, budget_source = _interval(baseline + transfer, parse_frames(s.budget), warnings)
-    k = int(s.jumpstart_window)
-    no_zero = [c for c in baseline + transfer if c.frames[0] > 0]
-    if no_zero:
-        frames = sorted({c.frames[0] for c in no_zero})
+    out = {metric.key(side): tr["change"]}
+    if tr["ci"] is not None:
+        out[f"{metric.key(side)}_ci"] = tr["ci"]
+    if tr["verdict"].startswith("still"):
         warnings.append(
-            f"{len(no_zero)} of {len(baseline) + len(transfer)} runs have no frame-0 evaluation; the "
-            f"jumpstart compares their first {k} evaluation(s) (from frame {_fmt(frames[0])})."
-        )
-    threshold, basis = _threshold(baseline, start, budget, s)
-
-    scores = {side: _scores(runs, start=start, budget=budget, threshold=threshold, s=s)
-              for side, runs in (("baseline", baseline), ("transfer", transfer))}
-    source_frames, source_basis = _source_frames(transfer, s)
-    if source_frames is not None and not any(source_frames):
-        source_basis += "; no source training, so the total-time view equals the target-only one"
-    elif source_frames is not None:
-        _with_source(baseline, transfer, scores, source_frames, start=start, budget=budget,
-                     threshold=threshold, s=s, warnings=warnings)
-    scale = (budget - start) * max(
-        float(np.abs(c.values[(c.frames >= start) & (c.frames <= budget)]).max()) for c in baseline + transfer)
-    m = _metrics(scores, paired, scale, threshold, s, warnings)
-    trends = {side: _trend(runs, start, budget, s) for side, runs in (("baseline", baseline), ("transfer", transfer))}
-    _report_trends(m, trends, s, warnings)
-
-    settings_out = _describe(s, baseline, transfer, task=task, start=start, budget=budget,
-                             budget_source=budget_source, paired=paired, pairing=pairing, trends=trends,
-                             threshold=threshold, basis=basis, source_frames=source_frames,
-                             source_basis=source_basis, scale=scale, warnings=warnings)
-    curves = _plot_curves(baseline, transfer, start, budget, scores, s, settings_out)
-    per_seed = {side: _records(df) for side, df in scores.items()}
-    table = pd.DataFrame([{**row, "side": side} for side, df in scores.items() for row in df.to_dict("records")])
-    return {"metrics": m, "settings": settings_out, "per_seed": per_seed, "scores": table, "curves": curves}
+            f"the {side} mean curve is {tr['verdict']} over the last {100 * float(s.trend_window):g}% of the "
+            f"budget ({tr['change']:+.4g} [{tr['ci'][0]:+.4g}, {tr['ci'][1]:+.4g}] from frame "
+            f"{number(tr['window'][0])} to {number(tr['window'][1])}): asymptotic_performance compares final "
+            "performances, not asymptotes.")
+    return out
 
 
-def _describe(s: ReportSettings, baseline, transfer, *, task, start, budget, budget_source, paired, pairing,
-              trends, threshold, basis, source_frames, source_basis, scale, warnings) -> dict:
+def _missing(x) -> bool:
+    return x is None or (isinstance(x, float) and math.isnan(x))
+
+
+def _num(x):
+    if x is None:
+        return None
+    x = float(x)
+    return int(x) if x.is_integer() and abs(x) < 2**53 else x
+
+
+def _records(df: pd.DataFrame) -> list[dict]:
+    """JSON-ready rows: NaN cells as None, numpy scalars as Python numbers."""
+    return [{k: (None if _missing(v) else v.item() if isinstance(v, np.generic) else v) for k, v in row.items()}
+            for row in df.to_dict("records")]
+
+
+# ------------------------------------------------------------------------------ 5. describe, plot
+def describe(s: ReportSettings, sides: Sides, w: Window, trends: dict, warnings: list[str]) -> dict:
     """The report's ``settings``: every choice made, with the reasons and warnings."""
-    labels = {
-        "baseline": s.baseline_label or _side_label(baseline, "baseline"),
-        "transfer": s.transfer_label or _side_label(transfer, "transfer"),
-    }
-    lo, hi = M.final_window(start, budget, float(s.asymptote_window))
-    settings_out = {
-        "baseline": [str(c.source) for c in baseline],
-        "transfer": [str(c.source) for c in transfer],
-        "baseline_label": labels["baseline"],
-        "transfer_label": labels["transfer"],
-        "task": task,
+    lo, hi = M.final_window(w.start, w.budget, float(s.asymptote_window))
+    return {
+        "baseline": [str(c.source) for c in sides.baseline],
+        "transfer": [str(c.source) for c in sides.transfer],
+        "baseline_label": s.baseline_label or _side_label(sides.baseline, "baseline"),
+        "transfer_label": s.transfer_label or _side_label(sides.transfer, "transfer"),
+        "task": sides.task,
         "format": s.format,
         "tag": s.tag,
-        "start": _num(start),
-        "budget": _num(budget),
-        "budget_source": budget_source,
-        "paired": paired,
-        "pairing": pairing,
+        "start": _num(w.start),
+        "budget": _num(w.budget),
+        "budget_source": w.budget_source,
+        "paired": sides.paired,
+        "pairing": sides.pairing,
         "jumpstart_window": int(s.jumpstart_window),
         "asymptote_window": float(s.asymptote_window),
         "asymptote_frames": [_num(lo), _num(hi)],
         "trend_window": float(s.trend_window),
         "convergence": {side: tr["verdict"] for side, tr in trends.items()},
-        "threshold": threshold,
+        "threshold": w.threshold,
         "threshold_given": s.threshold,
-        "threshold_basis": basis,
+        "threshold_basis": w.threshold_basis,
         "crossing": s.crossing,
         "sustain": s.sustain,
         "time_to_threshold_rule": _crossing_rule(s),
         "median_rule": ("upper median over seeds: the earliest of the runs' own crossing frames by which a "
                         "strict majority of seeds has crossed; null when no strict majority does"),
-        "source_frames": None if source_frames is None else [_num(f) for f in source_frames],
-        "source_frames_basis": source_basis,
+        "source_frames": None if w.source_frames is None else [_num(f) for f in w.source_frames],
+        "source_frames_basis": w.source_basis,
         "smooth": int(s.smooth) if s.smooth else None,
         "ratio_eps": float(s.ratio_eps),
-        "ratio_scale": scale,
-        "interval": _interval_rule(s, paired),
+        "ratio_scale": w.scale,
+        "interval": _interval_rule(s, sides.paired),
         "confidence": float(s.confidence),
         "bootstrap": int(s.bootstrap),
         "seed": int(s.seed),
         "location": "mean over seeds (over pairs when paired), and the interquartile mean in *_iqm",
         "warnings": warnings,
+        "plot_smooth": _plot_smooth(sides.runs, w, s),
     }
-    return settings_out
 
 
-def _threshold(baseline, start, budget, s: ReportSettings) -> tuple[float | None, str | None]:
-    absolute, frac = _parse_threshold(s.threshold)
-    if frac is None:
-        return absolute, None if absolute is None else "absolute"
-    smooth = int(s.smooth) if s.smooth else None
-    best = float(_on_grid(baseline, _grid(baseline, start, budget), smooth).mean(axis=0).max())
-    if best <= 0:
-        raise UsageError(
-            f"--threshold {s.threshold} is a fraction of the best baseline performance, which is "
-            f"{best:.4g} (not positive); give an absolute threshold instead."
-        )
-    return frac * best, f"{frac:g} x best baseline mean performance ({best:.6g})"
+def _side_label(curves: Sequence[Curve], default: str) -> str:
+    if len(curves) == 1:
+        return curves[0].label
+    parents = {Path(c.source).resolve().parent.parent if Path(c.source).is_file()
+               else Path(c.source).resolve().parent for c in curves}
+    name = parents.pop().name if len(parents) == 1 else ""
+    return name or default
 
 
 def _crossing_rule(s: ReportSettings) -> str:
@@ -703,205 +958,92 @@ def _interval_rule(s: ReportSettings, paired: bool) -> str:
             f"with fewer than {MIN_SEEDS} seeds on a side")
 
 
-def _metrics(scores: dict, paired: bool, scale: float, threshold, s: ReportSettings, warnings: list[str]) -> dict:
-    sb, st = scores["baseline"], scores["transfer"]
-    eps = float(s.ratio_eps)
-    m: dict = {"n_seeds_baseline": len(sb), "n_seeds_transfer": len(st)}
-    enough = min(len(sb), len(st)) >= MIN_SEEDS
-    if not enough:
-        warnings.append(f"intervals need at least {MIN_SEEDS} seeds per side (got {len(sb)} baseline, "
-                        f"{len(st)} transfer); none are reported.")
-    for metric in METRICS:
-        if metric.score not in st:
-            continue
-        b = sb[metric.baseline_score or metric.score].to_numpy(np.float64)
-        t = st[metric.score].to_numpy(np.float64)
-        m[metric.name] = value = _estimate(metric, b, t, paired, M.mean, scale, eps)
-        if metric.kind == "ratio" and value is None:
-            warnings.append(
-                f"the baseline area ({b.mean():.4g}) is within {eps:g} of the largest possible area "
-                f"({scale:.4g}) from zero, so transfer_ratio is undefined (null); compare mean_return_gain instead.")
-        if enough:
-            ci, why = _confidence_interval(metric, value, b, t, paired, s)
-            if ci is not None:
-                m[f"{metric.name}_ci"] = ci
-            elif why:
-                warnings.append(why)
-        if metric.iqm:
-            m[f"{metric.name}_iqm"] = _estimate(metric, b, t, paired, M.interquartile_mean, scale, eps)
-    for side, df in scores.items():
-        m[f"total_reward_{side}"] = float(df["total_reward"].mean())
-        m[f"initial_performance_{side}"] = float(df["initial_performance"].mean())
-        m[f"final_performance_{side}"] = float(df["final_performance"].mean())
-        times = [None if _missing(x) else x for x in df["time_to_threshold"]]
-        m[f"time_to_threshold_{side}"] = None if threshold is None else _num(M.censored_median(times, upper=True))
-        m[f"threshold_reached_{side}"] = (
-            None if threshold is None else sum(x is not None for x in times) / len(times))
-    if "time_to_threshold_with_source" in st:
-        times = [None if _missing(x) else x for x in st["time_to_threshold_with_source"]]
-        m["time_to_threshold_transfer_with_source"] = (
-            None if threshold is None else _num(M.censored_median(times, upper=True)))
-    return m
+def _plot_smooth(runs: Sequence[Curve], w: Window, s: ReportSettings) -> int:
+    """The plotted lines' moving-average width: ``--plot-smooth``, else ``--smooth``, else about
+    ``PLOT_POINTS`` windows per curve."""
+    n_evals = int(np.median([int((c.frames <= w.budget).sum()) for c in runs]))
+    return int(s.plot_smooth or (int(s.smooth) if s.smooth else None) or max(1, n_evals // PLOT_POINTS))
 
 
-def _missing(x) -> bool:
-    return x is None or (isinstance(x, float) and math.isnan(x))
-
-
-def _records(df: pd.DataFrame) -> list[dict]:
-    """JSON-ready rows: NaN cells as None, numpy scalars as Python numbers."""
-    out = []
-    for row in df.to_dict("records"):
-        out.append({k: (None if _missing(v) else v.item() if isinstance(v, np.generic) else v)
-                    for k, v in row.items()})
-    return out
-
-
-def _plot_curves(baseline, transfer, start, budget, scores, s: ReportSettings, settings_out: dict) -> dict:
-    smooth = int(s.smooth) if s.smooth else None
-    n_evals = int(np.median([int((c.frames <= budget).sum()) for c in baseline + transfer]))
-    w = int(s.plot_smooth or smooth or max(1, n_evals // PLOT_POINTS))
-    settings_out["plot_smooth"] = w
+def plot_curves(sides: Sides, w: Window, scores: pd.DataFrame, described: dict) -> dict:
+    """Per side, what the plot draws: the (smoothed) mean on a common grid, a t-interval band over seeds
+    where there are enough, the raw runs and each run's crossing frame."""
+    width, confidence = described["plot_smooth"], described["confidence"]
     curves = {}
-    for side, runs in (("baseline", baseline), ("transfer", transfer)):
-        grid = _grid(runs, start, budget)
-        ys = _on_grid(runs, grid, w)
+    for side, runs in sides.items():
+        grid = _grid(runs, w.start, w.budget)
+        ys = _on_grid(runs, grid, width)
         band = None
         if len(runs) >= MIN_SEEDS:
-            half = M.t_quantile(0.5 + float(s.confidence) / 2, len(runs) - 1) * ys.std(0, ddof=1) / math.sqrt(len(runs))
+            half = M.t_quantile(0.5 + confidence / 2, len(runs) - 1) * ys.std(0, ddof=1) / math.sqrt(len(runs))
             band = (ys.mean(0) - half, ys.mean(0) + half)
-        times = [None if _missing(x) else x for x in scores[side]["time_to_threshold"]]
-        curves[side] = dict(grid=grid, mean=ys.mean(axis=0), band=band, smooth=w,
+        times = [None if _missing(x) else x for x in scores.loc[scores["side"] == side, "time_to_threshold"]]
+        curves[side] = dict(grid=grid, mean=ys.mean(axis=0), band=band, smooth=width,
                             runs=[(c.frames, c.values) for c in runs], times=times)
     return curves
 
 
-def _side_label(curves: Sequence[Curve], default: str) -> str:
-    if len(curves) == 1:
-        return curves[0].label
-    parents = {Path(c.source).resolve().parent.parent if Path(c.source).is_file()
-               else Path(c.source).resolve().parent for c in curves}
-    name = parents.pop().name if len(parents) == 1 else ""
-    return name or default
-
-
 # ------------------------------------------------------------------------------------------ outputs
-def _num(x):
-    if x is None:
-        return None
-    x = float(x)
-    return int(x) if x.is_integer() and abs(x) < 2**53 else x
-
-
-def _fmt(x, digits: int = 4) -> str:
-    if x is None:
-        return "not reached"
-    x = float(x)
-    if x.is_integer() and abs(x) >= 1000:
-        return f"{int(x):,}"
-    return f"{x:.{digits}g}"
-
-
-METRIC_ORDER = (
-    "mean_return_gain", "jumpstart", "asymptotic_performance", "transfer_ratio",
-    "total_reward_baseline", "total_reward_transfer",
-    "time_to_threshold_baseline", "time_to_threshold_transfer",
-    "threshold_reached_baseline", "threshold_reached_transfer",
-    "initial_performance_baseline", "initial_performance_transfer",
-    "final_performance_baseline", "final_performance_transfer",
-    "final_trend_baseline", "final_trend_transfer",
-    "probability_of_improvement", "probability_of_improvement_initial", "probability_of_improvement_final",
-    "mean_return_gain_iqm", "jumpstart_iqm", "asymptotic_performance_iqm", "transfer_ratio_iqm",
-    "mean_return_gain_with_source", "time_to_threshold_transfer_with_source",
-    "n_seeds_baseline", "n_seeds_transfer",
-)
-WITH_SOURCE = ("mean_return_gain_with_source", "time_to_threshold_transfer_with_source")
-
-
 def metrics_rows(metrics: dict) -> list[tuple[str, object, object, object]]:
-    """``(metric, value, ci_low, ci_high)`` rows in a fixed order (total-time rows only when known)."""
+    """``(metric, value, ci_low, ci_high)`` rows in the table's order (the metrics the report gave)."""
     rows = []
-    for name in METRIC_ORDER:
-        if name in WITH_SOURCE and name not in metrics:
-            continue
-        ci = metrics.get(f"{name}_ci") or (None, None)
-        rows.append((name, metrics.get(name), ci[0], ci[1]))
+    for name in table_rows():
+        if name in metrics:
+            ci = metrics.get(f"{name}_ci") or (None, None)
+            rows.append((name, metrics[name], ci[0], ci[1]))
     return rows
 
 
 def _note(name: str, st: dict) -> str:
-    conv = st.get("convergence", {})
-    if name == "asymptotic_performance":
-        moving = [f"{side} {v}" for side, v in conv.items() if v.startswith("still")]
-        return f"final performance, not an asymptote: {', '.join(moving)}" if moving else ""
-    if name.startswith("final_trend_"):
-        return conv.get(name.rsplit("_", 1)[1], "")
-    if name.endswith("_with_source"):
-        return "total time: source frames counted"
-    if name == "transfer_ratio":
-        return "changes when a constant is added to rewards"
-    return ""
+    metric, side, iqm = table_rows()[name]
+    if iqm:
+        return ""
+    return metric.note(st, side) if callable(metric.note) else metric.note
+
+
+def _shown(name: str, value, threshold) -> str:
+    if name.startswith(("time_to_threshold", "threshold_reached")) and threshold is None:
+        return "-"
+    if value is None:
+        return "not reached" if name.startswith("time_to") else "null"
+    return number(value)
 
 
 def format_table(result: dict) -> str:
     """The metrics as an aligned text table (intervals only where they exist; notes on the right)."""
     m, st = result["metrics"], result["settings"]
-    conf = f"{round(100 * st['confidence'])}% CI"
-    lines = [
+    head = (
         f"{st['transfer_label']} (transfer, {m['n_seeds_transfer']} seed(s)) vs "
         f"{st['baseline_label']} (baseline, {m['n_seeds_baseline']} seed(s))"
-        + (f" on {st['task']}" if st["task"] else ""),
-        f"budget {_fmt(st['budget'])} frames from frame {_fmt(st['start'])}"
+        + (f" on {st['task']}" if st["task"] else "") + "\n"
+        + f"budget {number(st['budget'])} frames from frame {number(st['start'])}"
         + ("" if st["threshold"] is None else f"; threshold {st['threshold']:.4g}")
-        + f"; {st.get('pairing', 'unpaired').split(':')[0]}",
-    ]
-    rows = [("metric", "value", conf, "note")]
-    for name, value, lo, hi in metrics_rows(m):
-        if name.startswith("time_to_threshold") and st["threshold"] is None:
-            shown = "-"
-        elif name.startswith("threshold_reached") and value is None:
-            shown = "-"
-        elif value is None:
-            shown = "not reached" if name.startswith("time_to") else "null"
-        else:
-            shown = _fmt(value)
-        ci = "" if lo is None or hi is None or lo == hi else f"[{_fmt(lo)}, {_fmt(hi)}]"
-        rows.append((name, shown, ci, _note(name, st)))
-    w0, w1, w2 = (max(len(r[i]) for r in rows) for i in range(3))
-    lines.append("")
-    lines += [f"{a:<{w0}}  {b:>{w1}}  {c:<{w2}}  {d}".rstrip() for a, b, c, d in rows]
-    lines[3:4] = [lines[3], "-" * len(lines[3])]
-    return "\n".join(lines)
+        + f"; {st.get('pairing', 'unpaired').split(':')[0]}\n\n"
+    )
+    rows = [("metric", "value", f"{round(100 * st['confidence'])}% CI", "note")]
+    rows += [(name, _shown(name, value, st["threshold"]), tables.interval((lo, hi)), _note(name, st))
+             for name, value, lo, hi in metrics_rows(m)]
+    return head + tables.render(rows, "text", align="lrll").rstrip("\n")
 
 
-def _csv_text(rows: Iterable[Sequence]) -> str:
-    buf = io.StringIO()
-    writer = csv.writer(buf, lineterminator="\n")
-    for row in rows:
-        writer.writerow(["" if v is None else v for v in row])
-    return buf.getvalue()
+def render(result: dict) -> dict[str, bytes]:
+    """The report's files as bytes (nothing is written here)."""
+    from drltg.report_plot import plot_transfer
+
+    m, st = result["metrics"], result["settings"]
+    public = {"metrics": m, "settings": st, "per_seed": result["per_seed"]}
+    png, svg = plot_transfer(result)
+    return {
+        "transfer_metrics.json": _json_text(public).encode(),
+        "transfer_metrics.csv": tables.render([("metric", "value", "ci_low", "ci_high"), *metrics_rows(m)],
+                                              "csv").encode(),
+        "transfer_plot.png": png,
+        "transfer_plot.svg": svg,
+    }
 
 
 def _json_text(obj) -> str:
     return json.dumps(obj, indent=2, allow_nan=False) + "\n"
-
-
-def _atomic_write(path: Path, data: bytes) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
-def write_files(out_dir: Path, files: dict[str, bytes]) -> None:
-    """Create ``out_dir`` and write every file through a temporary file and ``os.replace``."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    for name, data in files.items():
-        _atomic_write(out_dir / name, data)
 
 
 def _slug(text: str) -> str:
@@ -918,54 +1060,6 @@ def fresh_dir(name: str, parent: Path | None = None) -> Path:
     return path
 
 
-def render(result: dict) -> dict[str, bytes]:
-    """The report's files as bytes (nothing is written here)."""
-    from drltg.report_plot import plot_transfer
-
-    m, st = result["metrics"], result["settings"]
-    public = {"metrics": m, "settings": st, "per_seed": result["per_seed"]}
-    png, svg = plot_transfer(result)
-    return {
-        "transfer_metrics.json": _json_text(public).encode(),
-        "transfer_metrics.csv": _csv_text([("metric", "value", "ci_low", "ci_high"),
-                                           *metrics_rows(m)]).encode(),
-        "transfer_plot.png": png,
-        "transfer_plot.svg": svg,
-    }
-
-
-def transfer_report(
-    baseline: str | Path | Sequence[str | Path] | Sequence[Curve],
-    transfer: str | Path | Sequence[str | Path] | Sequence[Curve],
-    out_dir: str | Path | None = None,
-    **settings,
-) -> dict:
-    """Read both run sets, compute the metrics, write the four report files; return the JSON object.
-
-    ``baseline`` and ``transfer`` are paths (runs, directories of runs, globs) or lists of
-    :class:`~drltg.curves.Curve`. ``out_dir`` defaults to a fresh folder named after the runs in the
-    working directory. Keyword settings are those of ``drltg report`` (``threshold=150`` or ``"80%"``,
-    ``budget``, ``crossing``, ``paired``, ``source_frames``, ...: the fields of :class:`ReportSettings`).
-    The returned dict also holds ``"scores"`` (the per-seed DataFrame) and ``"out_dir"``.
-    """
-    if out_dir is not None:
-        check_out_dir(Path(out_dir))
-    read = dict(format=settings.get("format", "auto"), tag=settings.get("tag"))
-    runs_b = _as_curves(baseline, **read)
-    runs_t = _as_curves(transfer, **read)
-    result = compute(runs_b, runs_t, **settings)
-    files = render(result)
-    st = result["settings"]
-    out = Path(out_dir) if out_dir is not None else fresh_dir(
-        f"report-{st['transfer_label']}-vs-{st['baseline_label']}")
-    try:
-        write_files(out, files)
-    except OSError as err:
-        raise UsageError(f"cannot write the report to '{out}': {err.strerror or err}.") from None
-    return {"metrics": result["metrics"], "settings": st, "per_seed": result["per_seed"],
-            "scores": result["scores"], "out_dir": str(out)}
-
-
 def check_out_dir(out: Path, option: str = "--out") -> None:
     """An output folder must be a folder (or creatable as one) that this process can write."""
     if out.exists() and not out.is_dir():
@@ -975,14 +1069,6 @@ def check_out_dir(out: Path, option: str = "--out") -> None:
         raise UsageError(f"{option} '{out}' lies inside '{existing}', which is a file, not a folder.")
     if existing is not None and not os.access(existing, os.W_OK | os.X_OK):
         raise UsageError(f"{option} '{out}' cannot be written: '{existing}' is read-only for this user.")
-
-
-def _as_curves(runs, format: str, tag: str | None) -> list[Curve]:
-    if isinstance(runs, Curve):
-        return [runs]
-    if isinstance(runs, (list, tuple)) and runs and all(isinstance(r, Curve) for r in runs):
-        return list(runs)
-    return read_curves(runs, format=format, tag=tag)
 
 
 # ------------------------------------------------------------------------------------------- matrix
@@ -1007,8 +1093,10 @@ def find_matrix_cells(directory: str | Path) -> dict[tuple[str, str], tuple[Path
     return cells
 
 
-MATRIX_METRICS = ("mean_return_gain", "jumpstart", "asymptotic_performance", "transfer_ratio", "total_reward_transfer",
-                  "time_to_threshold_transfer", "probability_of_improvement")
+def check_metric(metric: str, option: str = "--metric") -> None:
+    """``metric`` must be one the report computes."""
+    if metric not in table_rows():
+        raise UsageError(f"unknown {option} '{metric}'; choose one of {', '.join(table_rows())}.")
 
 
 def transfer_matrix(
@@ -1018,33 +1106,30 @@ def transfer_matrix(
     **settings,
 ) -> dict:
     """One report per (source, target) cell, summarised as a heatmap of ``metric`` plus CSV and JSON."""
-    if metric not in METRIC_ORDER:
-        raise UsageError(f"unknown --metric '{metric}'; choose one of {', '.join(METRIC_ORDER)}.")
+    check_metric(metric)
+    s = settings_of(settings)
     if out_dir is not None:
         check_out_dir(Path(out_dir))
-    read = dict(format=settings.get("format", "auto"), tag=settings.get("tag"))
-    results = {}
-    for (source, target), (b, t) in sorted(cells.items()):
-        results[(source, target)] = compute(_as_curves(b, **read), _as_curves(t, **read), **settings)
+    results = {cell: compute(read_runs(b, s), read_runs(t, s), **settings) for cell, (b, t) in sorted(cells.items())}
     sources = sorted({s for s, _ in results})
     targets = sorted({t for _, t in results})
     table = np.full((len(sources), len(targets)), np.nan)
-    for (s, t), r in results.items():
+    for (source, target), r in results.items():
         v = r["metrics"][metric]
-        table[sources.index(s), targets.index(t)] = np.nan if v is None else v
+        table[sources.index(source), targets.index(target)] = np.nan if v is None else v
     from drltg.report_plot import plot_matrix
 
     png, svg = plot_matrix(table, sources, targets, metric)
-    grid_csv = _csv_text([("source", *targets)] + [
-        (s, *(None if np.isnan(v) else float(v) for v in row)) for s, row in zip(sources, table)
-    ])
+    grid_csv = tables.render([("source", *targets)] + [
+        (source, *(None if np.isnan(v) else float(v) for v in row)) for source, row in zip(sources, table)
+    ], "csv")
     obj = {
         "metric": metric,
-        "cells": [{"source": s, "target": t, "metrics": r["metrics"], "settings": r["settings"]}
-                  for (s, t), r in results.items()],
+        "cells": [{"source": source, "target": target, "metrics": r["metrics"], "settings": r["settings"]}
+                  for (source, target), r in results.items()],
     }
     out = Path(out_dir) if out_dir is not None else fresh_dir(f"matrix-{metric}")
-    write_files(out, {
+    rundir.write_files(out, {
         "transfer_matrix.csv": grid_csv.encode(),
         "transfer_matrix.json": _json_text(obj).encode(),
         "transfer_matrix.png": png,
@@ -1073,33 +1158,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
             groups[meta["group"]].add_argument(meta["flag"], dest=f.name, default=f.default, **meta["kwargs"])
 
 
-def _settings_from(args) -> dict:
-    return {f.name: getattr(args, f.name) for f in fields(ReportSettings) if f.metadata.get("flag")}
-
-
 def run(args) -> int:
-    settings = _settings_from(args)
+    settings = asdict(ReportSettings.from_args(args))  # every option is checked before any run is read
     if args.matrix:
         if args.baseline or args.transfer:
             raise UsageError("--matrix builds its own baseline/transfer pairs; drop --baseline and --transfer.")
-        settings.pop("baseline_label"), settings.pop("transfer_label")
-        ReportSettings(**settings)
+        del settings["baseline_label"], settings["transfer_label"]
         result = transfer_matrix(find_matrix_cells(args.matrix), args.out, args.metric, **settings)
         for cell in result["cells"]:
             for w in cell["settings"]["warnings"]:
                 print(f"warning: {cell['source']} -> {cell['target']}: {w}", file=sys.stderr)
         rows = [("source \\ target", *result["targets"])] + [
-            (s, *("-" if math.isnan(v) else f"{v:.4g}" for v in row))
-            for s, row in zip(result["sources"], result["table"])]
-        widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+            (source, *("-" if math.isnan(v) else f"{v:.4g}" for v in row))
+            for source, row in zip(result["sources"], result["table"])]
         print(f"{args.metric}:")
-        for r in rows:
-            print("  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in enumerate(zip(r, widths))))
+        print(tables.render(rows, "text", align="l" + "r" * len(result["targets"])), end="")
         print(f"wrote {result['out_dir']}/transfer_matrix.{{png,svg,csv,json}}")
         return 0
     if not args.baseline or not args.transfer:
         raise UsageError("give both --baseline and --transfer runs (or --matrix DIR).")
-    ReportSettings(**settings)
     result = transfer_report(args.baseline, args.transfer, args.out, **settings)
     for w in result["settings"]["warnings"]:
         print(f"warning: {w}", file=sys.stderr)

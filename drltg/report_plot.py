@@ -6,8 +6,6 @@ import io
 
 import numpy as np
 
-DIFFERENCES = ("mean_return_gain", "jumpstart", "asymptotic_performance", "transfer_ratio",
-               "probability_of_improvement")
 COLORS = {"baseline": "#0072B2", "transfer": "#D55E00"}  # colour-blind safe blue / vermillion
 
 
@@ -47,18 +45,26 @@ def plot_transfer(result: dict) -> tuple[bytes, bytes]:
     """Mean curve per side (t-interval band over seeds where there are >= 3), faint raw runs, the
     threshold line with each run's crossing and the median crossing, jumpstart and asymptotic gaps as
     annotated segments, and a box of the differences with their intervals (mean return gain first)."""
-    from matplotlib.ticker import FuncFormatter
-
     m, st, curves = result["metrics"], result["settings"], result["curves"]
     plt, (fig, ax) = _figure(figsize=(10, 5.5))
-    start, budget = st["start"], st["budget"]
-    lo_w, hi_w = st["asymptote_frames"]
+    moving = {side: v for side, v in st.get("convergence", {}).items() if v.startswith("still")}
+    _curves(ax, curves, st)
+    _asymptote(ax, m, st, moving)
+    _jumpstart(ax, m, curves)
+    if st["threshold"] is not None:
+        _threshold_marks(ax, m, st, curves)
+    _summary_box(ax, m, st, moving)
+    _axes(ax, st)
+    return _save(plt, fig)
 
+
+def _curves(ax, curves: dict, st: dict) -> None:
+    """Each side's raw runs (faint), its mean and, with enough seeds, the band of the mean."""
     for side in ("baseline", "transfer"):
         c, color = curves[side], COLORS[side]
         n = len(c["runs"])
         for frames, values in c["runs"]:
-            keep = frames <= budget
+            keep = frames <= st["budget"]
             ax.plot(frames[keep], values[keep], color=color, lw=0.6, alpha=0.18, zorder=1)
         smooth = f", moving average of {c['smooth']} evals" if c["smooth"] > 1 else ""
         what = f"mean of {n} seeds" if n > 1 else "1 seed"
@@ -67,33 +73,36 @@ def plot_transfer(result: dict) -> tuple[bytes, bytes]:
         if c["band"] is not None:
             ax.fill_between(c["grid"], *c["band"], color=color, alpha=0.2, lw=0, zorder=2,
                             label=f"{round(100 * st['confidence'])}% t-interval of the mean over seeds")
-
     ax.plot([], [], color="0.4", lw=0.6, alpha=0.4, label="raw evaluations, one line per seed")
-    # asymptotic performance: the window, both levels, and the gap at the budget
+
+
+def _asymptote(ax, m: dict, st: dict, moving: dict) -> None:
+    """The asymptote window (shaded), both sides' mean level over it, and the gap at its end."""
+    lo_w, hi_w = st["asymptote_frames"]
     ax.axvspan(lo_w, hi_w, color="0.5", alpha=0.08, lw=0, zorder=0)
     ax.plot([], [], color="0.4", lw=2.2, ls=(0, (4, 2)), label="mean over the asymptote window")
     fb, ft = m["final_performance_baseline"], m["final_performance_transfer"]
     for side, level in (("baseline", fb), ("transfer", ft)):
         ax.hlines(level, lo_w, hi_w, colors=COLORS[side], lw=2.2, linestyles=(0, (4, 2)), zorder=4)
-    moving = {side: v for side, v in st.get("convergence", {}).items() if v.startswith("still")}
     what_gap = "asymptotic" if not moving else "final performance\n(not converged)"
     _gap(ax, hi_w, fb, ft, f"{what_gap}\n{_signed(m['asymptotic_performance'])}", side="left")
 
-    # jumpstart: the first evaluations of both sides
+
+def _jumpstart(ax, m: dict, curves: dict) -> None:
+    """Both sides' initial performance at the first evaluation, and the gap between them."""
     x0 = min(min(r[0][0] for r in curves[s]["runs"]) for s in curves)
     ib, it = m["initial_performance_baseline"], m["initial_performance_transfer"]
     for side, level in (("baseline", ib), ("transfer", it)):
         ax.plot([x0], [level], "o", color=COLORS[side], ms=7, mec="white", mew=1.2, zorder=6)
     _gap(ax, x0, ib, it, f"jumpstart\n{_signed(m['jumpstart'])}", side="right")
 
-    if st["threshold"] is not None:
-        _threshold_marks(ax, m, st, curves)
 
+def _summary_box(ax, m: dict, st: dict, moving: dict) -> None:
+    """The differences with their intervals, beside the axes (mean return gain first)."""
     asym = "asymptotic" if not moving else "final perf. (not converged)"
     conf = round(100 * st["confidence"])
-    any_ci = _has_intervals(m)
     summary = [
-        "transfer - baseline" + (f" [{conf}% CI]" if any_ci else " (no CI: < 3 seeds a side)")
+        "transfer - baseline" + (f" [{conf}% CI]" if _has_intervals(m) else " (no CI: < 3 seeds a side)")
         + (", paired" if st.get("paired") else ""),
         f"mean return gain {_signed(m.get('mean_return_gain'))}" + _ci(m, "mean_return_gain"),
         f"jumpstart {_signed(m['jumpstart'])}" + _ci(m, "jumpstart"),
@@ -110,6 +119,11 @@ def plot_transfer(result: dict) -> tuple[bytes, bytes]:
             fontsize=9, family="monospace", zorder=8,
             bbox=dict(boxstyle="round,pad=0.4", fc="white", ec="0.7", alpha=0.9))
 
+
+def _axes(ax, st: dict) -> None:
+    from matplotlib.ticker import FuncFormatter
+
+    start, budget = st["start"], st["budget"]
     pad = 0.015 * (budget - min(0, start))
     ax.set_xlim(min(0, start) - pad, budget + pad)
     ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: _frames(x)))
@@ -121,7 +135,6 @@ def plot_transfer(result: dict) -> tuple[bytes, bytes]:
                  f"{100 * st['asymptote_window']:g}% of it (shaded)", fontsize=11)
     ax.grid(alpha=0.3)
     ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.1), fontsize=8.5, frameon=False)
-    return _save(plt, fig)
 
 
 def _ci(m: dict, name: str, sign: str = "+") -> str:
@@ -132,7 +145,10 @@ def _ci(m: dict, name: str, sign: str = "+") -> str:
 
 
 def _has_intervals(m: dict) -> bool:
-    return any(f"{name}_ci" in m for name in DIFFERENCES)
+    """Whether the report gave any comparison of the sides an interval (so that a missing one is shown)."""
+    from drltg.report import COMPARISONS, METRICS
+
+    return any(f"{metric.name}_ci" in m for metric in METRICS if metric.kind in COMPARISONS)
 
 
 def _threshold_marks(ax, m: dict, st: dict, curves: dict) -> None:

@@ -112,7 +112,7 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
     from drltg.agents import ALGOS
     from drltg.envs import get_pair
     from drltg.methods import METHODS
-    from drltg.report import _parse_threshold
+    from drltg.report import parse_threshold
 
     if not isinstance(data, dict):
         raise UsageError(f"{where} must be a YAML mapping with keys like pairs, methods, seeds, frames.")
@@ -156,7 +156,7 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
     if threshold is not None and (isinstance(threshold, bool) or not isinstance(threshold, (int, float, str))):
         raise UsageError(f"{where}: 'threshold' must be a number or a percentage like \"80%\".")
     try:
-        _parse_threshold(threshold)
+        parse_threshold(threshold)
     except UsageError as err:
         raise UsageError(f"{where}: {err}".replace("--threshold", "threshold")) from None
     spec.threshold = threshold
@@ -530,13 +530,12 @@ SUMMARY_COLUMNS = ("mean_return_gain", "jumpstart", "asymptotic_performance", "t
 
 def summary_tables(rows: list[dict]) -> tuple[str, str]:
     """The cells' metrics (value and CI bounds) as CSV and as a Markdown table."""
-    from drltg.report import _csv_text
+    from drltg import tables
 
     head = ["pair", "algo", "variant", "method", "seeds"]
     csv_rows = [head + [f"{m}{s}" for m in SUMMARY_COLUMNS for s in ("", "_ci_low", "_ci_high")]
                 + ["report", "note"]]
-    md = ["| pair | algo | method | " + " | ".join(SUMMARY_COLUMNS) + " | seeds |",
-          "|" + "---|" * (len(SUMMARY_COLUMNS) + 4)]
+    md = [["pair", "algo", "method", *SUMMARY_COLUMNS, "seeds"]]
     for r in rows:
         m = r["metrics"] or {}
         seeds = f"{m['n_seeds_baseline']}+{m['n_seeds_transfer']}" if m else ""
@@ -547,17 +546,13 @@ def summary_tables(rows: list[dict]) -> tuple[str, str]:
             line += [value, *ci]
             if not m:
                 cells.append("-")
-            elif value is None:
-                cells.append("not reached" if name.startswith("time_to") else "n/a")
             elif name.startswith("time_to"):
-                cells.append(f"{value / 1000:.3g}k")
+                cells.append(tables.estimate(value, fmt=lambda x: f"{x / 1000:.3g}k", missing="not reached"))
             else:
-                cells.append(f"{value:.3g}" + (f" [{ci[0]:.3g}, {ci[1]:.3g}]" if ci[0] is not None else ""))
+                cells.append(tables.estimate(value, ci, ".3g"))
         csv_rows.append(line + [r["report"] if m else "", r.get("note", "")])
-        pair = f"{r['pair']} {r['variant']}".strip()
-        md.append(f"| {pair} | {r['algo']} | {r['method']} | " + " | ".join(cells)
-                  + f" | {seeds or r.get('note', '')} |")
-    return _csv_text(csv_rows), "\n".join(md) + "\n"
+        md.append([f"{r['pair']} {r['variant']}".strip(), r["algo"], r["method"], *cells, seeds or r.get("note", "")])
+    return tables.render(csv_rows, "csv"), tables.render(md, "markdown")
 
 
 def plot_transfer_matrix(rows: list[dict], metric: str = "mean_return_gain") -> bytes:
@@ -605,12 +600,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from drltg.experiment import check_runs
-    from drltg.report import METRIC_ORDER
+    from drltg.report import check_metric
 
     if args.workers is not None and args.workers < 1:
         raise UsageError("--workers must be at least 1.")
-    if args.metric not in METRIC_ORDER:
-        raise UsageError(f"unknown --metric '{args.metric}'; choose one of {', '.join(METRIC_ORDER)}.")
+    check_metric(args.metric)
     spec = load_spec(args.spec)
     resources = {**spec.resources, **{k: v for k, v in (("num_cpus", args.num_cpus),
                                                          ("num_gpus", args.num_gpus)) if v is not None}}
@@ -632,7 +626,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _execute_and_report(args, spec: Spec, out: Path, runs: list[Run], cells: list[Cell], resources: dict) -> int:
-    from drltg.report import _csv_text
+    from drltg import tables
 
     check_existing(runs)  # another sweep may have written them meanwhile
     if args.backend == "ray":
@@ -647,8 +641,8 @@ def _execute_and_report(args, spec: Spec, out: Path, runs: list[Run], cells: lis
 
     rows = write_reports(cells, status, spec.threshold)
     csv_text, md_text = summary_tables(rows)
-    runs_csv = _csv_text([("run", "role", "status", "detail", "log")] + [
-        (r.path.relative_to(out), r.role, *status[r.path], r.log.relative_to(out)) for r in runs])
+    runs_csv = tables.render([("run", "role", "status", "detail", "log")] + [
+        (r.path.relative_to(out), r.role, *status[r.path], r.log.relative_to(out)) for r in runs], "csv")
     files = {"summary.csv": csv_text.encode(), "summary.md": md_text.encode(), "runs.csv": runs_csv.encode()}
     if any(r["metrics"] for r in rows):
         files["transfer_matrix.png"] = plot_transfer_matrix(rows, args.metric)

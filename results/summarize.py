@@ -9,30 +9,27 @@ import json
 import sys
 from pathlib import Path
 
+from drltg.tables import estimate, render
+
 root = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parent / "sweep-fourrooms-graded"
 
 
-def cell(m, key, sign="+"):
-    value, ci = m.get(key), m.get(f"{key}_ci")
-    if value is None:
-        return "n/a"
-    return f"{value:{sign}.2f}" + (f" [{ci[0]:{sign}.2f}, {ci[1]:{sign}.2f}]" if ci else "")
+def cell(m, key, fmt="+.2f"):
+    return estimate(m.get(key), m.get(f"{key}_ci"), fmt)
 
 
 def time_to(m, side):
     value, share = m.get(f"time_to_threshold_{side}"), m.get(f"threshold_reached_{side}", 0)
-    return (f"{value / 1000:.0f}k" if value is not None else "—") + f" ({share:.0%})"
+    return estimate(value, fmt=lambda x: f"{x / 1000:.0f}k", missing="—") + f" ({share:.0%})"
 
 
-print("| pair | method | mean return gain | jumpstart | asymptotic | transfer ratio | frames to threshold, B / T "
-      "(seeds reaching it) | P(T > B) |")
-print("|---|---|---|---|---|---|---|---|")
+rows = [("pair", "method", "mean return gain", "jumpstart", "asymptotic", "transfer ratio",
+         "frames to threshold, B / T (seeds reaching it)", "P(T > B)")]
 for path in sorted(root.glob("*/*/*/report/transfer_metrics.json")):
     report = json.loads(path.read_text())
     m, conv = report["metrics"], report["settings"].get("convergence", {})
-    pair, method = path.parents[3].name, path.parents[1].name
     moving = any("still" in str(v) for v in (conv.values() if isinstance(conv, dict) else []))
-    asym = cell(m, "asymptotic_performance") + (" (final)" if moving else "")
-    print(f"| {pair} | {method} | {cell(m, 'mean_return_gain')} | {cell(m, 'jumpstart')} | {asym} | "
-          f"{cell(m, 'transfer_ratio')} | {time_to(m, 'baseline')} / {time_to(m, 'transfer')} | "
-          f"{cell(m, 'probability_of_improvement', sign='')} |")
+    rows.append((path.parents[3].name, path.parents[1].name, cell(m, "mean_return_gain"), cell(m, "jumpstart"),
+                 cell(m, "asymptotic_performance") + (" (final)" if moving else ""), cell(m, "transfer_ratio"),
+                 f"{time_to(m, 'baseline')} / {time_to(m, 'transfer')}", cell(m, "probability_of_improvement", ".2f")))
+print(render(rows, "markdown"), end="")

@@ -152,6 +152,9 @@ def _bad(tmp_path, text: str, name: str = "eval.csv") -> Path:
     ("frames,return_mean\n0,1.0\n10,2.0\n10,3.0\n", "frame 10 at line 4 appears twice"),
     ("frames,reward\n0,1.0\n", "has no column 'return_mean'"),
     ("frames,return_mean\n0,1.0,5\n", "line 2 has 3 cells"),
+    ("frames,return_mean\n0,1.0\n10\n", "line 3 has 1 cells, but the header has 2"),
+    ("frames,return_mean\n\n0,1.0\n   \n10,abc\n", "line 5: column 'return_mean' holds 'abc'"),  # blank lines count
+    ("frames,return_mean\n0,1.0\n20,2.0\n30,2.0,1\n", "line 4 has 3 cells, but the header has 2"),
 ])
 def test_bad_eval_csv(tmp_path, text, message):
     run = _bad(tmp_path, text)
@@ -247,3 +250,13 @@ def test_drltg_runs_carry_their_config(tmp_path):
     assert c.config == {"task": "fourrooms/near", "seed": 0}
     (f,) = read_curves(run / "eval.csv")
     assert f.config == c.config
+
+
+def test_quoted_cells_and_duplicate_columns(tmp_path):
+    run = tmp_path / "q"
+    run.mkdir()
+    (run / "eval.csv").write_text('frames,note,return_mean,return_mean\n0,"a, b",1.25,9\n10," x ",2.5,9\n')
+    (c,) = read_curves(run)
+    np.testing.assert_array_equal(c.values, [1.25, 2.5])  # the first column of the name
+    (run / "eval.csv").write_text("frames,return_mean\n0,0.1\n10,1e-7\n20,-3.000000000000001\n")
+    np.testing.assert_array_equal(read_curves(run)[0].values, [0.1, 1e-7, -3.000000000000001])  # exact digits

@@ -545,3 +545,76 @@ def test_out_that_cannot_be_written_exits_2(two_by_two, tmp_path, capsys, monkey
     err = capsys.readouterr().err.strip()
     assert "cannot be written" in err and "read-only" in err and "\n" not in err
     assert list(locked.iterdir()) == []
+
+
+# ------------------------------------------------------------------------------ the pipeline's shape
+def test_per_seed_scores_are_one_frame_with_side_and_pair():
+    b = flat([1.0, 2.0, 3.0], seeds=[0, 100, 200], prefix="b")
+    t = flat([6.0, 2.0, 4.0], seeds=[200, 0, 100], prefix="t")
+    scores = report.compute(b, t)["scores"]
+    assert list(scores.columns[:3]) == ["side", "pair", "label"]
+    assert scores["side"].tolist() == ["baseline"] * 3 + ["transfer"] * 3
+    assert scores["pair"].tolist() == [0, 1, 2, 0, 1, 2]
+    assert scores["seed"].tolist() == [0, 100, 200, 0, 100, 200]  # transfer rows in their pair's order
+    assert scores["mean_return"].tolist() == [1.0, 2.0, 3.0, 2.0, 4.0, 6.0]  # flat curves: the value itself
+    assert scores["total_reward"].tolist() == [30.0, 60.0, 90.0, 60.0, 120.0, 180.0]
+    unpaired = report.compute(b, t, paired=False)["scores"]
+    assert unpaired["pair"].isna().all() and unpaired["label"].tolist()[3:] == ["t0", "t1", "t2"]
+
+
+def test_a_new_metric_is_one_entry(monkeypatch):
+    """An entry of METRICS reaches the JSON metrics, the CSV rows and the text table."""
+    entry = report.Metric("total_reward_gain", "difference", "total_reward", iqm=True, note="area, not mean")
+    monkeypatch.setattr(report, "METRICS", report.METRICS + (entry,))
+    res = report.compute(flat([1.0, 2.0, 3.0], prefix="b"), flat([2.0, 4.0, 6.0], prefix="t"))
+    m = res["metrics"]
+    assert m["total_reward_gain"] == pytest.approx(60.0)  # areas 30, 60, 90 vs 60, 120, 180
+    assert m["total_reward_gain_iqm"] == pytest.approx(60.0)
+    assert m["total_reward_gain_ci"] == pytest.approx([30 * x for x in m["mean_return_gain_ci"]])  # span 30
+    rows = report.metrics_rows(m)
+    assert [r[0] for r in rows][-2:] == ["total_reward_gain", "total_reward_gain_iqm"]  # after TABLE_ROWS
+    table = report.format_table(res)
+    assert "total_reward_gain" in table and "area, not mean" in table
+    report.check_metric("total_reward_gain")
+
+
+def test_json_keys_keep_their_published_order():
+    res = report.compute(flat([1.0, 2.0, 3.0], seeds=[0, 1, 2], prefix="b"),
+                         flat([2.0, 4.0, 7.0], seeds=[0, 1, 2], prefix="t"), threshold=1.5)
+    keys = [k for k in res["metrics"] if not k.endswith(("_ci", "_iqm"))]
+    assert keys == [
+        "n_seeds_baseline", "n_seeds_transfer", "mean_return_gain", "jumpstart", "asymptotic_performance",
+        "transfer_ratio", "probability_of_improvement", "probability_of_improvement_initial",
+        "probability_of_improvement_final",
+        "total_reward_baseline", "initial_performance_baseline", "final_performance_baseline",
+        "time_to_threshold_baseline", "threshold_reached_baseline",
+        "total_reward_transfer", "initial_performance_transfer", "final_performance_transfer",
+        "time_to_threshold_transfer", "threshold_reached_transfer",
+        "final_trend_baseline", "final_trend_transfer"]
+    assert [r[0] for r in report.metrics_rows(res["metrics"])][:4] == [
+        "mean_return_gain", "jumpstart", "asymptotic_performance", "transfer_ratio"]
+
+
+def test_runs_of_two_methods_under_one_side_need_allow_mixed(tmp_path, capsys):
+    for i, method in enumerate(["policy-reuse", "policy-reuse", "model-reuse"]):
+        write_run(tmp_path / "b" / f"seed-{i}", [0, 10, 20], [0, 1, 2])
+        (tmp_path / "b" / f"seed-{i}" / "config.yaml").write_text(f"task: x\nseed: {i}\n")
+        run = write_run(tmp_path / "t" / f"seed-{i}", [0, 10, 20], [1, 2, 3])
+        (run / "config.yaml").write_text(f"task: x\nseed: {i}\ntransfer:\n  method: {method}\n")
+    args = ["--baseline", str(tmp_path / "b"), "--transfer", str(tmp_path / "t"), "--out", str(tmp_path / "r")]
+    assert report.main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert "the transfer runs mix configurations" in err and "transfer.method=model-reuse" in err
+    assert "\n" not in err and not (tmp_path / "r").exists()
+    assert report.main(args + ["--allow-mixed"]) == 0
+    assert "accepted by --allow-mixed" in capsys.readouterr().err
+
+
+def test_other_modules_use_only_public_report_names():
+    import ast
+
+    root = Path(report.__file__).resolve().parents[1]
+    for path in [*root.glob("drltg/*.py"), *root.glob("results/*.py")]:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module in ("drltg.report", "drltg.tables"):
+                assert not [a.name for a in node.names if a.name.startswith("_")], path
