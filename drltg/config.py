@@ -2,7 +2,7 @@
 
     defaults (below) <- the task's own overrides (registry) <- a YAML file (--config) <- KEY=VALUE overrides
 
-The resolved dict is written to ``<run_dir>/config.yaml``; ``drltg train --config <run_dir>/config.yaml``
+The resolved dict, the task's env settings included, is written to ``<run_dir>/config.yaml``; ``drltg train --config <run_dir>/config.yaml``
 reproduces the run. Every key has a declared type and range in ``SCHEMA`` (``describe()`` lists them);
 ``resolve()`` checks them all before anything is built or written, so a typo or a value out of range is
 one sentence naming the key, not a silent no-op or a failure deep inside a run.
@@ -338,7 +338,21 @@ def resolve(
     for key, value in parsed:
         set_key(cfg, key, value)
     validate(cfg)
+    cfg["env"] = {**task_env(cfg["task"]), **cfg["env"]}
     return cfg
+
+
+def task_env(task: str) -> dict[str, Any]:
+    """Every env setting of ``task`` at its default (the factory's declared keywords, the task's
+    registered values over them), as plain YAML values: ``resolve`` writes them all into the config,
+    so a run's ``config.yaml`` says exactly which env it trained on and a changed default is a
+    changed config."""
+    declared, _ = env_defaults(task)
+    return {k: _plain(v) for k, v in declared.items() if k not in _ENV_RESERVED}
+
+
+def _plain(value: Any) -> Any:
+    return [_plain(v) for v in value] if isinstance(value, (list, tuple)) else value
 
 
 def validate(cfg: dict) -> None:

@@ -2,7 +2,8 @@
 
 The spec is a grid (every list is one axis; a scalar is a one-value axis)::
 
-    pairs: [fourrooms-near, fourrooms-far]     # registered task pairs (see `drltg tasks`)
+    pairs: [fourrooms-near, fourrooms-far]     # registered task pairs (see `drltg tasks`), or a task
+                                               # alone for methods without a source or a given one
     methods: [reward-shaping, policy-reuse, model-reuse]
     algos: [sac]                               # default [sac]
     seeds: 5                                   # runs per side (default 5); first seed `seed` (default 0)
@@ -110,7 +111,7 @@ def _config_keys(mapping, key: str, where: str) -> dict:
 def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
     """Validate a loaded spec; every mistake is one :class:`UsageError` sentence."""
     from drltg.agents import ALGOS
-    from drltg.envs import get_pair
+    from drltg.envs import TASKS, get_pair
     from drltg.methods import METHODS
     from drltg.report import parse_threshold
 
@@ -126,7 +127,8 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
                 frames=_axis(data, "frames", int, where))
     for pair in spec.pairs:
         try:
-            get_pair(pair)
+            if pair not in TASKS:  # a task alone is a target (methods without a source, or a given one)
+                get_pair(pair)
         except UsageError as err:
             raise UsageError(f"{where}: {err}") from None
     for method in spec.methods:

@@ -28,7 +28,7 @@ from tqdm.auto import tqdm
 
 from drltg import rundir
 from drltg.agents import make_agent
-from drltg.config import DEFAULTS, dump
+from drltg.config import DEFAULTS, dump, task_env
 from drltg.envs import make_env
 from drltg.errors import UsageError
 from drltg.fast import UpdateStep, sample_batches
@@ -118,11 +118,12 @@ def _lookup(cfg: dict, dotted: str):
 
 def config_changes(saved: dict, cfg: dict) -> list[str]:
     """The keys in which ``cfg`` differs from a run's saved config. A key the saved config lacks
-    counts only when ``cfg`` sets it to something else than its default (runs saved before the key
-    existed stay resumable)."""
+    counts only when ``cfg`` sets it to something else than its default, for ``env.*`` the task's
+    (runs saved before the key existed, or before env settings were saved in full, stay resumable)."""
+    defaults = {**DEFAULTS, "env": task_env(cfg["task"])}
     return sorted(
         key for key in _diff_keys(saved, cfg)
-        if not (_lookup(saved, key) is KeyError and _lookup(cfg, key) == _lookup(DEFAULTS, key))
+        if not (_lookup(saved, key) is KeyError and _lookup(cfg, key) == _lookup(defaults, key))
     )
 
 

@@ -1,7 +1,10 @@
 """The config schema: every key has a type and range, and every wrong value is one sentence naming
 the key, raised by ``resolve()`` before anything is built or written."""
+import dataclasses
+
 import pytest
 import torch
+import yaml
 
 from drltg import config as config_lib
 from drltg.cli import main
@@ -200,7 +203,8 @@ def test_override_parsing_is_unchanged_for_valid_values():
     cfg = _resolve("optim.lr=1e-3", "frames=1e4", "env.horizon=1e3", "env.goal=[8, 7]", "eval.every=2000.0")
     assert cfg["optim"]["lr"] == 0.001
     assert cfg["frames"] == 10_016 and isinstance(cfg["frames"], int)  # rounded up to whole batches
-    assert cfg["env"] == {"horizon": 1000, "goal": [8, 7]} and isinstance(cfg["env"]["horizon"], int)
+    assert cfg["env"] == {**config_lib.task_env("fourrooms/northeast"), "horizon": 1000, "goal": [8, 7]}
+    assert isinstance(cfg["env"]["horizon"], int)
     assert cfg["eval"]["every"] == 2000 and isinstance(cfg["eval"]["every"], int)
     assert config_lib.parse_override("transfer.source=runs/a=b") == ("transfer.source", "runs/a=b")
     assert config_lib.parse_override("sac.target_entropy=auto") == ("sac.target_entropy", "auto")
@@ -281,5 +285,25 @@ def test_cli_refuses_a_config_file_with_a_scalar_hidden(tmp_path, capsys):
 def test_manipulation_env_keys_are_checked_against_robosuite_env_defaults():
     with pytest.raises(UsageError, match=r"config key 'env.horizon' must be an integer .*horizon=500"):
         config_lib.resolve(task="lift", overrides=["env.horizon=abc"])
-    assert config_lib.resolve(task="lift", overrides=["env.horizon=100"])["env"] == {"horizon": 100}
-    assert config_lib.resolve(task="lift-dense")["env"] == {}
+    assert config_lib.resolve(task="lift", overrides=["env.horizon=100"])["env"]["horizon"] == 100
+    dense = config_lib.resolve(task="lift-dense")["env"]
+    assert dense["task"] == "lift" and dense["reward_shaping"] is True and dense["horizon"] == 500
+
+
+def test_the_config_holds_every_env_setting_of_its_task(monkeypatch):
+    cfg = _resolve("env.horizon=50")
+    assert cfg["env"] == {"goal": [8.0, 8.0], "goal_radius": 0.5, "max_step": 0.5, "step_cost": 0.01, "horizon": 50,
+                          "start_room": None, "observe_goal": False, "render_size": 200}
+    assert yaml.safe_load(config_lib.dump(cfg)) == cfg  # plain YAML, no tuples
+
+
+def test_a_changed_env_default_is_a_changed_run(monkeypatch):
+    from drltg.envs import registry
+    from drltg.train import config_changes
+
+    saved = _resolve()
+    old_style = {**saved, "env": {}}  # saved before env settings were written in full
+    assert config_changes(old_style, _resolve()) == [] and config_changes(saved, _resolve()) == []
+    spec = registry.TASKS["fourrooms/northeast"]
+    monkeypatch.setitem(registry.TASKS, spec.name, dataclasses.replace(spec, defaults={**spec.defaults, "horizon": 60}))
+    assert config_changes(saved, _resolve()) == ["env.horizon"]

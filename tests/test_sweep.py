@@ -53,6 +53,18 @@ def test_expansion_shares_runs_and_spaces_seeds(tmp_path):
     assert near[1].report == tmp_path / "fourrooms-near" / "sac" / "policy-reuse" / "report"
 
 
+def test_a_task_alone_is_a_target_when_the_source_is_given(tmp_path):
+    spec = sweep.parse_spec({"pairs": ["fourrooms/southwest"], "methods": ["reward-shaping", "policy-reuse"],
+                             "seeds": 2, "frames": 1024, "overrides": {"transfer.source": "runs/source"}})
+    runs, cells = sweep.plan(spec, tmp_path)
+    assert sorted((r.role, r.cfg["task"]) for r in runs) == [("baseline", "fourrooms/southwest")] * 2 + [
+        ("transfer", "fourrooms/southwest")] * 4
+    assert all(r.needs is None for r in runs) and len(cells) == 2
+    alone = sweep.parse_spec({"pairs": ["fourrooms/southwest"], "methods": ["model-reuse"], "frames": 1024})
+    with pytest.raises(sweep.UsageError, match="'fourrooms/southwest' is a task, not a pair: model-reuse on it needs"):
+        sweep.plan(alone, tmp_path)
+
+
 def test_runs_are_those_of_drltg_experiment(tmp_path):
     """Every run of ``drltg experiment`` with the same settings is a sweep run with the same config."""
     from drltg.experiment import plan as experiment_plan
