@@ -17,6 +17,14 @@ replay buffer holding the same 20k random transitions. Cases:
   :func:`sac_matmuls`) into preallocated outputs: what this thread's BLAS allows for the update's
   arithmetic, a bound no eager float32 implementation reaches;
 * on CUDA also ``drltg_cudagraphs``: the drltg step captured in a CUDA graph.
+
+The update paths, per learner (``discrete_sac``: 7 one-hot actions; ``td3``: its policy delay of 2;
+``soc_k4``: 4 options), each ``UpdateStep`` on the agent ``drltg train`` builds: as shipped (the
+direct forward for SAC, the stock loss for the others, all with the one-``_foreach_lerp_`` target
+update), ``sac_vmap``: SAC's stock ``SACLoss.forward`` (critics under ``torch.vmap``) and
+``SoftUpdate.step``, ``*_loop``: the stock loss with TorchRL's public ``deactivate_vmap`` switch
+(critic copies in a plain loop) and ``SoftUpdate.step``, ``sac_loop_compiled``: that step through
+``torch.compile`` (not with ``--quick``; its compile time is reported apart).
 """
 from __future__ import annotations
 
@@ -26,12 +34,12 @@ import torch
 import torch.nn.functional as F
 from tensordict import TensorDict
 from torch import nn
-from torchrl.data import Bounded, Composite, LazyTensorStorage, ReplayBuffer, Unbounded
+from torchrl.data import Bounded, Composite, LazyTensorStorage, OneHot, ReplayBuffer, Unbounded
 from torchrl.envs import EnvBase
 
 from benchmarks.common import interleaved, ratios
 from drltg import config as config_lib
-from drltg.agents import make_sac_agent
+from drltg.agents import make_agent, make_sac_agent
 from drltg.fast import UpdateStep, sample_batches
 
 OBS, ACT, HIDDEN, BATCH, N_DATA = 50, 7, 256, 256, 20_000
@@ -39,12 +47,12 @@ LR, GAMMA, TAU = 3e-4, 0.99, 0.005
 
 
 class SpecEnv(EnvBase):
-    """Specs only (observation 50, action 7): what the agent builders read."""
+    """Specs only (observation 50, action 7, or 7 one-hot actions): what the agent builders read."""
 
-    def __init__(self, device="cpu"):
+    def __init__(self, device="cpu", discrete: bool = False):
         super().__init__(device=device, batch_size=torch.Size([]))
         self.observation_spec = Composite(observation=Unbounded((OBS,), device=device), device=device)
-        self.action_spec = Bounded(-1.0, 1.0, (ACT,), device=device)
+        self.action_spec = OneHot(ACT, device=device) if discrete else Bounded(-1.0, 1.0, (ACT,), device=device)
         self.reward_spec = Unbounded((1,), device=device)
 
     def _reset(self, tensordict):
@@ -57,13 +65,17 @@ class SpecEnv(EnvBase):
         pass
 
 
-def transitions(n: int = N_DATA, seed: int = 0, options: int = 0) -> TensorDict:
+def transitions(n: int = N_DATA, seed: int = 0, options: int = 0, discrete: bool = False) -> TensorDict:
     g = torch.Generator().manual_seed(seed)
     terminated = torch.rand(n, 1, generator=g) < 0.01
+    if discrete:
+        action = F.one_hot(torch.randint(ACT, (n,), generator=g), ACT).bool()
+    else:
+        action = torch.rand(n, ACT, generator=g) * 2 - 1
     td = TensorDict(
         {
             "observation": torch.randn(n, OBS, generator=g),
-            "action": torch.rand(n, ACT, generator=g) * 2 - 1,
+            "action": action,
             "next": {
                 "observation": torch.randn(n, OBS, generator=g),
                 "reward": torch.randn(n, 1, generator=g),
@@ -233,6 +245,65 @@ def soc_case(device: str, chunk: int, options: int = 4):
     return run
 
 
+LEARNERS = {"sac": ("sac", False), "discrete_sac": ("sac", True), "td3": ("td3", False), "soc_k4": ("soc", False)}
+
+
+def learner_case(learner: str, device: str, chunk: int, *, direct: bool = True, loop: bool = False,
+                 compile: bool = False):
+    """The training loop's ``UpdateStep`` on the agent of ``learner`` (TD3 with its policy delay)."""
+    from torchrl.objectives.utils import _vmap_func
+
+    algo, discrete = LEARNERS[learner]
+    torch.manual_seed(0)
+    extra = {"soc": {"num_options": 4}} if algo == "soc" else {}
+    agent = make_agent(SpecEnv(device, discrete), _config(algo=algo, device=device) | extra)
+    if loop:  # the builders do not pass TorchRL's deactivate_vmap yet: set it as the loss's constructor would
+        agent.loss.deactivate_vmap = True
+        if algo == "soc":
+            agent.loss._vmap_qnetworkN0 = _vmap_func(agent.loss.qvalue_network, (None, 0), pseudo_vmap=True,
+                                                     randomness=agent.loss.vmap_randomness)
+        else:
+            agent.loss._make_vmap()
+    step = UpdateStep(agent, direct=direct, compile=compile)
+    buffer = _buffer(transitions(options=4 if algo == "soc" else 0, discrete=discrete), device)
+    updates = 0
+
+    def run() -> int:
+        nonlocal updates
+        for batch in sample_batches(buffer, chunk):
+            step(batch, update_actor=updates % agent.actor_delay == 0)
+            updates += 1
+        return chunk
+
+    return run
+
+
+def path_cases(device: str, chunk: int, quick: bool) -> tuple[dict, dict]:
+    """The update paths of every learner (see the module docstring) and, for the compiled step, its
+    compile time (the first chunk, untimed in the comparison)."""
+    cases, extra = {}, {}
+    for learner in LEARNERS:
+        n = max(chunk // 4, 2) if learner == "soc_k4" else chunk
+        if learner == "sac":
+            cases["sac_vmap"] = learner_case(learner, device, n, direct=False)
+        elif learner != "soc_k4":
+            cases[learner] = learner_case(learner, device, n)
+        cases[f"{learner}_loop"] = learner_case(learner, device, n, direct=False, loop=True)
+    if not quick:
+        import time
+
+        case = learner_case("sac", device, chunk, direct=False, loop=True, compile=True)
+        start = time.perf_counter()
+        case()
+        extra["sac_loop_compiled_first_chunk_s"] = round(time.perf_counter() - start, 1)
+        cases["sac_loop_compiled"] = case
+    return cases, extra
+
+
+PATH_PAIRS = [("sac_vmap", "drltg"), ("sac_loop", "drltg"), ("sac_loop_compiled", "drltg"), ("sac_loop", "sac_vmap"),
+              ("discrete_sac_loop", "discrete_sac"), ("td3_loop", "td3"), ("soc_k4_loop", "soc_k4")]
+
+
 def _mlp_matmuls(dims: list[int], batch: int, forward: bool, weight_grads: bool, input_grads: str) -> list[tuple]:
     """``(m, k, n)`` of the products of an MLP with layer widths ``dims`` on ``batch`` rows: the
     forward ``x W^T``, the weight gradients ``g^T x`` and the input gradients ``g W`` (``input_grads``
@@ -297,6 +368,8 @@ def run(device: str = "cpu", quick: bool = False) -> dict:
         cases["soc_k4"] = soc_case(device, max(chunk // 4, 2))
     except ImportError as err:
         missing["soc_k4"] = f"drltg.losses.soc not importable ({err})"
+    paths, path_info = path_cases(device, chunk, quick)
+    cases |= paths
     results = interleaved(cases, rounds=rounds, warmup=1, device=device)
     pairs = [("drltg", "plain"), ("drltg", "torchrl"), ("drltg", "sb3"), ("torchrl", "plain"), ("sb3", "plain"),
              ("drltg_cudagraphs", "plain"), ("drltg_cudagraphs", "torchrl"), ("soc_k4", "drltg"),
@@ -308,7 +381,8 @@ def run(device: str = "cpu", quick: bool = False) -> dict:
         "matmul_gflop_per_update": round(flops / 1e9, 3),
         "matmul_bound_gflops": round(results["matmul_bound"]["median"] * flops / 1e9, 1),
         "rates": results,
-        "ratios": ratios(results, pairs),
+        "ratios": ratios(results, pairs + PATH_PAIRS),
+        **path_info,
         "missing": missing,
         "target": "drltg >= 1.0x plain and >= 2x torchrl and sb3",
     }
