@@ -109,9 +109,9 @@ def _config_keys(mapping, key: str, where: str) -> dict:
 
 def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
     """Validate a loaded spec; every mistake is one :class:`UsageError` sentence."""
-    from drltg.agents import ALGOS
     from drltg.envs import get_pair
     from drltg.experiment import METHODS
+    from drltg.learners import ALGOS
     from drltg.report import _parse_threshold
 
     if not isinstance(data, dict):

@@ -27,12 +27,11 @@ from torchrl.record.loggers import CSVLogger, TensorboardLogger
 from tqdm.auto import tqdm
 
 from drltg import rundir, transfer
-from drltg.agents import make_agent
 from drltg.collectors.demonstrations import mixed_batches
 from drltg.config import DEFAULTS, dump
 from drltg.envs import make_env
 from drltg.errors import UsageError
-from drltg.fast import UpdateStep, sample_batches
+from drltg.learners import UpdateStep, make_agent, sample_batches
 from drltg.rundir import CHECKPOINT, CONFIG, EVAL, MODEL_REUSE, SUMMARY, is_complete, read_eval_csv
 
 __all__ = ["train", "evaluate", "make_envs", "build_env", "check_config", "is_complete", "read_eval_csv"]

@@ -20,10 +20,10 @@ import yaml
 from tensordict.nn import TensorDictModuleBase, TensorDictSequential
 from torchrl.envs import EnvBase, TransformedEnv
 
-from drltg.agents import Agent, make_agent
 from drltg.envs import get_task, make_env
 from drltg.envs.robosuite.layout import TASKS as MANIPULATION
 from drltg.errors import UsageError
+from drltg.learners import Agent, make_agent
 from drltg.rundir import CHECKPOINT, CONFIG, SUMMARY, is_complete, load_checkpoint
 
 METHODS = ("none", "reward-shaping", "policy-reuse", "model-reuse", "demonstrations")

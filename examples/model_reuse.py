@@ -11,9 +11,9 @@ from pathlib import Path
 
 import torch
 
-from drltg.agents import make_agent
 from drltg.config import resolve
 from drltg.envs import get_pair, make_env
+from drltg.learners import make_agent
 from drltg.model_reuse import load_from_run
 from drltg.train import evaluate, is_complete, read_eval_csv, train
 

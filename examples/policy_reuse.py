@@ -14,10 +14,10 @@ from tensordict.nn import TensorDictSequential
 from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, ReplayBuffer
 
-from drltg.agents import make_agent
 from drltg.collectors import PiReuse, PolicyReuse
 from drltg.config import resolve
 from drltg.envs import get_pair, make_env
+from drltg.learners import make_agent
 from drltg.model_reuse import load_from_run
 from drltg.train import evaluate, is_complete, train
 

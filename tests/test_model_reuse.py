@@ -4,10 +4,10 @@ from tensordict import TensorDict
 from torch import nn
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-from drltg.agents import make_agent
 from drltg.config import resolve
 from drltg.envs import FourRoomsEnv
 from drltg.errors import UsageError
+from drltg.learners import make_agent
 from drltg.model_reuse import load_from_run, load_weights
 
 

@@ -363,7 +363,7 @@ def test_demonstrator_as_past_policy_acts_through_the_reuse_mixer(envs):
     from torchrl.envs.utils import ExplorationType, set_exploration_type
 
     from drltg import transfer
-    from drltg.agents import make_agent
+    from drltg.learners import make_agent
 
     cfg = _config("lift-place", "transfer.method=policy-reuse", "transfer.source=demonstrator:lift",
                   "transfer.upsilon=1.0", "network.hidden=[8,8]")
