@@ -5,10 +5,10 @@ layers, Adam lr 3e-4, gamma 0.99, tau 0.005, learned temperature from 1.0, targe
 update = critic + actor + temperature step and a soft target update. Every learner samples from a
 replay buffer holding the same 20k random transitions. Cases:
 
-* ``drltg``: the training loop's step (``drltg.fast.UpdateStep`` on the SAC agent of
-  ``drltg.agents.make_sac_agent``, batches drawn with ``sample_batches``);
+* ``drltg``: the training loop's step (``drltg.learners.UpdateStep`` on the SAC agent of
+  ``drltg.learners.make_sac_agent``, batches drawn with ``sample_batches``);
 * ``torchrl``: TorchRL's stock ``SACLoss`` step as the sota example writes it (``buffer.sample()``,
-  ``loss``, ``backward``, ``Adam.step``, ``SoftUpdate.step``);
+  ``loss`` with its default ``torch.vmap`` critics, ``backward``, ``Adam.step``, ``SoftUpdate.step``);
 * ``plain``: a minimal hand-written PyTorch SAC update (one backward for all three losses), the
   practical bound of eager PyTorch;
 * ``sb3``: Stable-Baselines3 ``SAC.train(gradient_steps, batch_size=256)`` on a filled buffer;
@@ -18,13 +18,11 @@ replay buffer holding the same 20k random transitions. Cases:
   arithmetic, a bound no eager float32 implementation reaches;
 * on CUDA also ``drltg_cudagraphs``: the drltg step captured in a CUDA graph.
 
-The update paths, per learner (``discrete_sac``: 7 one-hot actions; ``td3``: its policy delay of 2;
-``soc_k4``: 4 options), each ``UpdateStep`` on the agent ``drltg train`` builds: as shipped (the
-direct forward for SAC, the stock loss for the others, all with the one-``_foreach_lerp_`` target
-update), ``sac_vmap``: SAC's stock ``SACLoss.forward`` (critics under ``torch.vmap``) and
-``SoftUpdate.step``, ``*_loop``: the stock loss with TorchRL's public ``deactivate_vmap`` switch
-(critic copies in a plain loop) and ``SoftUpdate.step``, ``sac_loop_compiled``: that step through
-``torch.compile`` (not with ``--quick``; its compile time is reported apart).
+Every learner's update (``drltg`` is SAC; ``discrete_sac``: 7 one-hot actions; ``td3``: its policy
+delay of 2; ``soc_k4``: 4 options): ``UpdateStep`` on the agent ``drltg train`` builds (critic copies
+in a loop, TorchRL's ``deactivate_vmap=True``), against the same with TorchRL's default ``torch.vmap``
+critics (``*_vmap``). ``torch.compile`` of the step is not a case: on the 2-core CPU it compiled for
+ten minutes and was not faster (``benchmarks/README.md``).
 """
 from __future__ import annotations
 
@@ -39,8 +37,8 @@ from torchrl.envs import EnvBase
 
 from benchmarks.common import interleaved, ratios
 from drltg import config as config_lib
-from drltg.agents import make_agent, make_sac_agent
-from drltg.fast import UpdateStep, sample_batches
+from drltg import learners
+from drltg.learners import UpdateStep, make_agent, make_sac_agent, sample_batches
 
 OBS, ACT, HIDDEN, BATCH, N_DATA = 50, 7, 256, 256, 20_000
 LR, GAMMA, TAU = 3e-4, 0.99, 0.005
@@ -114,9 +112,18 @@ def drltg_case(device: str, chunk: int, cudagraphs: bool = False):
     return run
 
 
+def _vmap_agent(env: EnvBase, cfg: dict) -> learners.Agent:
+    """The agent ``make_agent`` builds, its loss with TorchRL's default ``torch.vmap`` critics."""
+    learners.DEACTIVATE_VMAP = False
+    try:
+        return make_agent(env, cfg)
+    finally:
+        learners.DEACTIVATE_VMAP = True
+
+
 def torchrl_case(device: str, chunk: int):
     torch.manual_seed(0)
-    agent = make_sac_agent(SpecEnv(device), _config(device=device))
+    agent = _vmap_agent(SpecEnv(device), _config(device=device))
     loss, updater = agent.loss, agent.target_updater
     optimizer = torch.optim.Adam(loss.parameters(), lr=LR)
     buffer = _buffer(transitions(), device)
@@ -141,7 +148,8 @@ class PlainSAC(nn.Module):
         super().__init__()
 
         def mlp(i, o):
-            return nn.Sequential(nn.Linear(i, HIDDEN), nn.ReLU(), nn.Linear(HIDDEN, HIDDEN), nn.ReLU(), nn.Linear(HIDDEN, o))
+            layers = [nn.Linear(i, HIDDEN), nn.ReLU(), nn.Linear(HIDDEN, HIDDEN), nn.ReLU(), nn.Linear(HIDDEN, o)]
+            return nn.Sequential(*layers)
 
         self.actor = mlp(OBS, 2 * ACT).to(device)
         self.q = nn.ModuleList([mlp(OBS + ACT, 1) for _ in range(2)]).to(device)
@@ -229,42 +237,16 @@ def sb3_case(device: str, chunk: int):
     return run
 
 
-def soc_case(device: str, chunk: int, options: int = 4):
-    from drltg.losses.soc import make_soc_agent
-
-    torch.manual_seed(0)
-    agent = make_soc_agent(SpecEnv(device), _config(algo="soc", device=device) | {"soc": {"num_options": options}})
-    step = UpdateStep(agent)
-    buffer = _buffer(transitions(options=options), device)
-
-    def run() -> int:
-        for batch in sample_batches(buffer, chunk):
-            step(batch)
-        return chunk
-
-    return run
-
-
 LEARNERS = {"sac": ("sac", False), "discrete_sac": ("sac", True), "td3": ("td3", False), "soc_k4": ("soc", False)}
 
 
-def learner_case(learner: str, device: str, chunk: int, *, direct: bool = True, loop: bool = False,
-                 compile: bool = False):
+def learner_case(learner: str, device: str, chunk: int, *, vmap: bool = False):
     """The training loop's ``UpdateStep`` on the agent of ``learner`` (TD3 with its policy delay)."""
-    from torchrl.objectives.utils import _vmap_func
-
     algo, discrete = LEARNERS[learner]
     torch.manual_seed(0)
-    extra = {"soc": {"num_options": 4}} if algo == "soc" else {}
-    agent = make_agent(SpecEnv(device, discrete), _config(algo=algo, device=device) | extra)
-    if loop:  # the builders do not pass TorchRL's deactivate_vmap yet: set it as the loss's constructor would
-        agent.loss.deactivate_vmap = True
-        if algo == "soc":
-            agent.loss._vmap_qnetworkN0 = _vmap_func(agent.loss.qvalue_network, (None, 0), pseudo_vmap=True,
-                                                     randomness=agent.loss.vmap_randomness)
-        else:
-            agent.loss._make_vmap()
-    step = UpdateStep(agent, direct=direct, compile=compile)
+    cfg = _config(algo=algo, device=device) | ({"soc": {"num_options": 4}} if algo == "soc" else {})
+    agent = (_vmap_agent if vmap else make_agent)(SpecEnv(device, discrete), cfg)
+    step = UpdateStep(agent)
     buffer = _buffer(transitions(options=4 if algo == "soc" else 0, discrete=discrete), device)
     updates = 0
 
@@ -278,30 +260,19 @@ def learner_case(learner: str, device: str, chunk: int, *, direct: bool = True, 
     return run
 
 
-def path_cases(device: str, chunk: int, quick: bool) -> tuple[dict, dict]:
-    """The update paths of every learner (see the module docstring) and, for the compiled step, its
-    compile time (the first chunk, untimed in the comparison)."""
-    cases, extra = {}, {}
+def learner_cases(device: str, chunk: int) -> dict:
+    """Every learner's update as built and with ``torch.vmap`` critics (``drltg`` is SAC's, made apart)."""
+    cases = {}
     for learner in LEARNERS:
         n = max(chunk // 4, 2) if learner == "soc_k4" else chunk
-        if learner == "sac":
-            cases["sac_vmap"] = learner_case(learner, device, n, direct=False)
-        elif learner != "soc_k4":
+        if learner != "sac":
             cases[learner] = learner_case(learner, device, n)
-        cases[f"{learner}_loop"] = learner_case(learner, device, n, direct=False, loop=True)
-    if not quick:
-        import time
-
-        case = learner_case("sac", device, chunk, direct=False, loop=True, compile=True)
-        start = time.perf_counter()
-        case()
-        extra["sac_loop_compiled_first_chunk_s"] = round(time.perf_counter() - start, 1)
-        cases["sac_loop_compiled"] = case
-    return cases, extra
+        cases[f"{learner}_vmap"] = learner_case(learner, device, n, vmap=True)
+    return cases
 
 
-PATH_PAIRS = [("sac_vmap", "drltg"), ("sac_loop", "drltg"), ("sac_loop_compiled", "drltg"), ("sac_loop", "sac_vmap"),
-              ("discrete_sac_loop", "discrete_sac"), ("td3_loop", "td3"), ("soc_k4_loop", "soc_k4")]
+LEARNER_PAIRS = [("drltg", "sac_vmap"), ("discrete_sac", "discrete_sac_vmap"), ("td3", "td3_vmap"),
+                 ("soc_k4", "soc_k4_vmap")]
 
 
 def _mlp_matmuls(dims: list[int], batch: int, forward: bool, weight_grads: bool, input_grads: str) -> list[tuple]:
@@ -317,7 +288,9 @@ def _mlp_matmuls(dims: list[int], batch: int, forward: bool, weight_grads: bool,
     return out
 
 
-def sac_matmuls(obs: int = OBS, act: int = ACT, hidden: int = HIDDEN, batch: int = BATCH, critics: int = 2) -> list[tuple]:
+def sac_matmuls(
+    obs: int = OBS, act: int = ACT, hidden: int = HIDDEN, batch: int = BATCH, critics: int = 2
+) -> list[tuple]:
     """The matrix products of one SAC update: the target ``y`` (actor and target critics on s', no
     gradient), the critic loss (critics on (s, a), weight and hidden-layer input gradients), the
     actor loss (actor on s with weight gradients; critics on (s, a~) with input gradients only, down
@@ -364,12 +337,7 @@ def run(device: str = "cpu", quick: bool = False) -> dict:
         cases["sb3"] = sb3_case(device, chunk)
     except ImportError as err:
         missing["sb3"] = f"not installed ({err.name}); pip install -e '.[bench]'"
-    try:
-        cases["soc_k4"] = soc_case(device, max(chunk // 4, 2))
-    except ImportError as err:
-        missing["soc_k4"] = f"drltg.losses.soc not importable ({err})"
-    paths, path_info = path_cases(device, chunk, quick)
-    cases |= paths
+    cases |= learner_cases(device, chunk)
     results = interleaved(cases, rounds=rounds, warmup=1, device=device)
     pairs = [("drltg", "plain"), ("drltg", "torchrl"), ("drltg", "sb3"), ("torchrl", "plain"), ("sb3", "plain"),
              ("drltg_cudagraphs", "plain"), ("drltg_cudagraphs", "torchrl"), ("soc_k4", "drltg"),
@@ -381,8 +349,7 @@ def run(device: str = "cpu", quick: bool = False) -> dict:
         "matmul_gflop_per_update": round(flops / 1e9, 3),
         "matmul_bound_gflops": round(results["matmul_bound"]["median"] * flops / 1e9, 1),
         "rates": results,
-        "ratios": ratios(results, pairs + PATH_PAIRS),
-        **path_info,
+        "ratios": ratios(results, pairs + LEARNER_PAIRS),
         "missing": missing,
         "target": "drltg >= 1.0x plain and >= 2x torchrl and sb3",
     }
