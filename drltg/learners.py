@@ -39,8 +39,8 @@ from drltg.losses.soc import OPTION_POLICIES
 from drltg.modules import make_option_actor, make_option_policy, make_option_qvalue, make_termination, option_transforms
 
 DEACTIVATE_VMAP = True
-"""Passed to every loss: the critic copies run in a plain loop instead of under ``torch.vmap`` (same values;
-faster for small networks on a CPU, see ``benchmarks/README.md``)."""
+"""Passed to every loss: the critic copies run in a plain loop instead of under ``torch.vmap``. Same values;
+on a CPU level with ``torch.vmap`` for SAC, discrete SAC and TD3 and faster for SOC (``benchmarks/README.md``)."""
 
 
 @dataclass
@@ -85,7 +85,8 @@ def _agent(loss: LossModule, policy: TensorDictModule, cfg: dict, *, actor=None,
     """The loss with its value estimator, target updater and optimiser: the same for every learner."""
     loss.make_value_estimator(gamma=cfg["optim"]["gamma"])
     optimizer = torch.optim.Adam(loss.parameters(), lr=cfg["optim"]["lr"], foreach=True)  # = for-loop Adam, bit for bit
-    return Agent(actor or policy, policy, loss, SoftUpdate(loss, tau=cfg["optim"]["tau"]), optimizer, **fields)
+    actor = policy if actor is None else actor
+    return Agent(actor, policy, loss, SoftUpdate(loss, tau=cfg["optim"]["tau"]), optimizer, **fields)
 
 
 def make_sac_agent(env: EnvBase, cfg: dict) -> Agent:
