@@ -27,6 +27,7 @@ def _train_once(cfg: dict, run_dir: Path, reference: bool) -> dict:
     import drltg.train as train_mod
     from drltg import learners
 
+    shipped = learners.DEACTIVATE_VMAP, train_mod.sample_batches
     if reference:
         learners.DEACTIVATE_VMAP = False
         train_mod.sample_batches = lambda buffer, n: [buffer.sample() for _ in range(n)]
@@ -35,7 +36,7 @@ def _train_once(cfg: dict, run_dir: Path, reference: bool) -> dict:
         train_mod.train(cfg, run_dir, progress=False)
         wall = time.perf_counter() - start
     finally:
-        learners.DEACTIVATE_VMAP, train_mod.sample_batches = True, learners.sample_batches
+        learners.DEACTIVATE_VMAP, train_mod.sample_batches = shipped
     summary = json.loads((run_dir / "summary.json").read_text())
     return {"wall_s": round(wall, 2), "loop_frames_per_s": summary["frames_per_s"], "updates": summary["updates"],
             "final_return": round(summary["final_eval"]["return_mean"], 4)}

@@ -114,11 +114,11 @@ def drltg_case(device: str, chunk: int, cudagraphs: bool = False):
 
 def _vmap_agent(env: EnvBase, cfg: dict) -> learners.Agent:
     """The agent ``make_agent`` builds, its loss with TorchRL's default ``torch.vmap`` critics."""
-    learners.DEACTIVATE_VMAP = False
+    shipped, learners.DEACTIVATE_VMAP = learners.DEACTIVATE_VMAP, False
     try:
         return make_agent(env, cfg)
     finally:
-        learners.DEACTIVATE_VMAP = True
+        learners.DEACTIVATE_VMAP = shipped
 
 
 def torchrl_case(device: str, chunk: int):
