@@ -1,8 +1,8 @@
 """Suites ``train`` and ``memory``: whole training runs, and the memory of a 1e6-transition replay buffer.
 
 ``train`` runs ``drltg.train.train`` (what ``drltg train`` runs) on ``fourrooms/northeast`` with the
-task's own settings, alternating the training step as shipped with the reference step it replaced
-(TorchRL's ``SACLoss.forward`` and ``SoftUpdate.step``, one ``buffer.sample()`` per update), and
+task's own settings, alternating the training step as shipped with the reference step (TorchRL's
+default ``SACLoss``, its critics under ``torch.vmap``, one ``buffer.sample()`` per update), and
 reports frames/s and wall time from each run's ``summary.json``. With robosuite installed (and not
 ``--quick``) it also runs a short ``lift`` training.
 
@@ -13,7 +13,6 @@ carries (what the loop stored before it selected the loss's keys).
 """
 from __future__ import annotations
 
-import functools
 import json
 import subprocess
 import sys
@@ -26,17 +25,18 @@ from benchmarks.common import REPO
 
 def _train_once(cfg: dict, run_dir: Path, reference: bool) -> dict:
     import drltg.train as train_mod
-    from drltg.fast import UpdateStep, sample_batches
+    from drltg import learners
 
+    shipped = learners.DEACTIVATE_VMAP, train_mod.sample_batches
     if reference:
-        train_mod.UpdateStep = functools.partial(UpdateStep, direct=False)
+        learners.DEACTIVATE_VMAP = False
         train_mod.sample_batches = lambda buffer, n: [buffer.sample() for _ in range(n)]
     try:
         start = time.perf_counter()
         train_mod.train(cfg, run_dir, progress=False)
         wall = time.perf_counter() - start
     finally:
-        train_mod.UpdateStep, train_mod.sample_batches = UpdateStep, sample_batches
+        learners.DEACTIVATE_VMAP, train_mod.sample_batches = shipped
     summary = json.loads((run_dir / "summary.json").read_text())
     return {"wall_s": round(wall, 2), "loop_frames_per_s": summary["frames_per_s"], "updates": summary["updates"],
             "final_return": round(summary["final_eval"]["return_mean"], 4)}
@@ -80,7 +80,8 @@ def _lift(device: str) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         result = _train_once(cfg, Path(tmp) / "lift", reference=False)
     return {"command": "drltg train --task lift --frames 2000 --seed 0 " + " ".join(overrides), **result,
-            "note": "2 ParallelEnv workers, 1000 random frames then one update per frame, 2 eval episodes of 500 steps at frames 0 and 2000"}
+            "note": "2 ParallelEnv workers, 1000 random frames then one update per frame, "
+                    "2 eval episodes of 500 steps at frames 0 and 2000"}
 
 
 # Lift transitions (drltg.envs.robosuite: 50 observations, 7 actions) as a collector batch holds them.
@@ -93,7 +94,9 @@ LIFT_KEYS = {
     ("next", "terminated"): ((1,), "bool"), ("next", "truncated"): ((1,), "bool"),
     ("next", "episode_reward"): ((1,), "float32"),
 }
-LOSS_KEYS = ["observation", "action", ("next", "observation"), ("next", "reward"), ("next", "done"), ("next", "terminated")]
+LOSS_KEYS = [
+    "observation", "action", ("next", "observation"), ("next", "reward"), ("next", "done"), ("next", "terminated")
+]
 
 _MEMORY_CHILD = r"""
 import json, sys

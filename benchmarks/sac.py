@@ -5,10 +5,10 @@ layers, Adam lr 3e-4, gamma 0.99, tau 0.005, learned temperature from 1.0, targe
 update = critic + actor + temperature step and a soft target update. Every learner samples from a
 replay buffer holding the same 20k random transitions. Cases:
 
-* ``drltg``: the training loop's step (``drltg.fast.UpdateStep`` on the SAC agent of
-  ``drltg.agents.make_sac_agent``, batches drawn with ``sample_batches``);
+* ``drltg``: the training loop's step (``drltg.learners.UpdateStep`` on the SAC agent of
+  ``drltg.learners.make_sac_agent``, batches drawn with ``sample_batches``);
 * ``torchrl``: TorchRL's stock ``SACLoss`` step as the sota example writes it (``buffer.sample()``,
-  ``loss``, ``backward``, ``Adam.step``, ``SoftUpdate.step``);
+  ``loss`` with its default ``torch.vmap`` critics, ``backward``, ``Adam.step``, ``SoftUpdate.step``);
 * ``plain``: a minimal hand-written PyTorch SAC update (one backward for all three losses), the
   practical bound of eager PyTorch;
 * ``sb3``: Stable-Baselines3 ``SAC.train(gradient_steps, batch_size=256)`` on a filled buffer;
@@ -17,6 +17,12 @@ replay buffer holding the same 20k random transitions. Cases:
   :func:`sac_matmuls`) into preallocated outputs: what this thread's BLAS allows for the update's
   arithmetic, a bound no eager float32 implementation reaches;
 * on CUDA also ``drltg_cudagraphs``: the drltg step captured in a CUDA graph.
+
+Every learner's update (``drltg`` is SAC; ``discrete_sac``: 7 one-hot actions; ``td3``: its policy
+delay of 2; ``soc_k4``: 4 options): ``UpdateStep`` on the agent ``drltg train`` builds (critic copies
+in a loop, TorchRL's ``deactivate_vmap=True``), against the same with TorchRL's default ``torch.vmap``
+critics (``*_vmap``). ``torch.compile`` of the step is not a case: on the 2-core CPU it compiled for
+ten minutes and was not faster (``benchmarks/README.md``).
 """
 from __future__ import annotations
 
@@ -26,25 +32,25 @@ import torch
 import torch.nn.functional as F
 from tensordict import TensorDict
 from torch import nn
-from torchrl.data import Bounded, Composite, LazyTensorStorage, ReplayBuffer, Unbounded
+from torchrl.data import Bounded, Composite, LazyTensorStorage, OneHot, ReplayBuffer, Unbounded
 from torchrl.envs import EnvBase
 
 from benchmarks.common import interleaved, ratios
 from drltg import config as config_lib
-from drltg.agents import make_sac_agent
-from drltg.fast import UpdateStep, sample_batches
+from drltg import learners
+from drltg.learners import UpdateStep, make_agent, make_sac_agent, sample_batches
 
 OBS, ACT, HIDDEN, BATCH, N_DATA = 50, 7, 256, 256, 20_000
 LR, GAMMA, TAU = 3e-4, 0.99, 0.005
 
 
 class SpecEnv(EnvBase):
-    """Specs only (observation 50, action 7): what the agent builders read."""
+    """Specs only (observation 50, action 7, or 7 one-hot actions): what the agent builders read."""
 
-    def __init__(self, device="cpu"):
+    def __init__(self, device="cpu", discrete: bool = False):
         super().__init__(device=device, batch_size=torch.Size([]))
         self.observation_spec = Composite(observation=Unbounded((OBS,), device=device), device=device)
-        self.action_spec = Bounded(-1.0, 1.0, (ACT,), device=device)
+        self.action_spec = OneHot(ACT, device=device) if discrete else Bounded(-1.0, 1.0, (ACT,), device=device)
         self.reward_spec = Unbounded((1,), device=device)
 
     def _reset(self, tensordict):
@@ -57,13 +63,17 @@ class SpecEnv(EnvBase):
         pass
 
 
-def transitions(n: int = N_DATA, seed: int = 0, options: int = 0) -> TensorDict:
+def transitions(n: int = N_DATA, seed: int = 0, options: int = 0, discrete: bool = False) -> TensorDict:
     g = torch.Generator().manual_seed(seed)
     terminated = torch.rand(n, 1, generator=g) < 0.01
+    if discrete:
+        action = F.one_hot(torch.randint(ACT, (n,), generator=g), ACT).bool()
+    else:
+        action = torch.rand(n, ACT, generator=g) * 2 - 1
     td = TensorDict(
         {
             "observation": torch.randn(n, OBS, generator=g),
-            "action": torch.rand(n, ACT, generator=g) * 2 - 1,
+            "action": action,
             "next": {
                 "observation": torch.randn(n, OBS, generator=g),
                 "reward": torch.randn(n, 1, generator=g),
@@ -102,9 +112,18 @@ def drltg_case(device: str, chunk: int, cudagraphs: bool = False):
     return run
 
 
+def _vmap_agent(env: EnvBase, cfg: dict) -> learners.Agent:
+    """The agent ``make_agent`` builds, its loss with TorchRL's default ``torch.vmap`` critics."""
+    shipped, learners.DEACTIVATE_VMAP = learners.DEACTIVATE_VMAP, False
+    try:
+        return make_agent(env, cfg)
+    finally:
+        learners.DEACTIVATE_VMAP = shipped
+
+
 def torchrl_case(device: str, chunk: int):
     torch.manual_seed(0)
-    agent = make_sac_agent(SpecEnv(device), _config(device=device))
+    agent = _vmap_agent(SpecEnv(device), _config(device=device))
     loss, updater = agent.loss, agent.target_updater
     optimizer = torch.optim.Adam(loss.parameters(), lr=LR)
     buffer = _buffer(transitions(), device)
@@ -129,7 +148,8 @@ class PlainSAC(nn.Module):
         super().__init__()
 
         def mlp(i, o):
-            return nn.Sequential(nn.Linear(i, HIDDEN), nn.ReLU(), nn.Linear(HIDDEN, HIDDEN), nn.ReLU(), nn.Linear(HIDDEN, o))
+            layers = [nn.Linear(i, HIDDEN), nn.ReLU(), nn.Linear(HIDDEN, HIDDEN), nn.ReLU(), nn.Linear(HIDDEN, o)]
+            return nn.Sequential(*layers)
 
         self.actor = mlp(OBS, 2 * ACT).to(device)
         self.q = nn.ModuleList([mlp(OBS + ACT, 1) for _ in range(2)]).to(device)
@@ -217,20 +237,42 @@ def sb3_case(device: str, chunk: int):
     return run
 
 
-def soc_case(device: str, chunk: int, options: int = 4):
-    from drltg.losses.soc import make_soc_agent
+LEARNERS = {"sac": ("sac", False), "discrete_sac": ("sac", True), "td3": ("td3", False), "soc_k4": ("soc", False)}
 
+
+def learner_case(learner: str, device: str, chunk: int, *, vmap: bool = False):
+    """The training loop's ``UpdateStep`` on the agent of ``learner`` (TD3 with its policy delay)."""
+    algo, discrete = LEARNERS[learner]
     torch.manual_seed(0)
-    agent = make_soc_agent(SpecEnv(device), _config(algo="soc", device=device) | {"soc": {"num_options": options}})
+    cfg = _config(algo=algo, device=device) | ({"soc": {"num_options": 4}} if algo == "soc" else {})
+    agent = (_vmap_agent if vmap else make_agent)(SpecEnv(device, discrete), cfg)
     step = UpdateStep(agent)
-    buffer = _buffer(transitions(options=options), device)
+    buffer = _buffer(transitions(options=4 if algo == "soc" else 0, discrete=discrete), device)
+    updates = 0
 
     def run() -> int:
+        nonlocal updates
         for batch in sample_batches(buffer, chunk):
-            step(batch)
+            step(batch, update_actor=updates % agent.actor_delay == 0)
+            updates += 1
         return chunk
 
     return run
+
+
+def learner_cases(device: str, chunk: int) -> dict:
+    """Every learner's update as built and with ``torch.vmap`` critics (``drltg`` is SAC's, made apart)."""
+    cases = {}
+    for learner in LEARNERS:
+        n = max(chunk // 4, 2) if learner == "soc_k4" else chunk
+        if learner != "sac":
+            cases[learner] = learner_case(learner, device, n)
+        cases[f"{learner}_vmap"] = learner_case(learner, device, n, vmap=True)
+    return cases
+
+
+LEARNER_PAIRS = [("drltg", "sac_vmap"), ("discrete_sac", "discrete_sac_vmap"), ("td3", "td3_vmap"),
+                 ("soc_k4", "soc_k4_vmap")]
 
 
 def _mlp_matmuls(dims: list[int], batch: int, forward: bool, weight_grads: bool, input_grads: str) -> list[tuple]:
@@ -246,7 +288,9 @@ def _mlp_matmuls(dims: list[int], batch: int, forward: bool, weight_grads: bool,
     return out
 
 
-def sac_matmuls(obs: int = OBS, act: int = ACT, hidden: int = HIDDEN, batch: int = BATCH, critics: int = 2) -> list[tuple]:
+def sac_matmuls(
+    obs: int = OBS, act: int = ACT, hidden: int = HIDDEN, batch: int = BATCH, critics: int = 2
+) -> list[tuple]:
     """The matrix products of one SAC update: the target ``y`` (actor and target critics on s', no
     gradient), the critic loss (critics on (s, a), weight and hidden-layer input gradients), the
     actor loss (actor on s with weight gradients; critics on (s, a~) with input gradients only, down
@@ -293,10 +337,7 @@ def run(device: str = "cpu", quick: bool = False) -> dict:
         cases["sb3"] = sb3_case(device, chunk)
     except ImportError as err:
         missing["sb3"] = f"not installed ({err.name}); pip install -e '.[bench]'"
-    try:
-        cases["soc_k4"] = soc_case(device, max(chunk // 4, 2))
-    except ImportError as err:
-        missing["soc_k4"] = f"drltg.losses.soc not importable ({err})"
+    cases |= learner_cases(device, chunk)
     results = interleaved(cases, rounds=rounds, warmup=1, device=device)
     pairs = [("drltg", "plain"), ("drltg", "torchrl"), ("drltg", "sb3"), ("torchrl", "plain"), ("sb3", "plain"),
              ("drltg_cudagraphs", "plain"), ("drltg_cudagraphs", "torchrl"), ("soc_k4", "drltg"),
@@ -308,7 +349,7 @@ def run(device: str = "cpu", quick: bool = False) -> dict:
         "matmul_gflop_per_update": round(flops / 1e9, 3),
         "matmul_bound_gflops": round(results["matmul_bound"]["median"] * flops / 1e9, 1),
         "rates": results,
-        "ratios": ratios(results, pairs),
+        "ratios": ratios(results, pairs + LEARNER_PAIRS),
         "missing": missing,
         "target": "drltg >= 1.0x plain and >= 2x torchrl and sb3",
     }

@@ -110,8 +110,8 @@ def _config_keys(mapping, key: str, where: str) -> dict:
 
 def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
     """Validate a loaded spec; every mistake is one :class:`UsageError` sentence."""
-    from drltg.agents import ALGOS
     from drltg.envs import TASKS, get_pair
+    from drltg.learners import ALGOS
     from drltg.methods import METHODS
     from drltg.report import parse_threshold
 

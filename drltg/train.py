@@ -27,11 +27,10 @@ from torchrl.record.loggers import CSVLogger, TensorboardLogger
 from tqdm.auto import tqdm
 
 from drltg import rundir
-from drltg.agents import make_agent
 from drltg.config import DEFAULTS, dump, task_env
 from drltg.envs import make_env
 from drltg.errors import UsageError
-from drltg.fast import UpdateStep, sample_batches
+from drltg.learners import UpdateStep, make_agent, sample_batches
 from drltg.methods import Transfer, get_method
 from drltg.methods.source import check as check_source
 from drltg.rundir import CHECKPOINT, CONFIG, EVAL, SUMMARY, is_complete, read_eval_csv

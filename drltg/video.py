@@ -56,7 +56,7 @@ def _policy_and_env(args):
         env = make_env(args.task, seed=args.seed)
         return policy, env, env, "demonstrator", args.task
 
-    from drltg.agents import make_agent
+    from drltg.learners import make_agent
     from drltg.methods.source import check_same_spaces
     from drltg.train import build_env
 

@@ -11,7 +11,6 @@ from pathlib import Path
 
 import torch
 
-from drltg.agents import make_agent
 from drltg.config import resolve
 from drltg.envs import get_pair, make_env
 from drltg.methods import load_from_run

@@ -14,9 +14,9 @@ from tensordict.nn import TensorDictSequential
 from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, ReplayBuffer
 
-from drltg.agents import make_agent
 from drltg.config import resolve
 from drltg.envs import get_pair, make_env
+from drltg.learners import make_agent
 from drltg.methods import PiReuse, PolicyReuse, load_from_run
 from drltg.train import evaluate, is_complete, train
 

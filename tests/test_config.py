@@ -229,7 +229,7 @@ def test_every_default_key_has_a_field_and_every_default_fits():
 
 
 def test_choices_match_the_implementations():
-    from drltg.agents import ALGOS
+    from drltg.learners import ALGOS
     from drltg.losses.soc import OPTION_POLICIES
     from drltg.methods import METHODS
 

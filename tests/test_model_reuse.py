@@ -4,7 +4,6 @@ from tensordict import TensorDict
 from torch import nn
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-from drltg.agents import make_agent
 from drltg.config import resolve
 from drltg.envs import FourRoomsEnv
 from drltg.errors import UsageError

@@ -362,7 +362,7 @@ def _config(task, *overrides):
 def test_demonstrator_as_past_policy_acts_through_the_reuse_mixer(envs):
     from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-    from drltg.agents import make_agent
+    from drltg.learners import make_agent
     from drltg.methods import get_method, source
 
     cfg = _config("lift-place", "transfer.method=policy-reuse", "transfer.source=demonstrator:lift",

@@ -1,5 +1,6 @@
 """Soft option-critic: K = 1 is SAC exactly; hand-computed targets and termination loss; options are
 carried across steps, terminate at the new state for the current option only, and restart at resets."""
+
 import math
 
 import pytest
@@ -17,8 +18,8 @@ from torchrl.objectives import SACLoss, SoftUpdate
 from drltg import config as config_lib
 from drltg.envs import FourRoomsEnv
 from drltg.errors import UsageError
+from drltg.learners import make_soc_agent
 from drltg.losses import SoftOptionCriticLoss
-from drltg.losses.soc import make_soc_agent
 from drltg.modules import (
     OptionHeads,
     make_option_actor,
@@ -90,19 +91,24 @@ def test_option_heads_return_the_head_of_the_option():
 
 
 # ------------------------------------------------------------------------------------------ K = 1 is SAC
-def _sac_twin(soc: SoftOptionCriticLoss, alpha_init: float) -> SACLoss:
+def _sac_twin(soc: SoftOptionCriticLoss, alpha_init: float, deactivate_vmap: bool = False) -> SACLoss:
     """TorchRL's SACLoss on plain MLPs holding exactly the K = 1 option networks' weights."""
     actor_mlp = MLP(in_features=OBS, out_features=2 * ACT, num_cells=list(HIDDEN), activation_class=nn.ReLU)
     actor_mlp.load_state_dict(soc.actor_network.module[0].module.net.state_dict())
     actor = ProbabilisticActor(
-        TensorDictModule(nn.Sequential(actor_mlp, NormalParamExtractor()), in_keys=["observation"], out_keys=["loc", "scale"]),
+        TensorDictModule(
+            nn.Sequential(actor_mlp, NormalParamExtractor()), in_keys=["observation"], out_keys=["loc", "scale"]
+        ),
         in_keys=["loc", "scale"],
         spec=SPEC,
         distribution_class=TanhNormal,
         distribution_kwargs={"low": SPEC.space.low, "high": SPEC.space.high},
     )
-    qvalue = ValueOperator(MLP(in_features=OBS + ACT, out_features=1, num_cells=list(HIDDEN), activation_class=nn.ReLU), in_keys=["observation", "action"])
-    sac = SACLoss(actor, qvalue, alpha_init=alpha_init)
+    qvalue = ValueOperator(
+        MLP(in_features=OBS + ACT, out_features=1, num_cells=list(HIDDEN), activation_class=nn.ReLU),
+        in_keys=["observation", "action"],
+    )
+    sac = SACLoss(actor, qvalue, alpha_init=alpha_init, deactivate_vmap=deactivate_vmap)
     sac.make_value_estimator(gamma=0.9)
     for src, dst in [
         (soc.qvalue_network_params, sac.qvalue_network_params),
@@ -117,7 +123,9 @@ def _flat(params):
     return torch.cat([p.detach().flatten() for p in params.values(True, True)])
 
 
-def test_one_option_equals_sac_loss_gradients_and_training_steps():
+@pytest.mark.parametrize("deactivate_vmap", [False, True])
+def test_one_option_equals_sac_loss_gradients_and_training_steps(deactivate_vmap):
+    """With the critic copies under ``torch.vmap`` (TorchRL's default) and in a loop (drltg's agents)."""
     torch.manual_seed(0)
     soc = SoftOptionCriticLoss(
         make_option_actor(SPEC, 1, HIDDEN, in_features=OBS),
@@ -125,9 +133,10 @@ def test_one_option_equals_sac_loss_gradients_and_training_steps():
         make_termination(1, HIDDEN, in_features=OBS),
         num_options=1,
         alpha_init=0.3,
+        deactivate_vmap=deactivate_vmap,
     )
     soc.make_value_estimator(gamma=0.9)
-    sac = _sac_twin(soc, alpha_init=0.3)
+    sac = _sac_twin(soc, alpha_init=0.3, deactivate_vmap=deactivate_vmap)
     terms = ["loss_actor", "loss_qvalue", "loss_alpha", "alpha", "entropy"]
     updaters = [SoftUpdate(sac, tau=0.1), SoftUpdate(soc, tau=0.1)]
     optims = [torch.optim.Adam(sac.parameters(), lr=1e-2), torch.optim.Adam(soc.parameters(), lr=1e-2)]
@@ -150,7 +159,9 @@ def test_one_option_equals_sac_loss_gradients_and_training_steps():
     # the parameters stayed identical through three optimiser steps and target updates
     torch.testing.assert_close(_flat(soc.actor_network_params), _flat(sac.actor_network_params), rtol=1e-5, atol=1e-6)
     torch.testing.assert_close(_flat(soc.qvalue_network_params), _flat(sac.qvalue_network_params), rtol=1e-5, atol=1e-6)
-    torch.testing.assert_close(_flat(soc.target_qvalue_network_params), _flat(sac.target_qvalue_network_params), rtol=1e-5, atol=1e-6)
+    torch.testing.assert_close(
+        _flat(soc.target_qvalue_network_params), _flat(sac.target_qvalue_network_params), rtol=1e-5, atol=1e-6
+    )
     torch.testing.assert_close(soc.log_alpha, sac.log_alpha)
     torch.testing.assert_close(_flat(soc.termination_network_params), termination_before, rtol=0, atol=0)
 
@@ -276,12 +287,18 @@ def _acting_loss(K, *, termination, critic_values, option_alpha=1.0, in_features
 
 def test_termination_is_drawn_for_the_current_option_only():
     K, n = 4, 400
-    loss = _acting_loss(K, termination=_termination_with_logits(K, torch.tensor([-40.0, -40.0, 40.0, -40.0])), critic_values=torch.zeros(K))
+    loss = _acting_loss(
+        K,
+        termination=_termination_with_logits(K, torch.tensor([-40.0, -40.0, 40.0, -40.0])),
+        critic_values=torch.zeros(K),
+    )
     policy = make_option_policy(loss)
     g = torch.Generator().manual_seed(0)
     previous = torch.randint(K, (n, 1), generator=g)
     is_init = torch.rand(n, 1, generator=g) < 0.2
-    td = TensorDict({"observation": torch.randn(n, OBS, generator=g), "option": previous.clone(), "is_init": is_init}, [n])
+    td = TensorDict(
+        {"observation": torch.randn(n, OBS, generator=g), "option": previous.clone(), "is_init": is_init}, [n]
+    )
     policy(td)
     assert torch.equal(td["option_terminated"], (previous == 2) & ~is_init)
     kept = (previous != 2) & ~is_init
@@ -299,7 +316,9 @@ def _rooms_env(batch, horizon, K, seed=0):
 def test_termination_is_evaluated_at_the_new_state():
     """beta_2(s) = 1 east of the middle (x > 0 in observation units), 0 west; other options never end."""
     K = 3
-    heads = _linear_heads(torch.tensor([[0.0, 0.0], [0.0, 0.0], [1e4, 0.0]]), torch.tensor([-40.0, -40.0, 0.0]), nn.Sigmoid())
+    heads = _linear_heads(
+        torch.tensor([[0.0, 0.0], [0.0, 0.0], [1e4, 0.0]]), torch.tensor([-40.0, -40.0, 0.0]), nn.Sigmoid()
+    )
     termination = TensorDictModule(heads, in_keys=["observation", "option"], out_keys=["termination_prob"])
     loss = _acting_loss(K, termination=termination, critic_values=torch.zeros(K), in_features=2)
     torch.manual_seed(1)
@@ -317,7 +336,9 @@ def test_collector_carries_options_and_restarts_them_at_every_reset():
     K, horizon = 4, 4
     never = _termination_with_logits(K, torch.full((K,), -40.0), in_features=2)
     # a greedy choice: option 1 has the best value; the primer draws a random option at each reset
-    greedy = _acting_loss(K, termination=never, critic_values=torch.tensor([0.0, 1.0, 0.5, 0.0]), option_alpha=1e-6, in_features=2)
+    greedy = _acting_loss(
+        K, termination=never, critic_values=torch.tensor([0.0, 1.0, 0.5, 0.0]), option_alpha=1e-6, in_features=2
+    )
     torch.manual_seed(0)
     collector = Collector(_rooms_env(6, horizon, K), make_option_policy(greedy), frames_per_batch=48, total_frames=48)
     data = next(iter(collector))
@@ -343,7 +364,14 @@ def test_deterministic_mode_picks_the_best_option_and_its_mean_action():
     loss = _acting_loss(K, termination=half, critic_values=torch.tensor([0.0, 0.3, 0.9]))
     policy = make_option_policy(loss)
     g = torch.Generator().manual_seed(0)
-    td = TensorDict({"observation": torch.randn(n, OBS, generator=g), "option": torch.zeros(n, 1, dtype=torch.long), "is_init": torch.zeros(n, 1, dtype=torch.bool)}, [n])
+    td = TensorDict(
+        {
+            "observation": torch.randn(n, OBS, generator=g),
+            "option": torch.zeros(n, 1, dtype=torch.long),
+            "is_init": torch.zeros(n, 1, dtype=torch.bool),
+        },
+        [n],
+    )
     with set_exploration_type(ExplorationType.DETERMINISTIC):
         first, second = policy(td.clone()), policy(td.clone())
         mean = loss.actor_network(td.clone().set("option", torch.full((n, 1), 2)))["action"]
@@ -372,9 +400,17 @@ def test_soc_agent_trains_in_the_training_loop(tmp_path):
     from drltg.train import read_eval_csv, train
 
     tiny = [
-        "network.hidden=[16,16]", "collector.num_envs=4", "collector.frames_per_batch=16",
-        "collector.init_random_frames=128", "optim.updates_per_batch=1", "buffer.batch_size=32",
-        "eval.every=256", "eval.episodes=4", "checkpoint.every=256", "log.every=128", "log.tensorboard=false",
+        "network.hidden=[16,16]",
+        "collector.num_envs=4",
+        "collector.frames_per_batch=16",
+        "collector.init_random_frames=128",
+        "optim.updates_per_batch=1",
+        "buffer.batch_size=32",
+        "eval.every=256",
+        "eval.episodes=4",
+        "checkpoint.every=256",
+        "log.every=128",
+        "log.tensorboard=false",
     ]
     cfg = config_lib.resolve({}, [*tiny, "soc.num_options=2"], task="fourrooms/northeast", algo="soc", frames=256)
     run = train(cfg, tmp_path / "run", progress=False)

@@ -67,6 +67,7 @@ Every loss uses the option ``o`` of the transition. With ``K = 1`` the option va
 value, :math:`V_\Omega = Q_\Omega`, :math:`A_\Omega = 0`, :math:`U = Q_\Omega`: every loss term equals
 ``SACLoss``'s on the same weights and the termination has no effect.
 """
+
 from __future__ import annotations
 
 import math
@@ -77,22 +78,11 @@ from tensordict import TensorDict, TensorDictBase, TensorDictParams
 from tensordict.nn import ProbabilisticTensorDictSequential, TensorDictModule, dispatch
 from tensordict.utils import NestedKey
 from torch import Tensor
-from torchrl.data import OneHot, TensorSpec
+from torchrl.data import TensorSpec
 from torchrl.envs.utils import ExplorationType, set_exploration_type
-from torchrl.objectives import SoftUpdate
-from torchrl.objectives.common import LossModule
+from torchrl.objectives import LossModule
 from torchrl.objectives.sac import compute_rsample_log_prob
-from torchrl.objectives.utils import ValueEstimators, _vmap_func, dispatch_value_estimator, distance_loss
-
-from drltg.config import DEFAULTS
-from drltg.errors import UsageError
-from drltg.modules.options import (
-    make_option_actor,
-    make_option_policy,
-    make_option_qvalue,
-    make_termination,
-    option_transforms,
-)
+from torchrl.objectives.utils import ValueEstimators, default_value_kwargs, dispatch_value_estimator, distance_loss
 
 OPTION_POLICIES = ("soft", "egreedy")
 
@@ -122,6 +112,11 @@ class SoftOptionCriticLoss(LossModule):
             Defaults to ``False`` (see the module docstring).
         delay_qvalue (bool): use target critics for the TD target. Defaults to ``True``.
         reduction (str): ``"mean"`` (default), ``"sum"`` or ``"none"``.
+        use_prioritized_weights (bool or "auto"): weight the losses by ``priority_weight`` when the batch
+            carries it (``"auto"``, default) or always (``True``). The weighted mean is
+            ``sum(w * l) / sum(w)``, as in TorchRL's losses.
+        deactivate_vmap (bool): evaluate the critic copies one after the other instead of under
+            ``torch.vmap`` (same values), as TorchRL's losses' switch of that name. Defaults to ``False``.
 
     The output keys follow ``SACLoss``: ``loss_actor``, ``loss_qvalue``, ``loss_alpha``,
     ``loss_termination`` (+ ``loss_option_alpha`` for the soft policy), and the diagnostics ``alpha``,
@@ -208,6 +203,7 @@ class SoftOptionCriticLoss(LossModule):
         delay_qvalue: bool = True,
         reduction: str | None = None,
         use_prioritized_weights: str | bool = "auto",
+        deactivate_vmap: bool = False,
     ) -> None:
         if option_policy not in OPTION_POLICIES:
             raise ValueError(f"option_policy must be one of {OPTION_POLICIES}, got {option_policy!r}.")
@@ -223,17 +219,16 @@ class SoftOptionCriticLoss(LossModule):
         self.deliberation_cost = deliberation_cost
         self.option_entropy_bonus = option_entropy_bonus
         self.reduction = reduction or "mean"
+        self.deactivate_vmap = deactivate_vmap
 
         self.convert_to_functional(actor_network, "actor_network", create_target_params=False)
         self.convert_to_functional(termination_network, "termination_network", create_target_params=False)
         self.delay_qvalue = delay_qvalue
-        self.convert_to_functional(
-            qvalue_network, "qvalue_network", num_qvalue_nets, create_target_params=delay_qvalue
-        )
+        self.convert_to_functional(qvalue_network, "qvalue_network", num_qvalue_nets, create_target_params=delay_qvalue)
 
         device = next(self.parameters()).device
-        self.register_buffer("min_log_alpha", None if min_alpha is None else torch.tensor(math.log(min_alpha), device=device))
-        self.register_buffer("max_log_alpha", None if max_alpha is None else torch.tensor(math.log(max_alpha), device=device))
+        for name, bound in (("min_log_alpha", min_alpha), ("max_log_alpha", max_alpha)):
+            self.register_buffer(name, None if bound is None else torch.tensor(math.log(bound), device=device))
         self._register_temperature("log_alpha", alpha_init, fixed_alpha, device)
         if target_entropy == "auto":
             spec = action_spec if action_spec is not None else actor_network.spec[self.tensor_keys.action]
@@ -247,7 +242,23 @@ class SoftOptionCriticLoss(LossModule):
             self.register_buffer("option_target_entropy", torch.tensor(float(option_target_entropy), device=device))
         else:
             self.register_buffer("option_epsilon", torch.tensor(float(option_epsilon), device=device))
-        self._vmap_qnetworkN0 = _vmap_func(self.qvalue_network, (None, 0), randomness=self.vmap_randomness)
+        self._make_vmap()
+
+    def _make_vmap(self) -> None:
+        """The critic under ``torch.vmap`` (TorchRL calls this again when ``set_vmap_randomness`` changes the mode)."""
+        self._vmap_critic = torch.vmap(self._critic, (None, 0), randomness=self.vmap_randomness)
+
+    def _critic(self, td: TensorDictBase, params: TensorDictParams) -> TensorDictBase:
+        with params.to_module(self.qvalue_network, preserve_module_state=False):
+            return self.qvalue_network(td)
+
+    def _critics(self, td: TensorDictBase, params: TensorDictParams) -> Tensor:
+        """Every critic copy on the same input, ``[num_qvalue_nets, *B, 1]``: one call per copy with
+        ``deactivate_vmap``, else one call under ``torch.vmap``."""
+        key = self.tensor_keys.state_action_value
+        if self.deactivate_vmap:
+            return torch.stack([self._critic(td.copy(), params[i]).get(key) for i in range(self.num_qvalue_nets)])
+        return self._vmap_critic(td, params).get(key)
 
     def _register_temperature(self, name: str, init: float, fixed: bool, device) -> None:
         value = torch.tensor(math.log(init), device=device)
@@ -295,21 +306,10 @@ class SoftOptionCriticLoss(LossModule):
             keys.append("option_alpha")
         return keys
 
-    def _forward_value_estimator_keys(self, **kwargs) -> None:
-        if self._value_estimator is not None:
-            self._value_estimator.set_keys(
-                value=self.tensor_keys.value,
-                reward=self.tensor_keys.reward,
-                done=self.tensor_keys.done,
-                terminated=self.tensor_keys.terminated,
-            )
-        self._set_in_keys()
-
     def make_value_estimator(self, value_type: ValueEstimators = None, **hyperparams):
         """Only one-step TD targets: a multi-step return would mix the options of later steps."""
-        value_type, hp = self._prepare_value_estimator_kwargs(value_type, **hyperparams)
-        if value_type is None:
-            return self
+        value_type = self.default_value_estimator if value_type is None else value_type
+        hp = {**default_value_kwargs(value_type), **hyperparams}
         dispatch_value_estimator(
             self,
             value_type,
@@ -324,6 +324,22 @@ class SoftOptionCriticLoss(LossModule):
             value_network=None,
             **hp,
         )
+
+    def _priority_weight(self, tensordict: TensorDictBase) -> Tensor | None:
+        key = self.tensor_keys.priority_weight
+        if self.use_prioritized_weights in (True, "auto") and key in tensordict.keys():
+            return tensordict.get(key)
+        return None
+
+    def _reduce(self, loss: Tensor, weights: Tensor | None) -> Tensor:
+        """``reduction`` of a per-transition loss; importance-weighted: ``sum(w l) / sum(w)`` (mean), ``sum(w l)``."""
+        if weights is not None:
+            loss = loss * weights
+        if self.reduction == "none":
+            return loss
+        if self.reduction == "sum":
+            return loss.sum()
+        return loss.mean() if weights is None else loss.sum() / weights.sum()
 
     # ------------------------------------------------------------------ temperatures and options
     @property
@@ -346,8 +362,9 @@ class SoftOptionCriticLoss(LossModule):
         td = td.unsqueeze(-1).expand(*td.batch_size, self.num_options)
         options = torch.arange(self.num_options, device=td.device or self.log_alpha.device)
         td.set(self.tensor_keys.option, options.unsqueeze(-1).expand(*td.batch_size, 1))
-        with set_exploration_type(ExplorationType.RANDOM), self.actor_network_params.to_module(
-            self.actor_network, preserve_module_state=False
+        with (
+            set_exploration_type(ExplorationType.RANDOM),
+            self.actor_network_params.to_module(self.actor_network, preserve_module_state=False),
         ):
             dist = self.actor_network.get_dist(td)
             if deterministic:
@@ -356,7 +373,7 @@ class SoftOptionCriticLoss(LossModule):
                 action, log_prob = compute_rsample_log_prob(dist)
         td.set(self.tensor_keys.action, action)
         params = self.target_qvalue_network_params if target else self.qvalue_network_params
-        value = self._vmap_qnetworkN0(td, params).get(self.tensor_keys.state_action_value)
+        value = self._critics(td, params)
         if log_prob is not None:
             value = value - self._alpha * log_prob.unsqueeze(-1)
         return value.min(0)[0].squeeze(-1)
@@ -397,36 +414,35 @@ class SoftOptionCriticLoss(LossModule):
             return self.termination_network(td).get(self.tensor_keys.termination_prob)
 
     def _qvalue_loss(self, tensordict: TensorDictBase, arrival_value: Tensor) -> tuple[Tensor, Tensor]:
-        weights = self._maybe_get_priority_weight(tensordict)
+        weights = self._priority_weight(tensordict)
         td = tensordict.clone(False)
         td.set(("next", self.value_estimator.tensor_keys.value), arrival_value)
         target_value = self.value_estimator.value_estimate(td).squeeze(-1)
-        pred = self._vmap_qnetworkN0(
+        pred = self._critics(
             tensordict.select(*self.qvalue_network.in_keys, strict=False), self.qvalue_network_params
-        ).get(self.tensor_keys.state_action_value).squeeze(-1)
+        ).squeeze(-1)
         loss = distance_loss(pred, target_value.expand_as(pred), loss_function=self.loss_function).sum(0)
-        loss = self._reduce_loss(loss, tensordict=tensordict, weights=weights)
+        loss = self._reduce(loss, weights)
         return loss, (pred - target_value).abs().detach().max(0)[0]
 
     def actor_loss(self, tensordict: TensorDictBase) -> tuple[Tensor, dict[str, Tensor]]:
         """``alpha log pi_o(a~|s) - min_i Q_U,i(s, o, a~)`` with the transition's option ``o``."""
-        weights = self._maybe_get_priority_weight(tensordict)
-        with set_exploration_type(ExplorationType.RANDOM), self.actor_network_params.to_module(
-            self.actor_network, preserve_module_state=False
+        weights = self._priority_weight(tensordict)
+        with (
+            set_exploration_type(ExplorationType.RANDOM),
+            self.actor_network_params.to_module(self.actor_network, preserve_module_state=False),
         ):
             dist = self.actor_network.get_dist(tensordict)
             action, log_prob = compute_rsample_log_prob(dist)
         td_q = tensordict.select(*self.qvalue_network.in_keys, strict=False)
         td_q.set(self.tensor_keys.action, action)
-        min_q = self._vmap_qnetworkN0(td_q, self.qvalue_network_params.detach()).get(
-            self.tensor_keys.state_action_value
-        ).min(0)[0].squeeze(-1)
-        loss = self._reduce_loss(self._alpha * log_prob - min_q, tensordict=tensordict, weights=weights)
+        min_q = self._critics(td_q, self.qvalue_network_params.detach()).min(0)[0].squeeze(-1)
+        loss = self._reduce(self._alpha * log_prob - min_q, weights)
         return loss, {"log_prob": log_prob.detach()}
 
     @dispatch
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
-        weights = self._maybe_get_priority_weight(tensordict)
+        weights = self._priority_weight(tensordict)
         beta = self._termination_prob(tensordict)
         next_terms = self._next_option_terms(tensordict)  # samples at s' first, as SACLoss does
         advantage = next_terms["advantage"]
@@ -435,7 +451,7 @@ class SoftOptionCriticLoss(LossModule):
         log_prob = actor_meta["log_prob"]
 
         def reduce(loss):
-            return self._reduce_loss(loss, tensordict=tensordict, weights=weights)
+            return self._reduce(loss, weights)
 
         not_terminal = ~tensordict.get(("next", self.tensor_keys.terminated))
         loss_termination = (beta * (advantage + self.deliberation_cost) * not_terminal).squeeze(-1)
@@ -461,67 +477,3 @@ class SoftOptionCriticLoss(LossModule):
         if self.option_policy == "soft":
             out["option_alpha"] = self._option_alpha
         return TensorDict(out, batch_size=[])
-
-
-SOC_DEFAULTS = DEFAULTS["soc"]
-"""Options of ``make_soc_agent`` under ``cfg["soc"]``; the action temperature comes from ``cfg["sac"]``."""
-
-
-def make_soc_agent(env, cfg: dict):
-    """Soft option-critic (``cfg["soc"]``, see :data:`SOC_DEFAULTS`) with SAC's networks, temperature and
-    optimiser settings, so ``num_options=1`` is the SAC agent. The option-carrying policy both explores
-    and evaluates (greedy options, mean actions under ``ExplorationType.DETERMINISTIC``)."""
-    from drltg.agents import Agent  # drltg.agents registers this builder
-
-    spec = env.full_action_spec_unbatched["action"]
-    if isinstance(spec, OneHot):
-        raise UsageError(
-            f"soft option-critic needs continuous actions; task '{cfg['task']}' has discrete actions (use --algo sac)."
-        )
-    unknown = set(cfg.get("soc", {})) - set(SOC_DEFAULTS)
-    if unknown:
-        raise UsageError(f"unknown soc option(s) {', '.join(sorted(unknown))}; known: {', '.join(SOC_DEFAULTS)}.")
-    soc = {**SOC_DEFAULTS, **cfg.get("soc", {})}
-    if soc["option_policy"] not in OPTION_POLICIES:
-        raise UsageError(f"soc.option_policy must be one of {', '.join(OPTION_POLICIES)}, got {soc['option_policy']!r}.")
-    if int(soc["num_options"]) < 1:
-        raise UsageError(f"soc.num_options must be at least 1, got {soc['num_options']}.")
-    num_options, hidden = int(soc["num_options"]), list(cfg["network"]["hidden"])
-    actor = make_option_actor(spec, num_options, hidden)
-    qvalue = make_option_qvalue(num_options, hidden)
-    termination = make_termination(num_options, hidden)
-    fake = env.fake_tensordict()
-    fake = fake.reshape(-1)[:1] if fake.batch_dims else fake.unsqueeze(0)
-    fake.set("option", torch.zeros(*fake.batch_size, 1, dtype=torch.int64, device=fake.device))
-    with torch.no_grad():  # materialise the lazy layers before the loss copies the critics
-        for module in (actor, qvalue, termination):
-            module(fake)
-    loss = SoftOptionCriticLoss(
-        actor,
-        qvalue,
-        termination,
-        num_options=num_options,
-        loss_function="l2",
-        alpha_init=cfg["sac"]["alpha_init"],
-        fixed_alpha=cfg["sac"]["fixed_alpha"],
-        target_entropy=cfg["sac"]["target_entropy"],
-        action_spec=spec,
-        option_policy=soc["option_policy"],
-        option_alpha_init=soc["option_alpha_init"] or cfg["sac"]["alpha_init"],
-        fixed_option_alpha=soc["fixed_option_alpha"],
-        option_target_entropy=soc["option_target_entropy"],
-        option_epsilon=soc["option_epsilon"],
-        deliberation_cost=soc["deliberation_cost"],
-        option_entropy_bonus=soc["option_entropy_bonus"],
-    )
-    loss.make_value_estimator(gamma=cfg["optim"]["gamma"])
-    policy = make_option_policy(loss)
-    optimizer = torch.optim.Adam(loss.parameters(), lr=cfg["optim"]["lr"])
-    return Agent(
-        policy,
-        policy,
-        loss,
-        SoftUpdate(loss, tau=cfg["optim"]["tau"]),
-        optimizer,
-        env_transforms=option_transforms(num_options),
-    )

@@ -65,7 +65,7 @@ class TransferMethod:
         name: the value of ``transfer.method``.
         help: one line, shown by ``drltg tasks`` and in the docs.
         build: ``build(cfg, agent, env, *, resuming) -> Transfer``, called once a run's learner
-            (:class:`drltg.agents.Agent`) and a probe env of its task exist; ``resuming`` is true when
+            (:class:`drltg.learners.Agent`) and a probe env of its task exist; ``resuming`` is true when
             the run continues from a checkpoint (weights loaded now would be overwritten).
         source: ``None`` (no source), ``"run"`` (a source run's weights) or ``"policy"`` (a source run's
             actor, or ``demonstrator:TASK`` on the manipulation tasks). ``drltg experiment`` trains

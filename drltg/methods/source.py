@@ -13,10 +13,10 @@ import yaml
 from tensordict.nn import TensorDictModuleBase
 from torchrl.envs import EnvBase
 
-from drltg.agents import make_agent
 from drltg.envs import make_env
 from drltg.envs.robosuite.layout import TASKS as MANIPULATION
 from drltg.errors import UsageError
+from drltg.learners import make_agent
 from drltg.methods.registry import get_method
 from drltg.rundir import CHECKPOINT, CONFIG, SUMMARY, is_complete, load_checkpoint
 
@@ -81,7 +81,7 @@ def check_same_spaces(source: EnvBase, target: EnvBase, source_name: str, target
 
 
 def source_agent(cfg: dict, target_env: EnvBase | None = None):
-    """The source run's learner (:class:`drltg.agents.Agent`: actor, critics, temperature), rebuilt from
+    """The source run's learner (:class:`drltg.learners.Agent`: actor, critics, temperature), rebuilt from
     its saved config and checkpoint. With ``target_env``, a source that observes or acts differently is
     refused here rather than failing inside the first rollout."""
     run = Path(cfg["transfer"]["source"]).expanduser()

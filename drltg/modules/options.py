@@ -23,6 +23,7 @@ policy acts,
 Under ``ExplorationType.DETERMINISTIC`` terminations are thresholded at 1/2, options are chosen
 greedily and each option plays its mean action.
 """
+
 from __future__ import annotations
 
 from typing import Sequence
@@ -106,9 +107,7 @@ def make_option_qvalue(
 ) -> TensorDictModule:
     """Option critic ``Q_U(s, o, a)``: ``"state_action_value"`` ``[*, 1]`` of the option in ``option``."""
     heads = OptionHeads(_mlp(num_options, num_cells, in_features), num_options)
-    return TensorDictModule(
-        heads, in_keys=[observation_key, action_key, option_key], out_keys=["state_action_value"]
-    )
+    return TensorDictModule(heads, in_keys=[observation_key, action_key, option_key], out_keys=["state_action_value"])
 
 
 def make_termination(
@@ -152,7 +151,8 @@ class OptionSelector(TensorDictModuleBase):
         self.option_key = loss.tensor_keys.option
         self.is_init_key = is_init_key
         self.terminated_key = terminated_key
-        self.in_keys = list(dict.fromkeys([*loss.termination_network.in_keys, *loss.actor_network.in_keys, is_init_key]))
+        keys = [*loss.termination_network.in_keys, *loss.actor_network.in_keys, is_init_key]
+        self.in_keys = list(dict.fromkeys(keys))
         self.out_keys = [self.option_key, terminated_key]
 
     @torch.no_grad()

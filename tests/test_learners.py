@@ -1,0 +1,212 @@
+"""Every learner is built and stepped the same way, and that way is TorchRL's own: the losses as built
+(critic copies in a loop, ``deactivate_vmap=True``) give TorchRL's default (``torch.vmap``) losses,
+gradients and random draws; ``UpdateStep`` is the sota loop; ``sample_batches`` draws what repeated
+sampling draws; the training curve is that of the reference step."""
+
+import subprocess
+import sys
+
+import pytest
+import torch
+from tensordict import TensorDict
+from torchrl.data import LazyTensorStorage, ReplayBuffer
+
+import drltg.train as train_mod
+from drltg import config as config_lib
+from drltg import learners
+from drltg.envs import make_env
+from drltg.learners import UpdateStep, loss_total, make_agent, sample_batches
+from drltg.train import read_eval_csv, train
+
+TASK = "fourrooms/northeast"
+LEARNERS = {  # name: (algo, task)
+    "sac": ("sac", TASK),
+    "discrete_sac": ("sac", "gridrooms/northeast"),
+    "td3": ("td3", TASK),
+    "soc": ("soc", TASK),
+}
+
+
+@pytest.fixture(autouse=True)
+def one_thread():
+    """Small nets on a shared machine: one thread, as ``train`` runs them (cfg ``threads``)."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+def agent_for(algo="sac", task=TASK, hidden=(32, 32), seed=0, vmap=False, **explicit):
+    """The agent of ``algo`` as drltg builds it; ``vmap=True``: with TorchRL's default ``torch.vmap`` critics."""
+    overrides = [f"network.hidden={list(hidden)}"] + (["soc.num_options=3"] if algo == "soc" else [])
+    cfg = config_lib.resolve({}, overrides, task=task, algo=algo, **explicit)
+    torch.manual_seed(seed)
+    deactivate = learners.DEACTIVATE_VMAP
+    learners.DEACTIVATE_VMAP = not vmap
+    try:
+        return make_agent(make_env(task, seed=0, **cfg["env"]), cfg)
+    finally:
+        learners.DEACTIVATE_VMAP = deactivate
+
+
+def random_batch(task=TASK, n=64, seed=1, options=3):
+    """``n`` random transitions of ``task`` (random actions from random states), with random rewards, every
+    fifth one terminal, and a random option."""
+    env = make_env(task, batch_size=(n,), seed=seed)
+    torch.manual_seed(seed)
+    td = env.rand_step(env.reset())
+    g = torch.Generator().manual_seed(seed)
+    terminated = (torch.arange(n) % 5 == 0).unsqueeze(-1)
+    td.set(("next", "reward"), torch.randn(n, 1, generator=g))
+    td.set(("next", "terminated"), terminated)
+    td.set(("next", "done"), terminated.clone())
+    td.set("option", torch.randint(options, (n, 1), generator=g))
+    return td
+
+
+def close(a, b):
+    return torch.allclose(a, b, rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize("name", LEARNERS)
+def test_loss_as_built_is_torchrl_default_loss(name):
+    """Same loss values, TD errors, gradients and random draws as with TorchRL's ``torch.vmap`` critics."""
+    algo, task = LEARNERS[name]
+    ref, built = agent_for(algo, task, vmap=True), agent_for(algo, task)
+    assert not ref.loss.deactivate_vmap and built.loss.deactivate_vmap
+    batch = random_batch(task)
+    b_ref, b_built = batch.clone(), batch.clone()
+    torch.manual_seed(7)
+    out_ref = ref.loss(b_ref)
+    after_ref = torch.rand(4)
+    torch.manual_seed(7)
+    out_built = built.loss(b_built)
+    after_built = torch.rand(4)
+    assert torch.equal(after_ref, after_built)  # the same number of random draws, in the same order
+    assert set(out_ref.keys()) == set(out_built.keys())
+    for key in out_ref.keys():
+        assert close(out_ref[key], out_built[key]), key
+    assert close(b_ref["td_error"], b_built["td_error"])
+    loss_total(out_ref).backward()
+    loss_total(out_built).backward()
+    grads = dict(built.loss.named_parameters())
+    for param_name, p in ref.loss.named_parameters():
+        if p.grad is None:
+            assert grads[param_name].grad is None, param_name
+        else:
+            assert close(p.grad, grads[param_name].grad), param_name
+
+
+def test_every_learner_has_the_same_optimiser_and_target_update():
+    for name, (algo, task) in LEARNERS.items():
+        agent = agent_for(algo, task)
+        assert agent.loss.deactivate_vmap, name
+        assert type(agent.optimizer) is torch.optim.Adam and agent.optimizer.defaults["foreach"], name
+        assert type(agent.target_updater).__name__ == "SoftUpdate", name
+
+
+def test_agent_adam_is_the_for_loop_adam_bit_for_bit():
+    agent = agent_for()
+    params = [p.detach().clone().requires_grad_() for p in agent.loss.parameters()]
+    reference = torch.optim.Adam(params, lr=3e-4, foreach=False)
+    g = torch.Generator().manual_seed(0)
+    for _ in range(5):
+        for p, q in zip(agent.loss.parameters(), params):
+            p.grad = torch.randn(p.shape, generator=g)
+            q.grad = p.grad.clone()
+        agent.optimizer.step()
+        reference.step()
+    assert all(torch.equal(p, q) for p, q in zip(agent.loss.parameters(), params))
+
+
+def test_sample_batches_draws_what_repeated_sampling_draws():
+    buffer = ReplayBuffer(storage=LazyTensorStorage(1000), batch_size=32)
+    buffer.extend(TensorDict({"i": torch.arange(700)}, [700]))
+    torch.manual_seed(11)
+    one_by_one = [buffer.sample()["i"] for _ in range(8)]
+    torch.manual_seed(11)
+    at_once = [b["i"] for b in sample_batches(buffer, 8)]
+    assert len(at_once) == 8 and all(b.shape == (32,) for b in at_once)
+    assert all(torch.equal(x, y) for x, y in zip(one_by_one, at_once))
+
+
+def sota_step(agent, batch, update_actor):
+    """TorchRL's sota SAC loop, written out: loss, backward, Adam step, soft target update."""
+    losses = agent.loss(batch)
+    agent.optimizer.zero_grad(set_to_none=True)
+    sum(v for k, v in losses.items() if k.startswith("loss_") and (update_actor or k != "loss_actor")).backward()
+    agent.optimizer.step()
+    if update_actor:
+        agent.target_updater.step()
+    return losses.detach()
+
+
+@pytest.mark.parametrize("name", LEARNERS)
+def test_update_step_follows_the_reference_step(name):
+    """Twenty gradient steps on the same batches: ``UpdateStep`` on the agent as built against the sota
+    loop on TorchRL's default (vmap) losses; losses, parameters and buffers stay equal to rounding, the
+    actor delay included."""
+    algo, task = LEARNERS[name]
+    ref, built = agent_for(algo, task, vmap=True), agent_for(algo, task)
+    step = UpdateStep(built)
+    for i in range(20):
+        batch = random_batch(task, seed=100 + i)
+        update_actor = i % ref.actor_delay == 0
+        torch.manual_seed(i)
+        lr = sota_step(ref, batch.clone(), update_actor)
+        torch.manual_seed(i)
+        lb = step(batch.clone(), update_actor=update_actor)
+        for key in lr.keys():
+            assert close(lr[key], lb[key]), (i, key)
+    built_params = dict(built.loss.named_parameters())
+    for param_name, p in ref.loss.named_parameters():
+        assert torch.allclose(p, built_params[param_name], rtol=1e-4, atol=1e-6), param_name
+    for (buffer_name, t), u in zip(ref.loss.named_buffers(), built.loss.buffers()):
+        assert torch.allclose(t, u, rtol=1e-4, atol=1e-6), buffer_name
+
+
+def test_update_step_is_the_sota_loop_bit_for_bit():
+    """On one and the same loss, ``UpdateStep`` is exactly the sota loop (TD3: with its policy delay)."""
+    ref, built = agent_for("td3"), agent_for("td3")
+    step = UpdateStep(built)
+    for i in range(6):
+        batch = random_batch(seed=200 + i)
+        torch.manual_seed(i)
+        sota_step(ref, batch.clone(), i % 2 == 0)
+        torch.manual_seed(i)
+        step(batch.clone(), update_actor=i % 2 == 0)
+    assert all(torch.equal(p, q) for p, q in zip(ref.loss.parameters(), built.loss.parameters()))
+    assert all(torch.equal(p, q) for p, q in zip(ref.loss.buffers(), built.loss.buffers()))
+
+
+def test_losses_import_nothing_from_the_learners():
+    code = "import sys, drltg.losses, drltg.modules; print('drltg.learners' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+TINY = [
+    "network.hidden=[16,16]",
+    "collector.num_envs=4",
+    "collector.frames_per_batch=16",
+    "collector.init_random_frames=256",
+    "optim.updates_per_batch=4",
+    "buffer.batch_size=32",
+    "eval.every=512",
+    "eval.episodes=4",
+    "checkpoint.every=1024",
+    "log.every=256",
+    "log.tensorboard=false",
+]
+
+
+def test_training_curve_unchanged(tmp_path, monkeypatch):
+    """A short run gives the same evaluation curve as with TorchRL's default (vmap) losses and one
+    ``sample()`` per step."""
+    cfg = config_lib.resolve({}, TINY, task=TASK, frames=1024, seed=5)
+    built = read_eval_csv(train(cfg, tmp_path / "built", progress=False) / "eval.csv")
+    monkeypatch.setattr(learners, "DEACTIVATE_VMAP", False)
+    monkeypatch.setattr(train_mod, "sample_batches", lambda buffer, n: [buffer.sample() for _ in range(n)])
+    reference = read_eval_csv(train(cfg, tmp_path / "reference", progress=False) / "eval.csv")
+    assert [r["frames"] for r in built] == [0, 512, 1024]
+    assert built == reference
