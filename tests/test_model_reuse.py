@@ -7,6 +7,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from drltg.config import resolve
 from drltg.envs import FourRoomsEnv
 from drltg.errors import UsageError
+from drltg.learners import make_agent
 from drltg.methods.model_reuse import load_from_run, load_weights
 
 
