@@ -37,7 +37,39 @@ LOCK = ".drltg.lock"
 EVAL_COLUMNS = ["frames", "return_mean", "return_std", "episodes", "success_rate"]
 
 __all__ = ["atomic_write", "atomic_torch_save", "atomic_path", "write_files", "read_eval_csv", "write_eval_csv",
-           "is_complete", "check_directory", "lock", "load_checkpoint", "truncate_logs"]
+           "read_config", "write_config", "absolute_source", "is_complete", "check_directory", "lock",
+           "load_checkpoint", "truncate_logs"]
+
+
+# ------------------------------------------------------------------------------------------ config
+def absolute_source(cfg: dict, base: Path) -> dict:
+    """``cfg`` with a relative ``transfer.source`` read as relative to ``base`` (a run directory, or the
+    folder of a config file); a demonstrator or an absolute path stays as it is."""
+    source = (cfg.get("transfer") or {}).get("source") if isinstance(cfg, dict) else None
+    if not isinstance(source, str) or source.startswith("demonstrator:") or Path(source).expanduser().is_absolute():
+        return cfg
+    return {**cfg, "transfer": {**cfg["transfer"], "source": os.path.normpath(Path(base).resolve() / source)}}
+
+
+def read_config(run_dir: str | Path):
+    """A run's ``config.yaml``, its ``transfer.source`` as an absolute path (raises ``yaml.YAMLError``)."""
+    import yaml
+
+    run_dir = Path(run_dir)
+    return absolute_source(yaml.safe_load((run_dir / CONFIG).read_text()), run_dir)
+
+
+def write_config(run_dir: str | Path, cfg: dict) -> None:
+    """Write ``config.yaml`` atomically, with ``transfer.source`` relative to the run directory: a folder
+    holding runs and their sources (an experiment, a sweep) can be moved and resumed."""
+    import yaml
+
+    run_dir = Path(run_dir)
+    source = cfg["transfer"]["source"]
+    if isinstance(source, str) and not source.startswith("demonstrator:"):
+        relative = os.path.relpath(Path(source).expanduser().resolve(), run_dir.resolve())
+        cfg = {**cfg, "transfer": {**cfg["transfer"], "source": relative}}
+    atomic_write(run_dir / CONFIG, yaml.safe_dump(cfg, sort_keys=False))
 
 
 # ------------------------------------------------------------------------------------- atomic files

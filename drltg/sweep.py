@@ -275,7 +275,7 @@ def check_existing(runs: list[Run]) -> None:
         saved = rundir.check_directory(run.path, "run directory") / rundir.CONFIG
         if saved.is_file():
             try:
-                old = yaml.safe_load(saved.read_text())
+                old = rundir.read_config(run.path)
             except yaml.YAMLError:
                 raise UsageError(f"'{saved}' is not valid YAML; move the run away or use another --out.") from None
             keys = config_changes(old if isinstance(old, dict) else {}, run.cfg)

@@ -27,7 +27,7 @@ from torchrl.record.loggers import CSVLogger, TensorboardLogger
 from tqdm.auto import tqdm
 
 from drltg import rundir
-from drltg.config import DEFAULTS, dump, task_env
+from drltg.config import DEFAULTS, task_env
 from drltg.envs import make_env
 from drltg.errors import UsageError
 from drltg.learners import UpdateStep, make_agent, sample_batches
@@ -141,7 +141,7 @@ def _refuse_existing(run_dir: Path) -> None:
 
 def _check_saved_config(cfg: dict, run_dir: Path) -> None:
     try:
-        saved = yaml.safe_load((run_dir / CONFIG).read_text())
+        saved = rundir.read_config(run_dir)
     except yaml.YAMLError:
         raise UsageError(f"cannot resume: '{run_dir / CONFIG}' is not valid YAML.") from None
     changed = config_changes(saved if isinstance(saved, dict) else {}, cfg)
@@ -275,7 +275,7 @@ def _loop(cfg, run_dir, agent, train_env, eval_env, transfer: Transfer, buffer, 
         torch.set_rng_state(ckpt["rng"])
         frames, updates = ckpt["frames"], ckpt["updates"]
 
-    rundir.atomic_write(run_dir / CONFIG, dump(cfg))
+    rundir.write_config(run_dir, cfg)
     loggers = [CSVLogger("csv", log_dir=str(run_dir / rundir.LOGS))]
     if cfg["log"]["tensorboard"]:
         loggers.append(TensorboardLogger("tensorboard", log_dir=str(run_dir / rundir.LOGS)))

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from drltg import config as config_lib
 from drltg.errors import UsageError
-from drltg.rundir import CONFIG, check_directory
+from drltg.rundir import CONFIG, absolute_source, check_directory
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -30,10 +30,10 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--resume needs --run-dir, the run directory to continue.")
     if args.run_dir is not None:
         args.run_dir = check_directory(args.run_dir, "--run-dir")
-    if args.config is not None:
-        base = config_lib.load_yaml(args.config)
+    if args.config is not None:  # a relative transfer.source is relative to the file's folder
+        base = absolute_source(config_lib.load_yaml(args.config), Path(args.config).parent)
     elif args.resume and (args.run_dir / CONFIG).is_file():
-        base = config_lib.load_yaml(args.run_dir / CONFIG)
+        base = absolute_source(config_lib.load_yaml(args.run_dir / CONFIG), args.run_dir)
     else:
         base = {}
     if args.task is None and "task" not in base:

@@ -66,7 +66,8 @@ def _policy_and_env(args):
         raise UsageError(f"'{run}' is not a run directory with {rundir.CONFIG} and {rundir.CHECKPOINT.as_posix()}.")
     cfg = yaml.safe_load(config.read_text())
     task = args.task or cfg["task"]
-    base = build_env({**cfg, "task": task, "device": "cpu"}, seed=args.seed)
+    env_settings = cfg["env"] if task == cfg["task"] else {}  # another task: its own settings
+    base = build_env({**cfg, "task": task, "env": env_settings, "device": "cpu"}, seed=args.seed)
     if task != cfg["task"]:
         check_same_spaces(build_env({**cfg, "device": "cpu"}), base, f"run '{run.name}' ({cfg['task']})",
                           f"task '{task}'")

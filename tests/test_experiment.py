@@ -1,7 +1,9 @@
 """`drltg experiment`: source, baseline and transfer runs over seeds, then the report."""
 import json
+import shutil
 
 import pytest
+import yaml
 
 from drltg.cli import main
 
@@ -38,6 +40,20 @@ def test_rerun_reuses_completed_runs(experiment, capsys):
     assert len(stamps) == 6
     assert main(args) == 0
     assert stamps == {p: p.stat().st_mtime_ns for p in out.glob("*/seed-*/summary.json")}
+
+
+def test_a_moved_experiment_finds_its_sources_and_reuses_its_runs(experiment, tmp_path):
+    from drltg import rundir
+
+    out, args = experiment
+    assert yaml.safe_load((out / "transfer" / "seed-0" / "config.yaml").read_text())["transfer"]["source"] == \
+        "../../source/seed-50"
+    moved = tmp_path / "elsewhere"
+    shutil.copytree(out, moved)
+    stamps = {p: p.stat().st_mtime_ns for p in moved.glob("*/seed-*/summary.json")}
+    assert main([a if a != str(out) else str(moved) for a in args]) == 0
+    assert stamps == {p: p.stat().st_mtime_ns for p in moved.glob("*/seed-*/summary.json")}
+    assert rundir.read_config(moved / "transfer" / "seed-100")["transfer"]["source"] == str(moved / "source" / "seed-150")
 
 
 def test_other_settings_in_same_dir_refused(experiment, capsys):
