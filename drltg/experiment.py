@@ -18,15 +18,13 @@ so re-running the same command finishes what is missing.
 
 Every run's config is built and checked (its task, env settings and learner) and the report settings
 are parsed before anything is written; the folder is then owned by one ``drltg experiment`` at a time
-(:func:`drltg.rundir.lock`). A run that fails leaves its traceback in ``DIR/logs/<role>/seed-<s>.log``.
+(:func:`drltg.rundir.lock`). Runs are trained by :func:`drltg.executor.execute`, as a sweep's are; each
+run's output and, if it fails, its traceback go to ``DIR/logs/<role>/seed-<s>.log``.
 """
 from __future__ import annotations
 
 import argparse
-import concurrent.futures as cf
 import json
-import multiprocessing as mp
-import traceback
 from pathlib import Path
 
 import yaml
@@ -139,56 +137,15 @@ def check_runs(runs: list[tuple[str, dict, Path]]) -> None:
             check_config(cfg)
 
 
-def _train_one(cfg: dict, run_dir: Path) -> str:
-    from drltg import plugins
-    from drltg.train import train
+def as_runs(runs: list[tuple[str, dict, Path]], out: Path) -> list:
+    """The plan as :class:`drltg.executor.Run` s: logs under ``out/logs/<role>/``, each transfer run
+    after the source run it reads."""
+    from drltg.executor import Run
 
-    plugins.load()  # a worker process registers the user's tasks too
-    if rundir.is_complete(run_dir):
-        return "reused"
-    train(cfg, run_dir, resume=(run_dir / rundir.CONFIG).is_file(), progress=False)
-    return "trained"
-
-
-def _log_path(out: Path, role: str, run_dir: Path) -> Path:
-    return out / "logs" / role / f"{run_dir.name}.log"
-
-
-def _run_all(runs, workers: int, out: Path) -> list[str]:
-    """Train the runs (sources before the runs that need them); return the failures."""
-    from tqdm.auto import tqdm
-
-    failures: list[str] = []
-    bar = tqdm(total=len(runs), unit="run", desc="experiment")
-    for stage in (("source",), ("baseline", "transfer")):
-        todo = [(cfg, d, _log_path(out, role, d)) for role, cfg, d in runs if role in stage]
-        if workers <= 1:
-            results = ((d, _call(cfg, d, log)) for cfg, d, log in todo)
-        else:
-            pool = cf.ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"))
-            futures = {pool.submit(_call, cfg, d, log): d for cfg, d, log in todo}
-            results = ((futures[f], f.result()) for f in cf.as_completed(futures))
-        for run_dir, (status, detail) in results:
-            bar.update()
-            bar.set_postfix_str(f"{run_dir.parent.name}/{run_dir.name}: {status}")
-            if status == "failed":
-                failures.append(f"{run_dir}: {detail}")
-        if workers > 1:
-            pool.shutdown()
-        if failures:
-            break  # the targets need their sources
-    bar.close()
-    return failures
-
-
-def _call(cfg: dict, run_dir: Path, log: Path) -> tuple[str, str]:
-    try:
-        return _train_one(cfg, run_dir), ""
-    except UsageError as err:
-        return "failed", str(err)
-    except Exception:  # isolate one broken run; its traceback goes to the experiment's logs
-        rundir.atomic_write(log, traceback.format_exc())
-        return "failed", f"see {log}"
+    planned = {str(d) for _, _, d in runs}
+    return [Run(role, cfg, d, out / "logs" / role / f"{d.name}.log",
+                needs=Path(cfg["transfer"]["source"]) if str(cfg["transfer"]["source"]) in planned else None)
+            for role, cfg, d in runs]
 
 
 def _settings(args: argparse.Namespace) -> dict:
@@ -210,6 +167,7 @@ def _check_settings(path: Path, settings: dict) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from drltg.executor import LocalBackend, execute
     from drltg.report import format_table, parse_threshold, transfer_report
 
     if args.workers < 1:
@@ -227,7 +185,12 @@ def run(args: argparse.Namespace) -> int:
     with rundir.lock(out, "experiment folder"):
         _check_settings(saved, settings)  # another process may have started it meanwhile
         rundir.atomic_write(saved, yaml.safe_dump(settings, sort_keys=False))
-        failures = _run_all(runs, args.workers, out)
+        backend = LocalBackend(args.workers)
+        try:
+            status = execute(as_runs(runs, out), backend, desc="experiment")
+        finally:
+            backend.close()
+        failures = [f"{path}: {detail}" for path, (state, detail) in status.items() if state == "failed"]
         if failures:
             print("failed runs:\n  " + "\n  ".join(failures))
             return 1

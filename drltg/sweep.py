@@ -40,15 +40,10 @@ written, and one sweep at a time owns DIR (:func:`drltg.rundir.lock`).
 from __future__ import annotations
 
 import argparse
-import contextlib
 import difflib
 import itertools
 import json
-import math
 import os
-import sys
-import time
-import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -57,6 +52,7 @@ import yaml
 
 from drltg import rundir
 from drltg.errors import UsageError
+from drltg.executor import LocalBackend, RayBackend, Run, execute
 
 KEYS = ("pairs", "methods", "algos", "seeds", "seed", "frames", "source_frames", "overrides", "grid",
         "threshold", "resources")
@@ -182,21 +178,6 @@ def load_spec(path: str | Path) -> Spec:
 
 # ------------------------------------------------------------------------------------------- plan
 @dataclass
-class Run:
-    """One training run: its resolved config, its directory, its log and the run it needs first."""
-
-    role: str  # source | baseline | transfer
-    cfg: dict
-    path: Path
-    log: Path
-    needs: Path | None = None
-
-    @property
-    def frames(self) -> int:
-        return self.cfg["frames"]
-
-
-@dataclass
 class Cell:
     """One report: transfer runs of ``method`` against the baseline runs of one (pair, algo, variant)."""
 
@@ -284,223 +265,6 @@ def check_existing(runs: list[Run]) -> None:
                                  "use another --out.")
         elif rundir.entries(run.path):
             raise UsageError(f"'{run.path}' exists but holds no config.yaml; move it away or use another --out.")
-
-
-# --------------------------------------------------------------------------------------- one run
-@contextlib.contextmanager
-def _output_to(log):
-    """Send this process's stdout and stderr (Python and C level) to ``log``."""
-    sys.stdout.flush(), sys.stderr.flush()
-    saved = os.dup(1), os.dup(2)
-    os.dup2(log.fileno(), 1), os.dup2(log.fileno(), 2)
-    try:
-        yield
-    finally:
-        sys.stdout.flush(), sys.stderr.flush()
-        os.dup2(saved[0], 1), os.dup2(saved[1], 2)
-        os.close(saved[0]), os.close(saved[1])
-
-
-def run_one(cfg: dict, run_dir: str, log_path: str) -> tuple[str, str]:
-    """Train (or resume) one run with its output in ``log_path``; ``("done" | "failed", detail)``.
-
-    Never raises for a broken run: the traceback goes to the log, the sweep goes on.
-    """
-    from drltg import plugins
-    from drltg.train import train
-
-    plugins.load()  # a worker process registers the user's tasks too
-    run_dir, log_path = Path(run_dir), Path(log_path)
-    log_path.parent.mkdir(parents=True, exist_ok=True)
-    resume = (run_dir / rundir.CONFIG).is_file()
-    with open(log_path, "a", buffering=1) as log, _output_to(log):
-        print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] {'resume' if resume else 'start'} {run_dir} "
-              f"(pid {os.getpid()})", flush=True)
-        try:
-            train(cfg, run_dir, resume=resume, progress=False)
-        except UsageError as err:
-            print(f"error: {err}", flush=True)
-            return "failed", str(err)
-        except Exception as err:
-            traceback.print_exc()
-            return "failed", f"{type(err).__name__}: {err}"
-        print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] complete", flush=True)
-    return "done", ""
-
-
-def _frames_done(run: Run) -> int:
-    """Frames a run has reached so far (its last evaluation; 0 before the first)."""
-    try:
-        rows = rundir.read_eval_csv(run.path / rundir.EVAL)
-    except (OSError, UsageError):
-        return 0
-    return min(rows[-1]["frames"], run.frames) if rows else 0
-
-
-# --------------------------------------------------------------------------------------- backends
-def _single_thread() -> None:
-    os.environ.setdefault("OMP_NUM_THREADS", "1")
-    os.environ.setdefault("MKL_NUM_THREADS", "1")
-
-
-class LocalBackend:
-    """A pool of ``workers`` spawned processes, one run at a time in each (torch single-threaded)."""
-
-    def __init__(self, workers: int):
-        self.workers = workers
-        self.pool = None
-        self.pool_of = {}  # future -> the pool that runs it
-
-    @property
-    def capacity(self) -> int:
-        return self.workers
-
-    def _pool(self):
-        import concurrent.futures as cf
-        import multiprocessing as mp
-
-        if self.pool is None:
-            self.pool = cf.ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"),
-                                               initializer=_single_thread)
-        return self.pool
-
-    def submit(self, run: Run):
-        pool = self._pool()
-        future = pool.submit(run_one, run.cfg, str(run.path), str(run.log))
-        self.pool_of[future] = pool
-        return future
-
-    def wait(self, handles: list, timeout: float) -> list[tuple[Any, tuple[str, str]]]:
-        import concurrent.futures as cf
-        from concurrent.futures.process import BrokenProcessPool
-
-        finished, _ = cf.wait(handles, timeout=timeout, return_when=cf.FIRST_COMPLETED)
-        results = []
-        for f in finished:
-            pool = self.pool_of.pop(f)
-            try:
-                results.append((f, f.result()))
-            except BrokenProcessPool:  # a worker died (killed, out of memory): the next run gets a fresh pool
-                results.append((f, ("failed", "its worker process died (killed or out of memory?)")))
-                if pool is self.pool:
-                    pool.shutdown(wait=False, cancel_futures=True)
-                    self.pool = None
-        return results
-
-    def close(self) -> None:
-        if self.pool is not None:
-            self.pool.shutdown(cancel_futures=True)
-
-
-def _loopback_only() -> None:
-    """Make a local Ray node listen on 127.0.0.1 only.
-
-    On Linux Ray replaces a loopback node address by the machine's reachable one and its servers
-    listen on every interface; the switch Ray reads for single-machine nodes (the environment
-    variable below, read when Ray is imported) keeps them on loopback.
-    """
-    os.environ["RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"] = "0"
-    if "ray" in sys.modules:  # imported already: set the constant Ray derived from it
-        from ray._private import ray_constants
-
-        ray_constants.ENABLE_RAY_CLUSTER = False
-
-
-class RayBackend:
-    """Ray tasks declaring ``num_cpus``/``num_gpus`` each; Ray places them on the cluster's nodes.
-
-    ``address=None`` starts a private local instance (``num_cpus`` CPUs, loopback only);
-    ``address="auto"`` or ``"ip:port"`` joins a running cluster (`ray start --head`).
-    """
-
-    def __init__(self, address: str | None, resources: dict, num_cpus: int | None = None):
-        if address is None:
-            _loopback_only()
-        try:
-            import ray
-        except ImportError:
-            raise UsageError("--backend ray needs Ray: pip install 'drltg[ray]'.") from None
-        self.ray = ray
-        if address is None:
-            ray.init(address="local", num_cpus=num_cpus, include_dashboard=False,
-                     _node_ip_address="127.0.0.1", configure_logging=False, log_to_driver=False)
-            print(f"ray: a local instance on {ray.util.get_node_ip_address()} with {num_cpus} CPUs",
-                  file=sys.stderr)
-        else:
-            try:
-                ray.init(address=address, configure_logging=False, log_to_driver=False)
-            except (ConnectionError, ValueError, RuntimeError) as err:
-                raise UsageError(f"cannot join the Ray cluster at '{address}' ({err}).") from None
-        imports = os.environ.get("DRLTG_IMPORT")  # workers on other nodes import the same plugins
-        runtime_env = {"env_vars": {"DRLTG_IMPORT": imports}} if imports else None
-        self.task = ray.remote(run_one).options(max_retries=0, runtime_env=runtime_env, **resources)
-
-    capacity = math.inf  # Ray queues the tasks and runs as many as the cluster's resources allow
-
-    def submit(self, run: Run):
-        return self.task.remote(run.cfg, str(run.path), str(run.log))
-
-    def wait(self, handles: list, timeout: float) -> list[tuple[Any, tuple[str, str]]]:
-        ready, _ = self.ray.wait(handles, num_returns=1, timeout=timeout)
-        if ready:
-            ready, _ = self.ray.wait(handles, num_returns=len(handles), timeout=0)
-        results = []
-        for ref in ready:
-            try:
-                results.append((ref, self.ray.get(ref)))
-            except Exception as err:  # the task's worker or node died
-                results.append((ref, ("failed", f"Ray task failed: {type(err).__name__}")))
-        return results
-
-    def close(self) -> None:
-        self.ray.shutdown()
-
-
-# --------------------------------------------------------------------------------------- schedule
-def execute(runs: list[Run], backend, poll: float = 1.0) -> dict[Path, tuple[str, str]]:
-    """Run every incomplete run (each after the run it needs) and return ``{path: (status, detail)}``
-    with status ``skipped`` (complete before), ``done`` or ``failed``."""
-    from tqdm.auto import tqdm
-
-    status: dict[Path, tuple[str, str]] = {r.path: ("skipped", "") for r in runs if rundir.is_complete(r.path)}
-    todo = [r for r in runs if r.path not in status]
-    reached = {r.path: _frames_done(r) for r in todo}
-    bar = tqdm(total=sum(r.frames for r in todo), initial=sum(reached.values()), unit="frame",
-               desc="sweep", dynamic_ncols=True, smoothing=0.05)
-    running: dict[Any, Run] = {}
-
-    def postfix() -> None:
-        counts = [s for s, _ in status.values()]
-        bar.set_postfix_str(f"runs {len(counts)}/{len(runs)} ({counts.count('failed')} failed), "
-                            f"{len(running)} running", refresh=False)
-
-    try:
-        while todo or running:
-            for run in list(todo):
-                state = status.get(run.needs, ("done", ""))[0] if run.needs else "done"
-                if run.needs and run.needs not in status:
-                    continue  # its source is not trained yet
-                if state == "failed":
-                    status[run.path] = ("failed", f"not run: the run it needs failed ({run.needs})")
-                    todo.remove(run)
-                elif len(running) < backend.capacity:
-                    running[backend.submit(run)] = run
-                    todo.remove(run)
-            postfix()
-            for handle, result in backend.wait(list(running), poll) if running else ():
-                run = running.pop(handle)
-                status[run.path] = result
-                bar.update(run.frames - reached[run.path])
-                reached[run.path] = run.frames
-            for run in running.values():
-                now = _frames_done(run)
-                bar.update(max(now - reached[run.path], 0))
-                reached[run.path] = max(now, reached[run.path])
-            postfix()
-            bar.refresh()
-    finally:
-        bar.close()
-    return status
 
 
 # ---------------------------------------------------------------------------------------- reports
@@ -637,7 +401,7 @@ def _execute_and_report(args, spec: Spec, out: Path, runs: list[Run], cells: lis
         backend = LocalBackend(args.workers)
     try:
         rundir.write_files(out, {"sweep.yaml": Path(args.spec).read_bytes()})
-        status = execute(runs, backend)
+        status = execute(runs, backend, desc="sweep")
     finally:
         backend.close()
 

@@ -9,7 +9,7 @@ import shutil
 import pytest
 import yaml
 
-from drltg import sweep
+from drltg import rundir, sweep
 from drltg.cli import main
 from drltg.train import train
 
@@ -144,8 +144,10 @@ def test_local_grid_trains_each_run_once_and_reports(local):
                     "fourrooms-near/sac/model-reuse/transfer/seed-0", "fourrooms-near/sac/reward-shaping/transfer/seed-0",
                     "fourrooms-near/sac/source/seed-50"]
     assert len(curves) == 7 and all(c.count("\n") == 4 for c in curves.values())  # frames 0, 128, 256
-    far = yaml.safe_load((out / "fourrooms-far/sac/model-reuse/transfer/seed-0/config.yaml").read_text())
-    assert far["transfer"]["source"] == str(out / "fourrooms-near/sac/source/seed-50")
+    far = out / "fourrooms-far/sac/model-reuse/transfer/seed-0"
+    assert yaml.safe_load((far / "config.yaml").read_text())["transfer"]["source"] == \
+        "../../../../../fourrooms-near/sac/source/seed-50"  # relative to the run: the folder can move
+    assert rundir.read_config(far)["transfer"]["source"] == str(out / "fourrooms-near/sac/source/seed-50")
     for run in runs:
         assert "complete" in (out / "logs" / f"{run}.log").read_text()
     with open(out / "summary.csv") as f:
