@@ -24,6 +24,17 @@ def test_collects_at_least_the_asked_episodes_of_the_demonstrator():
     assert moved.all()
 
 
+def test_collecting_leaves_the_callers_env_open():
+    from torchrl.envs import SerialEnv
+
+    env = SerialEnv(2, lambda: make_env("fourrooms/northeast", horizon=5))  # closing it twice raises
+    east = TensorDictModule(lambda obs: torch.tensor([1.0, 0.0]).expand(*obs.shape[:-1], 2),
+                            in_keys=["observation"], out_keys=["action"])
+    collect_demonstrations(env, east, episodes=2, steps_per_batch=5)
+    assert not env.is_closed
+    env.close()
+
+
 def test_collect_refuses_zero_episodes():
     env = make_env("fourrooms/northeast", batch_size=(2,), seed=0)
     with pytest.raises(ValueError, match="at least one episode"):

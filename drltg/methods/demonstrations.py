@@ -53,7 +53,7 @@ def collect_demonstrations(env: EnvBase, policy, episodes: int, *, steps_per_bat
             if ended >= episodes:
                 break
     finally:
-        collector.shutdown()
+        collector.shutdown(close_env=False)  # the env is the caller's
     return torch.cat(parts)
 
 
