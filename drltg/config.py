@@ -69,6 +69,10 @@ DEFAULTS: dict[str, Any] = {
 }
 TRANSFER_KEYS = tuple(DEFAULTS["transfer"])
 """The ``transfer.*`` keys of every method; the others belong to one method (``TransferMethod.options``)."""
+METHOD_RULES: dict[str, Any] = {}
+"""``transfer.method`` -> the check its configs must pass, filled with the method's keys (``DEFAULTS``,
+``SCHEMA``) by :func:`drltg.methods.register_method`: import :mod:`drltg.methods` (the commands do)
+before resolving a config that uses a transfer method."""
 
 
 @dataclass(frozen=True)
@@ -374,9 +378,9 @@ def validate(cfg: dict) -> None:
         raise UsageError(
             f"collector.frames_per_batch ({fpb}) must be a multiple of collector.num_envs ({n})."
         )
-    from drltg.methods import get_method
-
-    get_method(cfg["transfer"]["method"]).validate(cfg)
+    rule = METHOD_RULES.get(cfg["transfer"]["method"])
+    if rule is not None:
+        rule(cfg)
     cfg["frames"] = -(-cfg["frames"] // fpb) * fpb  # whole collector batches: the budget is exact
 
 
@@ -499,5 +503,3 @@ def describe() -> str:
 def dump(cfg: dict) -> str:
     return yaml.safe_dump(cfg, sort_keys=False)
 
-
-import drltg.methods  # noqa: E402,F401  (registers the built-in methods and their transfer.* keys)

@@ -6,6 +6,7 @@ import pytest
 import torch
 import yaml
 
+import drltg.methods  # noqa: F401  (registers the transfer methods and their config keys)
 from drltg import config as config_lib
 from drltg.cli import main
 from drltg.envs import TASKS, register_task

@@ -121,6 +121,7 @@ def register_method(method: TransferMethod, *, replace: bool = False) -> Transfe
             config.DEFAULTS["transfer"].pop(key, None)
             config.SCHEMA.pop(f"transfer.{key}", None)
     METHODS[method.name] = method
+    config.METHOD_RULES[method.name] = method.validate
     for key, (default, spec) in method.options.items():
         config.DEFAULTS["transfer"][key] = default
         config.SCHEMA[f"transfer.{key}"] = spec
