@@ -78,7 +78,9 @@ def summarize(suites: dict, device: str) -> dict:
         key = f"{best}/{other}"
         if key in sac:
             v = sac[key].get(clock, sac[key]["wall"])
-            out[f"sac: {key} updates/s ({clock} clock)"] = {"value": v, "target": f">= {target}", "met": _met(v, target)}
+            out[f"sac: {key} updates/s ({clock} clock)"] = {
+                "value": v, "target": f">= {target}", "met": _met(v, target)
+            }
     for key in (f"{best}/matmul_bound", "soc_k4/drltg"):
         if key in sac:
             out[f"sac: {key} updates/s ({clock} clock)"] = {"value": sac[key].get(clock, sac[key]["wall"])}
@@ -87,7 +89,9 @@ def summarize(suites: dict, device: str) -> dict:
         out["train: fourrooms speed-up over the reference step"] = {"value": train["speedup_vs_reference_step"]}
     mem = suites.get("memory", {}).get("loss_keys")
     if mem:
-        out["memory: replay RSS growth / raw bytes"] = {"value": mem["ratio"], "target": "<= 1.3", "met": _met(mem["ratio"], 1.3, False)}
+        out["memory: replay RSS growth / raw bytes"] = {
+            "value": mem["ratio"], "target": "<= 1.3", "met": _met(mem["ratio"], 1.3, False)
+        }
     return out
 
 
@@ -115,7 +119,8 @@ def main(argv=None) -> int:
         "quick": args.quick,
         "machine": machine(args.device),
         "versions": versions(),
-        "note": "indicative figures: other work may share this machine; see machine.loadavg and each case's cpu-clock rate",
+        "note": "indicative figures: other work may share this machine; "
+        "see machine.loadavg and each case's cpu-clock rate",
         "suites": {},
     }
     start = time.perf_counter()
@@ -146,7 +151,9 @@ def _run_suites(suites: list[str], args: argparse.Namespace, record: dict) -> No
         try:
             record["suites"][name] = _suite(name)(device=args.device, quick=args.quick)
         except Exception as err:  # one broken suite must not lose the others' figures
-            record["suites"][name] = {"error": f"{type(err).__name__}: {err}", "traceback": traceback.format_exc(limit=3)}
+            record["suites"][name] = {
+                "error": f"{type(err).__name__}: {err}", "traceback": traceback.format_exc(limit=3)
+            }
         record["suites"][name]["seconds"] = round(time.perf_counter() - t, 1)
 
 

@@ -39,7 +39,10 @@ class NumpyFourRooms:
     def reset(self, position=None):
         while position is None:
             p = self.rng.uniform(0.0, ARENA_SIZE, 2)
-            inside = (self.walls[:, 0] < p[0]) & (p[0] < self.walls[:, 2]) & (self.walls[:, 1] < p[1]) & (p[1] < self.walls[:, 3])
+            inside = (
+                (self.walls[:, 0] < p[0]) & (p[0] < self.walls[:, 2])
+                & (self.walls[:, 1] < p[1]) & (p[1] < self.walls[:, 3])
+            )
             if not inside.any() and np.linalg.norm(p - self.goal) > GOAL_RADIUS:
                 position = p
         self.pos, self.t = np.asarray(position, dtype=np.float64), 0
@@ -193,7 +196,9 @@ def run(device: str = "cpu", quick: bool = False) -> dict:
         "unit": "frames/s",
         "same_dynamics_max_position_error": worst,
         "rates": results,
-        "ratios": {f"drltg_batch_{b}/numpy_reference": ratio(results, f"drltg_batch_{b}", "numpy_reference") for b in batches},
+        "ratios": {
+            f"drltg_batch_{b}/numpy_reference": ratio(results, f"drltg_batch_{b}", "numpy_reference") for b in batches
+        },
         "ratios_vs_float_reference": {
             f"drltg_batch_{b}/float_reference": ratio(results, f"drltg_batch_{b}", "float_reference") for b in batches
         },

@@ -2,8 +2,9 @@
 
     defaults (below) <- the task's own overrides (registry) <- a YAML file (--config) <- KEY=VALUE overrides
 
-The resolved dict, the task's env settings included, is written to ``<run_dir>/config.yaml``; ``drltg train --config <run_dir>/config.yaml``
-reproduces the run. Every key has a declared type and range in ``SCHEMA`` (``describe()`` lists them);
+The resolved dict, the task's env settings included, is written to ``<run_dir>/config.yaml``;
+``drltg train --config <run_dir>/config.yaml`` reproduces the run. Every key has a declared type and range in
+``SCHEMA`` (``describe()`` lists them);
 ``resolve()`` checks them all before anything is built or written, so a typo or a value out of range is
 one sentence naming the key, not a silent no-op or a failure deep inside a run.
 """

@@ -255,7 +255,8 @@ def bootstrap_ci(
     Each sample (seeds along axis 0, anything after) is resampled with replacement independently;
     ``statistic`` receives arrays with a leading resample axis, ``[R, n_seeds, ...]``, and returns
     ``[R, ...]``. If any resample's statistic is NaN (undefined), the interval is NaN: dropping
-    those resamples would condition the interval on the data it cannot describe. The generator is ``numpy.random.default_rng(seed)``: the same call gives the same interval.
+    those resamples would condition the interval on the data it cannot describe. The generator is
+    ``numpy.random.default_rng(seed)``: the same call gives the same interval.
     """
     if not 0.0 < confidence < 1.0:
         raise ValueError(f"confidence must lie in (0, 1), got {confidence}")

@@ -136,7 +136,9 @@ def _diff_keys(a, b, prefix=""):
 
 def _refuse_existing(run_dir: Path) -> None:
     if rundir.entries(run_dir):
-        raise UsageError(f"run directory '{run_dir}' already exists; pass --resume to continue it or choose another --run-dir.")
+        raise UsageError(
+            f"run directory '{run_dir}' already exists; pass --resume to continue it or choose another --run-dir."
+        )
 
 
 def _check_saved_config(cfg: dict, run_dir: Path) -> None:

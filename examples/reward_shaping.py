@@ -39,7 +39,9 @@ for key in ("reward", "task_reward", "potential"):
 curves = {}
 for method in ("none", "reward-shaping"):
     for seed in range(args.seeds):
-        cfg = resolve(task=task, seed=seed, frames=args.frames, overrides=[f"transfer.method={method}", "eval.every=2000"])
+        cfg = resolve(
+            task=task, seed=seed, frames=args.frames, overrides=[f"transfer.method={method}", "eval.every=2000"]
+        )
         run = Path(args.out) / method / f"seed{seed}"
         if not is_complete(run):
             train(cfg, run, progress=False)

@@ -22,4 +22,6 @@ for run in sorted(r.parent for r in root.glob("*/seed-*/summary.json")):  # fini
     obs = storage["_storage"]["next.observation"][warm_up:frames]
     reward = storage["_storage"]["next.reward"][warm_up:frames]
     share = [obs[:, LAYOUT["cube_grasped"]].mean(), obs[:, LAYOUT["cube_lifted"]].mean(), (reward > 0).float().mean()]
-    print(f"| {run.parent.name}/{run.name} | {frames - warm_up} | " + " | ".join(f"{100 * s:.1f}%" for s in share) + " |")
+    print(
+        f"| {run.parent.name}/{run.name} | {frames - warm_up} | " + " | ".join(f"{100 * s:.1f}%" for s in share) + " |"
+    )

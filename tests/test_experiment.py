@@ -53,7 +53,9 @@ def test_a_moved_experiment_finds_its_sources_and_reuses_its_runs(experiment, tm
     stamps = {p: p.stat().st_mtime_ns for p in moved.glob("*/seed-*/summary.json")}
     assert main([a if a != str(out) else str(moved) for a in args]) == 0
     assert stamps == {p: p.stat().st_mtime_ns for p in moved.glob("*/seed-*/summary.json")}
-    assert rundir.read_config(moved / "transfer" / "seed-100")["transfer"]["source"] == str(moved / "source" / "seed-150")
+    assert rundir.read_config(moved / "transfer" / "seed-100")["transfer"]["source"] == str(
+        moved / "source" / "seed-150"
+    )
 
 
 def test_other_settings_in_same_dir_refused(experiment, capsys):

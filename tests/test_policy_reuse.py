@@ -59,7 +59,9 @@ def mix(module, td, learner=LEARNER):
 
 
 def collect(env, policy, frames):
-    collector = Collector(env, policy, frames_per_batch=frames, total_frames=frames, auto_register_policy_transforms=False)
+    collector = Collector(
+        env, policy, frames_per_batch=frames, total_frames=frames, auto_register_policy_transforms=False
+    )
     batch = next(iter(collector))
     collector.shutdown()
     return batch

@@ -78,7 +78,9 @@ def test_register_a_user_task_and_pair(scratch_registry):
     def factory(batch_size=(), device=None, **kwargs):
         return FourRoomsEnv(batch_size=batch_size, device=device, **kwargs)
 
-    spec = scratch_registry.register_task("mine/west", factory, "goal by the west door", goal=(2.0, 4.0), train={"frames": 10})
+    spec = scratch_registry.register_task(
+        "mine/west", factory, "goal by the west door", goal=(2.0, 4.0), train={"frames": 10}
+    )
     assert spec.train == {"frames": 10} and scratch_registry.TASKS["mine/west"] is spec
     assert scratch_registry.make_env("mine/west", batch_size=(3,)).goal.tolist() == [2.0, 4.0]
     scratch_registry.register_pair("mine", "fourrooms/northeast", "mine/west", "to the west door")

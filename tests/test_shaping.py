@@ -105,7 +105,9 @@ def test_unshaped_reward_is_kept_and_reward_spec_is_honest():
     assert env.full_observation_spec["task_reward"] == env.base_env.full_reward_spec["reward"]
     assert env.reward_keys == ["reward"]
     td = env.rollout(6, ones_action, break_when_any_done=False)
-    torch.testing.assert_close(td["next", "task_reward"], env.base_env.rollout(6, ones_action, break_when_any_done=False)["next", "reward"])
+    torch.testing.assert_close(
+        td["next", "task_reward"], env.base_env.rollout(6, ones_action, break_when_any_done=False)["next", "reward"]
+    )
     assert not torch.equal(td["next", "reward"], td["next", "task_reward"])
 
 
@@ -133,10 +135,14 @@ def test_partial_reset_restores_each_envs_start_potential():
 def test_collector_auto_reset_shapes_every_transition():
     env = shaped(WalkEnv(start=[0.0, 10.0, 20.0], goal=[2.0, 99.0, 99.0], horizon=[99, 3, 99]))
     policy = TensorDictModule(lambda x: torch.ones_like(x), in_keys=["observation"], out_keys=["action"])
-    collector = Collector(env, policy, frames_per_batch=3 * 7, total_frames=3 * 14, auto_register_policy_transforms=False)
+    collector = Collector(
+        env, policy, frames_per_batch=3 * 7, total_frames=3 * 14, auto_register_policy_transforms=False
+    )
     for data in collector:
         alive = (~data["next", "terminated"]).float()
-        expected = data["next", "task_reward"] + GAMMA * phi(data["next", "observation"]) * alive - phi(data["observation"])
+        expected = (
+            data["next", "task_reward"] + GAMMA * phi(data["next", "observation"]) * alive - phi(data["observation"])
+        )
         torch.testing.assert_close(data["next", "reward"], expected)
         assert data["next", "done"].any()
     collector.shutdown()
@@ -183,7 +189,9 @@ def test_time_dependent_potential_value_and_shaping():
     potential = TimeDependentPotential(phi, lambda t: 1.0 - t / 4)
     x, t = torch.tensor([[3.0], [5.0]]), torch.tensor([[0], [2]])
     torch.testing.assert_close(potential(x, t), torch.tensor([[7.0], [5.5]]))
-    env = shaped(WalkEnv(start=[3.0], goal=[99.0], horizon=[99]), potential=potential, in_keys=["observation", "step_count"])
+    env = shaped(
+        WalkEnv(start=[3.0], goal=[99.0], horizon=[99]), potential=potential, in_keys=["observation", "step_count"]
+    )
     td = env.rollout(2, ones_action)
     # F = gamma * Phi(s', t + 1) - Phi(s, t): steps (x=3,t=0) -> (4,1) -> (5,2)
     expected = [GAMMA * (3 / 4) * 9.0 - 7.0, GAMMA * (2 / 4) * 11.0 - (3 / 4) * 9.0]
@@ -257,7 +265,9 @@ def test_shaped_task_envs_pass_check_env_specs(task):
         assert td["next", "truncated"].any()
         shaping = env.transform
         alive = ~td["next", "terminated"]
-        expected = td["next", "task_reward"] + 0.99 * shaping.potential_of(td["next"]) * alive - shaping.potential_of(td)
+        expected = (
+            td["next", "task_reward"] + 0.99 * shaping.potential_of(td["next"]) * alive - shaping.potential_of(td)
+        )
         torch.testing.assert_close(td["next", "reward"], expected)
 
 
@@ -301,7 +311,13 @@ def grid_mdp(goal, slip, step_cost):
 
 @pytest.mark.parametrize(
     "goal, gamma, slip, step_cost",
-    [((3, 9), 0.9, 0.0, 0.0), ((3, 9), 0.99, 0.0, 0.0), ((10, 2), 0.95, 0.0, 0.01), ((7, 9), 0.99, 1 / 3, 0.0), ((11, 1), 0.9, 1 / 3, 0.01)],
+    [
+        ((3, 9), 0.9, 0.0, 0.0),
+        ((3, 9), 0.99, 0.0, 0.0),
+        ((10, 2), 0.95, 0.0, 0.01),
+        ((7, 9), 0.99, 1 / 3, 0.0),
+        ((11, 1), 0.9, 1 / 3, 0.01),
+    ],
 )
 def test_shaping_preserves_the_optimal_policy_and_a_plain_bonus_does_not(goal, gamma, slip, step_cost):
     P, R, terminal, transitions, goal_index = grid_mdp(goal, slip, step_cost)

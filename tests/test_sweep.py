@@ -141,7 +141,8 @@ def test_local_grid_trains_each_run_once_and_reports(local):
     runs = sorted(str(p.parent.relative_to(out)) for p in out.glob("fourrooms-*/**/summary.json"))
     assert runs == ["fourrooms-far/sac/baseline/seed-0", "fourrooms-far/sac/model-reuse/transfer/seed-0",
                     "fourrooms-far/sac/reward-shaping/transfer/seed-0", "fourrooms-near/sac/baseline/seed-0",
-                    "fourrooms-near/sac/model-reuse/transfer/seed-0", "fourrooms-near/sac/reward-shaping/transfer/seed-0",
+                    "fourrooms-near/sac/model-reuse/transfer/seed-0",
+                    "fourrooms-near/sac/reward-shaping/transfer/seed-0",
                     "fourrooms-near/sac/source/seed-50"]
     assert len(curves) == 7 and all(c.count("\n") == 4 for c in curves.values())  # frames 0, 128, 256
     far = out / "fourrooms-far/sac/model-reuse/transfer/seed-0"

@@ -271,8 +271,8 @@ class GridFourRoomsEnv(EnvBase):
 class GridFourRoomsPotential(torch.nn.Module):
     """``Phi(cell) = -scale * d(cell)``, ``d`` the number of moves to the goal (breadth-first search).
 
-    The task's shaping potential (an exact distance: an upper reference, not transfer). ``d`` is computed once, on the env's own layout
-    and move rule, into a ``13 x 13`` lookup table. It reads the ``"cell"`` entry.
+    The task's shaping potential (an exact distance: an upper reference, not transfer). ``d`` is computed once, on the
+    env's own layout and move rule, into a ``13 x 13`` lookup table. It reads the ``"cell"`` entry.
 
     Args:
         goal: the goal cell ``(row, col)``.

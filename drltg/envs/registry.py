@@ -356,7 +356,9 @@ register_task(
 )
 register_pair("lift-to-place", "lift", "lift-place", "lifting skills reused to lift and place")
 register_pair("lift-to-place-barrier", "lift", "lift-place-barrier", "lifting reused where pushing cannot work")
-register_pair("lift-dense-to-place", "lift-dense", "lift-place", "a Lift policy learned from dense reward reused to place")
+register_pair(
+    "lift-dense-to-place", "lift-dense", "lift-place", "a Lift policy learned from dense reward reused to place"
+)
 register_pair(
     "lift-dense-to-place-barrier", "lift-dense", "lift-place-barrier", "a dense-reward Lift policy reused over the wall"
 )

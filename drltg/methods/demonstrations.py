@@ -32,7 +32,8 @@ def collect_demonstrations(env: EnvBase, policy, episodes: int, *, steps_per_bat
     """Runs ``policy`` on the batched ``env`` until at least ``episodes`` episodes have ended and
     returns every transition collected, flat (``[frames]``), in the collector's layout (``"next"``
     entries included). A learned policy acts deterministically (its mode), as a demonstrator would.
-    Batches of ``steps_per_batch`` steps per environment are collected until the count is reached, so a few transitions of unfinished episodes may follow the last ended one."""
+    Batches of ``steps_per_batch`` steps per environment are collected until the count is reached, so a few
+    transitions of unfinished episodes may follow the last ended one."""
     if episodes < 1:
         raise ValueError(f"demonstrations need at least one episode, got {episodes}.")
     n_envs = max(env.batch_size.numel(), 1)

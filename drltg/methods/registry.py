@@ -106,7 +106,9 @@ def register_method(method: TransferMethod, *, replace: bool = False) -> Transfe
     if method.name in METHODS and not replace:
         raise UsageError(f"transfer method {method.name!r} is already registered; pass replace=True to redefine it.")
     if method.source not in _SOURCES:
-        raise UsageError(f"transfer method {method.name!r}: source must be None, 'run' or 'policy', got {method.source!r}.")
+        raise UsageError(
+            f"transfer method {method.name!r}: source must be None, 'run' or 'policy', got {method.source!r}."
+        )
     owners = {key: m.name for m in METHODS.values() if m.name != method.name for key in m.options}
     for key, (default, spec) in method.options.items():
         if key in owners or key in config.TRANSFER_KEYS:
