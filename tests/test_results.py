@@ -10,7 +10,7 @@ RESULTS = Path(__file__).resolve().parents[1] / "results"
 EXPERIMENT = RESULTS / "sweep-fourrooms-graded" / "fourrooms-near" / "sac"
 
 
-@pytest.mark.parametrize("method", ["model-reuse", "policy-reuse"])
+@pytest.mark.parametrize("method", ["model-reuse", "policy-reuse", "value-shaping"])
 def test_a_committed_report_is_reproduced_from_its_committed_curves(method, tmp_path):
     committed = json.loads((EXPERIMENT / method / "report" / "transfer_metrics.json").read_text())
     result = transfer_report(EXPERIMENT / "baseline", EXPERIMENT / method / "transfer", tmp_path,
@@ -28,6 +28,6 @@ def test_a_committed_report_is_reproduced_from_its_committed_curves(method, tmp_
 
 def test_every_committed_run_keeps_its_curve_and_config():
     runs = [p.parent for p in RESULTS.glob("sweep-fourrooms-graded/**/summary.json")]
-    assert len(runs) == 105
+    assert len(runs) == 130  # 5 sources, 25 baselines, 4 methods x 25 transfers
     for run in runs:
         assert (run / "eval.csv").is_file() and (run / "config.yaml").is_file()
