@@ -5,6 +5,7 @@ import csv
 import io
 import json
 import shutil
+from pathlib import Path
 
 import pytest
 import yaml
@@ -230,3 +231,13 @@ def test_ray_backend_gives_the_same_runs_and_curves(local, tmp_path, capsys):
     assert "ray: a local instance on 127.0.0.1 with 2 CPUs" in capsys.readouterr().err
     assert not ray.is_initialized()
     assert _curves(out) == curves
+
+
+SPECS = sorted((Path(__file__).resolve().parents[1] / "examples" / "sweeps").glob("*.yaml"))
+
+
+@pytest.mark.parametrize("spec_file", SPECS, ids=lambda p: p.stem)
+def test_every_shipped_sweep_spec_plans(spec_file, tmp_path):
+    runs, cells = sweep.plan(sweep.load_spec(spec_file), tmp_path)
+    assert cells and all(r.role in ("source", "baseline", "transfer") for r in runs)
+    assert all(r.needs is None or r.needs in {q.path for q in runs} for r in runs)
