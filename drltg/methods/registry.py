@@ -1,10 +1,11 @@
 """Named transfer methods: what each one needs, which config keys it reads, and what it adds to a run.
 
-A transfer method changes a run in at most five places of the pipeline; its ``build`` returns a
-:class:`Transfer` that says which::
+A transfer method's ``build`` gets the run's config, learner and a probe env, may set the learner's
+weights itself (model reuse, on a new run), and returns a :class:`Transfer` naming the places of the
+pipeline it changes::
 
     env -> [train_transforms] -> Collector([policy], on_frames) -> buffer -> [batches] -> loss
-           learner weights <- [load_weights, new runs only]
+    run directory: [files], summary.json: [summary]
 
 ``drltg train``, ``experiment`` and ``sweep`` read everything else from the :class:`TransferMethod`:
 whether it trains source runs first, its ``transfer.*`` config keys and their ranges, and the rules
