@@ -4,8 +4,9 @@ object (machine, versions, rates, ratios, targets) and append it as one line to
 
 Suites: ``env`` (FourRooms vs a NumPy reference), ``robosuite`` (wrapper overhead, ParallelEnv),
 ``sac`` (update throughput vs TorchRL, plain PyTorch, Stable-Baselines3; SOC K=4), ``train`` (whole
-``drltg train`` runs), ``memory`` (1e6-transition replay buffer); all five by default. ``demo``
-(``drltg demo``, several minutes) runs only when named.
+``drltg train`` runs), ``memory`` (1e6-transition replay buffer); all five by default. ``lift``
+(``drltg train lift`` against Stable-Baselines3 SAC on robosuite's Lift, several minutes) and ``demo``
+(``drltg demo``, several minutes) run only when named.
 """
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ import torch
 from benchmarks.common import REPO, machine, versions
 
 DEFAULT = ("env", "robosuite", "sac", "train", "memory")
+NAMED_ONLY = ("lift", "demo")
 
 
 def _suite(name: str):
@@ -38,6 +40,8 @@ def _suite(name: str):
         from benchmarks.e2e import run_train as run
     elif name == "memory":
         from benchmarks.e2e import run_memory as run
+    elif name == "lift":
+        from benchmarks.lift_e2e import run
     else:
         run = _demo
     return run
@@ -87,6 +91,10 @@ def summarize(suites: dict, device: str) -> dict:
     train = suites.get("train", {}).get("fourrooms")
     if train:
         out["train: fourrooms speed-up over the reference step"] = {"value": train["speedup_vs_reference_step"]}
+    lift = suites.get("lift", {}).get("ratios", {})
+    for key in ("drltg/sb3", "drltg/drltg_robosuite_step", "drltg_robosuite_step/sb3"):
+        if key in lift:
+            out[f"lift: {key} training frames/s (wall clock)"] = {"value": lift[key]["wall"]}
     mem = suites.get("memory", {}).get("loss_keys")
     if mem:
         out["memory: replay RSS growth / raw bytes"] = {
@@ -98,7 +106,7 @@ def summarize(suites: dict, device: str) -> dict:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.split("\n\n")[0])
     parser.add_argument("suites", nargs="*", metavar="suite",
-                        help=f"any of {', '.join(DEFAULT)}, demo (default: all but demo)")
+                        help=f"any of {', '.join(DEFAULT + NAMED_ONLY)} (default: all but lift and demo)")
     parser.add_argument("--device", default="cpu", help="cpu or cuda (default cpu)")
     parser.add_argument("--quick", action="store_true", help="a smoke run of about a minute")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1, as drltg train)")
@@ -106,9 +114,9 @@ def main(argv=None) -> int:
                         help="JSON-lines file the run is appended to")
     parser.add_argument("--no-save", action="store_true", help="print only; append nothing")
     args = parser.parse_args(argv)
-    unknown = sorted(set(args.suites) - {*DEFAULT, "demo"})
+    unknown = sorted(set(args.suites) - {*DEFAULT, *NAMED_ONLY})
     if unknown:
-        parser.error(f"unknown suite(s) {', '.join(unknown)}; choose from {', '.join(DEFAULT)}, demo.")
+        parser.error(f"unknown suite(s) {', '.join(unknown)}; choose from {', '.join(DEFAULT + NAMED_ONLY)}.")
     if args.device.startswith("cuda") and not torch.cuda.is_available():
         parser.error("--device cuda needs a CUDA build of torch and a visible GPU.")
     torch.set_num_threads(args.threads)
