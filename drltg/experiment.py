@@ -12,8 +12,8 @@ on the task's own reward). A source given in the config (``-o transfer.source=RU
 ``-o transfer.source=demonstrator:lift`` for the methods that reuse a policy on the manipulation
 tasks) serves every transfer run, no source runs are trained, and a task alone is a target.
 Baseline and transfer run i share the seed ``seed + 100 i`` (paired runs); source run i uses
-``seed + 100 i + 50``, so no source and target run share a seed. A completed run is reused; an interrupted one resumes from its checkpoint,
-so re-running the same command finishes what is missing.
+``seed + 100 i + 50``, so no source and target run share a seed. A completed run is reused; an
+interrupted one resumes from its checkpoint, so re-running the same command finishes what is missing.
 
 Every run's config is built and checked (its task, env settings and learner) and the report settings
 are parsed before anything is written; the folder is then owned by one ``drltg experiment`` at a time
