@@ -79,7 +79,8 @@ def plan_runs(
     from drltg.envs import PAIRS, TASKS
     from drltg.methods import get_method
 
-    if get_method(method).name == "none":
+    spec = get_method(method)
+    if spec.name == "none":
         raise UsageError("--method none has nothing to compare; choose a transfer method (`drltg tasks`).")
     if seeds < 1 or frames < 1:
         raise UsageError("--seeds and --frames must be positive.")
@@ -92,7 +93,7 @@ def plan_runs(
 
         get_pair(pair)  # raises the "unknown pair" sentence
     given_source = config_lib.resolve(base, overrides, task=target_task, algo=algo)["transfer"]["source"]
-    needs_source = get_method(method).source is not None
+    needs_source = spec.source is not None
     if source_task is None and needs_source and given_source is None:
         raise UsageError(f"'{pair}' is a task, not a pair: {method} on it needs -o transfer.source=RUN_DIR "
                          f"(or demonstrator:TASK); `drltg tasks` lists the pairs.")
