@@ -244,8 +244,10 @@ def make_agent(env: EnvBase, cfg: dict) -> Agent:
 
 # ----------------------------------------------------------------------------- the update step
 def loss_total(losses: TensorDictBase, update_actor: bool = True) -> torch.Tensor:
-    """Sum of the ``loss_*`` entries; the actor's term is left out when ``update_actor`` is False."""
-    return sum(v for k, v in losses.items() if k.startswith("loss_") and (update_actor or k != "loss_actor"))
+    """Sum of the ``loss_*`` entries; the actor's terms (``loss_actor*``) are left out when ``update_actor``
+    is False."""
+    kept = [k for k in losses.keys() if k.startswith("loss_") and (update_actor or not k.startswith("loss_actor"))]
+    return sum(losses[k] for k in kept)
 
 
 class UpdateStep:
@@ -253,18 +255,21 @@ class UpdateStep:
 
     ``loss(batch) -> backward(sum of loss_* terms) -> optimizer.step() -> target_updater.step()``, the
     sequence of TorchRL's sota SAC loop, for every learner alike. ``update_actor=False`` leaves out the
-    actor's loss term and the target update (TD3's policy delay).
+    actor's loss terms and the target update (TD3's policy delay).
 
     Args:
         agent: the :class:`Agent` whose ``loss``, ``optimizer`` and ``target_updater`` are stepped.
+        loss_terms: ``loss_terms(batch) -> {"loss_<name>": scalar}``, extra terms added to the loss's
+            (a transfer method's, e.g. behaviour cloning on demonstrations).
         compile: run the step through ``torch.compile`` (on the 2-core CPU it compiled for about a
             minute and was not faster; see ``benchmarks/README.md``).
         cudagraphs: capture the step in a CUDA graph with tensordict's ``CudaGraphModule`` (every
             tensor on one CUDA device, a fixed batch shape; Adam is switched to ``capturable``).
     """
 
-    def __init__(self, agent: Agent, *, compile: bool = False, cudagraphs: bool = False):
+    def __init__(self, agent: Agent, *, loss_terms=None, compile: bool = False, cudagraphs: bool = False):
         self.agent = agent
+        self.loss_terms = loss_terms
         self.compile = compile
         self.cudagraphs = cudagraphs
         if cudagraphs:
@@ -274,9 +279,12 @@ class UpdateStep:
 
     def _build(self, update_actor: bool) -> Callable[[TensorDictBase], TensorDictBase]:
         loss, optimizer, target_updater = self.agent.loss, self.agent.optimizer, self.agent.target_updater
+        loss_terms = self.loss_terms
 
         def step(batch: TensorDictBase) -> TensorDictBase:
             losses = loss(batch)
+            if loss_terms is not None:
+                losses.update(loss_terms(batch))
             optimizer.zero_grad(set_to_none=True)
             loss_total(losses, update_actor).backward()
             optimizer.step()

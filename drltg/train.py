@@ -325,7 +325,7 @@ def _loop(cfg, run_dir, agent, train_env, eval_env, transfer: Transfer, buffer, 
         next_ckpt = (frames // cfg["checkpoint"]["every"] + 1) * cfg["checkpoint"]["every"]
         next_log = frames + cfg["log"]["every"]
         stats: dict[str, list[float]] = defaultdict(list)
-        update = UpdateStep(agent)
+        update = UpdateStep(agent, loss_terms=transfer.loss_terms)
         start, start_frames = time.perf_counter(), frames
 
         for data in collector:

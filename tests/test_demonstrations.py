@@ -114,3 +114,92 @@ def test_demonstrations_refuse_what_they_cannot_use(override, message, tmp_path)
     with pytest.raises(UsageError, match=message):
         train(cfg, tmp_path / "run", progress=False)
     assert not (tmp_path / "run").exists()
+
+
+# ------------------------------------------------------------------ behaviour cloning (Nair et al. 2018)
+from torchrl.envs import ExplorationType, set_exploration_type  # noqa: E402
+
+from drltg.learners import UpdateStep, loss_total, make_agent  # noqa: E402
+from drltg.methods.demonstrations import behaviour_cloning  # noqa: E402
+
+
+def _agent_and_batch(algo="sac", n=32, seed=0):
+    cfg = config_lib.resolve({}, ["network.hidden=[16,16]"], task="fourrooms/northeast", algo=algo)
+    torch.manual_seed(seed)
+    agent = make_agent(make_env("fourrooms/northeast", seed=0), cfg)
+    env = make_env("fourrooms/northeast", batch_size=(n,), seed=seed)
+    batch = env.rand_step(env.reset())
+    return agent, batch
+
+
+def _critic_min(loss, obs, action):
+    values = []
+    for params in loss.qvalue_network_params.detach().unbind(0):
+        with params.to_module(loss.qvalue_network):
+            td = TensorDict({"observation": obs, "action": action}, [obs.shape[0]])
+            values.append(loss.qvalue_network(td)["state_action_value"].squeeze(-1))
+    return torch.minimum(*values)
+
+
+@pytest.mark.parametrize("algo", ["sac", "td3"])
+def test_behaviour_cloning_is_the_q_filtered_squared_error_on_the_demonstrations(algo):
+    agent, batch = _agent_and_batch(algo)
+    count, weight = 12, 0.5
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        mu = agent.actor(batch[:count].select("observation").clone())["action"]
+    obs, demo_action = batch["observation"][:count], batch["action"][:count]
+    keep = _critic_min(agent.loss, obs, demo_action) > _critic_min(agent.loss, obs, mu)
+    error = (mu - demo_action).pow(2).sum(-1)
+
+    plain = behaviour_cloning(agent.loss, count, weight, q_filter=False)(batch)
+    filtered = behaviour_cloning(agent.loss, count, weight)(batch)
+    assert torch.allclose(plain["loss_actor_bc"], weight * error.mean())
+    assert torch.allclose(filtered["loss_actor_bc"], weight * (error * keep).mean())
+    assert filtered["bc_accepted"] == keep.float().mean() and 0 < keep.sum() < count  # both kinds occur
+    later = batch.clone()
+    later["action"][count:] = -later["action"][count:]  # rows past the demonstrations do not count
+    assert torch.equal(behaviour_cloning(agent.loss, count, weight)(later)["loss_actor_bc"], filtered["loss_actor_bc"])
+
+
+def test_behaviour_cloning_moves_the_actor_only_and_waits_for_the_policy_delay():
+    agent, batch = _agent_and_batch("td3")
+    twin, _ = _agent_and_batch("td3")
+    bc = behaviour_cloning(agent.loss, 16, 1.0, q_filter=False)
+    losses = agent.loss(batch.clone()).update(bc(batch))
+    assert torch.equal(loss_total(losses, update_actor=False), losses["loss_qvalue"])
+
+    step, plain = UpdateStep(agent, loss_terms=bc), UpdateStep(twin)
+    torch.manual_seed(0)
+    step(batch.clone(), update_actor=True)
+    torch.manual_seed(0)
+    plain(batch.clone(), update_actor=True)
+
+    def same(params, other):
+        pairs = zip(params.values(True, True), other.values(True, True))
+        return [torch.equal(p, q) for p, q in pairs if p.requires_grad]
+
+    assert not any(same(agent.loss.actor_network_params, twin.loss.actor_network_params))
+    assert all(same(agent.loss.qvalue_network_params, twin.loss.qvalue_network_params))
+
+
+def test_behaviour_cloning_alone_fits_the_demonstrated_actions():
+    agent, batch = _agent_and_batch("sac", n=8)
+    target = torch.tensor([0.5, -0.25]).expand(8, 2)
+    batch["action"] = target.clone()
+    bc = behaviour_cloning(agent.loss, 8, 1.0, q_filter=False)
+    optimizer = torch.optim.Adam(agent.loss.actor_network_params.values(True, True), lr=1e-2)
+    for _ in range(300):
+        optimizer.zero_grad()
+        bc(batch)["loss_actor_bc"].backward()
+        optimizer.step()
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        assert torch.allclose(agent.actor(batch.select("observation").clone())["action"], target, atol=1e-2)
+
+
+def test_behaviour_cloning_refuses_discrete_actions():
+    from drltg.methods import get_method
+
+    cfg = config_lib.resolve({}, TINY + ["transfer.method=demonstrations"], task="gridrooms/northeast")
+    env = make_env("gridrooms/northeast")
+    with pytest.raises(UsageError, match="bc_weight clones continuous actions"):
+        get_method("demonstrations").build(cfg, make_agent(env, cfg), env, resuming=False)

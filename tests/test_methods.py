@@ -43,7 +43,7 @@ def test_every_method_builds_a_transfer_for_a_run(name, tmp_path):
     expected = {
         "none": set(), "reward-shaping": {"train_transforms"}, "value-shaping": {"train_transforms"},
         "policy-reuse": {"policy", "on_frames"}, "jumpstart": {"policy", "on_frames"},
-        "model-reuse": {"files"}, "demonstrations": {"batches", "summary"},
+        "model-reuse": {"files"}, "demonstrations": {"batches", "loss_terms", "summary"},
     }
     assert changed == expected[name]
 

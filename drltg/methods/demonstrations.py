@@ -7,7 +7,9 @@ a fixed share of its batch from them:
     batch = [ k = round(ratio * B) demonstration transitions | B - k own transitions ]
 
 so the critic keeps seeing demonstrated successes for the whole run instead of until the replay
-buffer has cycled past them. The demonstrator needs no source training, but its environment steps
+buffer has cycled past them. On top, the actor can be pulled towards the demonstrated actions where the
+critic still rates them higher than its own (Nair et al. 2018's Q-filtered behaviour cloning,
+:func:`behaviour_cloning`). The demonstrator needs no source training, but its environment steps
 are a cost: :func:`collect_demonstrations` says how many it took. Off-policy learners only: the
 demonstrator's actions are not the learner's.
 """
@@ -18,13 +20,14 @@ import warnings
 import torch
 from tensordict import TensorDictBase
 from torchrl.collectors import Collector
-from torchrl.data import LazyTensorStorage, ReplayBuffer
-from torchrl.envs import EnvBase, ExplorationType, TransformedEnv
+from torchrl.data import LazyTensorStorage, OneHot, ReplayBuffer
+from torchrl.envs import EnvBase, ExplorationType, TransformedEnv, set_exploration_type
 
 from drltg.config import Field
+from drltg.errors import UsageError
 from drltg.methods.registry import Transfer, TransferMethod, register_method
 
-__all__ = ["collect_demonstrations", "demonstration_buffer", "mixed_batches"]
+__all__ = ["behaviour_cloning", "collect_demonstrations", "demonstration_buffer", "mixed_batches"]
 
 
 @torch.no_grad()
@@ -78,6 +81,42 @@ def mixed_batches(own: ReplayBuffer, demonstrations: ReplayBuffer, count: int, r
     return [d if m is None else m if d is None else torch.cat([d, m]) for d, m in zip(demo, mine)]
 
 
+def _min_q(loss, td: TensorDictBase) -> torch.Tensor:
+    """The smaller of ``loss``'s critics at ``td``'s (observation, action), without gradients."""
+    values = []
+    for params in loss.qvalue_network_params.detach().unbind(0):
+        with params.to_module(loss.qvalue_network):
+            values.append(loss.qvalue_network(td.clone(False))["state_action_value"])
+    return torch.stack(values).amin(0).squeeze(-1)
+
+
+def behaviour_cloning(loss, count: int, weight: float, *, q_filter: bool = True):
+    """Nair et al. (2018)'s behaviour-cloning term on the first ``count`` transitions of each batch (the
+    demonstrations, as :func:`mixed_batches` lays them out), for a SAC or TD3 loss module:
+
+        loss_actor_bc = weight * mean_i ||mu(s_i) - a_i||^2 * 1[Q(s_i, a_i) > Q(s_i, mu(s_i))]
+
+    ``mu`` the actor's deterministic action, ``Q`` the smaller of the current critics. The Q filter
+    clones a demonstrated action only while the critic rates it above the actor's own, so the term fades
+    where the learner has become better than its demonstrator. Returns ``loss_terms(batch)`` for
+    :class:`~drltg.learners.UpdateStep`, with ``bc_accepted``, the share of demonstrations kept."""
+    actor, actor_params = loss.actor_network, loss.actor_network_params
+    obs_keys = list(actor.in_keys)
+
+    def loss_terms(batch: TensorDictBase) -> dict[str, torch.Tensor]:
+        demo = batch[:count]
+        with set_exploration_type(ExplorationType.DETERMINISTIC), actor_params.to_module(actor):
+            action = actor(demo.select(*obs_keys).clone(False))["action"]
+        error = (action - demo["action"]).pow(2).sum(-1)
+        accepted = torch.ones_like(error)
+        if q_filter:
+            pair = demo.select(*obs_keys, "action")
+            accepted = (_min_q(loss, pair) > _min_q(loss, pair.clone(False).set("action", action.detach()))).float()
+        return {"loss_actor_bc": weight * (error * accepted).mean(), "bc_accepted": accepted.mean()}
+
+    return loss_terms
+
+
 def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
     """``transfer.demo_episodes`` episodes of the source policy on the training task, from an env
     seeded apart from the training and evaluation envs, kept in a buffer of their own; a resumed run
@@ -86,6 +125,11 @@ def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
     from drltg.methods.source import source_actor
 
     t = cfg["transfer"]
+    if t["bc_weight"] > 0 and isinstance(env.full_action_spec_unbatched["action"], OneHot):
+        raise UsageError(
+            f"transfer.bc_weight clones continuous actions; task '{cfg['task']}' has discrete actions "
+            f"(set -o transfer.bc_weight=0)."
+        )
     policy = source_actor(cfg, env)
     demo_env = TransformedEnv(make_env(cfg["task"], batch_size=(cfg["collector"]["num_envs"],), device=cfg["device"],
                                        seed=cfg["seed"] + 20_000, **cfg["env"]))
@@ -96,7 +140,10 @@ def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
     finally:
         demo_env.close()
     demos = demonstration_buffer(data, agent.loss.in_keys)
+    count = round(t["demo_ratio"] * cfg["buffer"]["batch_size"])
+    bc = behaviour_cloning(agent.loss, count, t["bc_weight"], q_filter=t["bc_q_filter"])
     return Transfer(batches=lambda own, n: mixed_batches(own, demos, n, t["demo_ratio"]),
+                    loss_terms=bc if t["bc_weight"] > 0 and count > 0 else None,
                     summary={"demonstration_frames": data.numel()})
 
 
@@ -109,5 +156,7 @@ DEMONSTRATIONS = register_method(TransferMethod(
     options={
         "demo_episodes": (10, Field(int, "demonstrations: episodes of the source policy collected", low=1)),
         "demo_ratio": (0.25, Field(float, "demonstrations: share of every batch drawn from them", low=0.0, high=1.0)),
+        "bc_weight": (1.0, Field(float, "demonstrations: weight of the behaviour-cloning term (0: none)", low=0.0)),
+        "bc_q_filter": (True, Field(bool, "demonstrations: clone only where Q(s, a_demo) > Q(s, mu(s))")),
     },
 ))

@@ -4,7 +4,7 @@ A transfer method's ``build`` gets the run's config, learner and a probe env, ma
 weights itself (model reuse, on a new run), and returns a :class:`Transfer` naming the places of the
 pipeline it changes::
 
-    env -> [train_transforms] -> Collector([policy], on_frames) -> buffer -> [batches] -> loss
+    env -> [train_transforms] -> Collector([policy], on_frames) -> buffer -> [batches] -> loss [+ loss_terms]
     run directory: [files], summary.json: [summary]
 
 ``drltg train``, ``experiment`` and ``sweep`` read everything else from the :class:`TransferMethod`:
@@ -46,6 +46,9 @@ class Transfer:
         on_frames: told the frames collected so far after every batch (schedules over training).
         batches: ``batches(buffer, n)`` gives the ``n`` minibatches of one round of updates instead of
             ``n`` samples of the replay buffer.
+        loss_terms: ``loss_terms(batch) -> {"loss_<name>": scalar}``, added to the learner's losses at
+            every gradient step (a term named ``loss_actor_*`` is skipped with the actor's, under TD3's
+            policy delay).
         files: written into the run directory when the run starts (``name -> text``).
         summary: entries added to the run's ``summary.json``.
     """
@@ -54,6 +57,7 @@ class Transfer:
     policy: Any = None
     on_frames: Callable[[int], None] | None = None
     batches: Callable[[Any, int], Iterable] | None = None
+    loss_terms: Callable[[Any], dict] | None = None
     files: dict[str, str] = field(default_factory=dict)
     summary: dict[str, Any] = field(default_factory=dict)
 
