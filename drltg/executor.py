@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import signal
 import sys
 import time
 import traceback
@@ -92,9 +93,12 @@ def _frames_done(run: Run) -> int:
 
 
 # --------------------------------------------------------------------------------------- backends
-def _single_thread() -> None:
+def _worker_init() -> None:
+    """One torch thread per run; SIGTERM unwinds the run as in ``drltg train`` (lock released, its
+    checkpoint kept), so an interrupted experiment resumes where it stopped."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     os.environ.setdefault("MKL_NUM_THREADS", "1")
+    signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
 
 
 class LocalBackend:
@@ -115,7 +119,7 @@ class LocalBackend:
 
         if self.pool is None:
             self.pool = cf.ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"),
-                                               initializer=_single_thread)
+                                               initializer=_worker_init)
         return self.pool
 
     def submit(self, run: Run):
@@ -142,8 +146,20 @@ class LocalBackend:
         return results
 
     def close(self) -> None:
-        if self.pool is not None:
-            self.pool.shutdown(cancel_futures=True)
+        """Shut the pool down; runs still training (the caller was interrupted) are stopped with SIGTERM
+        rather than awaited, which for a long run would take hours."""
+        if self.pool is None:
+            return
+        workers = list((getattr(self.pool, "_processes", None) or {}).values())
+        self.pool.shutdown(wait=not self.pool_of, cancel_futures=True)
+        if self.pool_of:
+            for process in workers:
+                process.terminate()
+            for process in workers:
+                process.join(timeout=60)
+                if process.is_alive():
+                    process.kill()
+        self.pool, self.pool_of = None, {}
 
 
 def _loopback_only() -> None:

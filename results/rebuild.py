@@ -6,8 +6,8 @@
 (``config.yaml``, ``eval.csv``, ``summary.json``: small text; no checkpoints or logs) into
 ``results/NAME`` with the same layout, and writes ``transfer.source`` relative to the run directory, so
 the folder can be moved and read anywhere. Then, with or without ``--from``, every
-``PAIR/ALGO/METHOD/transfer`` is reported against its ``PAIR/ALGO/baseline`` with ``drltg report``
-into ``PAIR/ALGO/METHOD/report/`` (JSON, CSV and the PNG plot), and the folder gets ``summary.{csv,md}`` and the
+``PAIR/ALGO[/VARIANT]/METHOD/transfer`` is reported against the ``baseline`` beside it with ``drltg report``
+into ``METHOD/report/`` (JSON, CSV and the PNG plot), and the folder gets ``summary.{csv,md}`` and the
 ``transfer_matrix.png`` heatmap, as ``drltg sweep`` writes them. The same curves always give the same
 reports (a test re-runs one and compares it with the committed JSON).
 """
@@ -46,17 +46,20 @@ def keep_curves(sweep: Path, dest: Path) -> int:
 
 
 def rebuild(root: Path, threshold) -> list[dict]:
-    """Report every transfer folder under ``root`` against its baseline; write the summary files."""
+    """Report every ``PAIR/ALGO[/VARIANT]/METHOD/transfer`` folder under ``root`` against the ``baseline``
+    beside its method folder; write the summary files."""
     rows = []
-    for transfer in sorted(root.glob("*/*/*/transfer")):
+    for transfer in sorted(root.glob("**/transfer")):
         method_dir = transfer.parent
-        algo_dir = method_dir.parent
-        result = transfer_report(algo_dir / "baseline", transfer, method_dir / "report", threshold=threshold,
+        group = method_dir.parent
+        if not (group / "baseline").is_dir():
+            continue
+        pair, algo, *variant = group.relative_to(root).parts
+        result = transfer_report(group / "baseline", transfer, method_dir / "report", threshold=threshold,
                                  baseline_label="no transfer", transfer_label=method_dir.name)
         (method_dir / "report" / "transfer_plot.svg").unlink()  # the PNG is kept; the SVG is rebuilt on demand
-        rows.append({"pair": algo_dir.parent.name, "algo": algo_dir.name, "variant": "",
-                     "method": method_dir.name, "report": str((method_dir / "report").relative_to(root)),
-                     "metrics": result["metrics"]})
+        rows.append({"pair": pair, "algo": algo, "variant": "/".join(variant), "method": method_dir.name,
+                     "report": str((method_dir / "report").relative_to(root)), "metrics": result["metrics"]})
     csv_text, md_text = summary_tables(rows)
     rundir.write_files(root, {"summary.csv": csv_text.encode(), "summary.md": md_text.encode(),
                               "transfer_matrix.png": plot_transfer_matrix(rows)})

@@ -1,6 +1,6 @@
 """Print the committed transfer results as one Markdown table: python results/summarize.py [DIR]
 
-DIR holds PAIR/ALGO/METHOD/report/transfer_metrics.json files (default: results/sweep-fourrooms-graded).
+DIR holds PAIR/ALGO[/VARIANT]/METHOD/report/transfer_metrics.json files (default: results/sweep-fourrooms-graded).
 Cells are transfer - baseline with the report's 95% interval; "final" marks an asymptotic difference
 taken while a side's curve was still moving; time to threshold is the sustained rule's upper median,
 with the share of seeds that reach it.
@@ -25,11 +25,12 @@ def time_to(m, side):
 
 rows = [("pair", "method", "mean return gain", "jumpstart", "asymptotic", "transfer ratio",
          "frames to threshold, B / T (seeds reaching it)", "P(T > B)")]
-for path in sorted(root.glob("*/*/*/report/transfer_metrics.json")):
+for path in sorted(root.glob("*/*/**/report/transfer_metrics.json")):
+    pair, _, *variant, method, _, _ = path.relative_to(root).parts
     report = json.loads(path.read_text())
     m, conv = report["metrics"], report["settings"].get("convergence", {})
     moving = any("still" in str(v) for v in (conv.values() if isinstance(conv, dict) else []))
-    rows.append((path.parents[3].name, path.parents[1].name, cell(m, "mean_return_gain"), cell(m, "jumpstart"),
+    rows.append((" ".join([pair, *variant]), method, cell(m, "mean_return_gain"), cell(m, "jumpstart"),
                  cell(m, "asymptotic_performance") + (" (final)" if moving else ""), cell(m, "transfer_ratio"),
                  f"{time_to(m, 'baseline')} / {time_to(m, 'transfer')}", cell(m, "probability_of_improvement", ".2f")))
 print(render(rows, "markdown"), end="")

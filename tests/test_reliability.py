@@ -109,6 +109,27 @@ def test_a_terminated_start_releases_its_lock_and_removes_what_it_wrote(tmp_path
     assert not run.exists()
 
 
+def test_a_terminated_experiment_stops_its_running_run_which_resumes(tmp_path):
+    """SIGTERM to `drltg experiment` alone (a scheduler's stop) ends the run its worker is training
+    instead of waiting for it, leaving that run unlocked with its checkpoint."""
+    out = tmp_path / "exp"
+    args = ["experiment", "fourrooms-near", "--method", "model-reuse", "--seeds", "1", "--frames", "128",
+            "--source-frames", str(10**6), "--out", str(out), *OPTS]
+    proc = subprocess.Popen([sys.executable, "-m", "drltg.cli", *args], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    source = out / "source" / "seed-50"
+    try:
+        while not (source / "checkpoints" / "last.pt").exists() and proc.poll() is None:
+            time.sleep(0.1)
+        proc.terminate()
+        assert proc.wait(timeout=60) == 128 + signal.SIGTERM
+    finally:
+        subprocess.run(["pkill", "-KILL", "-f", str(out)])  # nothing left behind if the assertion failed
+    assert not (source / rundir.LOCK).exists() and not (out / rundir.LOCK).exists()
+    assert torch.load(source / "checkpoints" / "last.pt", weights_only=False)["frames"] >= 256
+    assert not rundir.is_complete(source)
+
+
 def test_a_live_owner_is_refused_and_a_dead_one_taken_over(copy_of_killed, tmp_path, capsys):
     run = copy_of_killed
     before = tree(run)
