@@ -5,6 +5,7 @@ One env per task is shared by the whole module (building one takes ~2 s)."""
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -296,7 +297,7 @@ def test_demonstrator_is_a_function_of_the_observation_batch(envs):
 
 
 def test_registered_task_steps_two_parallel_workers():
-    env = make_env("lift-place", batch_size=(2,), seed=3, mp_start_method="fork")  # spawn: same, ~10 s slower
+    env = make_env("lift-place", batch_size=(2,), seed=3, parallel=True, mp_start_method="fork")  # spawn: ~10 s slower
     try:
         from torchrl.envs import ParallelEnv
 
@@ -308,6 +309,21 @@ def test_registered_task_steps_two_parallel_workers():
         assert not torch.allclose(cubes[0], cubes[1]), "both workers got the same seed"
     finally:
         env.close()
+
+
+def test_a_batch_steps_the_same_in_worker_processes_or_in_this_one(monkeypatch):
+    def rollout(**how):
+        env = make_env("lift", batch_size=(3,), seed=5, **how)
+        try:
+            return type(env).__name__, env.rollout(4, PickPlaceDemonstrator(place=False))
+        finally:
+            env.close()
+
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)  # more envs than cores: they step in this process
+    (auto, serial), (kind, parallel) = rollout(), rollout(parallel=True, mp_start_method="fork")
+    assert (auto, kind) == ("SerialEnv", "ParallelEnv")
+    for key in [("next", "observation"), ("next", "reward"), "action"]:
+        assert torch.equal(serial[key], parallel[key]), key
 
 
 def _renderable_env():
