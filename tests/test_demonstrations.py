@@ -151,14 +151,15 @@ def test_behaviour_cloning_is_the_q_filtered_squared_error_on_the_demonstrations
     keep = _critic_min(agent.loss, obs, demo_action) > _critic_min(agent.loss, obs, mu)
     error = (mu - demo_action).pow(2).sum(-1)
 
-    plain = behaviour_cloning(agent.loss, count, weight, q_filter=False)(batch)
-    filtered = behaviour_cloning(agent.loss, count, weight)(batch)
+    plain = behaviour_cloning(agent.loss, count, weight)(batch)
+    filtered = behaviour_cloning(agent.loss, count, weight, q_filter=True)(batch)
     assert torch.allclose(plain["loss_actor_bc"], weight * error.mean())
     assert torch.allclose(filtered["loss_actor_bc"], weight * (error * keep).mean())
     assert filtered["bc_accepted"] == keep.float().mean() and 0 < keep.sum() < count  # both kinds occur
     later = batch.clone()
     later["action"][count:] = -later["action"][count:]  # rows past the demonstrations do not count
-    assert torch.equal(behaviour_cloning(agent.loss, count, weight)(later)["loss_actor_bc"], filtered["loss_actor_bc"])
+    assert torch.equal(behaviour_cloning(agent.loss, count, weight, q_filter=True)(later)["loss_actor_bc"],
+                       filtered["loss_actor_bc"])
 
 
 def test_behaviour_cloning_moves_the_actor_only_and_waits_for_the_policy_delay():
