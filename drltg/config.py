@@ -356,6 +356,41 @@ def task_env(task: str) -> dict[str, Any]:
     return {k: _plain(v) for k, v in declared.items() if k not in _ENV_RESERVED}
 
 
+def config_changes(saved: dict, cfg: dict) -> list[str]:
+    """The keys in which two configs of one task differ (``cfg`` gives the task). A key one of them
+    lacks counts only when the other sets it to something else than its default, for ``env.*`` the
+    task's: runs saved before the key existed, or before env settings were saved in full, stay the
+    same run (resumable, and comparable in one report)."""
+    try:
+        env = task_env(cfg["task"])
+    except (KeyError, UsageError):  # a task this process does not know: no env defaults to fill in
+        env = {}
+    defaults = {**DEFAULTS, "env": env}
+
+    def missing_as_default(a, b, key):
+        return _lookup(a, key) is KeyError and _lookup(b, key) == _lookup(defaults, key)
+
+    return sorted(key for key in _diff_keys(saved, cfg)
+                  if not (missing_as_default(saved, cfg, key) or missing_as_default(cfg, saved, key)))
+
+
+def _lookup(cfg: dict, dotted: str):
+    node = cfg
+    for part in dotted.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return KeyError
+        node = node[part]
+    return node
+
+
+def _diff_keys(a, b, prefix=""):
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in set(a) | set(b):
+            yield from _diff_keys(a.get(k, KeyError), b.get(k, KeyError), f"{prefix}{k}.")
+    elif a != b:
+        yield prefix.rstrip(".")
+
+
 def _plain(value: Any) -> Any:
     return [_plain(v) for v in value] if isinstance(value, (list, tuple)) else value
 

@@ -449,15 +449,18 @@ def _flat(config: dict, prefix: str = "") -> dict:
 
 
 def _check_configs(side: str, curves: Sequence[Curve], allow_mixed: bool, warnings: list[str]) -> None:
-    """One side must be one method and one configuration (seeds, lengths, devices and sources may differ)."""
-    def shared(c):
-        return {k: v for k, v in _flat(c.config).items()
-                if not any(k == p or k.startswith(p + ".") for p in CONFIG_KEYS_PER_RUN)}
-
+    """One side must be one method and one configuration (seeds, lengths, devices and sources may differ;
+    a key a config saved by an older drltg lacks stands for its default)."""
     known = [c for c in curves if c.config]
+    if len(known) < 2:
+        return
+    from drltg import methods  # noqa: F401  (their options' defaults stand in for keys older configs lack)
+    from drltg.config import config_changes
+
     for c in known[1:]:
-        ref, other = shared(known[0]), shared(c)
-        diff = sorted(k for k in ref.keys() | other.keys() if ref.get(k, "(unset)") != other.get(k, "(unset)"))
+        ref, other = _flat(known[0].config), _flat(c.config)
+        diff = [k for k in config_changes(known[0].config, c.config)
+                if not any(k == p or k.startswith(p + ".") for p in CONFIG_KEYS_PER_RUN)]
         if diff:
             k = diff[0]
             more = f" ({len(diff)} keys differ)" if len(diff) > 1 else ""

@@ -250,7 +250,7 @@ def plan(spec: Spec, out: Path) -> tuple[list[Run], list[Cell]]:
 
 def check_existing(runs: list[Run]) -> None:
     """Refuse, before anything runs, a directory that holds a run with another config."""
-    from drltg.train import config_changes
+    from drltg.config import config_changes
 
     for run in runs:
         saved = rundir.check_directory(run.path, "run directory") / rundir.CONFIG

@@ -27,7 +27,7 @@ from torchrl.record.loggers import CSVLogger, TensorboardLogger
 from tqdm.auto import tqdm
 
 from drltg import rundir
-from drltg.config import DEFAULTS, task_env
+from drltg.config import config_changes
 from drltg.envs import make_env
 from drltg.errors import UsageError
 from drltg.learners import UpdateStep, make_agent, sample_batches
@@ -106,34 +106,6 @@ def evaluate(env: EnvBase, actor: Callable, max_steps: int = 100_000) -> dict:
 
 
 # ----------------------------------------------------------------------------- run directory
-def _lookup(cfg: dict, dotted: str):
-    node = cfg
-    for part in dotted.split("."):
-        if not isinstance(node, dict) or part not in node:
-            return KeyError
-        node = node[part]
-    return node
-
-
-def config_changes(saved: dict, cfg: dict) -> list[str]:
-    """The keys in which ``cfg`` differs from a run's saved config. A key the saved config lacks
-    counts only when ``cfg`` sets it to something else than its default, for ``env.*`` the task's
-    (runs saved before the key existed, or before env settings were saved in full, stay resumable)."""
-    defaults = {**DEFAULTS, "env": task_env(cfg["task"])}
-    return sorted(
-        key for key in _diff_keys(saved, cfg)
-        if not (_lookup(saved, key) is KeyError and _lookup(cfg, key) == _lookup(defaults, key))
-    )
-
-
-def _diff_keys(a, b, prefix=""):
-    if isinstance(a, dict) and isinstance(b, dict):
-        for k in set(a) | set(b):
-            yield from _diff_keys(a.get(k, KeyError), b.get(k, KeyError), f"{prefix}{k}.")
-    elif a != b:
-        yield prefix.rstrip(".")
-
-
 def _refuse_existing(run_dir: Path) -> None:
     if rundir.entries(run_dir):
         raise UsageError(

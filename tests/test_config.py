@@ -299,8 +299,8 @@ def test_the_config_holds_every_env_setting_of_its_task(monkeypatch):
 
 
 def test_a_changed_env_default_is_a_changed_run(monkeypatch):
+    from drltg.config import config_changes
     from drltg.envs import registry
-    from drltg.train import config_changes
 
     saved = _resolve()
     old_style = {**saved, "env": {}}  # saved before env settings were written in full

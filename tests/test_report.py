@@ -491,6 +491,25 @@ def test_runs_of_different_configs_under_one_side(tmp_path):
     assert any("accepted by --allow-mixed" in w for w in res["settings"]["warnings"])
 
 
+def test_a_config_saved_before_its_keys_existed_is_the_same_configuration(tmp_path):
+    """Keys an older config lacks stand for their defaults (env settings saved in full, a method's
+    later options), as when such a run is resumed; a key set otherwise still splits the side."""
+    import yaml
+
+    from drltg import config
+
+    full = config.resolve(None, ["transfer.source=demonstrator:x"], task="fourrooms/northeast", algo="sac")
+    old = {**full, "env": {}, "transfer": {k: v for k, v in full["transfer"].items() if k != "bc_weight"}}
+    changed = {**full, "env": {**full["env"], "horizon": 60}}
+    for name, cfg in [("seed-0", old), ("seed-1", full), ("seed-2", full)]:
+        run = write_run(tmp_path / "b" / name, [0, 10, 20], [0, 1, 2])
+        (run / "config.yaml").write_text(yaml.safe_dump({**cfg, "seed": int(name[-1])}))
+        write_run(tmp_path / "t" / name, [0, 10, 20], [1, 2, 3])
+    assert report.compute(_read(tmp_path / "b"), _read(tmp_path / "t"))["metrics"]["n_seeds_baseline"] == 3
+    (tmp_path / "b" / "seed-2" / "config.yaml").write_text(yaml.safe_dump({**changed, "seed": 2}))
+    assert "env.horizon" in _bad_report(tmp_path, tmp_path / "b", tmp_path / "t")
+
+
 def test_out_that_is_a_file_exits_2(two_by_two, tmp_path, capsys):
     b, t = two_by_two
     afile = tmp_path / "afile"
