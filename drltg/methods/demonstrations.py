@@ -12,7 +12,9 @@ behaviour-cloning term (Nair et al. 2018, :func:`behaviour_cloning`), optionally
 rates them higher than its own (their Q filter). The filter is off by default: on Lift's sparse reward
 the young critic overrates the actor's own actions, the filter kept 1% of the demonstrations by 17k
 frames and the policy, which had started to lift the cube, forgot it (seed 0: success 0.2 at 7.5k
-frames, 0.1 at 30k; without the filter and with weight 10, 0.8 at 17.5k). The demonstrator needs no
+frames, 0.1 at 30k; without the filter and with weight 10, 0.8 at 17.5k, but 0.0 at 30k). With 10
+episodes the cloned policy has seen 10 cube positions and its success swings (0.1 to 0.8 from 15k
+frames on, 3 seeds); with 50 (the default) seed 0 held 0.8 to 1.0 from 10k frames on. The demonstrator needs no
 source training, but its environment steps are a cost: :func:`collect_demonstrations` says how many it
 took. Off-policy learners only: the demonstrator's actions are not the learner's.
 """
@@ -157,7 +159,7 @@ DEMONSTRATIONS = register_method(TransferMethod(
     source="policy",
     algos=("sac", "td3"),
     options={
-        "demo_episodes": (10, Field(int, "demonstrations: episodes of the source policy collected", low=1)),
+        "demo_episodes": (50, Field(int, "demonstrations: episodes of the source policy collected", low=1)),
         "demo_ratio": (0.25, Field(float, "demonstrations: share of every batch drawn from them", low=0.0, high=1.0)),
         "bc_weight": (10.0, Field(float, "demonstrations: weight of the behaviour-cloning term (0: none)", low=0.0)),
         "bc_q_filter": (False, Field(bool, "demonstrations: clone only where Q(s, a_demo) > Q(s, mu(s))")),
