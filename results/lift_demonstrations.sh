@@ -22,3 +22,11 @@ for method in demonstrations policy-reuse jumpstart; do
   rm -f "$OUT/lift/sac/$method/report-success/transfer_plot.svg"
 done
 $PYTHON results/summarize.py "$OUT"
+
+# The variants tried before the defaults (results/README.md gives their commands): 10 demonstration
+# episodes instead of 50, 3 seeds, against the same baselines.
+V=results/lift-demonstrations-variants
+$DRLTG report --baseline "$OUT/lift/sac/baseline" --transfer "$V/bc-10-episodes" --tag success_rate \
+  --threshold 0.8 --baseline-label "no transfer" --transfer-label "demonstrations, 10 episodes" \
+  --out "$V/bc-10-episodes-report-success" > /dev/null
+rm -f "$V/bc-10-episodes-report-success/transfer_plot.svg"
