@@ -71,6 +71,8 @@ DEFAULTS: dict[str, Any] = {
 TRANSFER_KEYS = tuple(DEFAULTS["transfer"])
 """The ``transfer.*`` keys of every method; the others belong to one method (``TransferMethod.options``)."""
 METHOD_RULES: dict[str, Any] = {}
+METHOD_OPTIONS: dict[str, str] = {}
+"""``transfer.<key>`` -> the one method whose option it is (filled by ``register_method`` too)."""
 """``transfer.method`` -> the check its configs must pass, filled with the method's keys (``DEFAULTS``,
 ``SCHEMA``) by :func:`drltg.methods.register_method`: import :mod:`drltg.methods` (the commands do)
 before resolving a config that uses a transfer method."""
@@ -360,18 +362,24 @@ def config_changes(saved: dict, cfg: dict) -> list[str]:
     """The keys in which two configs of one task differ (``cfg`` gives the task). A key one of them
     lacks counts only when the other sets it to something else than its default, for ``env.*`` the
     task's: runs saved before the key existed, or before env settings were saved in full, stay the
-    same run (resumable, and comparable in one report)."""
+    same run (resumable, and comparable in one report). Options of a transfer method that neither
+    config uses do not count (a baseline is the same run whatever another method's defaults are)."""
     try:
         env = task_env(cfg["task"])
     except (KeyError, UsageError):  # a task this process does not know: no env defaults to fill in
         env = {}
     defaults = {**DEFAULTS, "env": env}
+    methods = {_lookup(saved, "transfer.method"), _lookup(cfg, "transfer.method")}
 
     def missing_as_default(a, b, key):
         return _lookup(a, key) is KeyError and _lookup(b, key) == _lookup(defaults, key)
 
+    def unused(key):  # an option of a method neither run uses changes nothing they do
+        owner = METHOD_OPTIONS.get(key.removeprefix("transfer.")) if key.startswith("transfer.") else None
+        return owner is not None and owner not in methods
+
     return sorted(key for key in _diff_keys(saved, cfg)
-                  if not (missing_as_default(saved, cfg, key) or missing_as_default(cfg, saved, key)))
+                  if not (missing_as_default(saved, cfg, key) or missing_as_default(cfg, saved, key) or unused(key)))
 
 
 def _lookup(cfg: dict, dotted: str):

@@ -12,6 +12,8 @@ import contextlib
 import json
 import math
 import shutil
+import signal
+import threading
 import time
 from collections import defaultdict
 from pathlib import Path
@@ -232,7 +234,9 @@ def train(
         try:
             for name, text in transfer.files.items():
                 rundir.atomic_write(run_dir / name, text)
-            _loop(cfg, run_dir, agent, train_env, eval_env, transfer, buffer, ckpt, rows, progress)
+            with deferred_signals() as stop_if_signalled:
+                _loop(cfg, run_dir, agent, train_env, eval_env, transfer, buffer, ckpt, rows, progress,
+                      stop_if_signalled)
         except BaseException:
             if not resume and not (run_dir / CHECKPOINT).is_file():
                 _remove_start(run_dir, created)
@@ -240,7 +244,42 @@ def train(
     return run_dir
 
 
-def _loop(cfg, run_dir, agent, train_env, eval_env, transfer: Transfer, buffer, ckpt, rows, progress) -> None:
+@contextlib.contextmanager
+def deferred_signals(signums=(signal.SIGINT, signal.SIGTERM)):
+    """Hold SIGINT and SIGTERM while training and hand them to the handlers that were in place (Ctrl-C's
+    KeyboardInterrupt, the CLI's SIGTERM unwinding) when the loop calls the yielded check, once per
+    batch, or at the end. Raised in the middle of a TorchRL loss, the exception does not always unwind:
+    tensordict's context managers can turn it into another error, and a stopped run would end in a
+    traceback instead of releasing its directory."""
+    if threading.current_thread() is not threading.main_thread():  # handlers can only be set there
+        yield lambda: None
+        return
+    received: list[int] = []
+    previous = {s: signal.signal(s, lambda signum, frame: received.append(signum)) for s in signums}
+
+    def deliver() -> None:
+        if received:
+            signum = received[0]
+            handler = previous[signum]
+            restore()
+            if callable(handler):
+                handler(signum, None)
+            elif handler == signal.SIG_DFL:
+                signal.raise_signal(signum)
+
+    def restore() -> None:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+    try:
+        yield deliver
+    finally:
+        restore()
+    deliver()
+
+
+def _loop(cfg, run_dir, agent, train_env, eval_env, transfer: Transfer, buffer, ckpt, rows, progress,
+          stop_if_signalled) -> None:
     col, opt = cfg["collector"], cfg["optim"]
     fpb = col["frames_per_batch"]
     init_random = math.ceil(col["init_random_frames"] / fpb) * fpb
@@ -301,6 +340,7 @@ def _loop(cfg, run_dir, agent, train_env, eval_env, transfer: Transfer, buffer, 
         start, start_frames = time.perf_counter(), frames
 
         for data in collector:
+            stop_if_signalled()
             data = data.reshape(-1)
             frames += data.numel()
             if transfer.on_frames is not None:

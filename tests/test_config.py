@@ -298,6 +298,19 @@ def test_the_config_holds_every_env_setting_of_its_task(monkeypatch):
     assert yaml.safe_load(config_lib.dump(cfg)) == cfg  # plain YAML, no tuples
 
 
+def test_an_option_of_a_method_the_run_does_not_use_is_not_a_change():
+    from drltg import methods  # noqa: F401  (registers the methods' options)
+    from drltg.config import config_changes
+
+    baseline = config_lib.resolve(None, [], task="fourrooms/northeast", algo="sac")
+    other = config_lib.resolve(None, ["transfer.demo_episodes=3"], task="fourrooms/northeast", algo="sac")
+    assert config_changes(baseline, other) == []
+    demos = ["transfer.method=demonstrations", "transfer.source=demonstrator:x"]
+    a = config_lib.resolve(None, demos, task="fourrooms/northeast", algo="sac")
+    b = config_lib.resolve(None, [*demos, "transfer.demo_episodes=3"], task="fourrooms/northeast", algo="sac")
+    assert config_changes(a, b) == ["transfer.demo_episodes"]
+
+
 def test_a_changed_env_default_is_a_changed_run(monkeypatch):
     from drltg.config import config_changes
     from drltg.envs import registry

@@ -127,11 +127,13 @@ def register_method(method: TransferMethod, *, replace: bool = False) -> Transfe
         for key in previous.options:
             config.DEFAULTS["transfer"].pop(key, None)
             config.SCHEMA.pop(f"transfer.{key}", None)
+            config.METHOD_OPTIONS.pop(key, None)
     METHODS[method.name] = method
     config.METHOD_RULES[method.name] = method.validate
     for key, (default, spec) in method.options.items():
         config.DEFAULTS["transfer"][key] = default
         config.SCHEMA[f"transfer.{key}"] = spec
+        config.METHOD_OPTIONS[key] = method.name
     config.SCHEMA["transfer.method"] = dataclasses.replace(config.SCHEMA["transfer.method"], choices=tuple(METHODS))
     return method
 
