@@ -309,6 +309,8 @@ def test_an_option_of_a_method_the_run_does_not_use_is_not_a_change():
     a = config_lib.resolve(None, demos, task="fourrooms/northeast", algo="sac")
     b = config_lib.resolve(None, [*demos, "transfer.demo_episodes=3"], task="fourrooms/northeast", algo="sac")
     assert config_changes(a, b) == ["transfer.demo_episodes"]
+    parallel = {**b, "env": {**b["env"], "parallel": True}}  # how envs are stepped, not what they step
+    assert config_changes(b, parallel) == []
 
 
 def test_a_changed_env_default_is_a_changed_run(monkeypatch):
