@@ -223,6 +223,9 @@ registered transfer methods add their ``transfer.*`` keys (:func:`drltg.methods.
 
 _SECTIONS = {k for k, v in DEFAULTS.items() if isinstance(v, dict) and v}
 _ENV_RESERVED = {"batch_size": "collector.num_envs and eval.episodes", "device": "device", "seed": "seed"}
+# How a batch of envs is stepped (worker processes or this one), not what it steps: the same trajectories
+# either way (tests/test_robosuite.py), so two configs that differ only there are the same run.
+ENV_EXECUTION_KEYS = ("env.parallel", "env.mp_start_method")
 
 
 def _flatten(d: dict, prefix: str = "") -> dict[str, Any]:
@@ -363,7 +366,8 @@ def config_changes(saved: dict, cfg: dict) -> list[str]:
     lacks counts only when the other sets it to something else than its default, for ``env.*`` the
     task's: runs saved before the key existed, or before env settings were saved in full, stay the
     same run (resumable, and comparable in one report). Options of a transfer method that neither
-    config uses do not count (a baseline is the same run whatever another method's defaults are)."""
+    config uses do not count (a baseline is the same run whatever another method's defaults are), nor
+    do ``ENV_EXECUTION_KEYS``."""
     try:
         env = task_env(cfg["task"])
     except (KeyError, UsageError):  # a task this process does not know: no env defaults to fill in
@@ -379,7 +383,8 @@ def config_changes(saved: dict, cfg: dict) -> list[str]:
         return owner is not None and owner not in methods
 
     return sorted(key for key in _diff_keys(saved, cfg)
-                  if not (missing_as_default(saved, cfg, key) or missing_as_default(cfg, saved, key) or unused(key)))
+                  if not (missing_as_default(saved, cfg, key) or missing_as_default(cfg, saved, key) or unused(key)
+                          or key in ENV_EXECUTION_KEYS))
 
 
 def _lookup(cfg: dict, dotted: str):
