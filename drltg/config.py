@@ -71,11 +71,11 @@ DEFAULTS: dict[str, Any] = {
 TRANSFER_KEYS = tuple(DEFAULTS["transfer"])
 """The ``transfer.*`` keys of every method; the others belong to one method (``TransferMethod.options``)."""
 METHOD_RULES: dict[str, Any] = {}
-METHOD_OPTIONS: dict[str, str] = {}
-"""``transfer.<key>`` -> the one method whose option it is (filled by ``register_method`` too)."""
 """``transfer.method`` -> the check its configs must pass, filled with the method's keys (``DEFAULTS``,
 ``SCHEMA``) by :func:`drltg.methods.register_method`: import :mod:`drltg.methods` (the commands do)
 before resolving a config that uses a transfer method."""
+METHOD_OPTIONS: dict[str, str] = {}
+"""``transfer.<key>`` -> the one method whose option it is (filled by ``register_method`` too)."""
 
 
 @dataclass(frozen=True)
