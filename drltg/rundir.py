@@ -1,7 +1,8 @@
 """A run directory on disk: its file names, atomic writes, its owner lock, eval.csv and log truncation.
 
     config.yaml          the resolved config; `drltg train --config config.yaml` reproduces the run
-    eval.csv             frames,return_mean,return_std,episodes[,success_rate]  (one row per evaluation)
+    eval.csv             frames,return_mean,return_std,episodes[,success_rate,lifted_rate]  (one row per
+                         evaluation; a rate column the earlier rows of a resumed run lack is empty there)
     logs/csv/, logs/tensorboard/   training scalars (TorchRL CSVLogger + TensorboardLogger)
     checkpoints/last.pt  weights, optimizer, replay buffer and RNG state (for --resume and model reuse)
     model_reuse.txt      what model reuse loaded (model-reuse runs)
@@ -34,7 +35,9 @@ CHECKPOINT = Path("checkpoints") / "last.pt"
 LOGS = "logs"
 MODEL_REUSE = "model_reuse.txt"
 LOCK = ".drltg.lock"
-EVAL_COLUMNS = ["frames", "return_mean", "return_std", "episodes", "success_rate"]
+EPISODE_FLAGS = ("success", "lifted")
+"""Boolean env outputs an evaluation counts as "ever true in the episode": eval.csv's ``<flag>_rate``."""
+EVAL_COLUMNS = ["frames", "return_mean", "return_std", "episodes", *(f"{flag}_rate" for flag in EPISODE_FLAGS)]
 
 __all__ = ["atomic_write", "atomic_torch_save", "atomic_path", "write_files", "read_eval_csv", "write_eval_csv",
            "read_config", "write_config", "absolute_source", "is_complete", "check_directory", "lock",
@@ -146,10 +149,9 @@ def write_files(directory: str | Path, files: dict[str, bytes | str]) -> None:
 def write_eval_csv(path: str | Path, rows: list[dict]) -> None:
     columns = [c for c in EVAL_COLUMNS if any(c in r for r in rows)]
     out = io.StringIO()
-    writer = csv.DictWriter(out, fieldnames=columns, lineterminator="\n")
+    writer = csv.DictWriter(out, fieldnames=columns, restval="", extrasaction="ignore", lineterminator="\n")
     writer.writeheader()
-    for r in rows:
-        writer.writerow({c: r[c] for c in columns})
+    writer.writerows(rows)
     atomic_write(path, out.getvalue())
 
 
@@ -172,10 +174,14 @@ def read_eval_csv(path: str | Path) -> list[dict]:
         for row in reader:
             if None in row or None in row.values():
                 raise ValueError
-            rows.append({k: int(v) if k in ("frames", "episodes") else float(v) for k, v in row.items()})
+            rows.append({k: _cell(k, v) for k, v in row.items() if not (v == "" and k.endswith("_rate"))})
     except ValueError:
         raise UsageError(f"'{path}' is truncated or malformed at line {max(reader.line_num, 1)}.") from None
     return rows
+
+
+def _cell(column: str, text: str) -> int | float:
+    return int(text) if column in ("frames", "episodes") else float(text)
 
 
 def is_complete(run_dir: str | Path) -> bool:

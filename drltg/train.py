@@ -35,7 +35,7 @@ from drltg.errors import UsageError
 from drltg.learners import UpdateStep, make_agent, sample_batches
 from drltg.methods import Transfer, get_method
 from drltg.methods.source import check as check_source
-from drltg.rundir import CHECKPOINT, CONFIG, EVAL, SUMMARY, is_complete, read_eval_csv
+from drltg.rundir import CHECKPOINT, CONFIG, EPISODE_FLAGS, EVAL, SUMMARY, is_complete, read_eval_csv
 
 __all__ = ["train", "evaluate", "make_envs", "build_env", "check_config", "is_complete", "read_eval_csv"]
 
@@ -76,22 +76,24 @@ def check_config(cfg: dict):
 def evaluate(env: EnvBase, actor: Callable, max_steps: int = 100_000) -> dict:
     """Run one episode in every batch element of ``env`` with the deterministic actor.
 
-    Returns the mean/std of the undiscounted episode return and the success rate (fraction of
-    episodes in which ``success`` was ever true), counting each element's first episode only.
+    Returns the mean/std of the undiscounted episode return and, for every boolean flag the env
+    reports beside its observation (``success``; ``lifted`` on the manipulation tasks), the fraction
+    of episodes in which it was ever true (``success_rate``, ``lifted_rate``), counting each element's
+    first episode only.
     """
     td = env.reset()
     shape = env.batch_size
     alive = torch.ones(*shape, 1, dtype=torch.bool, device=env.device)
     ret = torch.zeros(*shape, 1, device=env.device)
-    success = torch.zeros_like(alive)
-    has_success = "success" in env.full_observation_spec.keys()
+    flags = [key for key in EPISODE_FLAGS if key in env.full_observation_spec.keys()]
+    ever = {key: torch.zeros_like(alive) for key in flags}
     with set_exploration_type(ExplorationType.DETERMINISTIC):
         for _ in range(max_steps):
             td = env.step(actor(td))
             nxt = td["next"]
             ret += nxt["reward"] * alive
-            if has_success:
-                success |= nxt["success"].bool() & alive
+            for key in flags:
+                ever[key] |= nxt[key].bool() & alive
             alive &= ~nxt["done"].bool()
             if not alive.any():
                 break
@@ -102,8 +104,8 @@ def evaluate(env: EnvBase, actor: Callable, max_steps: int = 100_000) -> dict:
         "return_std": ret.std(unbiased=False).item(),
         "episodes": ret.numel(),
     }
-    if has_success:
-        row["success_rate"] = success.float().mean().item()
+    for key in flags:
+        row[f"{key}_rate"] = ever[key].float().mean().item()
     return row
 
 

@@ -260,3 +260,22 @@ def test_quoted_cells_and_duplicate_columns(tmp_path):
     np.testing.assert_array_equal(c.values, [1.25, 2.5])  # the first column of the name
     (run / "eval.csv").write_text("frames,return_mean\n0,0.1\n10,1e-7\n20,-3.000000000000001\n")
     np.testing.assert_array_equal(read_curves(run)[0].values, [0.1, 1e-7, -3.000000000000001])  # exact digits
+
+
+def test_a_rate_column_added_on_resume_is_empty_in_earlier_rows(tmp_path):
+    from drltg import rundir
+
+    run = tmp_path / "run"
+    run.mkdir()
+    rows = [
+        {"frames": 0, "return_mean": 0.0, "return_std": 0.0, "episodes": 2, "success_rate": 0.0},
+        {"frames": 10, "return_mean": 2.0, "return_std": 0.0, "episodes": 2, "success_rate": 0.5, "lifted_rate": 1.0},
+    ]
+    rundir.write_eval_csv(run / "eval.csv", rows)
+    assert (run / "eval.csv").read_text().splitlines() == [
+        "frames,return_mean,return_std,episodes,success_rate,lifted_rate", "0,0.0,0.0,2,0.0,", "10,2.0,0.0,2,0.5,1.0",
+    ]
+    assert rundir.read_eval_csv(run / "eval.csv") == rows
+    assert read_run(run).values.tolist() == [0.0, 2.0]
+    with pytest.raises(UsageError, match="lifted_rate"):
+        read_run(run, tag="lifted_rate")

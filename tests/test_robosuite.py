@@ -30,9 +30,10 @@ from drltg.envs.robosuite import (  # noqa: E402
     Reach,
     RobosuiteEnv,
     demonstrator_for,
+    make_robosuite_env,
     potential_for,
 )
-from drltg.envs.robosuite.layout import TABLE_TOP_Z, TARGET_RADIUS, TARGET_XY  # noqa: E402
+from drltg.envs.robosuite.layout import LIFT_MARGIN, TABLE_TOP_Z, TARGET_RADIUS, TARGET_XY  # noqa: E402
 from drltg.methods import PotentialShaping  # noqa: E402
 
 TASKS = ("lift", "lift-place", "lift-place-barrier")
@@ -197,10 +198,30 @@ def test_demonstrator_solves_the_task_and_reward_is_success(envs, task, seed):
     if task != "lift":
         assert (part(td["next"], "cube_grasped")[success] == 0).all(), "a held cube counted as placed"
         assert (part(td["next"], "cube_lifted")[success] == 1).all()
+    # the lifted flag is the observation's latch, raised by the first step above the lift margin
+    lifted = td["next", "lifted"].squeeze(-1)
+    assert torch.equal(lifted.float(), part(td["next"], "cube_lifted").squeeze(-1))
+    first_lift = int(lifted.float().argmax())
+    above = part(td["next"], "cube_pos")[:, 2] > TABLE_TOP_Z + LIFT_MARGIN
+    assert not td["lifted"][0] and lifted[first_lift:].all() and above[first_lift] and not above[:first_lift].any()
     if barrier is not None:
         assert np.abs(env.robosuite_env.barrier_pos() - barrier).max() < 1e-3
     phi = potential_for(task)(td["next", "observation"])
     assert phi[0].item() < 0.2 and phi[-1].item() > 0.9
+
+
+def test_evaluation_counts_episodes_that_lift_apart_from_those_that_place():
+    from drltg.train import evaluate
+
+    env = make_robosuite_env("lift-place", batch_size=(2,), parallel=False, seed=0, horizon=150)
+    try:
+        lifting_only = evaluate(env, demonstrator_for("lift"))
+        placing = evaluate(env, demonstrator_for("lift-place"))
+    finally:
+        env.close()
+    assert lifting_only["success_rate"] == 0.0 and lifting_only["lifted_rate"] == 1.0
+    assert lifting_only["return_mean"] == 0.0
+    assert placing["success_rate"] == 1.0 and placing["lifted_rate"] == 1.0 and placing["return_mean"] > 0
 
 
 def test_pushing_the_cube_onto_the_target_is_not_placing(envs):
@@ -226,7 +247,7 @@ def test_pushing_the_cube_onto_the_target_is_not_placing(envs):
     assert part(td, "cube_pos")[2].item() < TABLE_TOP_Z + 0.002 + rs.cube.size[2] + 0.005
     # ... but it was never lifted, so no step counts as a success or earns reward
     assert all(x["observation"][LAYOUT["cube_lifted"]].item() == 0.0 for x in trajectory)
-    assert not any(x["success"].item() or x["reward"].item() for x in trajectory)
+    assert not any(x["success"].item() or x["reward"].item() or x["lifted"].item() for x in trajectory)
     # lifting is the only missing condition
     rs._was_lifted = True
     assert rs._check_success()

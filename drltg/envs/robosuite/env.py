@@ -71,7 +71,9 @@ class RobosuiteEnv(EnvBase):
 
     Keys: ``observation`` (float32, the listed ``observables`` concatenated, each once), ``action``
     (the controller's box, ``[-1, 1]^7``: OSC position/rotation deltas and the gripper), ``reward``,
-    ``success`` (the task's own success check after the step), ``step_count``, ``done`` /
+    ``success`` (the task's own success check after the step), ``lifted`` (the cube has been lifted in
+    this episode; drltg's tasks only: the first stage of every task, so an evaluation can tell a policy
+    that lifts but never places from one that does nothing), ``step_count``, ``done`` /
     ``terminated`` / ``truncated``. One env steps one simulation; use ``ParallelEnv`` for several.
 
     Args:
@@ -141,6 +143,7 @@ class RobosuiteEnv(EnvBase):
 
             self._lean = LeanStep(self._env, self.observables)
         self._step_count = 0
+        self._has_lifted = hasattr(self._env, "cube_lifted")
         self._make_specs(sum(s.stop - s.start for s in self.layout.values()))
         self._set_seed(seed)
 
@@ -154,6 +157,7 @@ class RobosuiteEnv(EnvBase):
         self.observation_spec = Composite(
             observation=Unbounded((obs_size,), dtype=torch.float32, device=self.device),
             success=Categorical(2, (1,), dtype=torch.bool, device=self.device),
+            **({"lifted": Categorical(2, (1,), dtype=torch.bool, device=self.device)} if self._has_lifted else {}),
             step_count=Unbounded((1,), dtype=torch.int64, device=self.device),
         )
         self.action_spec = Bounded(
@@ -174,6 +178,9 @@ class RobosuiteEnv(EnvBase):
     def _flag(self, value: bool) -> torch.Tensor:
         return torch.tensor([bool(value)], device=self.device)
 
+    def _stage_flags(self) -> dict:
+        return {"lifted": self._flag(self._env.cube_lifted())} if self._has_lifted else {}
+
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
         raw = self._env.reset()
         self._step_count = 0
@@ -181,6 +188,7 @@ class RobosuiteEnv(EnvBase):
             {
                 "observation": self._observation(raw),
                 "success": self._flag(self._env._check_success()),
+                **self._stage_flags(),
                 "step_count": torch.zeros(1, dtype=torch.int64, device=self.device),
                 "done": self._flag(False),
                 "terminated": self._flag(False),
@@ -205,6 +213,7 @@ class RobosuiteEnv(EnvBase):
                 "observation": self._observation(raw),
                 "reward": torch.tensor([reward], dtype=torch.float32, device=self.device),
                 "success": self._flag(success),
+                **self._stage_flags(),
                 "step_count": torch.tensor([self._step_count], dtype=torch.int64, device=self.device),
                 "done": self._flag(terminated or truncated),
                 "terminated": self._flag(terminated),
