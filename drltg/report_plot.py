@@ -97,6 +97,12 @@ def _jumpstart(ax, m: dict, curves: dict) -> None:
     _gap(ax, x0, ib, it, f"jumpstart\n{_signed(m['jumpstart'])}", side="right")
 
 
+def _quantity(st: dict) -> str:
+    """What the curves measure, for the box's first line: "return" unless ``--tag`` picked another column."""
+    tag = st.get("tag")
+    return "return" if not tag or "return" in tag or "reward" in tag else tag
+
+
 def _summary_box(ax, m: dict, st: dict, moving: dict) -> None:
     """The differences with their intervals, beside the axes (mean return gain first)."""
     asym = "asymptotic" if not moving else "final perf. (not converged)"
@@ -104,7 +110,7 @@ def _summary_box(ax, m: dict, st: dict, moving: dict) -> None:
     summary = [
         "transfer - baseline" + (f" [{conf}% CI]" if _has_intervals(m) else " (no CI: < 3 seeds a side)")
         + (", paired" if st.get("paired") else ""),
-        f"mean return gain {_signed(m.get('mean_return_gain'))}" + _ci(m, "mean_return_gain"),
+        f"mean {_quantity(st)} gain {_signed(m.get('mean_return_gain'))}" + _ci(m, "mean_return_gain"),
         f"jumpstart {_signed(m['jumpstart'])}" + _ci(m, "jumpstart"),
         f"{asym} {_signed(m['asymptotic_performance'])}" + _ci(m, "asymptotic_performance"),
         f"transfer ratio {_signed(m['transfer_ratio'])}" + _ci(m, "transfer_ratio") + " (offset-dependent)",

@@ -194,6 +194,17 @@ def test_multi_seed_plot_with_band(two_by_two, tmp_path):
     assert "reuse vs scratch" in (tmp_path / "o" / "transfer_plot.svg").read_text()
 
 
+def test_the_plot_names_the_tag_it_compares(tmp_path):
+    for side, rate in (("baseline", 0.0), ("transfer", 0.5)):
+        for seed in range(3):
+            run = tmp_path / side / f"seed_{seed}"
+            run.mkdir(parents=True)
+            (run / "eval.csv").write_text("frames,return_mean,success_rate\n" + f"0,0.0,0.0\n10,1.0,{rate}\n")
+    report.transfer_report(tmp_path / "baseline", tmp_path / "transfer", tmp_path / "o", tag="success_rate")
+    svg = (tmp_path / "o" / "transfer_plot.svg").read_text()
+    assert "mean success_rate gain +0.25" in svg and "return gain" not in svg
+
+
 def test_default_out_dir_is_fresh_and_named_after_the_runs(two_by_two, tmp_path, monkeypatch):
     b, t = two_by_two
     monkeypatch.chdir(tmp_path)
