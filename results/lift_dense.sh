@@ -29,3 +29,4 @@ budget=$(for seed in $SEEDS; do tail -n 1 "results/lift-dense/sac/seed-$seed/eva
 $DRLTG report --baseline tests/data/sb3_runs/lift_shaped_sac --transfer results/lift-dense/sac \
   --baseline-label "seed project, SB3 SAC (1 run)" --transfer-label "drltg SAC" \
   --threshold 50 --budget "$budget" --out results/lift-dense/vs-seed
+rm -f results/lift-dense/vs-seed/transfer_plot.svg
