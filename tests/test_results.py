@@ -46,6 +46,8 @@ def test_a_committed_report_is_reproduced_from_its_committed_curves(experiment, 
     ("sweep-gridrooms", 55),  # 5 sources, 10 baselines, 4 methods x 10 transfers
     ("sweep-options", 50),  # per K: 5 sources, 10 baselines, 10 transfers
     ("sweep-lift-demonstrations", 12),  # 3 baselines, 3 methods x 3 transfers
+    ("sweep-lift-to-place", 12),  # per target: 3 baselines, 3 transfers
+    ("lift-dense", 2),  # 2 seeds
 ])
 def test_every_committed_run_keeps_its_curve_and_config(folder, count):
     runs = [p.parent for p in (RESULTS / folder).glob("**/summary.json")]
