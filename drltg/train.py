@@ -76,10 +76,10 @@ def check_config(cfg: dict):
 def evaluate(env: EnvBase, actor: Callable, max_steps: int = 100_000) -> dict:
     """Run one episode in every batch element of ``env`` with the deterministic actor.
 
-    Returns the mean/std of the undiscounted episode return and, for every boolean flag the env
-    reports beside its observation (``success``; ``lifted`` on the manipulation tasks), the fraction
-    of episodes in which it was ever true (``success_rate``, ``lifted_rate``), counting each element's
-    first episode only.
+    Returns the mean/std of the undiscounted episode return and, for each ``rundir.EPISODE_FLAGS``
+    entry the env reports (``success``; ``lifted`` on the manipulation tasks), the fraction of episodes
+    in which it was ever true (``success_rate``, ``lifted_rate``), counting each element's first
+    episode only.
     """
     td = env.reset()
     shape = env.batch_size

@@ -21,7 +21,8 @@ declare -A OVERRIDES=(
 RUNS_TO_DO=(default/0 utd-0.5/0 utd-0.5/1 utd-2/0 batch-128/0 batch-512/0 hidden-128/0 hidden-128/1)
 
 run() {  # run VARIANT/SEED CORE
-  local variant=${1%/*} seed=${1#*/} dir="$RUNS/${1%/*}/seed-${1#*/}" resume=()
+  local variant=${1%/*} seed=${1#*/}
+  local dir="$RUNS/$variant/seed-$seed" resume=()
   [ -f "$dir/summary.json" ] && return
   [ -f "$dir/config.yaml" ] && resume=(--resume)
   # shellcheck disable=SC2086
