@@ -1,6 +1,6 @@
 """Suites ``train`` and ``memory``: whole training runs, and the memory of a 1e6-transition replay buffer.
 
-``train`` runs ``drltg.train.train`` (what ``drltg train`` runs) on ``fourrooms/northeast`` with the
+``train`` runs ``drltg.training.loop.train`` (what ``drltg train`` runs) on ``fourrooms/northeast`` with the
 task's own settings, alternating the training step as shipped with the reference step (TorchRL's
 default ``SACLoss``, its critics under ``torch.vmap``, one ``buffer.sample()`` per update), and
 reports frames/s and wall time from each run's ``summary.json``. With robosuite installed (and not
@@ -24,7 +24,7 @@ from benchmarks.common import REPO
 
 
 def _train_once(cfg: dict, run_dir: Path, reference: bool) -> dict:
-    import drltg.train as train_mod
+    import drltg.training.loop as train_mod
     from drltg import learners
 
     shipped = learners.DEACTIVATE_VMAP, train_mod.sample_batches

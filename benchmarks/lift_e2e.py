@@ -2,7 +2,7 @@
 
 Three training runs of ``FRAMES`` frames take turns, one of each per round:
 
-* ``drltg``: ``drltg.train.train`` (what ``drltg train --task lift`` runs) with the task's settings
+* ``drltg``: ``drltg.training.loop.train`` (what ``drltg train --task lift`` runs) with the task's settings
   (2 ``ParallelEnv`` workers with the lean robosuite step, replay 1e6, batch 256, 2x256 networks,
   Adam 3e-4, one update per frame after ``WARMUP`` random frames), except one evaluation episode
   and no TensorBoard;
@@ -63,7 +63,7 @@ def _tree_cpu_s() -> float:
 def drltg_run(fast: bool, frames: int = FRAMES, warmup: int = WARMUP) -> dict:
     """One ``drltg train --task lift`` run, read at three marks: the end of the first evaluation, the
     first update batch (the warm-up's frames are in the buffer) and the start of the last evaluation."""
-    import drltg.train as train_mod
+    import drltg.training.loop as train_mod
     from drltg import config as config_lib
 
     overrides = [f"collector.init_random_frames={warmup}", "eval.episodes=1", f"eval.every={10 * frames}",

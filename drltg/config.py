@@ -60,7 +60,7 @@ DEFAULTS: dict[str, Any] = {
     "eval": {"every": 5_000, "episodes": 16},
     "checkpoint": {"every": 10_000},
     "log": {"tensorboard": True, "every": 1_000},
-    # How this run transfers knowledge: a method of drltg.methods (none: the baseline); each method adds
+    # How this run transfers knowledge: a method of drltg.transfer (none: the baseline); each method adds
     # its own transfer.* keys to this section when it is registered
     "transfer": {
         "method": "none",
@@ -72,7 +72,7 @@ TRANSFER_KEYS = tuple(DEFAULTS["transfer"])
 """The ``transfer.*`` keys of every method; the others belong to one method (``TransferMethod.options``)."""
 METHOD_RULES: dict[str, Any] = {}
 """``transfer.method`` -> the check its configs must pass, filled with the method's keys (``DEFAULTS``,
-``SCHEMA``) by :func:`drltg.methods.register_method`: import :mod:`drltg.methods` (the commands do)
+``SCHEMA``) by :func:`drltg.transfer.register_method`: import :mod:`drltg.transfer` (the commands do)
 before resolving a config that uses a transfer method."""
 METHOD_OPTIONS: dict[str, str] = {}
 """``transfer.<key>`` -> the one method whose option it is (filled by ``register_method`` too)."""
@@ -219,7 +219,7 @@ SCHEMA: dict[str, Field] = {
     "transfer.allow_incomplete": Field(bool, "reuse a source run that did not finish (no summary.json)"),
 }
 """Every config key (dotted) with its type and range; ``validate`` checks a config against it. The
-registered transfer methods add their ``transfer.*`` keys (:func:`drltg.methods.register_method`)."""
+registered transfer methods add their ``transfer.*`` keys (:func:`drltg.transfer.register_method`)."""
 
 _SECTIONS = {k for k, v in DEFAULTS.items() if isinstance(v, dict) and v}
 _ENV_RESERVED = {"batch_size": "collector.num_envs and eval.episodes", "device": "device", "seed": "seed"}

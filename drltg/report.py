@@ -72,10 +72,11 @@ import numpy as np
 import pandas as pd
 
 from drltg import metrics as M
-from drltg import rundir, tables
+from drltg import tables
 from drltg.curves import FORMATS, Curve, read_curves
 from drltg.errors import UsageError
 from drltg.tables import number
+from drltg.training import rundir
 
 SIDES = ("baseline", "transfer")
 MAX_LENGTH_RATIO = 2.0  # longest / shortest run beyond which a default budget would hide too much
@@ -454,7 +455,7 @@ def _check_configs(side: str, curves: Sequence[Curve], allow_mixed: bool, warnin
     known = [c for c in curves if c.config]
     if len(known) < 2:
         return
-    from drltg import methods  # noqa: F401  (their options' defaults stand in for keys older configs lack)
+    from drltg import transfer  # noqa: F401  (their options' defaults stand in for keys older configs lack)
     from drltg.config import config_changes
 
     for c in known[1:]:

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from drltg import rundir
 from drltg.errors import UsageError
+from drltg.training import rundir
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -57,8 +57,8 @@ def _policy_and_env(args):
         return policy, env, env, "demonstrator", args.task
 
     from drltg.learners import make_agent
-    from drltg.methods.source import check_same_spaces
-    from drltg.train import build_env
+    from drltg.training.loop import build_env
+    from drltg.transfer.source import check_same_spaces
 
     run = Path(args.source).expanduser().resolve()
     config, checkpoint = run / rundir.CONFIG, run / rundir.CHECKPOINT

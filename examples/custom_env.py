@@ -4,7 +4,7 @@
 
 `OpenRoom` is a minimal batched TorchRL env — a point in the unit square that must reach a goal disc —
 written like TorchRL's `PendulumEnv`: stateless, specs built in one place, pure torch. Registering two
-goals as tasks and naming them a pair is all drltg needs: `drltg.train.train`, `drltg experiment`
+goals as tasks and naming them a pair is all drltg needs: `drltg.training.loop.train`, `drltg experiment`
 (from code, see the end) and the report then work on them like on the built-in tasks.
 """
 import argparse
@@ -17,7 +17,7 @@ from torchrl.envs import EnvBase
 
 from drltg import config
 from drltg.envs import make_env, register_pair, register_task
-from drltg.train import read_eval_csv, train
+from drltg.training.loop import read_eval_csv, train
 
 
 class OpenRoom(EnvBase):

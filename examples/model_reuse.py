@@ -14,8 +14,8 @@ import torch
 from drltg.config import resolve
 from drltg.envs import get_pair, make_env
 from drltg.learners import make_agent
-from drltg.methods import load_from_run
-from drltg.train import evaluate, is_complete, read_eval_csv, train
+from drltg.training.loop import evaluate, is_complete, read_eval_csv, train
+from drltg.transfer import load_from_run
 
 parser = argparse.ArgumentParser()
 parser.add_argument("--frames", type=int, default=10_240)

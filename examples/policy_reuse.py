@@ -14,11 +14,12 @@ from tensordict.nn import TensorDictSequential
 from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, ReplayBuffer
 
+from drltg.collectors import PiReuse, PolicyReuse
 from drltg.config import resolve
 from drltg.envs import get_pair, make_env
 from drltg.learners import make_agent
-from drltg.methods import PiReuse, PolicyReuse, load_from_run
-from drltg.train import evaluate, is_complete, train
+from drltg.training.loop import evaluate, is_complete, train
+from drltg.transfer import load_from_run
 
 parser = argparse.ArgumentParser()
 parser.add_argument("--frames", type=int, default=10_240)

@@ -17,8 +17,8 @@ from torchrl.envs import TransformedEnv
 from drltg.config import resolve
 from drltg.envs import get_task, make_env
 from drltg.envs.fourrooms import FourRoomsPotential
-from drltg.methods import PotentialShaping
-from drltg.train import is_complete, read_eval_csv, train
+from drltg.training.loop import is_complete, read_eval_csv, train
+from drltg.transforms import PotentialShaping
 
 parser = argparse.ArgumentParser()
 parser.add_argument("--frames", type=int, default=10_000)

@@ -20,9 +20,9 @@ from pathlib import Path
 
 import yaml
 
-from drltg import rundir
+from drltg.experiments.sweep import plot_transfer_matrix, summary_tables
 from drltg.report import transfer_report
-from drltg.sweep import plot_transfer_matrix, summary_tables
+from drltg.training import rundir
 
 KEPT = ("config.yaml", "eval.csv", "summary.json")
 

@@ -6,7 +6,7 @@ import pytest
 import torch
 import yaml
 
-import drltg.methods  # noqa: F401  (registers the transfer methods and their config keys)
+import drltg.transfer  # noqa: F401  (registers the transfer methods and their config keys)
 from drltg import config as config_lib
 from drltg.cli import main
 from drltg.envs import TASKS, register_task
@@ -128,7 +128,7 @@ def test_a_methods_own_rules_hold_when_it_is_chosen(overrides, key, expected):
 def test_a_registered_method_brings_its_keys(monkeypatch):
     import copy
 
-    from drltg.methods import Transfer, TransferMethod, register_method, registry
+    from drltg.transfer import Transfer, TransferMethod, register_method, registry
 
     monkeypatch.setattr(registry, "METHODS", dict(registry.METHODS))
     monkeypatch.setattr(config_lib, "DEFAULTS", copy.deepcopy(config_lib.DEFAULTS))
@@ -232,7 +232,7 @@ def test_every_default_key_has_a_field_and_every_default_fits():
 def test_choices_match_the_implementations():
     from drltg.learners import ALGOS
     from drltg.losses.soc import OPTION_POLICIES
-    from drltg.methods import METHODS
+    from drltg.transfer import METHODS
 
     assert set(config_lib.ALGOS) == set(ALGOS)
     assert set(config_lib.SCHEMA["transfer.method"].choices) == set(METHODS)
@@ -299,7 +299,7 @@ def test_the_config_holds_every_env_setting_of_its_task(monkeypatch):
 
 
 def test_an_option_of_a_method_the_run_does_not_use_is_not_a_change():
-    from drltg import methods  # noqa: F401  (registers the methods' options)
+    from drltg import transfer  # noqa: F401  (registers the methods' options)
     from drltg.config import config_changes
 
     baseline = config_lib.resolve(None, [], task="fourrooms/northeast", algo="sac")

@@ -7,8 +7,8 @@ from tensordict import TensorDict
 from tensordict.nn import TensorDictModule
 from torchrl.data import LazyTensorStorage, ReplayBuffer
 
+from drltg.collectors import collect_demonstrations, demonstration_buffer, mixed_batches
 from drltg.envs import make_env
-from drltg.methods.demonstrations import collect_demonstrations, demonstration_buffer, mixed_batches
 
 
 def test_collects_at_least_the_asked_episodes_of_the_demonstrator():
@@ -69,7 +69,7 @@ def test_demonstration_buffer_keeps_only_the_given_keys():
 # ------------------------------------------------------------------ the method in drltg train
 from drltg import config as config_lib  # noqa: E402
 from drltg.errors import UsageError  # noqa: E402
-from drltg.train import read_eval_csv, train  # noqa: E402
+from drltg.training.loop import read_eval_csv, train  # noqa: E402
 
 TINY = ["network.hidden=[16,16]", "collector.num_envs=4", "collector.frames_per_batch=16",
         "collector.init_random_frames=64", "optim.updates_per_batch=2", "buffer.batch_size=32",
@@ -120,7 +120,7 @@ def test_demonstrations_refuse_what_they_cannot_use(override, message, tmp_path)
 from torchrl.envs import ExplorationType, set_exploration_type  # noqa: E402
 
 from drltg.learners import UpdateStep, loss_total, make_agent  # noqa: E402
-from drltg.methods.demonstrations import behaviour_cloning  # noqa: E402
+from drltg.losses import behaviour_cloning  # noqa: E402
 
 
 def _agent_and_batch(algo="sac", n=32, seed=0):
@@ -198,7 +198,7 @@ def test_behaviour_cloning_alone_fits_the_demonstrated_actions():
 
 
 def test_behaviour_cloning_refuses_discrete_actions():
-    from drltg.methods import get_method
+    from drltg.transfer import get_method
 
     cfg = config_lib.resolve({}, TINY + ["transfer.method=demonstrations"], task="gridrooms/northeast")
     env = make_env("gridrooms/northeast")

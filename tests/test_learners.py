@@ -11,12 +11,12 @@ import torch
 from tensordict import TensorDict
 from torchrl.data import LazyTensorStorage, ReplayBuffer
 
-import drltg.train as train_mod
+import drltg.training.loop as train_mod
 from drltg import config as config_lib
 from drltg import learners
 from drltg.envs import make_env
 from drltg.learners import UpdateStep, loss_total, make_agent, sample_batches
-from drltg.train import read_eval_csv, train
+from drltg.training.loop import read_eval_csv, train
 
 TASK = "fourrooms/northeast"
 LEARNERS = {  # name: (algo, task)

@@ -6,10 +6,12 @@ from tensordict import TensorDict
 from torchrl.envs import ExplorationType, set_exploration_type
 
 from drltg import config as config_lib
+from drltg.collectors import JumpStart, PolicyReuse
 from drltg.envs import make_env
 from drltg.errors import UsageError
 from drltg.learners import make_agent
-from drltg.methods import METHODS, JumpStart, PolicyReuse, PotentialShaping, SourceValue, Transfer, get_method
+from drltg.transfer import METHODS, Transfer, get_method
+from drltg.transforms import PotentialShaping, SourceValue
 
 SMALL = ["network.hidden=[8,8]", "collector.num_envs=2", "collector.frames_per_batch=8"]
 

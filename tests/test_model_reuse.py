@@ -8,7 +8,8 @@ from drltg.config import resolve
 from drltg.envs import FourRoomsEnv
 from drltg.errors import UsageError
 from drltg.learners import make_agent
-from drltg.methods.model_reuse import load_from_run, load_weights
+from drltg.modules import load_weights
+from drltg.transfer import load_from_run
 
 
 def agent(algo="sac", observe_goal=False, seed=0):

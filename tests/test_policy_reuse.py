@@ -11,8 +11,8 @@ from torchrl.envs import EnvBase, StepCounter, TransformedEnv
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 from torchrl.modules import ProbabilisticActor, TanhNormal
 
+from drltg.collectors import PRQL, JumpStart, PiReuse, PolicyReuse
 from drltg.errors import UsageError
-from drltg.methods import PRQL, JumpStart, PiReuse, PolicyReuse
 
 LEARNER, PAST = -0.5, 0.5
 

@@ -5,7 +5,7 @@ import pytest
 import torch
 from torchrl.envs.utils import check_env_specs
 
-from drltg import tasks_cmd
+from drltg.cli import tasks as tasks_cmd
 from drltg.envs import PAIRS, TASKS, FourRoomsEnv, get_pair, get_task, make_env, registry
 from drltg.errors import UsageError
 

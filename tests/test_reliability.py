@@ -13,11 +13,11 @@ import pytest
 import torch
 import yaml
 
-import drltg.train as train_mod
-from drltg import rundir
+import drltg.training.loop as train_mod
 from drltg.cli import main
 from drltg.curves import read_csvlogger, read_tensorboard
 from drltg.errors import UsageError
+from drltg.training import rundir
 
 TINY = ["network.hidden=[16,16]", "collector.num_envs=4", "collector.frames_per_batch=16",
         "collector.init_random_frames=32", "optim.updates_per_batch=1", "buffer.batch_size=16",

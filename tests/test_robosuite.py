@@ -34,7 +34,7 @@ from drltg.envs.robosuite import (  # noqa: E402
     potential_for,
 )
 from drltg.envs.robosuite.layout import LIFT_MARGIN, TABLE_TOP_Z, TARGET_RADIUS, TARGET_XY  # noqa: E402
-from drltg.methods import PotentialShaping  # noqa: E402
+from drltg.transforms import PotentialShaping  # noqa: E402
 
 TASKS = ("lift", "lift-place", "lift-place-barrier")
 
@@ -211,7 +211,7 @@ def test_demonstrator_solves_the_task_and_reward_is_success(envs, task, seed):
 
 
 def test_evaluation_counts_episodes_that_lift_apart_from_those_that_place():
-    from drltg.train import evaluate
+    from drltg.training.loop import evaluate
 
     env = make_robosuite_env("lift-place", batch_size=(2,), parallel=False, seed=0, horizon=150)
     try:
@@ -400,7 +400,7 @@ def test_demonstrator_as_past_policy_acts_through_the_reuse_mixer(envs):
     from torchrl.envs.utils import ExplorationType, set_exploration_type
 
     from drltg.learners import make_agent
-    from drltg.methods import get_method, source
+    from drltg.transfer import get_method, source
 
     cfg = _config("lift-place", "transfer.method=policy-reuse", "transfer.source=demonstrator:lift",
                   "transfer.upsilon=1.0", "network.hidden=[8,8]")
@@ -429,14 +429,14 @@ def test_demonstrator_as_past_policy_acts_through_the_reuse_mixer(envs):
 )
 def test_demonstrator_source_misuse_is_one_sentence(task, overrides, message):
     from drltg.errors import UsageError
-    from drltg.methods import source
+    from drltg.transfer import source
 
     with pytest.raises(UsageError, match=message):
         source.check(_config(task, *overrides))
 
 
 def test_lift_sparse_vs_shaped_uses_the_lift_potential_on_the_sparse_task():
-    from drltg.methods import get_method
+    from drltg.transfer import get_method
 
     cfg = _config("lift", "transfer.method=reward-shaping")
     (shaping,) = get_method("reward-shaping").build(cfg, None, None, resuming=False).train_transforms
@@ -445,7 +445,7 @@ def test_lift_sparse_vs_shaped_uses_the_lift_potential_on_the_sparse_task():
 
 
 def test_lift_to_place_experiment_plans_sources_or_reuses_the_demonstrator(tmp_path):
-    from drltg.experiment import plan_runs
+    from drltg.experiments.experiment import plan_runs
 
     trained = plan_runs("lift-to-place", "policy-reuse", frames=100, seeds=2, out=tmp_path)
     assert [(role, cfg["task"]) for role, cfg, _ in trained] == [
@@ -467,7 +467,7 @@ def test_lift_to_place_experiment_plans_sources_or_reuses_the_demonstrator(tmp_p
 
 def test_an_experiment_on_a_task_alone_needs_a_given_source(tmp_path):
     from drltg.errors import UsageError
-    from drltg.experiment import plan_runs
+    from drltg.experiments.experiment import plan_runs
 
     demos = plan_runs("lift", "demonstrations", frames=100, seeds=2, out=tmp_path,
                       overrides=["transfer.source=demonstrator:lift"])

@@ -14,7 +14,7 @@ from torchrl.envs.utils import check_env_specs
 from drltg.envs import FourRoomsEnv, GridFourRoomsEnv, fourrooms, gridrooms
 from drltg.envs.fourrooms import FourRoomsPotential
 from drltg.envs.gridrooms import GridFourRoomsPotential
-from drltg.methods import PotentialShaping, TimeDependentPotential
+from drltg.transforms import PotentialShaping, TimeDependentPotential
 
 GAMMA = 0.9
 

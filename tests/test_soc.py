@@ -397,7 +397,7 @@ def test_option_statistics_by_hand():
 
 # ------------------------------------------------------------------------------------------ agent builder
 def test_soc_agent_trains_in_the_training_loop(tmp_path):
-    from drltg.train import read_eval_csv, train
+    from drltg.training.loop import read_eval_csv, train
 
     tiny = [
         "network.hidden=[16,16]",

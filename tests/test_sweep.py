@@ -10,9 +10,10 @@ from pathlib import Path
 import pytest
 import yaml
 
-from drltg import rundir, sweep
 from drltg.cli import main
-from drltg.train import train
+from drltg.experiments import sweep
+from drltg.training import rundir
+from drltg.training.loop import train
 
 TINY = {"network.hidden": [16, 16], "collector.num_envs": 4, "collector.frames_per_batch": 16,
         "collector.init_random_frames": 64, "optim.updates_per_batch": 1, "buffer.batch_size": 32,
@@ -68,7 +69,7 @@ def test_a_task_alone_is_a_target_when_the_source_is_given(tmp_path):
 
 def test_runs_are_those_of_drltg_experiment(tmp_path):
     """Every run of ``drltg experiment`` with the same settings is a sweep run with the same config."""
-    from drltg.experiment import plan as experiment_plan
+    from drltg.experiments.experiment import plan as experiment_plan
 
     spec = sweep.parse_spec(GRID)
     runs, _ = sweep.plan(spec, tmp_path / "sweep")

@@ -4,10 +4,10 @@ import csv
 import pytest
 import yaml
 
-import drltg.train as train_mod
+import drltg.training.loop as train_mod
 from drltg import config as config_lib
 from drltg.cli import main
-from drltg.train import read_eval_csv, train
+from drltg.training.loop import read_eval_csv, train
 
 TINY = [
     "network.hidden=[16,16]",

@@ -36,7 +36,7 @@ class TaskSpec:
     defaults: dict[str, Any] = field(default_factory=dict)
     train: dict[str, Any] = field(default_factory=dict)
     potential: Callable[[dict[str, Any]], Callable] | None = None
-    """``potential(env_options)`` builds the task's shaping potential (``drltg.methods.reward_shaping``)."""
+    """``potential(env_options)`` builds the task's shaping potential (``drltg.transforms.PotentialShaping``)."""
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,10 @@
-"""Loss modules drltg adds to TorchRL's (SAC and TD3 come from ``torchrl.objectives``)."""
+"""Loss modules drltg adds to TorchRL's (SAC and TD3 come from ``torchrl.objectives``).
+
+    SoftOptionCriticLoss   SAC over K options: intra-option policies, option-indexed critics,
+                           terminations, a policy over options; K = 1 is exactly SAC      (soc)
+    behaviour_cloning      w * mean ||mu(s) - a_demo||^2 on a batch's demonstrations   (behaviour_cloning)
+"""
+from drltg.losses.behaviour_cloning import behaviour_cloning
 from drltg.losses.soc import SoftOptionCriticLoss
 
-__all__ = ["SoftOptionCriticLoss"]
+__all__ = ["SoftOptionCriticLoss", "behaviour_cloning"]

@@ -1,4 +1,5 @@
-"""Networks and policies that drltg's learners need beyond TorchRL's own modules."""
+"""Networks and policies that drltg's learners need beyond TorchRL's own modules, and loading weights
+across networks of different shapes (model reuse)."""
 from drltg.modules.options import (
     OPTION_KEY,
     OptionHeads,
@@ -10,8 +11,12 @@ from drltg.modules.options import (
     option_statistics,
     option_transforms,
 )
+from drltg.modules.weights import LoadReport, freeze_parameters, load_weights
 
 __all__ = [
+    "LoadReport",
+    "freeze_parameters",
+    "load_weights",
     "OPTION_KEY",
     "OptionHeads",
     "OptionSelector",

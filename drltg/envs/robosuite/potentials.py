@@ -1,4 +1,4 @@
-"""Potentials for ``drltg.methods.PotentialShaping`` on the manipulation tasks.
+"""Potentials for ``drltg.transforms.PotentialShaping`` on the manipulation tasks.
 
 The dense rewards of robosuite (reach, grasp, lift) become potentials ``Phi(s)``: shaping with
 ``F = gamma * Phi(s') - Phi(s)`` keeps the optimal policy of the sparse task (Ng, Harada & Russell

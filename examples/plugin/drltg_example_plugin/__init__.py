@@ -18,7 +18,7 @@ from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 from drltg.envs import register_pair, register_task
-from drltg.methods import Transfer, TransferMethod, load_from_run, register_method
+from drltg.transfer import Transfer, TransferMethod, load_from_run, register_method
 
 
 class LineWorld(EnvBase):

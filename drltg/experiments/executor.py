@@ -20,8 +20,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from drltg import rundir
 from drltg.errors import UsageError
+from drltg.training import rundir
 
 __all__ = ["Run", "run_one", "LocalBackend", "RayBackend", "execute"]
 
@@ -62,7 +62,7 @@ def run_one(cfg: dict, run_dir: str, log_path: str) -> tuple[str, str]:
     Never raises for a broken run: the traceback goes to the log, the sweep goes on.
     """
     from drltg import plugins
-    from drltg.train import train
+    from drltg.training.loop import train
 
     plugins.load()  # a worker process registers the user's tasks too
     run_dir, log_path = Path(run_dir), Path(log_path)

@@ -23,9 +23,6 @@ from tensordict.utils import NestedKey
 from torchrl.data import Composite, Unbounded
 from torchrl.envs import Transform
 
-from drltg.errors import UsageError
-from drltg.methods.registry import Transfer, TransferMethod, register_method
-
 Potential = Callable[..., torch.Tensor]
 
 
@@ -188,27 +185,3 @@ class TimeDependentPotential(torch.nn.Module):
     def forward(self, *observation_and_step_count: torch.Tensor) -> torch.Tensor:
         *observation, step_count = observation_and_step_count
         return self.schedule(step_count) * self.potential(*observation)
-
-
-def _check(cfg: dict) -> None:
-    from drltg.envs import get_task
-
-    if get_task(cfg["task"]).potential is None:
-        raise UsageError(f"task '{cfg['task']}' has no shaping potential registered.")
-
-
-def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
-    """The task's own potential (registered with the task), the learner's gamma."""
-    from drltg.envs import get_task
-
-    spec = get_task(cfg["task"])
-    potential = spec.potential({**spec.defaults, **cfg["env"]})
-    return Transfer(train_transforms=[PotentialShaping(potential, gamma=cfg["optim"]["gamma"])])
-
-
-REWARD_SHAPING = register_method(TransferMethod(
-    "reward-shaping",
-    "adds gamma Phi(s') - Phi(s) to the training reward, Phi the task's registered potential",
-    _build,
-    check=_check,
-))

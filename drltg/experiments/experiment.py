@@ -17,8 +17,8 @@ interrupted one resumes from its checkpoint, so re-running the same command fini
 
 Every run's config is built and checked (its task, env settings and learner) and the report settings
 are parsed before anything is written; the folder is then owned by one ``drltg experiment`` at a time
-(:func:`drltg.rundir.lock`). Runs are trained by :func:`drltg.executor.execute`, as a sweep's are; each
-run's output and, if it fails, its traceback go to ``DIR/logs/<role>/seed-<s>.log``.
+(:func:`drltg.training.rundir.lock`). Runs are trained by :func:`drltg.experiments.executor.execute`, as a
+sweep's are; each run's output and, if it fails, its traceback go to ``DIR/logs/<role>/seed-<s>.log``.
 """
 from __future__ import annotations
 
@@ -29,8 +29,8 @@ from pathlib import Path
 import yaml
 
 from drltg import config as config_lib
-from drltg import rundir
 from drltg.errors import UsageError
+from drltg.training import rundir
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -77,7 +77,7 @@ def plan_runs(
     config keys (``{"eval.every": 1000}``) applied before the ``KEY=VALUE`` ``overrides``.
     """
     from drltg.envs import PAIRS, TASKS
-    from drltg.methods import get_method
+    from drltg.transfer import get_method
 
     spec = get_method(method)
     if spec.name == "none":
@@ -122,8 +122,8 @@ def plan_runs(
 def check_runs(runs: list[tuple[str, dict, Path]]) -> None:
     """Build the task env and the learner of every distinct run config, and check the transfer section
     of those whose source is not one of ``runs``: a mistake fails here, before anything is written."""
-    from drltg.methods.source import check as check_source
-    from drltg.train import check_config
+    from drltg.training.loop import check_config
+    from drltg.transfer.source import check as check_source
 
     planned = {str(d) for _, _, d in runs}
     seen = set()
@@ -138,9 +138,9 @@ def check_runs(runs: list[tuple[str, dict, Path]]) -> None:
 
 
 def as_runs(runs: list[tuple[str, dict, Path]], out: Path) -> list:
-    """The plan as :class:`drltg.executor.Run` s: logs under ``out/logs/<role>/``, each transfer run
+    """The plan as :class:`drltg.experiments.executor.Run` s: logs under ``out/logs/<role>/``, each transfer run
     after the source run it reads."""
-    from drltg.executor import Run
+    from drltg.experiments.executor import Run
 
     planned = {str(d) for _, _, d in runs}
     return [Run(role, cfg, d, out / "logs" / role / f"{d.name}.log",
@@ -167,7 +167,7 @@ def _check_settings(path: Path, settings: dict) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drltg.executor import LocalBackend, execute
+    from drltg.experiments.executor import LocalBackend, execute
     from drltg.report import format_table, parse_threshold, transfer_report
 
     if args.workers < 1:

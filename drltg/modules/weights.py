@@ -17,17 +17,13 @@ from __future__ import annotations
 import fnmatch
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import torch
 from torch import nn
 
-from drltg.config import Field
 from drltg.errors import UsageError
-from drltg.methods.registry import Transfer, TransferMethod, register_method
-from drltg.rundir import MODEL_REUSE, load_checkpoint
 
-__all__ = ["LoadReport", "load_weights", "load_from_run", "freeze_parameters"]
+__all__ = ["LoadReport", "load_weights", "freeze_parameters"]
 
 
 @dataclass
@@ -212,37 +208,3 @@ def freeze_parameters(module: nn.Module, patterns: Sequence[str]) -> list[str]:
         if name in frozen:
             param.requires_grad_(False)
     return [n for n, _ in module.named_parameters() if n in frozen]
-
-
-def load_from_run(loss_module: nn.Module, run_dir: str | Path, **kwargs) -> LoadReport:
-    """Initialise ``loss_module`` from ``<run_dir>/checkpoints/last.pt`` (its ``"loss"`` entry).
-
-    Keyword arguments go to :func:`load_weights`. The checkpoint is unpickled: load only runs you trust.
-    """
-    checkpoint = load_checkpoint(Path(run_dir).expanduser())
-    return load_weights(loss_module, checkpoint["loss"], **kwargs)
-
-
-def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
-    """Every network of the learner (actor, critics, targets) starts from the source run; a resumed
-    run has its weights already, and only its frozen parameters are frozen again."""
-    t = cfg["transfer"]
-    if resuming:
-        freeze_parameters(agent.loss, t["freeze"])
-        return Transfer()
-    report = load_from_run(agent.loss, t["source"], freeze=t["freeze"], partial=t["partial"])
-    print(report.summary(), flush=True)
-    return Transfer(files={MODEL_REUSE: f"{report}\n"})
-
-
-MODEL_REUSE_METHOD = register_method(TransferMethod(
-    "model-reuse",
-    "the learner starts from the source run's weights (observation-size changes mapped)",
-    _build,
-    source="run",
-    options={
-        "freeze": ([], Field(list, "model reuse: parameter-name patterns to keep fixed", item=Field(str),
-                             what="a list of parameter-name patterns (e.g. [actor_network_params])")),
-        "partial": (False, Field(bool, "model reuse: accept a source whose core networks cannot all be loaded")),
-    },
-))

@@ -11,7 +11,7 @@ pipeline it changes::
 whether it trains source runs first, its ``transfer.*`` config keys and their ranges, and the rules
 its config must follow. A new method is one module and one :func:`register_method` call::
 
-    from drltg.methods import Transfer, TransferMethod, register_method
+    from drltg.transfer import Transfer, TransferMethod, register_method
 
     def build(cfg, agent, env, *, resuming):
         return Transfer(train_transforms=[MyTransform(scale=cfg["transfer"]["my_scale"])])

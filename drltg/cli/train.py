@@ -6,7 +6,7 @@ from pathlib import Path
 
 from drltg import config as config_lib
 from drltg.errors import UsageError
-from drltg.rundir import CONFIG, absolute_source, check_directory
+from drltg.training.rundir import CONFIG, absolute_source, check_directory
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -24,7 +24,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drltg.train import train
+    from drltg.training.loop import train
 
     if args.resume and args.run_dir is None:
         raise UsageError("--resume needs --run-dir, the run directory to continue.")

@@ -29,15 +29,13 @@ from collections.abc import Sequence
 
 import torch
 from tensordict import NestedKey, TensorDictBase
-from tensordict.nn import TensorDictModuleBase, TensorDictSequential
+from tensordict.nn import TensorDictModuleBase
 from tensordict.utils import expand_as_right
 from torch import nn
 from torchrl.data import Composite, TensorSpec
 from torchrl.envs.utils import ExplorationType, exploration_type, set_exploration_type
 
-from drltg.config import Field
 from drltg.errors import UsageError
-from drltg.methods.registry import Transfer, TransferMethod, register_method
 
 __all__ = ["PolicyReuse", "ReuseSchedule", "PiReuse", "JumpStart", "PRQL"]
 
@@ -345,62 +343,3 @@ class PolicyReuse(TensorDictModuleBase):
                 self.reuse_index_key: choice.unsqueeze(-1),
             }
         )
-
-
-def _mixed(cfg: dict, agent, env, schedule: ReuseSchedule) -> Transfer:
-    """The learner's exploration policy followed by the mixer over the source's past policy."""
-    from drltg.methods.source import source_actor
-
-    mixer = PolicyReuse(source_actor(cfg, env), schedule=schedule)
-    return Transfer(policy=TensorDictSequential(agent.policy, mixer), on_frames=mixer.set_progress)
-
-
-def _pi_reuse(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
-    t = cfg["transfer"]
-    return _mixed(cfg, agent, env, PiReuse(t["psi"], t["upsilon"], psi_end=t["psi_end"],
-                                           annealing_frames=t["annealing_frames"]))
-
-
-def _check_pi_reuse(cfg: dict) -> None:
-    t = cfg["transfer"]
-    if t["psi_end"] is not None and t["psi_end"] != t["psi"] and t["annealing_frames"] <= 0:
-        raise UsageError("config key 'transfer.psi_end' needs transfer.annealing_frames > 0, the frames over "
-                         "which psi decays.")
-
-
-_PROB = dict(low=0.0, high=1.0)
-
-POLICY_REUSE = register_method(TransferMethod(
-    "policy-reuse",
-    "pi-reuse: the source policy acts with probability psi * upsilon^h at step h of every episode",
-    _pi_reuse,
-    source="policy",
-    check=_check_pi_reuse,
-    options={
-        "psi": (1.0, Field(float, "pi-reuse: probability of reusing at an episode's first step", **_PROB)),
-        "upsilon": (0.95, Field(float, "pi-reuse: decay of psi within the episode", **_PROB)),
-        "psi_end": (None, Field(float, "pi-reuse: psi after annealing_frames; null: no decay", **_PROB,
-                                nullable=True)),
-        "annealing_frames": (0, Field(int, "pi-reuse: frames over which psi decays to psi_end", low=0)),
-    },
-))
-
-
-def _jumpstart(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
-    t = cfg["transfer"]
-    stage = max(t["guide_frames"] // t["guide_stages"], 1)
-    return _mixed(cfg, agent, env, JumpStart(t["guide_steps"], stages=t["guide_stages"], frames_per_stage=stage))
-
-
-JUMPSTART = register_method(TransferMethod(
-    "jumpstart",
-    "JSRL: the source policy acts for the first H steps of every episode, H shrinking to 0 in stages",
-    _jumpstart,
-    source="policy",
-    options={
-        "guide_steps": (100, Field(int, "jumpstart: steps the source policy acts at the start (H at first)",
-                                   low=0)),
-        "guide_stages": (10, Field(int, "jumpstart: equal steps in which H shrinks to 0", low=1)),
-        "guide_frames": (20_000, Field(int, "jumpstart: training frames until H reaches 0", low=1)),
-    },
-))

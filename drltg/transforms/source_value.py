@@ -16,14 +16,10 @@ from __future__ import annotations
 import torch
 from tensordict import TensorDict
 from torch import nn
-from torchrl.data import OneHot
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.objectives import DiscreteSACLoss, SACLoss, TD3Loss
 
-from drltg.config import Field
 from drltg.errors import UsageError
-from drltg.methods.registry import Transfer, TransferMethod, register_method
-from drltg.methods.reward_shaping import PotentialShaping
 
 __all__ = ["SourceValue"]
 
@@ -58,22 +54,3 @@ class SourceValue(nn.Module):
                     q = self.critic(td.clone().set("action", action))["state_action_value"]
             values.append(q)
         return self.scale * torch.stack(values).amin(0)
-
-
-def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
-    from drltg.methods.source import source_agent
-
-    source = source_agent(cfg, env)
-    discrete = isinstance(env.full_action_spec_unbatched["action"], OneHot)
-    potential = SourceValue(source.loss, discrete=discrete, scale=cfg["transfer"]["value_scale"])
-    return Transfer(train_transforms=[PotentialShaping(potential, gamma=cfg["optim"]["gamma"])])
-
-
-VALUE_SHAPING = register_method(TransferMethod(
-    "value-shaping",
-    "adds gamma Phi(s') - Phi(s) to the training reward, Phi the source run's value V_source(s)",
-    _build,
-    source="run",
-    algos=("sac", "td3"),
-    options={"value_scale": (1.0, Field(float, "value shaping: Phi = value_scale * V_source(s)", low=0.0))},
-))

@@ -2,7 +2,7 @@
 
 Evaluation runs at frame 0 (before any update) and every ``eval.every`` frames, with the deterministic
 actor on a separate evaluation env that measures the task's own reward (never a shaped one) and
-success. What a run directory holds is described in :mod:`drltg.rundir`; :func:`train` owns it (its
+success. What a run directory holds is described in :mod:`drltg.training.rundir`; :func:`train` owns it (its
 lock) while it runs, checks everything it can before creating it, and removes what a failed start
 wrote before its first checkpoint, so a retry is never blocked.
 """
@@ -28,14 +28,14 @@ from torchrl.envs import EnvBase, ExplorationType, RewardSum, TransformedEnv, se
 from torchrl.record.loggers import CSVLogger, TensorboardLogger
 from tqdm.auto import tqdm
 
-from drltg import rundir
 from drltg.config import config_changes
 from drltg.envs import make_env
 from drltg.errors import UsageError
 from drltg.learners import UpdateStep, make_agent, sample_batches
-from drltg.methods import Transfer, get_method
-from drltg.methods.source import check as check_source
-from drltg.rundir import CHECKPOINT, CONFIG, EPISODE_FLAGS, EVAL, SUMMARY, is_complete, read_eval_csv
+from drltg.training import rundir
+from drltg.training.rundir import CHECKPOINT, CONFIG, EPISODE_FLAGS, EVAL, SUMMARY, is_complete, read_eval_csv
+from drltg.transfer import Transfer, get_method
+from drltg.transfer.source import check as check_source
 
 __all__ = ["train", "evaluate", "make_envs", "build_env", "check_config", "is_complete", "read_eval_csv"]
 

@@ -11,11 +11,13 @@ from drltg import plugins
 from drltg.errors import UsageError
 
 SUBCOMMANDS = {
-    "tasks": ("drltg.tasks_cmd", "list the registered tasks and task pairs"),
-    "train": ("drltg.train_cmd", "train one agent on one task (writes a run directory)"),
-    "demo": ("drltg.demo", "a short FourRooms run on the built-in defaults"),
-    "experiment": ("drltg.experiment", "train source, baseline and transfer runs over seeds, then report"),
-    "sweep": ("drltg.sweep", "many experiments from one YAML spec, on a local process pool or a Ray cluster"),
+    "tasks": ("drltg.cli.tasks", "list the registered tasks and task pairs"),
+    "train": ("drltg.cli.train", "train one agent on one task (writes a run directory)"),
+    "demo": ("drltg.cli.demo", "a short FourRooms run on the built-in defaults"),
+    "experiment": ("drltg.experiments.experiment",
+                   "train source, baseline and transfer runs over seeds, then report"),
+    "sweep": ("drltg.experiments.sweep",
+              "many experiments from one YAML spec, on a local process pool or a Ray cluster"),
     "report": ("drltg.report", "transfer metrics, plots and tables from baseline vs transfer runs"),
     "video": ("drltg.video", "render episodes of a trained policy or the demonstrator to video and a filmstrip"),
 }
@@ -60,5 +62,3 @@ def _terminate(signum, frame):
     raise SystemExit(128 + signum)
 
 
-if __name__ == "__main__":
-    sys.exit(main())

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from drltg import experiment
+from drltg.experiments import experiment
 
 DEMO = dict(pair="fourrooms-near", method="model-reuse", algo="sac", seeds=3, seed=0,
             frames=15_000, source_frames=30_000, overrides=["eval.every=1500"], threshold="0.5")

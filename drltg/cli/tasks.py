@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 
 from drltg.envs import PAIRS, TASKS
-from drltg.methods import METHODS
+from drltg.transfer import METHODS
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

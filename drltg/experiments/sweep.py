@@ -35,7 +35,7 @@ Re-running is safe: complete runs (``summary.json`` in place, written last) are 
 ones resume from ``checkpoints/last.pt``, a failed run is reported with its log and the others go on.
 The same spec gives the same run directories and, run by run, the same numbers on both backends.
 Every run's task, env settings and learner are built once and the threshold parsed before anything is
-written, and one sweep at a time owns DIR (:func:`drltg.rundir.lock`).
+written, and one sweep at a time owns DIR (:func:`drltg.training.rundir.lock`).
 """
 from __future__ import annotations
 
@@ -50,9 +50,9 @@ from typing import Any
 
 import yaml
 
-from drltg import rundir
 from drltg.errors import UsageError
-from drltg.executor import LocalBackend, RayBackend, Run, execute
+from drltg.experiments.executor import LocalBackend, RayBackend, Run, execute
+from drltg.training import rundir
 
 KEYS = ("pairs", "methods", "algos", "seeds", "seed", "frames", "source_frames", "overrides", "grid",
         "threshold", "resources")
@@ -108,8 +108,8 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
     """Validate a loaded spec; every mistake is one :class:`UsageError` sentence."""
     from drltg.envs import TASKS, get_pair
     from drltg.learners import ALGOS
-    from drltg.methods import METHODS
     from drltg.report import parse_threshold
+    from drltg.transfer import METHODS
 
     if not isinstance(data, dict):
         raise UsageError(f"{where} must be a YAML mapping with keys like pairs, methods, seeds, frames.")
@@ -217,7 +217,7 @@ def _key(cfg: dict) -> str:
 
 def plan(spec: Spec, out: Path) -> tuple[list[Run], list[Cell]]:
     """Expand the spec into unique runs (each after the run it needs) and the reports to write."""
-    from drltg.experiment import plan_runs
+    from drltg.experiments.experiment import plan_runs
 
     out = Path(out).expanduser().resolve()
     home: dict[str, Path] = {}  # resolved config -> the one directory that trains it
@@ -365,7 +365,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drltg.experiment import check_runs
+    from drltg.experiments.experiment import check_runs
     from drltg.report import check_metric
 
     if args.workers is not None and args.workers < 1:

@@ -17,8 +17,8 @@ from drltg.envs import make_env
 from drltg.envs.robosuite.layout import TASKS as MANIPULATION
 from drltg.errors import UsageError
 from drltg.learners import make_agent
-from drltg.methods.registry import get_method
-from drltg.rundir import CHECKPOINT, CONFIG, SUMMARY, is_complete, load_checkpoint
+from drltg.training.rundir import CHECKPOINT, CONFIG, SUMMARY, is_complete, load_checkpoint
+from drltg.transfer.registry import get_method
 
 DEMONSTRATOR = "demonstrator:"
 

@@ -1,0 +1,5 @@
+import sys
+
+from drltg.cli import main
+
+sys.exit(main())

@@ -1,0 +1,27 @@
+"""Transfer methods: thin compositions of drltg's parts, registered by name (``transfer.method``).
+
+    none             plain learning on the task: the baseline
+    reward-shaping   transforms.PotentialShaping(the task's potential) on the training env  (reward_shaping)
+    value-shaping    transforms.PotentialShaping(transforms.SourceValue(source run))        (value_shaping)
+    policy-reuse     collectors.PolicyReuse(source policy, PiReuse(psi, upsilon))           (policy_reuse)
+    jumpstart        collectors.PolicyReuse(source policy, JumpStart(H))                     (policy_reuse)
+    model-reuse      modules.load_weights(source run's checkpoint -> the learner)           (model_reuse)
+    demonstrations   collectors.collect_demonstrations + mixed_batches, losses.behaviour_cloning
+                                                                                            (demonstrations)
+
+:mod:`drltg.transfer.registry` defines what a method is (:class:`TransferMethod`) and what it adds to a
+run (:class:`Transfer`); :mod:`drltg.transfer.source` reads ``transfer.source``. Importing this package
+registers the built-in methods; the parts themselves (``drltg.transforms``, ``drltg.collectors``,
+``drltg.losses``, ``drltg.modules``) register nothing.
+"""
+from drltg.transfer.registry import METHODS, Transfer, TransferMethod, get_method, register_method
+
+register_method(TransferMethod("none", "plain learning on the task: the baseline", lambda *a, **k: Transfer()))
+
+from drltg.transfer import reward_shaping, value_shaping, policy_reuse, model_reuse, demonstrations  # noqa: E402,I001
+from drltg.transfer.model_reuse import load_from_run  # noqa: E402
+
+__all__ = [
+    "METHODS", "Transfer", "TransferMethod", "get_method", "register_method", "load_from_run",
+    "reward_shaping", "value_shaping", "policy_reuse", "model_reuse", "demonstrations",
+]

@@ -1,0 +1,56 @@
+"""The demonstrations method: source episodes in their own buffer, a share of every batch, behaviour cloning."""
+from __future__ import annotations
+
+from torchrl.data import OneHot
+from torchrl.envs import TransformedEnv
+
+from drltg.collectors import collect_demonstrations, demonstration_buffer, mixed_batches
+from drltg.config import Field
+from drltg.errors import UsageError
+from drltg.losses import behaviour_cloning
+from drltg.transfer.registry import Transfer, TransferMethod, register_method
+
+
+def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
+    """``transfer.demo_episodes`` episodes of the source policy on the training task, from an env
+    seeded apart from the training and evaluation envs, kept in a buffer of their own; a resumed run
+    collects the same episodes again."""
+    from drltg.envs import make_env
+    from drltg.transfer.source import source_actor
+
+    t = cfg["transfer"]
+    if t["bc_weight"] > 0 and isinstance(env.full_action_spec_unbatched["action"], OneHot):
+        raise UsageError(
+            f"transfer.bc_weight clones continuous actions; task '{cfg['task']}' has discrete actions "
+            f"(set -o transfer.bc_weight=0)."
+        )
+    policy = source_actor(cfg, env)
+    demo_env = TransformedEnv(make_env(cfg["task"], batch_size=(cfg["collector"]["num_envs"],), device=cfg["device"],
+                                       seed=cfg["seed"] + 20_000, **cfg["env"]))
+    for transform in agent.env_transforms:
+        demo_env.append_transform(transform.clone())
+    try:
+        data = collect_demonstrations(demo_env, policy, t["demo_episodes"])
+    finally:
+        demo_env.close()
+    demos = demonstration_buffer(data, agent.loss.in_keys)
+    count = round(t["demo_ratio"] * cfg["buffer"]["batch_size"])
+    bc = behaviour_cloning(agent.loss, count, t["bc_weight"], q_filter=t["bc_q_filter"])
+    return Transfer(batches=lambda own, n: mixed_batches(own, demos, n, t["demo_ratio"]),
+                    loss_terms=bc if t["bc_weight"] > 0 and count > 0 else None,
+                    summary={"demonstration_frames": data.numel()})
+
+
+DEMONSTRATIONS = register_method(TransferMethod(
+    "demonstrations",
+    "episodes of the source policy in a buffer of their own, a fixed share of every batch",
+    _build,
+    source="policy",
+    algos=("sac", "td3"),
+    options={
+        "demo_episodes": (50, Field(int, "demonstrations: episodes of the source policy collected", low=1)),
+        "demo_ratio": (0.25, Field(float, "demonstrations: share of every batch drawn from them", low=0.0, high=1.0)),
+        "bc_weight": (10.0, Field(float, "demonstrations: weight of the behaviour-cloning term (0: none)", low=0.0)),
+        "bc_q_filter": (False, Field(bool, "demonstrations: clone only where Q(s, a_demo) > Q(s, mu(s))")),
+    },
+))

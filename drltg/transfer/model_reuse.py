@@ -1,0 +1,45 @@
+"""The model-reuse method: the learner starts from a source run's weights (``load_weights``)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from torch import nn
+
+from drltg.config import Field
+from drltg.modules.weights import LoadReport, freeze_parameters, load_weights
+from drltg.training.rundir import MODEL_REUSE, load_checkpoint
+from drltg.transfer.registry import Transfer, TransferMethod, register_method
+
+
+def load_from_run(loss_module: nn.Module, run_dir: str | Path, **kwargs) -> LoadReport:
+    """Initialise ``loss_module`` from ``<run_dir>/checkpoints/last.pt`` (its ``"loss"`` entry).
+
+    Keyword arguments go to :func:`load_weights`. The checkpoint is unpickled: load only runs you trust.
+    """
+    checkpoint = load_checkpoint(Path(run_dir).expanduser())
+    return load_weights(loss_module, checkpoint["loss"], **kwargs)
+
+
+def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
+    """Every network of the learner (actor, critics, targets) starts from the source run; a resumed
+    run has its weights already, and only its frozen parameters are frozen again."""
+    t = cfg["transfer"]
+    if resuming:
+        freeze_parameters(agent.loss, t["freeze"])
+        return Transfer()
+    report = load_from_run(agent.loss, t["source"], freeze=t["freeze"], partial=t["partial"])
+    print(report.summary(), flush=True)
+    return Transfer(files={MODEL_REUSE: f"{report}\n"})
+
+
+MODEL_REUSE_METHOD = register_method(TransferMethod(
+    "model-reuse",
+    "the learner starts from the source run's weights (observation-size changes mapped)",
+    _build,
+    source="run",
+    options={
+        "freeze": ([], Field(list, "model reuse: parameter-name patterns to keep fixed", item=Field(str),
+                             what="a list of parameter-name patterns (e.g. [actor_network_params])")),
+        "partial": (False, Field(bool, "model reuse: accept a source whose core networks cannot all be loaded")),
+    },
+))

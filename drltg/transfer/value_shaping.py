@@ -1,0 +1,27 @@
+"""The value-shaping method: ``PotentialShaping`` with Phi = the source run's value (``SourceValue``)."""
+from __future__ import annotations
+
+from torchrl.data import OneHot
+
+from drltg.config import Field
+from drltg.transfer.registry import Transfer, TransferMethod, register_method
+from drltg.transforms import PotentialShaping, SourceValue
+
+
+def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
+    from drltg.transfer.source import source_agent
+
+    source = source_agent(cfg, env)
+    discrete = isinstance(env.full_action_spec_unbatched["action"], OneHot)
+    potential = SourceValue(source.loss, discrete=discrete, scale=cfg["transfer"]["value_scale"])
+    return Transfer(train_transforms=[PotentialShaping(potential, gamma=cfg["optim"]["gamma"])])
+
+
+VALUE_SHAPING = register_method(TransferMethod(
+    "value-shaping",
+    "adds gamma Phi(s') - Phi(s) to the training reward, Phi the source run's value V_source(s)",
+    _build,
+    source="run",
+    algos=("sac", "td3"),
+    options={"value_scale": (1.0, Field(float, "value shaping: Phi = value_scale * V_source(s)", low=0.0))},
+))
