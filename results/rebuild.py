@@ -21,7 +21,7 @@ from pathlib import Path
 import yaml
 
 from drltg import rundir
-from drltg.report import transfer_report
+from drltg.analysis.report import transfer_report
 from drltg.sweep import plot_transfer_matrix, summary_tables
 
 KEPT = ("config.yaml", "eval.csv", "summary.json")

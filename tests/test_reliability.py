@@ -15,8 +15,8 @@ import yaml
 
 import drltg.train as train_mod
 from drltg import rundir
+from drltg.analysis.curves import read_csvlogger, read_tensorboard
 from drltg.cli import main
-from drltg.curves import read_csvlogger, read_tensorboard
 from drltg.errors import UsageError
 
 TINY = ["network.hidden=[16,16]", "collector.num_envs=4", "collector.frames_per_batch=16",

@@ -22,7 +22,7 @@ from pathlib import Path
 import torch
 from torch import nn
 
-from drltg.config import Field
+from drltg.config import Field, builtin_options
 from drltg.errors import UsageError
 from drltg.methods.registry import Transfer, TransferMethod, register_method
 from drltg.rundir import MODEL_REUSE, load_checkpoint
@@ -240,9 +240,9 @@ MODEL_REUSE_METHOD = register_method(TransferMethod(
     "the learner starts from the source run's weights (observation-size changes mapped)",
     _build,
     source="run",
-    options={
-        "freeze": ([], Field(list, "model reuse: parameter-name patterns to keep fixed", item=Field(str),
-                             what="a list of parameter-name patterns (e.g. [actor_network_params])")),
-        "partial": (False, Field(bool, "model reuse: accept a source whose core networks cannot all be loaded")),
-    },
+    options=builtin_options("model-reuse", {
+        "freeze": Field(list, "model reuse: parameter-name patterns to keep fixed", item=Field(str),
+                       what="a list of parameter-name patterns (e.g. [actor_network_params])"),
+        "partial": Field(bool, "model reuse: accept a source whose core networks cannot all be loaded"),
+    }),
 ))

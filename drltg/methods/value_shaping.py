@@ -20,7 +20,7 @@ from torchrl.data import OneHot
 from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.objectives import DiscreteSACLoss, SACLoss, TD3Loss
 
-from drltg.config import Field
+from drltg.config import Field, builtin_options
 from drltg.errors import UsageError
 from drltg.methods.registry import Transfer, TransferMethod, register_method
 from drltg.methods.reward_shaping import PotentialShaping
@@ -75,5 +75,7 @@ VALUE_SHAPING = register_method(TransferMethod(
     _build,
     source="run",
     algos=("sac", "td3"),
-    options={"value_scale": (1.0, Field(float, "value shaping: Phi = value_scale * V_source(s)", low=0.0))},
+    options=builtin_options("value-shaping", {
+        "value_scale": Field(float, "value shaping: Phi = value_scale * V_source(s)", low=0.0),
+    }),
 ))
