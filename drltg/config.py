@@ -76,6 +76,24 @@ METHOD_RULES: dict[str, Any] = {}
 before resolving a config that uses a transfer method."""
 METHOD_OPTIONS: dict[str, str] = {}
 """``transfer.<key>`` -> the one method whose option it is (filled by ``register_method`` too)."""
+BUILTIN_METHOD_OPTIONS: dict[str, dict[str, Any]] = {
+    "policy-reuse": {"psi": 1.0, "upsilon": 0.95, "psi_end": None, "annealing_frames": 0},
+    "jumpstart": {"guide_steps": 100, "guide_stages": 10, "guide_frames": 20_000},
+    "model-reuse": {"freeze": [], "partial": False},
+    "value-shaping": {"value_scale": 1.0},
+    "demonstrations": {"demo_episodes": 50, "demo_ratio": 0.25, "bc_weight": 10.0, "bc_q_filter": False},
+}
+"""The built-in methods' ``transfer.*`` options at their defaults, as plain data: the method modules
+register them from here, and :func:`config_changes` reads them without importing the methods (and torch),
+so the analysis of saved runs knows what a key an older config lacks stood for."""
+
+
+def builtin_options(method: str, fields: dict[str, Any]) -> dict[str, tuple[Any, Any]]:
+    """``key -> (default, Field)`` of a built-in method, the defaults taken from ``BUILTIN_METHOD_OPTIONS``."""
+    defaults = BUILTIN_METHOD_OPTIONS[method]
+    if set(fields) != set(defaults):
+        raise ValueError(f"{method}: options {sorted(fields)} but defaults for {sorted(defaults)}")
+    return {key: (copy.deepcopy(defaults[key]), field) for key, field in fields.items()}
 
 
 @dataclass(frozen=True)
@@ -361,30 +379,47 @@ def task_env(task: str) -> dict[str, Any]:
     return {k: _plain(v) for k, v in declared.items() if k not in _ENV_RESERVED}
 
 
-def config_changes(saved: dict, cfg: dict) -> list[str]:
+def config_changes(saved: dict, cfg: dict, *, env_defaults: bool = True) -> list[str]:
     """The keys in which two configs of one task differ (``cfg`` gives the task). A key one of them
     lacks counts only when the other sets it to something else than its default, for ``env.*`` the
     task's: runs saved before the key existed, or before env settings were saved in full, stay the
     same run (resumable, and comparable in one report). Options of a transfer method that neither
     config uses do not count (a baseline is the same run whatever another method's defaults are), nor
-    do ``ENV_EXECUTION_KEYS``."""
-    try:
-        env = task_env(cfg["task"])
-    except (KeyError, UsageError):  # a task this process does not know: no env defaults to fill in
-        env = {}
-    defaults = {**DEFAULTS, "env": env}
+    do ``ENV_EXECUTION_KEYS``.
+
+    ``env_defaults=False`` leaves the task registry (and torch with it) unimported: an ``env.*`` key
+    only one config sets is then not compared, its default being unknown (:func:`env_keys_set_once`
+    names them)."""
+    env = {}
+    if env_defaults:
+        try:
+            env = task_env(cfg["task"])
+        except (KeyError, UsageError):  # a task this process does not know: no env defaults to fill in
+            pass
+    builtin = {k: v for options in BUILTIN_METHOD_OPTIONS.values() for k, v in options.items()}
+    defaults = {**DEFAULTS, "env": env, "transfer": {**builtin, **DEFAULTS["transfer"]}}
+    owners = {**{k: m for m, options in BUILTIN_METHOD_OPTIONS.items() for k in options}, **METHOD_OPTIONS}
     methods = {_lookup(saved, "transfer.method"), _lookup(cfg, "transfer.method")}
+    unknown = set() if env_defaults else set(env_keys_set_once(saved, cfg))
+    if not env_defaults and (_lookup(saved, "env") is KeyError) != (_lookup(cfg, "env") is KeyError):
+        unknown.add("env")
 
     def missing_as_default(a, b, key):
         return _lookup(a, key) is KeyError and _lookup(b, key) == _lookup(defaults, key)
 
     def unused(key):  # an option of a method neither run uses changes nothing they do
-        owner = METHOD_OPTIONS.get(key.removeprefix("transfer.")) if key.startswith("transfer.") else None
+        owner = owners.get(key.removeprefix("transfer.")) if key.startswith("transfer.") else None
         return owner is not None and owner not in methods
 
     return sorted(key for key in _diff_keys(saved, cfg)
                   if not (missing_as_default(saved, cfg, key) or missing_as_default(cfg, saved, key) or unused(key)
-                          or key in ENV_EXECUTION_KEYS))
+                          or key in ENV_EXECUTION_KEYS or key in unknown))
+
+
+def env_keys_set_once(a: dict, b: dict) -> list[str]:
+    """The ``env.*`` keys exactly one of two configs sets (one saved before env settings were saved in full)."""
+    ea, eb = (c.get("env") if isinstance(c.get("env"), dict) else {} for c in (a, b))
+    return sorted(f"env.{k}" for k in set(ea) ^ set(eb))
 
 
 def _lookup(cfg: dict, dotted: str):

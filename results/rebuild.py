@@ -20,8 +20,8 @@ from pathlib import Path
 
 import yaml
 
+from drltg.analysis.report import transfer_report
 from drltg.experiments.sweep import plot_transfer_matrix, summary_tables
-from drltg.report import transfer_report
 from drltg.training import rundir
 
 KEPT = ("config.yaml", "eval.csv", "summary.json")

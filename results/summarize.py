@@ -10,7 +10,7 @@ import json
 import sys
 from pathlib import Path
 
-from drltg.tables import estimate, render
+from drltg.analysis.tables import estimate, render
 
 root = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parent / "sweep-fourrooms-graded"
 

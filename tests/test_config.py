@@ -323,3 +323,30 @@ def test_a_changed_env_default_is_a_changed_run(monkeypatch):
     spec = registry.TASKS["fourrooms/northeast"]
     monkeypatch.setitem(registry.TASKS, spec.name, dataclasses.replace(spec, defaults={**spec.defaults, "horizon": 60}))
     assert config_changes(saved, _resolve()) == ["env.horizon"]
+
+
+def test_the_builtin_methods_register_their_options_from_the_plain_defaults():
+    from drltg.transfer import METHODS
+
+    for name, options in config_lib.BUILTIN_METHOD_OPTIONS.items():
+        assert {k: default for k, (default, _) in METHODS[name].options.items()} == options
+    owned = {k for m in METHODS.values() for k in m.options}
+    assert owned == {k for options in config_lib.BUILTIN_METHOD_OPTIONS.values() for k in options}
+
+
+def test_config_changes_without_the_task_registry():
+    """env_defaults=False (the analysis): an env key only one config sets is not compared, one both set is;
+    a built-in method's option an older config lacks stands for its default."""
+    from drltg.config import config_changes, env_keys_set_once
+
+    demos = ["transfer.method=demonstrations", "transfer.source=demonstrator:x"]
+    full = config_lib.resolve(None, demos, task="fourrooms/northeast", algo="sac")
+    old = {**full, "env": {}, "transfer": {k: v for k, v in full["transfer"].items() if k != "bc_weight"}}
+    assert config_changes(old, full, env_defaults=False) == []
+    assert env_keys_set_once(old, full) == sorted(f"env.{k}" for k in full["env"])
+    assert config_changes({k: v for k, v in full.items() if k != "env"}, full, env_defaults=False) == []
+    changed = {**full, "env": {**full["env"], "horizon": 60},
+               "transfer": {**full["transfer"], "bc_weight": 1.0}}
+    assert config_changes(full, changed, env_defaults=False) == ["env.horizon", "transfer.bc_weight"]
+    assert config_changes({**old, "transfer": {**old["transfer"]}}, {**old, "transfer": {
+        **old["transfer"], "bc_weight": 1.0}}, env_defaults=False) == ["transfer.bc_weight"]

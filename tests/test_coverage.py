@@ -13,7 +13,7 @@ import functools
 import numpy as np
 import pytest
 
-from drltg import metrics as M
+from drltg.analysis import metrics as M
 
 TRUE_DIFFERENCE = 1.0
 

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from drltg.curves import Curve, find_runs, read_curves, read_run
+from drltg.analysis.curves import Curve, find_runs, read_curves, read_run
 from drltg.errors import UsageError
 
 RUN_NAMES = [

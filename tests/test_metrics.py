@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 import torch
 
-from drltg import metrics as M
+from drltg.analysis import metrics as M
 
 # An uneven grid: steps of 10, 20 and 30 frames.
 F = [0, 10, 30, 60]

@@ -14,8 +14,8 @@ import torch
 import yaml
 
 import drltg.training.loop as train_mod
+from drltg.analysis.curves import read_csvlogger, read_tensorboard
 from drltg.cli import main
-from drltg.curves import read_csvlogger, read_tensorboard
 from drltg.errors import UsageError
 from drltg.training import rundir
 

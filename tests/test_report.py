@@ -2,13 +2,15 @@ import csv
 import io
 import json
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from drltg import report
-from drltg.curves import Curve
+from drltg.analysis import report
+from drltg.analysis.curves import Curve
 from drltg.errors import UsageError
 
 FILES = {"transfer_metrics.json", "transfer_metrics.csv", "transfer_plot.png", "transfer_plot.svg"}
@@ -97,7 +99,7 @@ def test_jumpstart_window_budget_and_fraction_threshold(two_by_two, tmp_path):
 
 
 def _read(path):
-    from drltg.curves import read_curves
+    from drltg.analysis.curves import read_curves
 
     return read_curves(path)
 
@@ -644,7 +646,31 @@ def test_other_modules_use_only_public_report_names():
     import ast
 
     root = Path(report.__file__).resolve().parents[1]
-    for path in [*root.glob("drltg/*.py"), *root.glob("results/*.py")]:
+    for path in [*root.glob("drltg/**/*.py"), *root.glob("results/*.py")]:
         for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.ImportFrom) and node.module in ("drltg.report", "drltg.tables"):
+            if isinstance(node, ast.ImportFrom) and node.module in ("drltg.analysis.report", "drltg.analysis.tables"):
                 assert not [a.name for a in node.names if a.name.startswith("_")], path
+
+
+RESULTS = Path(__file__).resolve().parents[1] / "results"
+NO_TORCH = ("torch", "drltg.envs", "drltg.transfer")
+
+
+def test_the_analysis_package_imports_no_torch():
+    code = ("import sys, drltg.analysis, drltg.analysis.report, drltg.analysis.plot\n"
+            f"leaked = [m for m in {NO_TORCH!r} if m in sys.modules]\nassert not leaked, leaked")
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_a_report_on_run_directories_imports_no_torch(tmp_path):
+    """The committed runs' configs differ in the method options they hold (saved as methods were added):
+    the built-in defaults fill them in without importing the methods, the task registry or torch."""
+    cell = RESULTS / "sweep-fourrooms-graded" / "fourrooms-near" / "sac"
+    argv = ["report", "--baseline", str(cell / "baseline"), "--transfer", str(cell / "value-shaping" / "transfer"),
+            "--threshold", "0.5", "--out", str(tmp_path / "out")]
+    code = ("import sys\nfrom drltg.cli import main\n"
+            f"assert main({argv!r}) == 0\n"
+            f"leaked = [m for m in {NO_TORCH!r} if m in sys.modules]\nassert not leaked, leaked")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert json.loads((tmp_path / "out" / "transfer_metrics.json").read_text())["metrics"]["n_seeds_baseline"] == 5

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from drltg.report import transfer_report
+from drltg.analysis.report import transfer_report
 
 RESULTS = Path(__file__).resolve().parents[1] / "results"
 GRADED = RESULTS / "sweep-fourrooms-graded" / "fourrooms-near" / "sac"

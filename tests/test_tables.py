@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from drltg import tables
+from drltg.analysis import tables
 
 RESULTS = Path(__file__).resolve().parents[1] / "results"
 

@@ -167,8 +167,8 @@ def _check_settings(path: Path, settings: dict) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from drltg.analysis.report import format_table, parse_threshold, transfer_report
     from drltg.experiments.executor import LocalBackend, execute
-    from drltg.report import format_table, parse_threshold, transfer_report
 
     if args.workers < 1:
         raise UsageError("--workers must be at least 1.")

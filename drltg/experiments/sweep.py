@@ -106,9 +106,9 @@ def _config_keys(mapping, key: str, where: str) -> dict:
 
 def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
     """Validate a loaded spec; every mistake is one :class:`UsageError` sentence."""
+    from drltg.analysis.report import parse_threshold
     from drltg.envs import TASKS, get_pair
     from drltg.learners import ALGOS
-    from drltg.report import parse_threshold
     from drltg.transfer import METHODS
 
     if not isinstance(data, dict):
@@ -270,7 +270,7 @@ def check_existing(runs: list[Run]) -> None:
 # ---------------------------------------------------------------------------------------- reports
 def write_reports(cells: list[Cell], status: dict, threshold) -> list[dict]:
     """One ``drltg report`` per cell whose runs are all complete; a row per cell for the summary."""
-    from drltg.report import transfer_report
+    from drltg.analysis.report import transfer_report
 
     rows = []
     for c in cells:
@@ -296,7 +296,7 @@ SUMMARY_COLUMNS = ("mean_return_gain", "jumpstart", "asymptotic_performance", "t
 
 def summary_tables(rows: list[dict]) -> tuple[str, str]:
     """The cells' metrics (value and CI bounds) as CSV and as a Markdown table."""
-    from drltg import tables
+    from drltg.analysis import tables
 
     head = ["pair", "algo", "variant", "method", "seeds"]
     csv_rows = [head + [f"{m}{s}" for m in SUMMARY_COLUMNS for s in ("", "_ci_low", "_ci_high")]
@@ -325,7 +325,7 @@ def plot_transfer_matrix(rows: list[dict], metric: str = "mean_return_gain") -> 
     """Heatmap PNG of ``metric`` over (pair, algo, variant) rows x method columns, mean and CI per cell."""
     import numpy as np
 
-    from drltg.report_plot import plot_matrix
+    from drltg.analysis.plot import plot_matrix
 
     one_algo = len({r["algo"] for r in rows}) == 1
 
@@ -365,8 +365,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from drltg.analysis.report import check_metric
     from drltg.experiments.experiment import check_runs
-    from drltg.report import check_metric
 
     if args.workers is not None and args.workers < 1:
         raise UsageError("--workers must be at least 1.")
@@ -392,7 +392,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _execute_and_report(args, spec: Spec, out: Path, runs: list[Run], cells: list[Cell], resources: dict) -> int:
-    from drltg import tables
+    from drltg.analysis import tables
 
     check_existing(runs)  # another sweep may have written them meanwhile
     if args.backend == "ray":

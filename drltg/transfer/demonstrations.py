@@ -5,7 +5,7 @@ from torchrl.data import OneHot
 from torchrl.envs import TransformedEnv
 
 from drltg.collectors import collect_demonstrations, demonstration_buffer, mixed_batches
-from drltg.config import Field
+from drltg.config import Field, builtin_options
 from drltg.errors import UsageError
 from drltg.losses import behaviour_cloning
 from drltg.transfer.registry import Transfer, TransferMethod, register_method
@@ -47,10 +47,10 @@ DEMONSTRATIONS = register_method(TransferMethod(
     _build,
     source="policy",
     algos=("sac", "td3"),
-    options={
-        "demo_episodes": (50, Field(int, "demonstrations: episodes of the source policy collected", low=1)),
-        "demo_ratio": (0.25, Field(float, "demonstrations: share of every batch drawn from them", low=0.0, high=1.0)),
-        "bc_weight": (10.0, Field(float, "demonstrations: weight of the behaviour-cloning term (0: none)", low=0.0)),
-        "bc_q_filter": (False, Field(bool, "demonstrations: clone only where Q(s, a_demo) > Q(s, mu(s))")),
-    },
+    options=builtin_options("demonstrations", {
+        "demo_episodes": Field(int, "demonstrations: episodes of the source policy collected", low=1),
+        "demo_ratio": Field(float, "demonstrations: share of every batch drawn from them", low=0.0, high=1.0),
+        "bc_weight": Field(float, "demonstrations: weight of the behaviour-cloning term (0: none)", low=0.0),
+        "bc_q_filter": Field(bool, "demonstrations: clone only where Q(s, a_demo) > Q(s, mu(s))"),
+    }),
 ))

@@ -5,7 +5,7 @@ from pathlib import Path
 
 from torch import nn
 
-from drltg.config import Field
+from drltg.config import Field, builtin_options
 from drltg.modules.weights import LoadReport, freeze_parameters, load_weights
 from drltg.training.rundir import MODEL_REUSE, load_checkpoint
 from drltg.transfer.registry import Transfer, TransferMethod, register_method
@@ -37,9 +37,9 @@ MODEL_REUSE_METHOD = register_method(TransferMethod(
     "the learner starts from the source run's weights (observation-size changes mapped)",
     _build,
     source="run",
-    options={
-        "freeze": ([], Field(list, "model reuse: parameter-name patterns to keep fixed", item=Field(str),
-                             what="a list of parameter-name patterns (e.g. [actor_network_params])")),
-        "partial": (False, Field(bool, "model reuse: accept a source whose core networks cannot all be loaded")),
-    },
+    options=builtin_options("model-reuse", {
+        "freeze": Field(list, "model reuse: parameter-name patterns to keep fixed", item=Field(str),
+                             what="a list of parameter-name patterns (e.g. [actor_network_params])"),
+        "partial": Field(bool, "model reuse: accept a source whose core networks cannot all be loaded"),
+    }),
 ))

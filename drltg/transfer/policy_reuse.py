@@ -4,7 +4,7 @@ from __future__ import annotations
 from tensordict.nn import TensorDictSequential
 
 from drltg.collectors import JumpStart, PiReuse, PolicyReuse, ReuseSchedule
-from drltg.config import Field
+from drltg.config import Field, builtin_options
 from drltg.errors import UsageError
 from drltg.transfer.registry import Transfer, TransferMethod, register_method
 
@@ -38,13 +38,13 @@ POLICY_REUSE = register_method(TransferMethod(
     _pi_reuse,
     source="policy",
     check=_check_pi_reuse,
-    options={
-        "psi": (1.0, Field(float, "pi-reuse: probability of reusing at an episode's first step", **_PROB)),
-        "upsilon": (0.95, Field(float, "pi-reuse: decay of psi within the episode", **_PROB)),
-        "psi_end": (None, Field(float, "pi-reuse: psi after annealing_frames; null: no decay", **_PROB,
-                                nullable=True)),
-        "annealing_frames": (0, Field(int, "pi-reuse: frames over which psi decays to psi_end", low=0)),
-    },
+    options=builtin_options("policy-reuse", {
+        "psi": Field(float, "pi-reuse: probability of reusing at an episode's first step", **_PROB),
+        "upsilon": Field(float, "pi-reuse: decay of psi within the episode", **_PROB),
+        "psi_end": Field(float, "pi-reuse: psi after annealing_frames; null: no decay", **_PROB,
+                                nullable=True),
+        "annealing_frames": Field(int, "pi-reuse: frames over which psi decays to psi_end", low=0),
+    }),
 ))
 
 
@@ -59,10 +59,10 @@ JUMPSTART = register_method(TransferMethod(
     "JSRL: the source policy acts for the first H steps of every episode, H shrinking to 0 in stages",
     _jumpstart,
     source="policy",
-    options={
-        "guide_steps": (100, Field(int, "jumpstart: steps the source policy acts at the start (H at first)",
-                                   low=0)),
-        "guide_stages": (10, Field(int, "jumpstart: equal steps in which H shrinks to 0", low=1)),
-        "guide_frames": (20_000, Field(int, "jumpstart: training frames until H reaches 0", low=1)),
-    },
+    options=builtin_options("jumpstart", {
+        "guide_steps": Field(int, "jumpstart: steps the source policy acts at the start (H at first)",
+                                   low=0),
+        "guide_stages": Field(int, "jumpstart: equal steps in which H shrinks to 0", low=1),
+        "guide_frames": Field(int, "jumpstart: training frames until H reaches 0", low=1),
+    }),
 ))

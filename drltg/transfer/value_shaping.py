@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from torchrl.data import OneHot
 
-from drltg.config import Field
+from drltg.config import Field, builtin_options
 from drltg.transfer.registry import Transfer, TransferMethod, register_method
 from drltg.transforms import PotentialShaping, SourceValue
 
@@ -23,5 +23,7 @@ VALUE_SHAPING = register_method(TransferMethod(
     _build,
     source="run",
     algos=("sac", "td3"),
-    options={"value_scale": (1.0, Field(float, "value shaping: Phi = value_scale * V_source(s)", low=0.0))},
+    options=builtin_options("value-shaping", {
+        "value_scale": Field(float, "value shaping: Phi = value_scale * V_source(s)", low=0.0),
+    }),
 ))

@@ -58,9 +58,7 @@ measures them and chose ``t_interval`` as the default)
 """
 from __future__ import annotations
 
-import functools
 import math
-from statistics import NormalDist
 from typing import Callable, Sequence
 
 import numpy as np
@@ -295,56 +293,26 @@ def poi_statistic(b: Array, t: Array) -> Array:
 # --------------------------------------------------------------------------------------- intervals
 # Interval functions work along the last axis (seeds), so one call can hold thousands of simulated
 # experiments ``[..., n]``; they return ``(low, high)`` of the leading shape, NaN where undefined.
-_GL_X, _GL_W = np.polynomial.legendre.leggauss(64)
-_lgamma = np.vectorize(math.lgamma, otypes=[np.float64])
-_NORMAL = NormalDist()
-
-
-def _t_cdf_from_zero(x: Array, df: Array, log_c: Array) -> Array:
-    r"""``P(0 <= T <= x)`` for Student's t: 64-point Gauss-Legendre quadrature of the density
-    :math:`c (1 + u^2/\nu)^{-(\nu+1)/2}` on ``[0, x]``."""
-    u = (x[..., None] / 2.0) * (_GL_X + 1.0)
-    nu = df[..., None]
-    return (x / 2.0) * (np.exp(log_c[..., None] - (nu + 1) / 2 * np.log1p(u * u / nu)) * _GL_W).sum(-1)
-
-
 def t_quantile(p: float, df) -> Array | float:
-    """Quantile ``p`` in (0.5, 1) of Student's t with real ``df`` > 0 (bisection on the CDF)."""
+    """Quantile ``p`` in (0.5, 1) of Student's t with real ``df`` > 0 (``scipy.stats.t.ppf``)."""
+    from scipy import stats
+
     if not 0.5 < p < 1.0:
         raise ValueError(f"p must lie in (0.5, 1), got {p}")
-    if np.ndim(df) == 0:
-        return _t_quantile_scalar(float(p), float(df))
-    return _t_quantiles(p, _as_array(df))
-
-
-@functools.lru_cache(maxsize=1024)
-def _t_quantile_scalar(p: float, df: float) -> float:
-    return float(_t_quantiles(p, np.array(df)))
-
-
-def _t_quantiles(p: float, df: Array) -> Array:
-    flat, inverse = np.unique(df.ravel(), return_inverse=True)
-    log_c = _lgamma((flat + 1) / 2) - _lgamma(flat / 2) - 0.5 * np.log(flat * np.pi)
-    lo, hi = np.zeros_like(flat), np.ones_like(flat)
-    while (short := _t_cdf_from_zero(hi, flat, log_c) < p - 0.5).any():
-        hi = np.where(short, 2.0 * hi, hi)
-    for _ in range(50):
-        mid = (lo + hi) / 2.0
-        below = _t_cdf_from_zero(mid, flat, log_c) < p - 0.5
-        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
-    return ((lo + hi) / 2.0)[inverse].reshape(df.shape)
+    q = stats.t.ppf(p, df)
+    return float(q) if np.ndim(q) == 0 else q
 
 
 def _normal_cdf(z: Array) -> Array:
-    return np.vectorize(_NORMAL.cdf, otypes=[np.float64])(z)
+    from scipy import stats
+
+    return stats.norm.cdf(z)
 
 
 def _normal_ppf(p: Array) -> Array:
-    p = _as_array(p)
-    ok = (p > 0) & (p < 1)
-    out = np.where(p <= 0, -np.inf, np.inf)
-    out[ok] = np.vectorize(_NORMAL.inv_cdf, otypes=[np.float64])(p[ok])
-    return out
+    from scipy import stats
+
+    return stats.norm.ppf(p)
 
 
 def _check_confidence(confidence: float) -> float:
@@ -445,7 +413,7 @@ def bca_interval(b, t, paired: bool = False, confidence: float = 0.95, n_resampl
         a = s3 / (6.0 * s2 ** 1.5)
         out = []
         for q in (alpha, 1 - alpha):
-            zq = _NORMAL.inv_cdf(q)
+            zq = float(_normal_ppf(q))
             level = _normal_cdf(np.where(np.isfinite(z0), z0 + (z0 + zq) / (1 - a * (z0 + zq)), 0.0))
             rank = np.clip(np.floor(level * n_resamples).astype(int), 0, n_resamples - 1)
             value = np.take_along_axis(np.sort(boot, -1), rank[..., None], axis=-1)[..., 0]
@@ -536,7 +504,7 @@ def poi_interval(p_hat: float, n_baseline: int, n_transfer: int, paired: bool = 
     estimate): Newcombe's (2006) method 5, :math:`V = \frac{p(1-p)}{nm}\big[1 + (N-1)\frac{1-p}{2-p}
     + (N-1)\frac{p}{1+p}\big]`, :math:`N = (n+m)/2 - 1`."""
     alpha = _check_confidence(confidence)
-    z2 = _NORMAL.inv_cdf(1 - alpha) ** 2
+    z2 = float(_normal_ppf(1 - alpha)) ** 2
     p = np.linspace(0.0, 1.0, 20001)
     if paired:
         v = p * (1 - p) / n_baseline

@@ -5,7 +5,7 @@ r"""``drltg report``: did the transfer method help? Metrics, a plot and tables f
 
 The report is one pipeline (:func:`transfer_report`, :func:`compute`):
 
-1. read: both sides with :func:`drltg.curves.read_curves` (run directories, directories of seed runs,
+1. read: both sides with :func:`drltg.analysis.curves.read_curves` (run directories, directories of seed runs,
    globs, SB3 / TensorBoard / CSVLogger logs);
 2. check (:func:`check_runs`): no run twice, one task, one configuration a side, paired or not;
 3. align (:func:`align`): every curve is compared on the target task over a common interval
@@ -16,10 +16,10 @@ The report is one pipeline (:func:`transfer_report`, :func:`compute`):
    with ``side`` and ``pair`` columns);
 5. metrics (:func:`metric_values`): each entry of ``METRICS`` turns score columns into a metric and its
    interval, so a new metric is one entry there; ``TABLE_ROWS`` places it in the table;
-6. write (:func:`render`): JSON, CSV (through :mod:`drltg.tables`) and the plot.
+6. write (:func:`render`): JSON, CSV (through :mod:`drltg.analysis.tables`) and the plot.
 
 The per-seed scores are aggregated (B = baseline, T = transfer, A = area, span = budget - start, L = mean
-over seeds, or over pairs ``d_i = T_i - B_i`` when paired; formulas in :mod:`drltg.metrics`):
+over seeds, or over pairs ``d_i = T_i - B_i`` when paired; formulas in :mod:`drltg.analysis.metrics`):
 
 ``mean_return_gain``          L(A_T / span) - L(A_B / span): return gained per frame on average over the
                               budget; unchanged when a constant is added to every reward (the headline)
@@ -71,11 +71,11 @@ from typing import Callable, Sequence
 import numpy as np
 import pandas as pd
 
-from drltg import metrics as M
-from drltg import tables
-from drltg.curves import FORMATS, Curve, read_curves
+from drltg.analysis import metrics as M
+from drltg.analysis import tables
+from drltg.analysis.curves import FORMATS, Curve, read_curves
+from drltg.analysis.tables import number
 from drltg.errors import UsageError
-from drltg.tables import number
 from drltg.training import rundir
 
 SIDES = ("baseline", "transfer")
@@ -321,7 +321,7 @@ def transfer_report(
     """Read both run sets, compute the metrics, write the four report files; return the JSON object.
 
     ``baseline`` and ``transfer`` are paths (runs, directories of runs, globs) or lists of
-    :class:`~drltg.curves.Curve`. ``out_dir`` defaults to a fresh folder named after the runs in the
+    :class:`~drltg.analysis.curves.Curve`. ``out_dir`` defaults to a fresh folder named after the runs in the
     working directory. Keyword settings are those of ``drltg report`` (``threshold=150`` or ``"80%"``,
     ``budget``, ``crossing``, ``paired``, ``source_frames``, ...: the fields of :class:`ReportSettings`).
     The returned dict also holds ``"scores"`` (the per-seed DataFrame) and ``"out_dir"``.
@@ -451,26 +451,39 @@ def _flat(config: dict, prefix: str = "") -> dict:
 
 def _check_configs(side: str, curves: Sequence[Curve], allow_mixed: bool, warnings: list[str]) -> None:
     """One side must be one method and one configuration (seeds, lengths, devices and sources may differ;
-    a key a config saved by an older drltg lacks stands for its default)."""
+    a key a config saved by an older drltg lacks stands for its default, the built-in methods' options
+    included). The task registry is never imported here (it needs torch), so an ``env.*`` key that only
+    some configs set cannot be checked against its default: it is not compared, and a warning says so.
+    Each config is compared with the fullest one (the most keys: the newest drltg's)."""
     known = [c for c in curves if c.config]
     if len(known) < 2:
         return
-    from drltg import transfer  # noqa: F401  (their options' defaults stand in for keys older configs lack)
-    from drltg.config import config_changes
+    from drltg.config import config_changes, env_keys_set_once
 
-    for c in known[1:]:
-        ref, other = _flat(known[0].config), _flat(c.config)
-        diff = [k for k in config_changes(known[0].config, c.config)
+    first = max(known, key=lambda c: len(_flat(c.config)))
+    unchecked: set[str] = set()
+    for c in known:
+        if c is first:
+            continue
+        ref, other = _flat(first.config), _flat(c.config)
+        unchecked.update(env_keys_set_once(first.config, c.config))
+        diff = [k for k in config_changes(first.config, c.config, env_defaults=False)
                 if not any(k == p or k.startswith(p + ".") for p in CONFIG_KEYS_PER_RUN)]
         if diff:
             k = diff[0]
             more = f" ({len(diff)} keys differ)" if len(diff) > 1 else ""
-            text = (f"the {side} runs mix configurations: {_name(known[0])} has {k}={ref.get(k, '(unset)')} "
+            text = (f"the {side} runs mix configurations: {_name(first)} has {k}={ref.get(k, '(unset)')} "
                     f"but {_name(c)} has {k}={other.get(k, '(unset)')}{more}")
             if not allow_mixed:
                 raise UsageError(text + "; compare one configuration per side, or pass --allow-mixed.")
             warnings.append(text + " (accepted by --allow-mixed).")
             return
+    if unchecked:
+        keys = sorted(unchecked)
+        warnings.append(f"some {side} configs were saved without {', '.join(keys[:3])}"
+                        + (f" and {len(keys) - 3} more env settings" if len(keys) > 3 else "")
+                        + "; those keys are not compared (their defaults are the task's, which the report "
+                        "does not load).")
 
 
 def _seed(curve: Curve):
@@ -1032,7 +1045,7 @@ def format_table(result: dict) -> str:
 
 def render(result: dict) -> dict[str, bytes]:
     """The report's files as bytes (nothing is written here)."""
-    from drltg.report_plot import plot_transfer
+    from drltg.analysis.plot import plot_transfer
 
     m, st = result["metrics"], result["settings"]
     public = {"metrics": m, "settings": st, "per_seed": result["per_seed"]}
@@ -1121,7 +1134,7 @@ def transfer_matrix(
     for (source, target), r in results.items():
         v = r["metrics"][metric]
         table[sources.index(source), targets.index(target)] = np.nan if v is None else v
-    from drltg.report_plot import plot_matrix
+    from drltg.analysis.plot import plot_matrix
 
     png, svg = plot_matrix(table, sources, targets, metric)
     grid_csv = tables.render([("source", *targets)] + [
