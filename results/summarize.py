@@ -3,7 +3,7 @@
 DIR holds transfer_metrics.json files: a sweep's PAIR/ALGO[/VARIANT]/METHOD/report/ and reports of their own
 (default: results/sweep-fourrooms-graded).
 Cells are transfer - baseline with the report's 95% interval; "final" marks an asymptotic difference
-taken while a side's curve was still moving; time to threshold is the sustained rule's upper median,
+taken while a side's curve was not shown to have converged; time to threshold is the sustained rule's upper median,
 with the share of seeds that reach it.
 """
 import json
@@ -36,7 +36,7 @@ for path in sorted(root.rglob("transfer_metrics.json")):
         settings = report["settings"]
         experiment, method = "/".join(parts), f"{settings['transfer_label']} vs {settings['baseline_label']}"
     m, conv = report["metrics"], report["settings"].get("convergence", {})
-    moving = any("still" in str(v) for v in (conv.values() if isinstance(conv, dict) else []))
+    moving = any(str(v) != "converged" for v in (conv.values() if isinstance(conv, dict) else []))
     rows.append((experiment, method, cell(m, "mean_return_gain"), cell(m, "jumpstart"),
                  cell(m, "asymptotic_performance") + (" (final)" if moving else ""), cell(m, "transfer_ratio"),
                  f"{time_to(m, 'baseline')} / {time_to(m, 'transfer')}", cell(m, "probability_of_improvement", ".2f")))

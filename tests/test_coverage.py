@@ -22,13 +22,16 @@ def draw(shape: str, design: str, n: int, experiments: int, rng) -> tuple[np.nda
     """``[experiments, n]`` baseline and transfer scores with ``mean(T) - mean(B) = 1``.
 
     normal: noise N(0, 1) for the baseline, N(0, 1.5^2) for the transfer side (unequal spreads);
-    skewed: centred exponential noise (skewness 2), scale 1 and 2. Paired designs add a seed effect
-    N(0, 1) shared by the two runs of a pair."""
+    skewed: centred exponential noise (skewness 2), scale 1 and 2; bimodal: a seed fails (-2) with
+    probability 1/2 or succeeds (+2), plus N(0, 0.5^2). Paired designs add a seed effect N(0, 1) shared by
+    the two runs of a pair. (``results/coverage/simulate.py`` measures the full table.)"""
     size = (experiments, n)
     if shape == "normal":
         eb, et = rng.normal(0, 1, size), rng.normal(0, 1.5, size)
     elif shape == "skewed":
         eb, et = rng.exponential(1, size) - 1, 2 * (rng.exponential(1, size) - 1)
+    elif shape == "bimodal":
+        eb, et = (np.where(rng.random(size) < 0.5, -2.0, 2.0) + rng.normal(0, 0.5, size) for _ in range(2))
     else:
         raise ValueError(shape)
     seed_effect = rng.normal(0, 1, size) if design == "paired" else 0.0
@@ -50,6 +53,11 @@ def coverage(method: str, shape: str, design: str, n: int, experiments: int = 40
 def test_default_interval_keeps_its_promise_at_five_seeds(shape, design):
     # 10000 experiments: the standard error of a coverage near 0.94 is 0.0024
     assert coverage("t", shape, design, n=5, experiments=10_000) >= 0.93
+
+
+@pytest.mark.parametrize("design", ["paired", "unpaired"])
+def test_default_interval_on_bimodal_scores_at_ten_seeds(design):
+    assert coverage("t", "bimodal", design, n=10, experiments=4000) >= 0.93
 
 
 @pytest.mark.parametrize("n", [3, 10])
@@ -110,6 +118,26 @@ def test_ratio_and_probability_intervals_at_five_seeds():
         assert poi_coverage("normal", design, 5, experiments=500) >= 0.93
 
 
+def test_newcombe_interval_covers_at_three_seeds_a_side():
+    """Newcombe's method 5 (N = (n + m)/2; test_metrics checks it against the published example)."""
+    for shape in ("normal", "bimodal"):
+        assert poi_coverage(shape, "unpaired", 3, experiments=1000) >= 0.95
+
+
+@pytest.mark.parametrize("n", [5, 10])
+def test_tests_of_no_effect_keep_their_false_positive_rate(n):
+    """Both sides drawn alike: the sign test over pairs (P(T > B)) and the t test behind the paired interval
+    reject at 0.05 in at most 5 % of experiments (plus two standard errors of the estimate)."""
+    rng = np.random.default_rng(n)
+    b, t = rng.normal(0, 1, (4000, n)), rng.normal(0, 1, (4000, n))
+    sign = np.mean([M.sign_test(bi, ti) < 0.05 for bi, ti in zip(b, t)])
+    assert sign <= 0.05  # exact: at most the level (5 pairs: 0, since p >= 1/16)
+    assert (M.t_test(b, t, paired=True) < 0.05).mean() <= 0.05 + 2 * np.sqrt(0.05 * 0.95 / 4000)
+    wilson_like = np.mean([M.poi_interval(M.paired_probability_of_improvement(bi, ti), n, n, True)[0] > 0.5
+                           for bi, ti in zip(b, t)])
+    assert wilson_like <= 0.05  # the interval over pairs excludes 1/2 no more often than the sign test rejects
+
+
 def table(experiments: int = 4000) -> str:
     rows = ["| scores | design | seeds | " + " | ".join(M.INTERVALS) + " |",
             "|---|---|---|" + "---|" * len(M.INTERVALS)]
@@ -131,3 +159,30 @@ def table(experiments: int = 4000) -> str:
 
 if __name__ == "__main__":
     print(table())
+
+
+def test_the_report_s_coverage_claim_matches_the_committed_simulation():
+    """Every cell of results/coverage below 0.93 is one the report names as an exception, and no
+    exception is a cell that reaches it (the claim neither hides a shortfall nor gives up a success)."""
+    from pathlib import Path
+
+    from drltg.analysis.report import COVERAGE_EXCEPTIONS
+
+    text = (Path(__file__).resolve().parents[1] / "results" / "coverage" / "README.md").read_text()
+    rows = [line.strip("|").split("|") for line in text.splitlines() if line.startswith("| ") and "---" not in line]
+    header = [c.strip() for c in rows[0]]
+    short = set()
+    for cells in rows[1:]:
+        cells = [c.strip() for c in cells]
+        shape, design, seeds = cells[0], cells[1], int(cells[2])
+        for column in ("mean difference (t)", "transfer_ratio (Fieller; share without one)", "P(T > B)"):
+            if float(cells[header.index(column)].split()[0]) < 0.93:
+                short.add((shape, design, seeds))
+        assert float(cells[header.index("false positives: P(T > B)")]) <= 0.05 + 3 * (0.05 * 0.95 / 1000) ** 0.5
+
+    def excepted(cell):
+        return any(cell[:2] == e[:2] and e[2] in (None, cell[2]) for e in COVERAGE_EXCEPTIONS)
+
+    assert all(excepted(cell) for cell in short), short
+    for shape, design, seeds in COVERAGE_EXCEPTIONS:
+        assert any(c[:2] == (shape, design) and seeds in (None, c[2]) for c in short), (shape, design, seeds)

@@ -159,12 +159,17 @@ def test_bootstrap_of_a_curve_band_has_one_interval_per_point():
 def test_sustained_time_to_threshold():
     f, y = np.arange(6) * 100, [0, 9, 0, 5, 6, 7]
     assert M.sustained_time_to_threshold(f, y, 5) == 300  # the spike at 100 is followed by a 0
-    assert M.sustained_time_to_threshold(f, y, 5, sustain=1) == M.time_to_threshold(f, y, 5) == 100
+    assert M.time_to_threshold(f, y, 5) == 100
+    with pytest.raises(ValueError, match="sustain must be >= 2"):
+        M.sustained_time_to_threshold(f, y, 5, sustain=1)  # a first crossing is never sustained
     assert M.sustained_time_to_threshold(f, y, 5, sustain=2) == 300
-    assert M.sustained_time_to_threshold(f, y, 5, stop=350) == 300  # 5 at 300 is the last one inside
+    # until the budget needs SUSTAIN_AFTER = 2 later evaluations: at 300 only 400 follows within 450
+    assert M.sustained_time_to_threshold(f, y, 5, stop=450) is None
+    assert M.sustained_time_to_threshold(f, y, 5, stop=450, after=1) == 300
     assert M.sustained_time_to_threshold(f, y, 5, stop=400, sustain=3) is None  # only 300, 400 inside
     assert M.sustained_time_to_threshold(f, y, 8) is None
-    assert M.sustained_time_to_threshold(f, y, 7) == 500  # the last evaluation alone holds to the end
+    assert M.sustained_time_to_threshold(f, y, 6) is None  # 6 and 7 at the last two: not yet shown to hold
+    assert M.sustained_time_to_threshold(f, y, 6, after=1) == 400
 
 
 def test_upper_median_is_one_of_the_frames():
@@ -235,13 +240,12 @@ def test_fieller_ratio_interval():
 
 
 def test_probability_of_improvement_score_intervals():
-    z2 = 1.959964 ** 2
-    assert M.poi_interval(1.0, 5, 5, paired=True) == pytest.approx((5 / (5 + z2), 1.0), abs=1e-4)
-    lo, hi = M.poi_interval(0.6, 5, 5, paired=True)
-    # Wilson: (p + z^2/2n -+ z sqrt(p(1-p)/n + z^2/4n^2)) / (1 + z^2/n)
-    c = (0.6 + z2 / 10) / (1 + z2 / 5)
-    h = 1.959964 * np.sqrt(0.24 / 5 + z2 / 100) / (1 + z2 / 5)
-    assert (lo, hi) == pytest.approx((c - h, c + h), abs=1e-4)
+    # Clopper-Pearson over pairs: 5 of 5 gives [0.025^(1/5), 1], which holds 1/2 (the sign test's p is 1/16)
+    assert M.poi_interval(1.0, 5, 5, paired=True) == pytest.approx((0.025 ** (1 / 5), 1.0), abs=1e-6)
+    assert M.poi_interval(1.0, 5, 5, paired=True)[0] < 0.5 and M.sign_test([0] * 5, [1] * 5) == 0.0625
+    assert M.poi_interval(0.6, 5, 5, paired=True) == pytest.approx((0.1466, 0.9473), abs=1e-4)  # 3 of 5
+    lo, hi = M.poi_interval(0.5, 5, 5, paired=True)  # 2 wins and a tie: k = 2.5
+    assert 0 < lo < 0.5 < hi < 1
     lo, hi = M.poi_interval(1.0, 5, 5)
     assert 0.5 < lo < 1.0 and hi == 1.0  # never [1, 1]
     assert M.paired_probability_of_improvement([1, 2, 3], [2, 2, 1]) == pytest.approx(1.5 / 3)
@@ -252,3 +256,63 @@ def test_trend_by_hand():
     # centred frames -1.5, -.5, .5, 1.5; slope 4.5 / 5; residuals .1, .2, -.7, .4
     assert (slope, se, df) == pytest.approx((0.9, np.sqrt(0.7 / 2 / 5), 2))
     assert M.trend([0, 1, 2], [1, 1, 1]) == (0.0, 0.0, 1)
+
+
+def test_newcombe_method_5_against_its_published_example():
+    """Newcombe (2006), method 5: B = 20 20 26 25 22 23, T = 28 25 24 27 30 30 29 (6 and 7 seeds, ties
+    counted half) give 0.9167 [0.5973, 0.9860]; N = (n + m)/2, not (n + m)/2 - 1."""
+    b, t = [20, 20, 26, 25, 22, 23], [28, 25, 24, 27, 30, 30, 29]
+    p = M.probability_of_improvement(b, t)
+    assert p == pytest.approx(0.9167, abs=1e-4)
+    assert M.poi_interval(p, 6, 7) == pytest.approx((0.5973, 0.9860), abs=1e-4)
+
+
+def test_probability_intervals_stay_in_their_range():
+    for n in (2, 3, 5, 10):
+        for k in np.arange(0, 2 * n + 1) / 2:
+            for paired in (True, False):
+                lo, hi = M.poi_interval(k / n, n, n, paired)
+                assert 0.0 <= lo <= k / n <= hi <= 1.0 and lo < hi
+
+
+def test_exact_tests_by_hand():
+    # 3 vs 3, completely separated: 2 of the C(6, 3) = 20 relabellings are as extreme
+    assert M.permutation_test([1, 2, 3], [4, 5, 6]) == pytest.approx(2 / 20)
+    assert M.permutation_test([1, 2, 3], [4, 5, 6], statistic="poi") == pytest.approx(2 / 20)
+    # 4 pairs, all improving: 2 of the 2^4 sign patterns as extreme
+    assert M.permutation_test([0, 0, 0, 0], [1, 2, 3, 4], paired=True) == pytest.approx(2 / 16)
+    assert M.permutation_test([1, 1], [1, 1]) == 1.0
+    assert M.sign_test([0, 0, 0, 0, 0, 0], [1, 1, 1, 1, 1, 0]) == pytest.approx(2 / 32)  # the tie is dropped
+    assert M.sign_test([0, 0], [0, 0]) == 1.0
+
+
+def test_t_test_is_the_interval_s_dual():
+    rng = np.random.default_rng(3)
+    b, t = rng.normal(0, 1, (200, 4)), rng.normal(1, 1, (200, 4))
+    for paired in (True, False):
+        lo, hi = M.t_interval(b, t, paired)
+        p = M.t_test(b, t, paired)
+        np.testing.assert_array_equal(p < 0.05, (lo > 0) | (hi < 0))
+    # pairs (1, 2), (2, 4), (3, 6): d = 1, 2, 3, t = 2 / (1 / sqrt 3) = 3.4641 on 2 df: p = 0.07418
+    assert M.t_test([1, 2, 3], [2, 4, 6], paired=True) == pytest.approx(0.07418, abs=1e-5)
+
+
+def test_holm_by_hand():
+    # sorted 0.005, 0.01, 0.03, 0.04 (k = 4): 0.02, 0.03, 0.06, 0.06 (monotone)
+    assert M.holm([0.01, 0.04, None, 0.03, 0.005]) == pytest.approx([0.03, 0.06, None, 0.06, 0.02])
+    assert M.holm([0.5, 0.9]) == [1.0, 1.0]
+    assert M.holm([]) == []
+
+
+def test_equivalence_test_by_hand():
+    # change 0.1 +- se 0.05 on 5 df, margin 0.3: max(P(T >= 8), P(T <= -4)) = P(T <= -4) on 5 df
+    assert M.equivalence_test(0.1, 0.05, 5, 0.3) == pytest.approx(0.0051617, abs=1e-6)
+    assert M.equivalence_test(0.0, 0.0, 5, 0.3) == 0.0 and M.equivalence_test(0.4, 0.0, 5, 0.3) == 1.0
+    assert M.equivalence_test(0.1, 0.05, 5, 0.0) == 1.0  # no margin: never equivalent
+
+
+def test_shape_of_per_seed_scores():
+    assert M.shape_of([1, 2, 3, 4, 5]) is None  # too few seeds to see a shape
+    assert M.shape_of([0, 0, 0, 0, 0, 0, 0, 0, 0, 10]) == "skewed"
+    assert M.shape_of([0, 0, 0, 0, 0, 10, 10, 10, 10, 10]) == "bimodal"
+    assert M.shape_of([-1.2, -0.8, -0.4, -0.2, 0.0, 0.1, 0.3, 0.5, 0.9, 1.1]) is None

@@ -62,10 +62,13 @@ def test_hand_computed_metrics_with_seeds_and_uneven_grids(two_by_two, tmp_path)
     assert m["final_performance_baseline"] == pytest.approx(7)
     assert m["final_performance_transfer"] == pytest.approx(13)
     assert m["asymptotic_performance"] == pytest.approx(6)
-    # threshold 9: baseline seed 0 never reaches it (8 at the budget; 12 at 50 lies past it)
-    assert m["time_to_threshold_baseline"] is None and m["threshold_reached_baseline"] == 0.5
-    assert m["time_to_threshold_transfer"] == 40 and m["threshold_reached_transfer"] == 1.0
-    assert [s["time_to_threshold"] for s in res["per_seed"]["baseline"]] == [None, 40]
+    # threshold 9: baseline seed 0 never reaches it (8 at the budget; 12 at 50 lies past it); the others
+    # first reach it at the budget, their last evaluation in it: no later evaluation confirms it is sustained
+    assert m["time_to_threshold_baseline"] is None and m["threshold_reached_baseline"] == 0
+    assert m["time_to_threshold_transfer"] is None and m["threshold_reached_transfer"] == 0
+    first = report.compute(_read(b), _read(t), threshold=9, asymptote_window=0.5, crossing="first")["metrics"]
+    assert first["time_to_threshold_baseline"] is None and first["threshold_reached_baseline"] == 0.5
+    assert first["time_to_threshold_transfer"] == 40 and first["threshold_reached_transfer"] == 1.0
     for name in ("probability_of_improvement", "probability_of_improvement_initial",
                  "probability_of_improvement_final"):
         assert m[name] == 1.0
@@ -85,7 +88,7 @@ def test_hand_computed_metrics_with_seeds_and_uneven_grids(two_by_two, tmp_path)
 def test_jumpstart_window_budget_and_fraction_threshold(two_by_two, tmp_path):
     b, t = two_by_two
     m = report.compute(_read(b), _read(t), jumpstart_window=2, budget="20", threshold="40%",
-                       asymptote_window=0.5)
+                       asymptote_window=0.5, sustain=2)
     # means of the first two evaluations: baseline (0+2)/2, (2+6)/2; transfer (4+5)/2, (6+8)/2
     assert m["metrics"]["jumpstart"] == pytest.approx((4.5 + 7) / 2 - (1 + 4) / 2)
     # budget 20: areas of y = a + f/5 over [0, 20] = 20 a + 40
@@ -93,6 +96,7 @@ def test_jumpstart_window_budget_and_fraction_threshold(two_by_two, tmp_path):
     assert m["settings"]["budget_source"] == "--budget"
     # best baseline mean within [0, 20] is (4 + 6) / 2 = 5, so 40 % of it is 2
     assert m["settings"]["threshold"] == pytest.approx(2)
+    # two evaluations in a row at or above it: seed 0 at 10 and 20, seed 1 at 0 and 20
     assert [s["time_to_threshold"] for s in m["per_seed"]["baseline"]] == [10, 0]
     # the upper median of (0, 10): by frame 10 both seeds have crossed (the mean, 5, is no run's frame)
     assert m["metrics"]["time_to_threshold_baseline"] == 10
@@ -109,7 +113,7 @@ def test_smoothing_shapes_time_to_threshold_only():
     b = Curve(f, [0, 9, 0, 5, 6, 7], "b.csv", "b")
     t = Curve(f, [0, 0, 0, 8, 8, 8], "t.csv", "t")
     raw = report.compute([b], [t], threshold=5, crossing="first")
-    smooth = report.compute([b], [t], threshold=5, smooth=2)
+    smooth = report.compute([b], [t], threshold=5, smooth=2, sustain=2)
     assert raw["metrics"]["time_to_threshold_baseline"] == 100  # a single noisy spike
     # sustained (the default): from 300 on the run stays >= 5
     assert report.compute([b], [t], threshold=5)["metrics"]["time_to_threshold_baseline"] == 300
@@ -164,7 +168,7 @@ def test_done_when_command_on_real_sb3_runs(sb3_runs, tmp_path, capsys):
     assert m["transfer_ratio"] == pytest.approx(
         (m["total_reward_transfer"] - m["total_reward_baseline"]) / abs(m["total_reward_baseline"]))
     rows = list(csv.reader(io.StringIO((out / "transfer_metrics.csv").read_text())))
-    assert rows[0] == ["metric", "value", "ci_low", "ci_high"]
+    assert rows[0] == ["metric", "value", "ci_low", "ci_high", "p_value", "p_adjusted"]
     by_name = {r[0]: r for r in rows[1:]}
     assert float(by_name["jumpstart"][1]) == pytest.approx(m["jumpstart"])
     printed = capsys.readouterr()
@@ -322,9 +326,12 @@ def test_paired_by_seed_uses_the_per_pair_differences():
     assert m["mean_return_gain"] == pytest.approx(2)
     assert m["mean_return_gain_ci"] == pytest.approx([2 - half, 2 + half], abs=1e-5)
     assert m["jumpstart_ci"] == pytest.approx(m["mean_return_gain_ci"])
-    # every pair improves: P = 1, Wilson lower bound n / (n + z^2) = 3 / (3 + 1.959964^2)
+    # every pair improves: P = 1, Clopper-Pearson lower bound 0.025^(1/3); the sign test's p = 2 / 2^3
     assert m["probability_of_improvement"] == 1.0
-    assert m["probability_of_improvement_ci"] == pytest.approx([3 / (3 + 1.959964 ** 2), 1.0], abs=1e-4)
+    assert m["probability_of_improvement_ci"] == pytest.approx([0.025 ** (1 / 3), 1.0], abs=1e-6)
+    assert m["probability_of_improvement_p_value"] == pytest.approx(0.25)
+    # the paired t test behind the interval: t = 2 / (1 / sqrt 3) on 2 df
+    assert m["mean_return_gain_p_value"] == pytest.approx(0.07418, abs=1e-5)
     # areas 30, 60, 90 vs 60, 120, 180: ratio 1, but the baseline mean area's interval contains 0
     assert m["transfer_ratio"] == pytest.approx(1.0)
     assert "transfer_ratio_ci" not in m
@@ -406,9 +413,9 @@ def test_sustained_crossing_by_default_first_on_request():
 
 
 def test_median_time_is_a_frame_a_run_had():
-    f = np.arange(5) * 100.0
-    runs = [Curve(f, [0] * i + [9] * (5 - i), f"b{i}", f"b{i}") for i in (1, 2, 3)]
-    runs.append(Curve(f, [0] * 5, "b9", "b9"))  # never reaches it
+    f = np.arange(7) * 100.0
+    runs = [Curve(f, [0] * i + [9] * (7 - i), f"b{i}", f"b{i}") for i in (1, 2, 3)]
+    runs.append(Curve(f, [0] * 7, "b9", "b9"))  # never reaches it
     res = report.compute(runs, flat([9.0], frames=tuple(f)), threshold=5)
     assert [r["time_to_threshold"] for r in res["per_seed"]["baseline"]] == [100, 200, 300, None]
     # upper median: by frame 300, 3 of 4 runs (a strict majority) stay above; the mean of 200 and 300
@@ -423,9 +430,9 @@ def test_a_curve_still_rising_at_the_budget_is_flagged():
     level = flat([1.0, 2.0, 3.0], frames=tuple(f), prefix="t")
     res = report.compute(rising, level)
     st, m = res["settings"], res["metrics"]
-    assert st["convergence"] == {"baseline": "still rising", "transfer": "no significant trend"}
-    # last 25 % = frames 75..100 (6 evaluations) on a line of slope 0.1 per frame: +2.5 over the window
-    assert st["convergence"] == {"baseline": "still rising", "transfer": "no significant trend"}
+    # last 25 % = frames 75..100 (6 evaluations) on a line of slope 0.1 per frame: +2.5 over the window;
+    # the transfer runs are flat, so their mean curve has nothing left to change
+    assert st["convergence"] == {"baseline": "still rising", "transfer": "converged"}
     assert m["final_trend_baseline"] == pytest.approx(2.5)
     assert any("baseline mean curve is still rising" in w and "not asymptotes" in w for w in st["warnings"])
     assert "final performance, not an asymptote: baseline still rising" in report.format_table(res)
@@ -444,7 +451,7 @@ def test_total_time_counts_the_source_frames(tmp_path):
     t = write_run(tmp_path / "t" / "seed-0", f, [0, 1, 2, 3], "fourrooms/near")
     (t / "config.yaml").write_text(
         f"task: fourrooms/near\nseed: 0\ntransfer:\n  method: policy-reuse\n  source: {source}\n")
-    res = report.compute(_read(tmp_path / "b"), _read(tmp_path / "t"), threshold=2)
+    res = report.compute(_read(tmp_path / "b"), _read(tmp_path / "t"), threshold=2, crossing="first")
     m, st = res["metrics"], res["settings"]
     assert st["source_frames"] == [10]
     # target frames only: areas 15 + 30 = 45 and 45 over 30 frames, no gain
@@ -454,7 +461,7 @@ def test_total_time_counts_the_source_frames(tmp_path):
     assert res["per_seed"]["baseline"][0]["mean_return_total_time"] == pytest.approx(2.25)
     assert res["per_seed"]["transfer"][0]["mean_return_total_time"] == pytest.approx(1)
     assert m["mean_return_gain_with_source"] == pytest.approx(-1.25)
-    # the transfer run stays >= 2 from target frame 20, within its 20 target frames: 20 + 10
+    # the transfer run first reaches 2 at target frame 20, within its 20 target frames: 20 + 10
     assert m["time_to_threshold_baseline"] == 20 and m["time_to_threshold_transfer"] == 20
     assert m["time_to_threshold_transfer_with_source"] == 30
     assert res["per_seed"]["transfer"][0]["source_frames"] == 10
@@ -544,7 +551,7 @@ def test_settings_define_the_cli_options(capsys):
     s = report.ReportSettings.from_args(args)
     assert (s.crossing, s.paired, s.source_frames, s.sustain, s.interval) == ("sustained", True, 40_000, 3, "t")
     assert report.ReportSettings.from_args(parser.parse_args(["--crossing", "first"])).crossing == "first"
-    for bad, text in ((["--sustain", "0"], "--sustain must be at least 1"),
+    for bad, text in ((["--sustain", "1"], "--sustain must be at least 2"),
                       (["--trend-window", "2"], "--trend-window must lie in (0, 1]"),
                       (["--source-frames", "lots"], "--source-frames 'lots' is not a number")):
         assert report.main(["--baseline", "b", "--transfer", "t", *bad]) == 2
@@ -613,7 +620,7 @@ def test_a_new_metric_is_one_entry(monkeypatch):
 def test_json_keys_keep_their_published_order():
     res = report.compute(flat([1.0, 2.0, 3.0], seeds=[0, 1, 2], prefix="b"),
                          flat([2.0, 4.0, 7.0], seeds=[0, 1, 2], prefix="t"), threshold=1.5)
-    keys = [k for k in res["metrics"] if not k.endswith(("_ci", "_iqm"))]
+    keys = [k for k in res["metrics"] if not k.endswith(("_ci", "_iqm", "_p_value", "_p_adjusted", "_p_exact"))]
     assert keys == [
         "n_seeds_baseline", "n_seeds_transfer", "mean_return_gain", "jumpstart", "asymptotic_performance",
         "transfer_ratio", "probability_of_improvement", "probability_of_improvement_initial",
@@ -674,3 +681,89 @@ def test_a_report_on_run_directories_imports_no_torch(tmp_path):
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     assert json.loads((tmp_path / "out" / "transfer_metrics.json").read_text())["metrics"]["n_seeds_baseline"] == 5
+
+
+def test_every_metric_with_an_interval_has_a_p_value_adjusted_over_the_report_s_family():
+    b = flat([1.0, 2.0, 3.0, 2.5, 1.5], seeds=[0, 1, 2, 3, 4], prefix="b")
+    t = flat([2.0, 4.0, 6.0, 3.0, 1.6], seeds=[0, 1, 2, 3, 4], prefix="t")
+    res = report.compute(b, t, threshold=1.5)
+    m, family = res["metrics"], res["settings"]["family"]
+    with_ci = [k.removesuffix("_ci") for k in m if k.endswith("_ci")]
+    assert family["metrics"] == with_ci and family["size"] == len(with_ci) > 5
+    ps = [m[f"{k}_p_value"] for k in with_ci]
+    assert [m[f"{k}_p_adjusted"] for k in with_ci] == pytest.approx(report.M.holm(ps))
+    assert all(m[f"{k}_p_adjusted"] >= m[f"{k}_p_value"] for k in with_ci)
+    # 5 pairs all improving: the sign test cannot reach 0.05 (p = 1/16), nor can the exact permutation test
+    assert m["probability_of_improvement_p_value"] == pytest.approx(1 / 16)
+    assert m["mean_return_gain_p_exact"] == pytest.approx(2 / 32)
+    assert "family: " in report.format_table(res) and "p (Holm)" in report.format_table(res)
+
+
+def test_skewed_per_seed_differences_take_the_exact_test_s_p_value():
+    seeds = list(range(10))
+    b = flat([0.0] * 10, seeds=seeds, prefix="b")
+    t = flat([0.1, 0.2, 0.1, 0.3, 0.2, 0.1, 0.2, 0.3, 0.1, 9.0], seeds=seeds, prefix="t")  # one seed far out
+    res = report.compute(b, t)
+    m = res["metrics"]
+    assert m["mean_return_gain_p_value"] == m["mean_return_gain_p_exact"] == pytest.approx(2 / 2 ** 10)
+    assert any("look skewed" in w and "exact permutation" in w for w in res["settings"]["warnings"])
+    normal = report.compute(flat([0.0] * 3, seeds=[0, 1, 2], prefix="b"), flat([1.0, 2.0, 3.0], seeds=[0, 1, 2],
+                                                                             prefix="t"))["metrics"]
+    assert normal["mean_return_gain_p_value"] != normal["mean_return_gain_p_exact"]  # the t test's, < 8 seeds
+
+
+def test_a_success_rate_s_intervals_stay_in_their_range(tmp_path):
+    """Rates in [0, 1]: differences' intervals within [-1, 1], probabilities within [0, 1]."""
+    f = list(range(0, 101, 10))
+    for side, rates in (("b", [0.0, 0.0, 1.0]), ("t", [1.0, 1.0, 0.0])):
+        for i, r in enumerate(rates):
+            run = tmp_path / side / f"seed-{i}"
+            run.mkdir(parents=True)
+            rows = "".join(f"{x},0.0,0.0,8,{r if x > 0 else 0.0}\n" for x in f)
+            (run / "eval.csv").write_text("frames,return_mean,return_std,episodes,success_rate\n" + rows)
+    res = report.transfer_report(tmp_path / "b", tmp_path / "t", tmp_path / "out", tag="success_rate")
+    m = res["metrics"]
+    assert res["settings"]["value_range"] == [0, 1]
+    assert m["asymptotic_performance_ci"][1] == 1.0 and m["asymptotic_performance_ci"][0] == -1.0  # cut to range
+    unbounded = report.M.t_interval(np.array([0.0, 0.0, 1.0]), np.array([1.0, 1.0, 0.0]))
+    assert unbounded[1] > 1 and unbounded[0] < -1  # what the plain t interval would say
+    for key, (lo, hi) in ((k, v) for k, v in m.items() if k.endswith("_ci")):
+        assert (0.0 if "probability" in key else -1.0) <= lo <= hi <= 1.0, key
+
+
+def test_convergence_needs_the_equivalence_test():
+    f = np.arange(0, 101, 5.0)
+    rng = np.random.default_rng(0)
+    plateau = [Curve(f, np.minimum(f / 20, 2.0) + rng.normal(0, 0.01, f.size), f"p{i}", f"p{i}") for i in range(3)]
+    noisy = [Curve(f, np.minimum(f / 20, 2.0) + rng.normal(0, 1.0, f.size), f"n{i}", f"n{i}") for i in range(3)]
+    res = report.compute(plateau, noisy)
+    conv = res["settings"]["convergence"]
+    # the plateau's change over frames 75..100 is shown within 0.1 x its range (about 2): converged;
+    # the noisy one is neither shown flat nor shown to move: a flat slope estimate does not make it converged
+    assert conv["baseline"] == "converged"
+    assert conv["transfer"].startswith("undetermined (the change is neither shown within")
+    assert "TOST" in res["settings"]["convergence_rule"]
+    short = report.compute(flat([1.0, 2.0, 3.0], frames=(0, 10, 20, 30)), flat([1.0, 2.0, 3.0], frames=(0, 10, 20, 30)))
+    assert short["settings"]["convergence"]["baseline"].startswith("undetermined (too few evaluations")
+
+
+def test_runs_on_different_grids_or_episode_counts_are_named():
+    coarse = [Curve((0, 20, 40), [0, 1, 2], f"c{i}", f"c{i}", config={"seed": i, "eval": {"episodes": 8}})
+              for i in range(3)]
+    fine = [Curve((0, 10, 20, 30, 40), [0, 1, 2, 3, 4], f"f{i}", f"f{i}", config={"seed": i, "eval": {"episodes": 16}})
+            for i in range(3)]
+    warnings = report.compute(coarse, fine)["settings"]["warnings"]
+    assert any("different grids" in w and "'f0'" in w and "'c0'" in w and "every 20" in w for w in warnings)
+    assert any("different numbers of episodes" in w and "'c0' (c0) 8" in w and "'f0' (f0) 16" in w for w in warnings)
+
+
+def test_foreign_logs_are_compared_over_their_whole_overlap():
+    short = [Curve((100, 200, 300), [0, 1, 2], f"s{i}", f"s{i}") for i in range(2)]
+    long = [Curve((0, 200, 400, 600, 800), [0, 1, 2, 3, 4], f"l{i}", f"l{i}") for i in range(2)]
+    st = report.compute(short, long, asymptote_window=0.5)["settings"]
+    assert (st["start"], st["budget"]) == (100, 300)
+    assert "the range every run covers" in st["budget_source"] and "'s0'" in st["budget_source"]
+    with pytest.raises(UsageError, match="run lengths differ too much"):  # drltg runs: refused
+        report.compute([Curve(c.frames, c.values, c.source, c.label, config={"seed": i}) for i, c in enumerate(short)],
+                       [Curve(c.frames, c.values, c.source, c.label, config={"seed": i}) for i, c in enumerate(long)],
+                       asymptote_window=0.5)

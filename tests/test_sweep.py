@@ -109,6 +109,8 @@ def test_swept_axes_name_the_variant_directories(tmp_path):
     ({"overrides": {"seed": 3}}, "may not set 'seed'"),
     ({"overrides": {"optim.lrr": 0.1}}, "unknown config key 'optim.lrr'; did you mean 'optim.lr'?"),
     ({"overrides": {"eval.every": "often"}}, "'eval.every' must be an integer"),
+    ({"primary_metric": "mean_return_gian"}, "unknown primary_metric 'mean_return_gian'"),
+    ({"primary_metric": "n_seeds_baseline"}, "primary_metric 'n_seeds_baseline' is not a comparison"),
     ({"resources": {"gpus": 1}}, "unknown resource 'gpus'; did you mean 'num_gpus'?"),
 ])
 def test_spec_errors_are_one_sentence_and_write_nothing(tmp_path, capsys, change, message):
@@ -242,3 +244,32 @@ def test_every_shipped_sweep_spec_plans(spec_file, tmp_path):
     runs, cells = sweep.plan(sweep.load_spec(spec_file), tmp_path)
     assert cells and all(r.role in ("source", "baseline", "transfer") for r in runs)
     assert all(r.needs is None or r.needs in {q.path for q in runs} for r in runs)
+
+
+def _row(method, gain, p, poi=None, poi_p=None):
+    metrics = {"n_seeds_baseline": 5, "n_seeds_transfer": 5, "mean_return_gain": gain,
+               "mean_return_gain_ci": [gain - 1, gain + 1], "mean_return_gain_p_value": p}
+    if poi is not None:
+        metrics.update(probability_of_improvement=poi, probability_of_improvement_ci=[0.1, 0.9],
+                       probability_of_improvement_p_value=poi_p)
+    return {"pair": "p", "algo": "sac", "variant": "", "method": method, "report": "r", "metrics": metrics}
+
+
+def test_the_summary_counts_findings_after_holm_over_its_named_family():
+    rows = [_row("a", 1.0, 0.001, 1.0, 0.0625), _row("b", -2.0, 0.02, 0.0, 0.0625), _row("c", 0.5, 0.04),
+            {"pair": "p", "algo": "sac", "variant": "", "method": "d", "report": "r", "metrics": None}]
+    adjusted, headline = sweep.sweep_family(rows, "mean_return_gain")
+    # three p-values 0.001, 0.02, 0.04: Holm 0.003, 0.04, 0.04 -> all three below 0.05
+    assert adjusted == pytest.approx({(0, "mean_return_gain"): 0.003, (1, "mean_return_gain"): 0.04,
+                                      (2, "mean_return_gain"): 0.04})
+    assert "primary metric mean_return_gain (named in the spec) in 3 report(s)" in headline
+    assert "3 finding(s) at 0.05 (2 positive, 1 negative); 3 before adjustment" in headline
+    # no primary metric: all five p-values together; Holm 0.005, 0.08, 0.08, 0.1875, 0.1875 -> one finding
+    adjusted, headline = sweep.sweep_family(rows)
+    assert len(adjusted) == 5 and "the spec named no primary_metric" in headline
+    assert "1 finding(s) at 0.05 (1 positive, 0 negative); 3 before adjustment" in headline
+    csv_text, md_text = sweep.summary_tables(rows, "mean_return_gain")
+    assert md_text.startswith("Family: the primary metric")
+    assert "| 1 [0, 2]* |" in md_text and "| -2 [-3, -1]* |" in md_text
+    header = csv_text.splitlines()[0].split(",")
+    assert "mean_return_gain_p_value" in header and "mean_return_gain_p_holm_sweep" in header

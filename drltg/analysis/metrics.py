@@ -16,12 +16,15 @@ Per-run scores
     ``time_to_threshold``     the first evaluation frame ``f <= budget`` with ``y(f) >= threshold``,
                               or ``None`` when it is never reached (a censored run, never a number).
     ``sustained_time_to_threshold``  the first evaluation frame from which ``y >= threshold`` holds
-                              until the budget (or for ``K`` consecutive evaluations): a run that
-                              touches the threshold and collapses has not reached it.
+                              until the budget over at least ``SUSTAIN_AFTER`` later evaluations (or
+                              for ``K >= 2`` consecutive evaluations): a run that touches the threshold
+                              and collapses, or touches it at the end, has not shown it holds there.
     ``moving_average``        trailing mean over the last ``W`` evaluations (fewer at the start).
 
 Transfer metrics over sets of per-seed scores (a single run is a set of one), with a location
-statistic ``L`` (the mean by default; ``interquartile_mean`` for a robust version)
+statistic ``L`` of each side (the mean by default; ``interquartile_mean`` for a robust version). One
+definition per name, paired or not: the difference of the two sides' locations (for the mean, the same
+number as the mean of the pairs' differences; for the IQM, not).
     ``jumpstart``               :math:`L(\text{initial}_T) - L(\text{initial}_B)`
     ``asymptotic_performance``  :math:`L(\text{final}_T) - L(\text{final}_B)`
     ``transfer_ratio``          :math:`r = (L(A_T) - L(A_B)) / |L(A_B)|`.
@@ -52,9 +55,17 @@ measures them and chose ``t_interval`` as the default)
                               other candidates (they under-cover with 3 to 10 seeds).
     ``ratio_interval``        Fieller's interval of a ratio of means, mapped to ``transfer_ratio``; NaN
                               when the baseline mean's own interval contains 0 (unbounded).
-    ``poi_interval``          score interval of a probability of improvement (Wilson for pairs,
-                              Newcombe's method 5 for the Mann-Whitney estimate); never ``[1, 1]``.
+    ``poi_interval``          interval of a probability of improvement inside [0, 1] (Clopper-Pearson
+                              for pairs, Newcombe's method 5 for the Mann-Whitney estimate); never
+                              ``[1, 1]``.
     ``trend``                 least-squares slope and its standard error (is a curve still changing?).
+
+Tests (two-sided p-values)
+    ``t_test``                the test dual to ``t_interval``; ``sign_test`` exact, over pairs;
+    ``permutation_test``      exact (or seeded Monte Carlo) relabelling test of no effect, valid at any
+                              number of seeds; ``equivalence_test`` two one-sided tests (TOST);
+    ``holm``                  Holm's adjustment of a family of p-values; ``shape_of`` flags skewed or
+                              bimodal per-seed scores.
 """
 from __future__ import annotations
 
@@ -140,23 +151,32 @@ def time_to_threshold(frames, values, threshold: float, stop: float | None = Non
     return float(f[np.argmax(reached)]) if reached.any() else None
 
 
+SUSTAIN_AFTER = 2
+"""Evaluations after the crossing that must confirm a sustained crossing run to the budget: a run that
+first reaches the threshold at its last evaluation (or the one before) has not shown it holds there."""
+
+
 def sustained_time_to_threshold(frames, values, threshold: float, stop: float | None = None,
-                                sustain: int | None = None) -> float | None:
+                                sustain: int | None = None, after: int = SUSTAIN_AFTER) -> float | None:
     """First evaluation frame ``f_i <= stop`` from which the run stays at or above ``threshold``.
 
     ``sustain=None``: for every later evaluation up to ``stop`` (a run that dips below again has not
-    reached it yet); ``sustain=K``: for ``K`` consecutive evaluations ``y_i .. y_{i+K-1}``, all within
-    ``stop``. ``None`` when no evaluation qualifies (a censored run)."""
+    reached it yet), and at least ``after`` of them; ``sustain=K`` (at least 2): for ``K`` consecutive
+    evaluations ``y_i .. y_{i+K-1}``, all within ``stop``. A first crossing alone is never sustained.
+    ``None`` when no evaluation qualifies (a censored run)."""
     f, v = _curve(frames, values)
     inside = f <= (f[-1] if stop is None else stop)
     f, ok = f[inside], v[inside] >= threshold
     if not ok.size:
         return None
     if sustain is None:
+        if after < 1:
+            raise ValueError(f"after must be >= 1 evaluations, got {after}")
         holds = np.flip(np.cumprod(np.flip(ok))).astype(bool)  # ok from i to the end
+        holds &= np.arange(ok.size) < ok.size - after  # confirmed by `after` later evaluations
     else:
-        if sustain < 1:
-            raise ValueError(f"sustain must be >= 1 evaluations, got {sustain}")
+        if sustain < 2:
+            raise ValueError(f"sustain must be >= 2 evaluations (the crossing and one after it), got {sustain}")
         run = np.convolve(ok.astype(int), np.ones(sustain, dtype=int), mode="full")[sustain - 1:]
         holds = run[:ok.size] >= sustain
     return float(f[np.argmax(holds)]) if holds.any() else None
@@ -303,12 +323,6 @@ def t_quantile(p: float, df) -> Array | float:
     return float(q) if np.ndim(q) == 0 else q
 
 
-def _normal_cdf(z: Array) -> Array:
-    from scipy import stats
-
-    return stats.norm.cdf(z)
-
-
 def _normal_ppf(p: Array) -> Array:
     from scipy import stats
 
@@ -387,38 +401,24 @@ def percentile_interval(b, t, paired: bool = False, confidence: float = 0.95, n_
 
 def bca_interval(b, t, paired: bool = False, confidence: float = 0.95, n_resamples: int = 2000,
                  seed: int = 0) -> tuple[Array, Array]:
-    r"""Bias-corrected and accelerated bootstrap (Efron 1987) of the mean difference.
+    """Bias-corrected and accelerated bootstrap (Efron 1987) of the mean difference, by
+    ``scipy.stats.bootstrap`` (the pairs' differences resampled, or each side on its own). NaN where
+    the resamples are degenerate (no spread)."""
+    import warnings
 
-    :math:`z_0 = \Phi^{-1}(P^*(\hat\theta^* < \hat\theta))`, acceleration
-    :math:`a = \sum U^3 / (6 (\sum U^2)^{3/2})` from the empirical influence values :math:`U`
-    (of the pairs, or of each side's seeds scaled by its size); the quantiles used are
-    :math:`\Phi(z_0 + (z_0 + z_q) / (1 - a (z_0 + z_q)))`. NaN where all resamples lie on one side."""
-    alpha = _check_confidence(confidence)
+    from scipy import stats
+
+    _check_confidence(confidence)
     b, t = _pairs(b, t, paired)
-    est = (t - b).mean(-1) if paired else t.mean(-1) - b.mean(-1)
-    rb, rt = _resample(b, t, paired, n_resamples, np.random.default_rng(seed))
-    boot = rt.mean(-1) - rb.mean(-1)
-    below = (boot < est[..., None]).mean(-1) + 0.5 * (boot == est[..., None]).mean(-1)
-    z0 = _normal_ppf(below)
     if paired:
-        d = t - b
-        u3, u2 = (((d - d.mean(-1, keepdims=True)) / d.shape[-1]) ** p for p in (3, 2))
-        s3, s2 = u3.sum(-1), u2.sum(-1)
+        data, statistic = (t - b,), lambda d, axis: d.mean(axis)
     else:
-        ub = -(b - b.mean(-1, keepdims=True)) / b.shape[-1]
-        ut = (t - t.mean(-1, keepdims=True)) / t.shape[-1]
-        s3 = (ub ** 3).sum(-1) + (ut ** 3).sum(-1)
-        s2 = (ub ** 2).sum(-1) + (ut ** 2).sum(-1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        a = s3 / (6.0 * s2 ** 1.5)
-        out = []
-        for q in (alpha, 1 - alpha):
-            zq = float(_normal_ppf(q))
-            level = _normal_cdf(np.where(np.isfinite(z0), z0 + (z0 + zq) / (1 - a * (z0 + zq)), 0.0))
-            rank = np.clip(np.floor(level * n_resamples).astype(int), 0, n_resamples - 1)
-            value = np.take_along_axis(np.sort(boot, -1), rank[..., None], axis=-1)[..., 0]
-            out.append(np.where(np.isfinite(z0) & np.isfinite(a), value, np.nan))
-    return out[0], out[1]
+        data, statistic = (b, t), lambda b, t, axis: t.mean(axis) - b.mean(axis)
+    with warnings.catch_warnings(), np.errstate(divide="ignore", invalid="ignore"):
+        warnings.simplefilter("ignore")
+        ci = stats.bootstrap(data, statistic, n_resamples=n_resamples, confidence_level=confidence, method="BCa",
+                             rng=np.random.default_rng(seed), axis=-1, vectorized=True, batch=100).confidence_interval
+    return ci.low, ci.high
 
 
 def studentized_interval(b, t, paired: bool = False, confidence: float = 0.95, n_resamples: int = 2000,
@@ -497,23 +497,142 @@ def paired_probability_of_improvement(baseline, transfer) -> float:
 
 def poi_interval(p_hat: float, n_baseline: int, n_transfer: int, paired: bool = False,
                  confidence: float = 0.95) -> tuple[float, float]:
-    r"""Score interval of a probability of improvement: all :math:`p` with
-    :math:`(\hat p - p)^2 \le z^2 V(p)`, never degenerate at 0 or 1.
+    r"""Interval of a probability of improvement, inside [0, 1] and never degenerate at 0 or 1.
 
-    Paired (a proportion of ``n`` pairs): Wilson, :math:`V = p(1-p)/n`. Unpaired (the Mann-Whitney
-    estimate): Newcombe's (2006) method 5, :math:`V = \frac{p(1-p)}{nm}\big[1 + (N-1)\frac{1-p}{2-p}
-    + (N-1)\frac{p}{1+p}\big]`, :math:`N = (n+m)/2 - 1`."""
+    Paired (a share of ``n`` pairs, ``k = n p`` with ties counting one half): Clopper-Pearson's exact
+    interval :math:`[B_{a/2}(k, n-k+1),\ B_{1-a/2}(k+1, n-k)]` (Beta quantiles), the inversion of the
+    exact binomial test, so it excludes 1/2 only where :func:`sign_test` rejects (5 of 5 pairs do not).
+    Unpaired (the Mann-Whitney estimate): Newcombe's (2006) method 5, all :math:`p` with
+    :math:`(\hat p - p)^2 \le z^2 V(p)`, :math:`V = \frac{p(1-p)}{nm}\big[1 + (N-1)\frac{1-p}{2-p}
+    + (N-1)\frac{p}{1+p}\big]`, :math:`N = (n+m)/2`."""
+    from scipy import optimize, stats
+
     alpha = _check_confidence(confidence)
-    z2 = float(_normal_ppf(1 - alpha)) ** 2
-    p = np.linspace(0.0, 1.0, 20001)
+    if not 0.0 <= p_hat <= 1.0:
+        raise ValueError(f"a probability of improvement lies in [0, 1], got {p_hat}")
     if paired:
-        v = p * (1 - p) / n_baseline
+        n = n_baseline
+        k = p_hat * n
+        lo = 0.0 if k <= 0 else float(stats.beta.ppf(alpha, k, n - k + 1))
+        hi = 1.0 if k >= n else float(stats.beta.ppf(1 - alpha, k + 1, n - k))
+        return lo, hi
+    z2 = float(_normal_ppf(1 - alpha)) ** 2
+    big = (n_baseline + n_transfer) / 2.0
+
+    def excess(p):
+        v = p * (1 - p) / (n_baseline * n_transfer) * (1 + (big - 1) * (1 - p) / (2 - p) + (big - 1) * p / (1 + p))
+        return (p_hat - p) ** 2 - z2 * v
+
+    inner = min(max(p_hat, 1e-12), 1 - 1e-12)  # the score set's inside, also when p_hat is 0 or 1
+    lo = 0.0 if p_hat <= 0 else optimize.brentq(excess, 0.0, inner, xtol=1e-12)
+    hi = 1.0 if p_hat >= 1 else optimize.brentq(excess, inner, 1.0, xtol=1e-12)
+    return float(lo), float(hi)
+
+
+# ------------------------------------------------------------------------------------------ tests
+# Two-sided p-values, each the test behind one interval (or distribution-free beside it).
+def t_test(b, t, paired: bool = False, df: str = "hsu") -> Array | float:
+    """Two-sided p-value of :math:`\bar d / se` on the degrees of freedom of :func:`t_interval`: that
+    interval excludes 0 exactly when ``p < 1 - confidence``. NaN without spread."""
+    from scipy import stats
+
+    b, t = _pairs(b, t, paired)
+    est, se, dof = _difference_and_se(b, t, paired, df)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        p = np.where(se > 0, 2 * stats.t.sf(np.abs(est / se), np.where(se > 0, dof, 1.0)), np.nan)
+    return float(p) if np.ndim(p) == 0 else p
+
+
+def sign_test(baseline, transfer) -> float:
+    """Exact two-sided sign test of :math:`P(T_i > B_i) = 1/2` over pairs, tied pairs dropped
+    (``scipy.stats.binomtest``); 1 when every pair ties."""
+    from scipy import stats
+
+    d = _as_array(transfer) - _as_array(baseline)
+    wins, losses = int((d > 0).sum()), int((d < 0).sum())
+    return 1.0 if wins + losses == 0 else float(stats.binomtest(wins, wins + losses, 0.5).pvalue)
+
+
+def permutation_test(baseline, transfer, paired: bool = False, statistic: str = "mean", seed: int = 0,
+                     n_resamples: int = 9999) -> float:
+    """Two-sided permutation test that transfer changes nothing (``scipy.stats.permutation_test``):
+    paired, the two runs of each pair swapped (the differences' signs flipped); unpaired, the runs
+    relabelled. ``statistic``: ``"mean"`` (the mean difference) or ``"poi"`` (the Mann-Whitney
+    estimate). Exact while the arrangements number at most ``n_resamples`` (up to 13 pairs; 5 + 5 runs
+    have 252), else a seeded Monte Carlo p-value; its false-positive rate is at most the level at any
+    number of seeds."""
+    from scipy import stats
+
+    b, t = _as_array(baseline), _as_array(transfer)
+    if statistic == "mean":
+        def stat(x, y, axis=-1):
+            return y.mean(axis) - x.mean(axis)
+    elif statistic == "poi":
+        def stat(x, y, axis=-1):
+            diff = np.moveaxis(y, axis, -1)[..., None, :] - np.moveaxis(x, axis, -1)[..., :, None]
+            return ((diff > 0) + 0.5 * (diff == 0)).mean(axis=(-2, -1)) - 0.5
     else:
-        big = (n_baseline + n_transfer) / 2.0 - 1.0
-        v = p * (1 - p) / (n_baseline * n_transfer) * (1 + (big - 1) * (1 - p) / (2 - p)
-                                                      + (big - 1) * p / (1 + p))
-    inside = p[(p_hat - p) ** 2 <= z2 * v]
-    return float(inside.min()), float(inside.max())
+        raise ValueError(f"unknown statistic '{statistic}'")
+    if np.ptp(np.concatenate([b, t])) == 0:
+        return 1.0
+    res = stats.permutation_test((b, t), stat, permutation_type="samples" if paired else "independent",
+                                 vectorized=True, n_resamples=n_resamples, alternative="two-sided",
+                                 rng=np.random.default_rng(seed))
+    return float(min(1.0, res.pvalue))
+
+
+def holm(p_values: Sequence[float | None]) -> list[float | None]:
+    r"""Holm's step-down adjustment: the :math:`i`-th smallest of :math:`k` p-values becomes
+    :math:`\max_{j \le i} \min(1, (k - j + 1) p_{(j)})`; rejecting where it is below :math:`\alpha` keeps
+    the chance of any false finding in the family at most :math:`\alpha`. ``None`` stays ``None`` and
+    does not count in :math:`k`."""
+    given = [(i, float(p)) for i, p in enumerate(p_values) if p is not None and not math.isnan(p)]
+    out: list[float | None] = [None] * len(p_values)
+    running = 0.0
+    for rank, (i, p) in enumerate(sorted(given, key=lambda x: x[1])):
+        running = max(running, min(1.0, (len(given) - rank) * p))
+        out[i] = running
+    return out
+
+
+def shape_of(x) -> str | None:
+    r"""``"skewed"`` or ``"bimodal"`` when per-seed scores visibly are, else ``None``; only from
+    ``SHAPE_MIN_SEEDS`` scores up (fewer cannot show a shape).
+
+    Skewed: D'Agostino's skewness test (``scipy.stats.skewtest``) at 0.05. Bimodal: Sarle's coefficient
+    :math:`(g_1^2 + 1) / (g_2 + 3(n-1)^2/((n-2)(n-3))) > 5/9` (the value of a uniform distribution),
+    :math:`g_1, g_2` the bias-corrected skewness and excess kurtosis."""
+    from scipy import stats
+
+    x = _as_array(x)
+    n = x.size
+    if n < SHAPE_MIN_SEEDS or np.ptp(x) == 0:
+        return None
+    if stats.skewtest(x).pvalue < 0.05:
+        return "skewed"
+    g1, g2 = stats.skew(x, bias=False), stats.kurtosis(x, bias=False)
+    coefficient = (g1 ** 2 + 1) / (g2 + 3 * (n - 1) ** 2 / ((n - 2) * (n - 3)))
+    return "bimodal" if coefficient > 5 / 9 else None
+
+
+SHAPE_MIN_SEEDS = 8
+"""``scipy.stats.skewtest`` needs 8 scores; below that no shape is tested and the t-based rule holds."""
+
+
+def equivalence_test(estimate: float, se: float, df: float, margin: float) -> float:
+    r"""Two one-sided tests (TOST) that :math:`|\theta| < \delta`: the larger of the p-values of
+    :math:`\theta \le -\delta` and :math:`\theta \ge \delta` on Student's t; below :math:`\alpha` it shows
+    equivalence (the :math:`1 - 2\alpha` interval lies inside :math:`(-\delta, \delta)`). With
+    ``se == 0`` it is 0 inside the margin and 1 outside."""
+    from scipy import stats
+
+    if margin <= 0:
+        return 1.0
+    if se == 0:
+        return 0.0 if abs(estimate) < margin else 1.0
+    below = stats.t.sf((estimate + margin) / se, df)
+    above = stats.t.cdf((estimate - margin) / se, df)
+    return float(max(below, above))
 
 
 def trend(frames, values) -> tuple[float, float, int]:

@@ -47,7 +47,7 @@ def plot_transfer(result: dict) -> tuple[bytes, bytes]:
     annotated segments, and a box of the differences with their intervals (mean return gain first)."""
     m, st, curves = result["metrics"], result["settings"], result["curves"]
     plt, (fig, ax) = _figure(figsize=(10, 5.5))
-    moving = {side: v for side, v in st.get("convergence", {}).items() if v.startswith("still")}
+    moving = {side: v for side, v in st.get("convergence", {}).items() if v != "converged"}
     _curves(ax, curves, st)
     _asymptote(ax, m, st, moving)
     _jumpstart(ax, m, curves)
@@ -120,7 +120,8 @@ def _summary_box(ax, m: dict, st: dict, moving: dict) -> None:
         summary.append(f"total time (source frames counted): gain {_signed(m['mean_return_gain_with_source'])}"
                        + _ci(m, "mean_return_gain_with_source"))
     for side, verdict in moving.items():
-        summary.append(f"warning: {side} {verdict} at the budget")
+        said = "not shown to have converged" if verdict.startswith("undetermined") else verdict
+        summary.append(f"warning: {side} {said} at the budget")
     ax.text(1.02, 1.0, "\n".join(summary), transform=ax.transAxes, ha="left", va="top",
             fontsize=9, family="monospace", zorder=8,
             bbox=dict(boxstyle="round,pad=0.4", fc="white", ec="0.7", alpha=0.9))

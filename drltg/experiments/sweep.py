@@ -13,6 +13,8 @@ The spec is a grid (every list is one axis; a scalar is a one-value axis)::
                                                # here serves every transfer run: no source runs)
     grid: {optim.lr: [3.0e-4, 1.0e-3]}         # config keys swept, each a list
     threshold: 0.5                             # report threshold: a value or "80%"
+    primary_metric: mean_return_gain           # the comparison the summary's headline counts, named in
+                                               # advance (default: every interval of the summary)
     resources: {num_cpus: 1, num_gpus: 0}      # per run, for --backend ray
 
 Each (pair, algo, variant, method) is one ``drltg experiment`` (same runs, same paired and spaced
@@ -24,7 +26,9 @@ seeds: ``seed + 100 i`` for baseline and transfer run i, ``+ 50`` for its source
     DIR/<pair>/<algo>[/<variant>]/<method>/report/     drltg report of transfer vs baseline
     DIR/logs/<same relative path>.log                  each run's output and traceback
     DIR/runs.csv                                       each run's status (done, failed, skipped) and log
-    DIR/summary.{csv,md}, DIR/transfer_matrix.png      all reports in one table and one heatmap
+    DIR/summary.{csv,md}, DIR/transfer_matrix.png      all reports in one table and one heatmap; the
+                                                       headline counts findings after Holm's adjustment
+                                                       over its family (the primary metric's p-values)
 
 ``<variant>`` (e.g. ``frames=20000,optim.lr=0.001``) names the point on the swept axes; it is absent
 when nothing but pairs, algos, methods and seeds varies. Runs are deduplicated by their resolved
@@ -55,7 +59,7 @@ from drltg.experiments.executor import LocalBackend, RayBackend, Run, execute
 from drltg.training import rundir
 
 KEYS = ("pairs", "methods", "algos", "seeds", "seed", "frames", "source_frames", "overrides", "grid",
-        "threshold", "resources")
+        "threshold", "primary_metric", "resources")
 RESOURCES = ("num_cpus", "num_gpus")
 SET_BY_SWEEP = ("task", "algo", "seed", "frames", "transfer.method")
 
@@ -73,6 +77,7 @@ class Spec:
     overrides: dict[str, Any] = field(default_factory=dict)
     grid: dict[str, list] = field(default_factory=dict)
     threshold: float | str | None = None
+    primary_metric: str | None = None
     resources: dict[str, float] = field(default_factory=lambda: {"num_cpus": 1, "num_gpus": 0})
 
 
@@ -106,7 +111,7 @@ def _config_keys(mapping, key: str, where: str) -> dict:
 
 def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
     """Validate a loaded spec; every mistake is one :class:`UsageError` sentence."""
-    from drltg.analysis.report import parse_threshold
+    from drltg.analysis.report import check_metric, parse_threshold
     from drltg.envs import TASKS, get_pair
     from drltg.learners import ALGOS
     from drltg.transfer import METHODS
@@ -158,6 +163,16 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
     except UsageError as err:
         raise UsageError(f"{where}: {err}".replace("--threshold", "threshold")) from None
     spec.threshold = threshold
+    primary = data.get("primary_metric")
+    if primary is not None:
+        try:
+            check_metric(str(primary), "primary_metric")
+        except UsageError as err:
+            raise UsageError(f"{where}: {err}") from None
+        if primary not in SUMMARY_COLUMNS or primary.startswith("time_to"):
+            raise UsageError(f"{where}: primary_metric '{primary}' is not a comparison the summary holds; choose "
+                             f"one of {', '.join(c for c in SUMMARY_COLUMNS if not c.startswith('time_to'))}.")
+        spec.primary_metric = primary
     resources = data.get("resources") or {}
     if not isinstance(resources, dict):
         raise UsageError(f"{where}: 'resources' must be a mapping like {{num_cpus: 1, num_gpus: 0}}.")
@@ -294,31 +309,70 @@ SUMMARY_COLUMNS = ("mean_return_gain", "jumpstart", "asymptotic_performance", "t
                    "probability_of_improvement", "time_to_threshold_baseline", "time_to_threshold_transfer")
 
 
-def summary_tables(rows: list[dict]) -> tuple[str, str]:
-    """The cells' metrics (value and CI bounds) as CSV and as a Markdown table."""
+LEVEL = 0.05
+"""The level at which the summary counts findings (the reports' 95 % intervals)."""
+
+
+def sweep_family(rows: list[dict], primary_metric: str | None = None) -> tuple[dict, str]:
+    """Holm-adjusted p-values over the summary's family, ``{(row index, metric): p}``, and its headline.
+
+    The family is the primary metric's p-value in every report when the spec named one in advance, else
+    every p-value the summary shows (each report's own adjustment covers only that report)."""
+    from drltg.analysis.metrics import holm
+
+    metrics = [primary_metric] if primary_metric else [m for m in SUMMARY_COLUMNS if not m.startswith("time_to")]
+    members = [(i, name) for i, r in enumerate(rows) for name in metrics
+               if (r["metrics"] or {}).get(f"{name}_p_value") is not None]
+    adjusted = dict(zip(members, holm([rows[i]["metrics"][f"{name}_p_value"] for i, name in members])))
+    found = [(i, name) for (i, name), p in adjusted.items() if p < LEVEL]
+    raw = sum(rows[i]["metrics"][f"{name}_p_value"] < LEVEL for i, name in members)
+
+    def sign(i, name):
+        value = rows[i]["metrics"][name]
+        return value - 0.5 if name.startswith("probability_of_improvement") else value
+
+    up = sum(sign(i, name) > 0 for i, name in found)
+    if primary_metric:
+        family = (f"the primary metric {primary_metric} (named in the spec) in {len(members)} report(s)")
+    else:
+        family = (f"every interval of this table ({', '.join(metrics)}), {len(members)} p-values in "
+                  f"{len(rows)} report(s), as the spec named no primary_metric")
+    headline = (f"Family: {family}. Holm's adjustment over all {len(members)}: {len(found)} finding(s) at "
+                f"{LEVEL:g} ({up} positive, {len(found) - up} negative); {raw} before adjustment.")
+    return adjusted, headline
+
+
+def summary_tables(rows: list[dict], primary_metric: str | None = None) -> tuple[str, str]:
+    """The cells' metrics (value, CI bounds, p-value and the sweep-wide Holm-adjusted p-value) as CSV, and
+    as a Markdown table under the headline of :func:`sweep_family`."""
     from drltg.analysis import tables
 
+    adjusted, headline = sweep_family(rows, primary_metric)
     head = ["pair", "algo", "variant", "method", "seeds"]
-    csv_rows = [head + [f"{m}{s}" for m in SUMMARY_COLUMNS for s in ("", "_ci_low", "_ci_high")]
+    csv_rows = [head + [f"{m}{s}" for m in SUMMARY_COLUMNS for s in ("", "_ci_low", "_ci_high", "_p_value",
+                                                                       "_p_holm_sweep")]
                 + ["report", "note"]]
     md = [["pair", "algo", "method", *SUMMARY_COLUMNS, "seeds"]]
-    for r in rows:
+    for i, r in enumerate(rows):
         m = r["metrics"] or {}
         seeds = f"{m['n_seeds_baseline']}+{m['n_seeds_transfer']}" if m else ""
         line = [r["pair"], r["algo"], r["variant"], r["method"], seeds]
         cells = []
         for name in SUMMARY_COLUMNS:
             value, ci = m.get(name), m.get(f"{name}_ci") or (None, None)
-            line += [value, *ci]
+            line += [value, *ci, m.get(f"{name}_p_value"), adjusted.get((i, name))]
             if not m:
                 cells.append("-")
             elif name.startswith("time_to"):
                 cells.append(tables.estimate(value, fmt=lambda x: f"{x / 1000:.3g}k", missing="not reached"))
             else:
-                cells.append(tables.estimate(value, ci, ".3g"))
+                mark = "*" if adjusted.get((i, name), 1.0) < LEVEL else ""
+                cells.append(tables.estimate(value, ci, ".3g") + mark)
         csv_rows.append(line + [r["report"] if m else "", r.get("note", "")])
         md.append([f"{r['pair']} {r['variant']}".strip(), r["algo"], r["method"], *cells, seeds or r.get("note", "")])
-    return tables.render(csv_rows, "csv"), tables.render(md, "markdown")
+    md_text = (f"{headline}\n\n{tables.render(md, 'markdown')}\n"
+               f"\\* a finding: Holm-adjusted p < {LEVEL:g} within the family above.\n")
+    return tables.render(csv_rows, "csv"), md_text
 
 
 def plot_transfer_matrix(rows: list[dict], metric: str = "mean_return_gain") -> bytes:
@@ -406,7 +460,7 @@ def _execute_and_report(args, spec: Spec, out: Path, runs: list[Run], cells: lis
         backend.close()
 
     rows = write_reports(cells, status, spec.threshold)
-    csv_text, md_text = summary_tables(rows)
+    csv_text, md_text = summary_tables(rows, spec.primary_metric)
     runs_csv = tables.render([("run", "role", "status", "detail", "log")] + [
         (r.path.relative_to(out), r.role, *status[r.path], r.log.relative_to(out)) for r in runs], "csv")
     files = {"summary.csv": csv_text.encode(), "summary.md": md_text.encode(), "runs.csv": runs_csv.encode()}
