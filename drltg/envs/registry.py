@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import difflib
 import inspect
+import sys
 from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
@@ -49,7 +50,25 @@ class PairSpec:
     description: str
 
 
-TASKS: dict[str, TaskSpec] = {}
+class _TaskTable(dict):
+    """Tasks by name; a name nobody registered may still be made on first use by a resolver
+    (``gym/<ID>``, :func:`drltg.envs.gym.resolve`), so every lookup (``in``, ``[]``) sees it."""
+
+    def _resolve(self, name) -> bool:
+        from drltg.envs.gym import resolve
+
+        return isinstance(name, str) and resolve(name)
+
+    def __contains__(self, name) -> bool:
+        return dict.__contains__(self, name) or self._resolve(name)
+
+    def __missing__(self, name):
+        if self._resolve(name):
+            return dict.__getitem__(self, name)
+        raise KeyError(name)
+
+
+TASKS: dict[str, TaskSpec] = _TaskTable()
 PAIRS: dict[str, PairSpec] = {}
 
 
@@ -84,10 +103,14 @@ def register_task(
     """Registers a task; ``defaults`` are keyword arguments of ``factory``, ``train`` config overrides,
     ``potential(env_options)`` builds its reward-shaping potential. ``replace=True`` redefines a
     registered task (a notebook cell run twice)."""
-    if name in TASKS and not replace:
+    if dict.__contains__(TASKS, name) and not replace:
         raise UsageError(f"task {name!r} is already registered; pass replace=True to redefine it.")
     spec = TaskSpec(name, factory, description, dict(defaults), dict(train or {}), potential)
     TASKS[name] = spec
+    if "gymnasium" in sys.modules:  # already registered ids: this task gets one too
+        from drltg.gymnasium_ids import register_ids
+
+        register_ids([name])
     return spec
 
 
@@ -363,3 +386,23 @@ register_pair(
 register_pair(
     "lift-dense-to-place-barrier", "lift-dense", "lift-place-barrier", "a dense-reward Lift policy reused over the wall"
 )
+
+
+# Gymnasium's Pendulum with two gravities (drltg.envs.gym; Gymnasium is imported when one is built).
+# SAC as RL Zoo tunes it for Pendulum (lr 1e-3, one update per frame) with 2x64 nets: single-threaded,
+# small nets are several times faster and Pendulum needs no more.
+PENDULUM_TRAIN = {
+    "network": {"hidden": [64, 64]},
+    "optim": {"lr": 1.0e-3, "updates_per_batch": 32},
+    "collector": {"num_envs": 4, "frames_per_batch": 32, "init_random_frames": 1000},
+    "eval": {"every": 1000, "episodes": 5},
+    "checkpoint": {"every": 5000},
+}
+
+from drltg.envs.gym import register_gym_task  # noqa: E402
+
+register_gym_task("pendulum/g10", "Pendulum-v1", "Gymnasium Pendulum-v1, gravity g = 10 (its default)",
+                  g=10.0, train=PENDULUM_TRAIN)
+register_gym_task("pendulum/g15", "Pendulum-v1", "Gymnasium Pendulum-v1, gravity g = 15: a heavier swing-up",
+                  g=15.0, train=PENDULUM_TRAIN)
+register_pair("pendulum-heavier", "pendulum/g10", "pendulum/g15", "Pendulum's gravity rises from 10 to 15")
