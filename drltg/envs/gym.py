@@ -1,8 +1,9 @@
 """Gymnasium tasks in drltg: any installed Gymnasium env with a Box or Discrete action space is a task.
 
-A Gymnasium env steps one episode at a time, so a batch of ``n`` is ``SerialEnv(n, GymEnv)``:
-TorchRL's :class:`~torchrl.envs.GymEnv` per element (``terminated`` and ``truncated`` kept apart, a
-Discrete action one-hot as drltg's discrete learners expect), run in this process. ``gym/<ID>`` names
+A Gymnasium env steps one episode at a time, so a batch of ``n`` is ``SerialEnv(n, GymWrapper)``:
+TorchRL's :class:`~torchrl.envs.GymWrapper` of ``gymnasium.make(ID, **kwargs)`` per element
+(``terminated`` and ``truncated`` kept apart, a Discrete action one-hot as drltg's discrete learners
+expect), run in this process. ``gym/<ID>`` names
 every registered Gymnasium id without registering it first (``drltg train gym/Pendulum-v1``);
 :func:`register_gym_task` names a variant with its own ``gymnasium.make`` keywords::
 
@@ -15,6 +16,8 @@ from __future__ import annotations
 
 import functools
 from typing import Any, Sequence
+
+import numpy as np
 
 from drltg.errors import UsageError
 
@@ -30,7 +33,7 @@ def make_gym_env(
     info_keys: Sequence[str] = (),
     **make_kwargs,
 ):
-    """``GymEnv(gym_id, **make_kwargs)``, or ``SerialEnv`` of ``batch_size[0]`` of them.
+    """``GymWrapper(gymnasium.make(gym_id, **make_kwargs))``, or ``SerialEnv`` of ``batch_size[0]`` of them.
 
     ``info_keys`` are entries of the env's ``info`` dict read into the tensordict at every step (e.g.
     ``success``, which evaluation reports as ``success_rate``).
@@ -51,15 +54,16 @@ def _single(gym_id: str, device, info_keys: tuple[str, ...], make_kwargs: dict[s
     import gymnasium
     import torch
     from torchrl.data import Categorical
-    from torchrl.envs import GymEnv
+    from torchrl.envs import GymWrapper
     from torchrl.envs.libs.gym import default_info_dict_reader
 
     try:
-        env = GymEnv(gym_id, device=device, **make_kwargs)
+        made = gymnasium.make(gym_id, **{"disable_env_checker": True, **make_kwargs})
     except gymnasium.error.Error as err:
         raise UsageError(f"Gymnasium cannot make {gym_id!r}: {err}") from None
     except TypeError as err:
-        raise UsageError(f"Gymnasium env {gym_id!r} does not take these keywords {make_kwargs} ({err}).") from None
+        raise UsageError(f"Gymnasium env {gym_id!r} does not take the keywords {make_kwargs} ({err}).") from None
+    env = GymWrapper(made, device=device)
     space = env._env.action_space
     if not isinstance(space, (gymnasium.spaces.Box, gymnasium.spaces.Discrete)):
         env.close()
@@ -69,8 +73,20 @@ def _single(gym_id: str, device, info_keys: tuple[str, ...], make_kwargs: dict[s
         )
     if info_keys:
         spec = {key: Categorical(2, (1,), dtype=torch.bool) for key in info_keys}
-        env.set_info_dict_reader(default_info_dict_reader(list(info_keys), spec=spec))
+        env.set_info_dict_reader(_flag_reader(default_info_dict_reader)(list(info_keys), spec=spec))
     return env
+
+
+def _flag_reader(base):
+    class FlagReader(base):
+        """Reads ``info`` entries as bool flags of shape ``(1,)`` (Gymnasium envs give Python or NumPy
+        bools, or numbers); a flag missing from an ``info`` is false."""
+
+        def __call__(self, info_dict, tensordict):
+            flags = {k: np.asarray(info_dict[k]).astype(bool).reshape(1) for k in self.keys if k in info_dict}
+            return super().__call__(flags, tensordict)
+
+    return FlagReader
 
 
 def register_gym_task(
@@ -85,7 +101,7 @@ def register_gym_task(
 ):
     """Registers the Gymnasium env ``gym_id`` made with ``make_kwargs`` as the drltg task ``name``.
 
-    The task is batched like drltg's own (``SerialEnv`` of ``GymEnv``), so ``register_pair``,
+    The task is batched like drltg's own (``SerialEnv`` of ``GymWrapper``), so ``register_pair``,
     ``drltg experiment`` and sweeps take it as any other; ``make_kwargs`` become its ``env.*`` settings.
     Gymnasium is not imported here: a plugin registering tasks stays cheap to import.
     """
