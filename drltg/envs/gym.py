@@ -3,12 +3,12 @@
 A Gymnasium env steps one episode at a time, so a batch of ``n`` is ``SerialEnv(n, GymWrapper)``:
 TorchRL's :class:`~torchrl.envs.GymWrapper` of ``gymnasium.make(ID, **kwargs)`` per element
 (``terminated`` and ``truncated`` kept apart, a Discrete action one-hot as drltg's discrete learners
-expect), run in this process. ``gym/<ID>`` names
-every registered Gymnasium id without registering it first (``drltg train gym/Pendulum-v1``);
-:func:`register_gym_task` names a variant with its own ``gymnasium.make`` keywords::
+expect), run in this process. ``gym/<ID>`` names every registered Gymnasium id without registering it
+first (``drltg train gym/Pendulum-v1``); :func:`register_gym_task` names a variant with its own
+``gymnasium.make`` keywords::
 
-    register_gym_task("pendulum/heavy", "Pendulum-v1", g=15.0)
-    register_pair("pendulum-heavier", "pendulum/default", "pendulum/heavy", "gravity 10 -> 15")
+    register_gym_task("pendulum/light", "Pendulum-v1", g=5.0)
+    register_pair("pendulum-lighter", "pendulum/g10", "pendulum/light", "gravity 10 -> 5")
 
 Gymnasium itself is imported when an env is built or a ``gym/`` name is looked up.
 """
