@@ -1,6 +1,7 @@
 """Task environments (TorchRL ``EnvBase``) and the registry of tasks and task pairs."""
 from drltg.envs.fourrooms import FourRoomsEnv
 from drltg.envs.gridrooms import GridFourRoomsEnv
+from drltg.envs.gym import register_gym_task
 from drltg.envs.registry import (
     PAIRS,
     TASKS,
@@ -27,4 +28,5 @@ __all__ = [
     "make_env",
     "register_pair",
     "register_task",
+    "register_gym_task",
 ]
