@@ -131,6 +131,30 @@ def test_gym_pair_plans_like_a_drltg_pair_and_a_method_that_cannot_apply_says_so
         config_lib.resolve({}, ["transfer.method=reward-shaping"], task="pendulum/g15")
 
 
+PLUGIN = """
+from drltg.envs import register_gym_task, register_pair
+register_gym_task("test-plugin/pendulum-light", "Pendulum-v1", g=5.0)
+register_gym_task("test-plugin/pendulum-long", "Pendulum-v1", "a longer pole", l=1.5)
+register_pair("test-plugin-pendulum", "test-plugin/pendulum-light", "test-plugin/pendulum-long", "g 5 -> l 1.5")
+"""
+
+
+def test_a_plugin_registers_gym_variants_that_a_sweep_and_gymnasium_take(tmp_path, monkeypatch):
+    from drltg import plugins
+    from drltg.experiments.sweep import parse_spec
+
+    (tmp_path / "drltg_test_gym_plugin.py").write_text(PLUGIN)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delenv("DRLTG_IMPORT", raising=False)
+    assert "drltg_test_gym_plugin" in plugins.load(["drltg_test_gym_plugin"])
+    spec = parse_spec({"pairs": ["test-plugin-pendulum", "pendulum-heavier"], "methods": ["model-reuse"],
+                       "frames": 100})
+    assert spec.pairs == ["test-plugin-pendulum", "pendulum-heavier"]
+    assert make_env("test-plugin/pendulum-long")._env.unwrapped.l == 1.5
+    source, target = pair_ids("test-plugin-pendulum")
+    assert gymnasium.make(target).unwrapped._env._env.unwrapped.l == 1.5  # round trip: Gymnasium -> drltg -> Gymnasium
+
+
 # ----------------------------------------------------------------------------- Gymnasium out
 @pytest.mark.parametrize("task", OWN_TASKS)
 def test_every_task_passes_gymnasiums_env_checker_without_a_warning(task):
