@@ -134,8 +134,8 @@ def test_gym_pair_plans_like_a_drltg_pair_and_a_method_that_cannot_apply_says_so
 PLUGIN = """
 from drltg.envs import register_gym_task, register_pair
 register_gym_task("test-plugin/pendulum-light", "Pendulum-v1", g=5.0)
-register_gym_task("test-plugin/pendulum-long", "Pendulum-v1", "a longer pole", l=1.5)
-register_pair("test-plugin-pendulum", "test-plugin/pendulum-light", "test-plugin/pendulum-long", "g 5 -> l 1.5")
+register_gym_task("test-plugin/pendulum-heavy", "Pendulum-v1", "much heavier", g=20.0)
+register_pair("test-plugin-pendulum", "test-plugin/pendulum-light", "test-plugin/pendulum-heavy", "g 5 -> 20")
 """
 
 
@@ -150,9 +150,13 @@ def test_a_plugin_registers_gym_variants_that_a_sweep_and_gymnasium_take(tmp_pat
     spec = parse_spec({"pairs": ["test-plugin-pendulum", "pendulum-heavier"], "methods": ["model-reuse"],
                        "frames": 100})
     assert spec.pairs == ["test-plugin-pendulum", "pendulum-heavier"]
-    assert make_env("test-plugin/pendulum-long")._env.unwrapped.l == 1.5
+    assert make_env("test-plugin/pendulum-light")._env.unwrapped.g == 5.0
     source, target = pair_ids("test-plugin-pendulum")
-    assert gymnasium.make(target).unwrapped._env._env.unwrapped.l == 1.5  # round trip: Gymnasium -> drltg -> Gymnasium
+    assert target == "drltg/test-plugin-pendulum-heavy-v0"
+    assert gymnasium.make(target).unwrapped._env._env.unwrapped.g == 20.0  # Gymnasium -> drltg -> Gymnasium
+    with pytest.raises(UsageError, match=r"^Gymnasium env 'Pendulum-v1' cannot be made with \{'g': 20.0, 'l': 1.5\}: "
+                       r"PendulumEnv.__init__\(\) got an unexpected keyword argument 'l'.$"):
+        make_env("test-plugin/pendulum-heavy", l=1.5)
 
 
 # ----------------------------------------------------------------------------- Gymnasium out

@@ -62,7 +62,8 @@ def _single(gym_id: str, device, info_keys: tuple[str, ...], make_kwargs: dict[s
     except gymnasium.error.Error as err:
         raise UsageError(f"Gymnasium cannot make {gym_id!r}: {err}") from None
     except TypeError as err:
-        raise UsageError(f"Gymnasium env {gym_id!r} does not take the keywords {make_kwargs} ({err}).") from None
+        cause = str(err).split(" was raised from the environment creator")[0]
+        raise UsageError(f"Gymnasium env {gym_id!r} cannot be made with {make_kwargs}: {cause}.") from None
     env = GymWrapper(made, device=device)
     space = env._env.action_space
     if not isinstance(space, (gymnasium.spaces.Box, gymnasium.spaces.Discrete)):
