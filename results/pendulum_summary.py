@@ -30,25 +30,29 @@ def _time_to(m: dict, side: str) -> str:
     return estimate(value, fmt=lambda x: f"{x / 1000:.1f}k", missing="—") + f" ({share:.0%})"
 
 
-def _verdict(m: dict, key: str, what: str, unit: str = "") -> str:
-    """One sentence: the sign of the effect where its interval excludes 0, "no difference shown" otherwise."""
+def _verdict(m: dict, key: str, what: str, family: int) -> str:
+    """One sentence: the sign of the effect where its interval excludes 0, with the raw p-value and Holm's
+    over the report's family of intervals; "no difference shown" otherwise."""
     value, ci = m.get(key), m.get(f"{key}_ci")
-    if value is None:
-        return f"The report gives no {what}."
-    if ci is None:
-        return f"The {what} is {value:+.0f}{unit} (no interval)."
+    if value is None or ci is None:
+        return f"The report gives no interval for the {what}."
     lo, hi = ci
-    if lo > 0:
-        return f"Model reuse raised the {what}: {value:+.0f}{unit} [{lo:+.0f}, {hi:+.0f}]."
-    if hi < 0:
-        return f"Model reuse lowered the {what}: {value:+.0f}{unit} [{lo:+.0f}, {hi:+.0f}]."
-    return f"No difference in the {what} is shown: {value:+.0f}{unit} [{lo:+.0f}, {hi:+.0f}] includes 0."
+    estimate_ = f"{value:+.0f} [{lo:+.0f}, {hi:+.0f}]"
+    if lo <= 0 <= hi:
+        return f"No difference in the {what} is shown: {estimate_} includes 0."
+    p, adjusted = m.get(f"{key}_p_value"), m.get(f"{key}_p_adjusted")
+    sentence = f"Model reuse {'raised' if lo > 0 else 'lowered'} the {what}: {estimate_}"
+    if p is None or adjusted is None:
+        return sentence + "."
+    sentence += f" (p = {p:.2g}; {adjusted:.2g} with Holm's adjustment over the report's {family} intervals)"
+    return sentence + ("." if adjusted < 0.05 else ", which read together with the others does not hold at 0.05.")
 
 
 def block(report: dict) -> str:
     """The README block: the table row and the sentences, from the report alone."""
     m, s = report["metrics"], report["settings"]
-    rows = [("mean return gain", "jumpstart", "asymptotic", "final return, B / T",
+    family = s.get("family", {}).get("size", 0)
+    rows = [("mean return gain", "jumpstart", "last 10% of the budget", "final return, B / T",
              f"frames to {s['threshold']:g}, B / T (seeds reaching it)", "P(T > B)"),
             (_cell(m, "mean_return_gain"), _cell(m, "jumpstart"), _cell(m, "asymptotic_performance"),
              f"{m['final_performance_baseline']:.0f} / {m['final_performance_transfer']:.0f}",
@@ -60,9 +64,9 @@ def block(report: dict) -> str:
         f"{m['n_seeds_baseline']} baseline and {m['n_seeds_transfer']} transfer runs, "
         f"{'paired by seed' if s['paired'] else 'unpaired'}, over frames {s['start']}–{s['budget']}. "
         + " ".join([
-            _verdict(m, "jumpstart", "return of the first evaluation (jumpstart)"),
-            _verdict(m, "mean_return_gain", "mean return over the budget (mean return gain)"),
-            _verdict(m, "asymptotic_performance", "return over the last 10% of the budget (asymptotic)"),
+            _verdict(m, "jumpstart", "return of the first evaluation (jumpstart)", family),
+            _verdict(m, "mean_return_gain", "mean return over the budget (mean return gain)", family),
+            _verdict(m, "asymptotic_performance", "return over the last 10% of the budget", family),
         ]),
     ]
     return "\n".join(lines) + "\n"

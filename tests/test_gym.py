@@ -283,3 +283,38 @@ def test_drltg_exports_the_id_functions():
     assert drltg.gymnasium_ids.task_id("lift") == "drltg/lift-v0"
     with pytest.raises(ValueError, match="has no Gymnasium id"):
         task_id("bad name")
+
+
+# ----------------------------------------------------------------------------- the Pendulum study
+STUDY = ROOT / "results" / "pendulum-heavier"
+
+
+def _rounded(value):
+    """Floats to 12 significant digits (numpy's sums may differ in the last bits on another CPU)."""
+    if isinstance(value, float):
+        return float(f"{value:.12g}")
+    if isinstance(value, dict):
+        return {k: _rounded(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_rounded(v) for v in value]
+    return value
+
+
+def test_the_pendulum_study_is_reproduced_from_its_curves_and_its_readme_block_from_its_report(tmp_path):
+    import json
+
+    from drltg.analysis.report import transfer_report
+
+    assert len(list(STUDY.glob("*/seed-*/summary.json"))) == 15  # 5 sources, 5 baselines, 5 transfers
+    committed = json.loads((STUDY / "report" / "transfer_metrics.json").read_text())
+    settings = committed["settings"]
+    assert settings["paired"] is True and committed["metrics"]["n_seeds_transfer"] == 5
+    result = transfer_report(STUDY / "baseline", STUDY / "transfer", tmp_path, threshold=settings["threshold"],
+                             baseline_label=settings["baseline_label"], transfer_label=settings["transfer_label"])
+    assert _rounded(result["metrics"]) == _rounded(committed["metrics"])
+    sys.path.insert(0, str(ROOT / "results"))
+    try:
+        import pendulum_summary
+    finally:
+        sys.path.remove(str(ROOT / "results"))
+    assert pendulum_summary.main(["--check"]) == 0, "results/README.md's block is not what the report gives"
