@@ -36,7 +36,7 @@ def test_gym_prefix_names_every_gymnasium_id_with_a_batch_of_gym_envs():
     assert isinstance(env, SerialEnv) and env.batch_size == (3,)
     assert "gym/Pendulum-v1" in TASKS and get_task("gym/Pendulum-v1").defaults == {"gym_id": "Pendulum-v1"}
     single = make_env("gym/Pendulum-v1")
-    assert isinstance(single, GymWrapper) and single.batch_size == ()
+    assert isinstance(single.base_env, GymWrapper) and single.batch_size == ()
     env.close(), single.close()
 
 
@@ -74,6 +74,8 @@ def test_truncation_is_kept_apart_from_termination():
     truncated, terminated = td["next", "truncated"].squeeze(-1), td["next", "terminated"].squeeze(-1)
     assert truncated[:, :199].sum() == 0 and truncated[:, 199].all()
     assert not terminated.any()
+    # step_count is kept as on drltg's tasks (policy reuse reads it): 1..200 in every element
+    assert td["next", "step_count"].squeeze(-1).tolist() == [list(range(1, 201))] * 2
     env.close()
 
 

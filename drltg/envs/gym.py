@@ -3,9 +3,9 @@
 A Gymnasium env steps one episode at a time, so a batch of ``n`` is ``SerialEnv(n, GymWrapper)``:
 TorchRL's :class:`~torchrl.envs.GymWrapper` of ``gymnasium.make(ID, **kwargs)`` per element
 (``terminated`` and ``truncated`` kept apart, a Discrete action one-hot as drltg's discrete learners
-expect), run in this process. ``gym/<ID>`` names every registered Gymnasium id without registering it
-first (``drltg train gym/Pendulum-v1``); :func:`register_gym_task` names a variant with its own
-``gymnasium.make`` keywords::
+expect, ``step_count`` kept by a ``StepCounter``), run in this process. ``gym/<ID>`` names every
+registered Gymnasium id without registering it first (``drltg train gym/Pendulum-v1``);
+:func:`register_gym_task` names a variant with its own ``gymnasium.make`` keywords::
 
     register_gym_task("pendulum/light", "Pendulum-v1", g=5.0)
     register_pair("pendulum-lighter", "pendulum/g10", "pendulum/light", "gravity 10 -> 5")
@@ -54,7 +54,7 @@ def _single(gym_id: str, device, info_keys: tuple[str, ...], make_kwargs: dict[s
     import gymnasium
     import torch
     from torchrl.data import Categorical
-    from torchrl.envs import GymWrapper
+    from torchrl.envs import GymWrapper, StepCounter, TransformedEnv
     from torchrl.envs.libs.gym import default_info_dict_reader
 
     try:
@@ -75,7 +75,7 @@ def _single(gym_id: str, device, info_keys: tuple[str, ...], make_kwargs: dict[s
     if info_keys:
         spec = {key: Categorical(2, (1,), dtype=torch.bool) for key in info_keys}
         env.set_info_dict_reader(_flag_reader(default_info_dict_reader)(list(info_keys), spec=spec))
-    return env
+    return TransformedEnv(env, StepCounter())  # step_count, as drltg's tasks keep it (policy reuse reads it)
 
 
 def _flag_reader(base):
