@@ -42,6 +42,7 @@ cfg = resolve(task=pair.target, seed=1)
 agent = make_agent(make_env(pair.target), cfg)
 reuse = PolicyReuse(source.actor, schedule=PiReuse(psi=1.0, upsilon=0.95))
 env = make_env(pair.target, batch_size=(8,), seed=1)
+env = env.append_transform(reuse.primer())  # declares the episode's choice, "reuse_index", redrawn at every reset
 collector = Collector(
     env, TensorDictSequential(agent.policy, reuse), frames_per_batch=32, total_frames=args.frames,
     auto_register_policy_transforms=False,

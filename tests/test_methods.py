@@ -44,7 +44,8 @@ def test_every_method_builds_a_transfer_for_a_run(name, tmp_path):
     changed = {k for k, v in vars(transfer).items() if v not in (None, [], {})}
     expected = {
         "none": set(), "reward-shaping": {"train_transforms"}, "value-shaping": {"train_transforms"},
-        "policy-reuse": {"policy", "on_frames"}, "jumpstart": {"policy", "on_frames"},
+        "policy-reuse": {"train_transforms", "policy", "on_frames"},
+        "jumpstart": {"train_transforms", "policy", "on_frames"},
         "model-reuse": {"files"}, "demonstrations": {"batches", "loss_terms", "summary"},
     }
     assert changed == expected[name]

@@ -14,7 +14,8 @@ def _mixed(cfg: dict, agent, env, schedule: ReuseSchedule) -> Transfer:
     from drltg.transfer.source import source_actor
 
     mixer = PolicyReuse(source_actor(cfg, env), schedule=schedule)
-    return Transfer(policy=TensorDictSequential(agent.policy, mixer), on_frames=mixer.set_progress)
+    return Transfer(train_transforms=[mixer.primer()], policy=TensorDictSequential(agent.policy, mixer),
+                    on_frames=mixer.set_progress)
 
 
 def _pi_reuse(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
