@@ -128,7 +128,9 @@ def test_graded_fourrooms_targets_lie_in_their_rooms_at_growing_distances():
     assert straight[0] < straight[1] < min(straight[2:4]) and max(straight[2:4]) < straight[4]
 
 
-@pytest.mark.parametrize("cls, task", [(FourRoomsEnv, "fourrooms/northeast"), (GridFourRoomsEnv, "gridrooms/northeast")])
+@pytest.mark.parametrize(
+    "cls, task", [(FourRoomsEnv, "fourrooms/northeast"), (GridFourRoomsEnv, "gridrooms/northeast")]
+)
 def test_an_env_class_without_arguments_is_its_registered_default_task(cls, task):
     plain, registered = cls(batch_size=(4,), seed=3), make_env(task, batch_size=(4,), seed=3)
     assert plain.full_observation_spec == registered.full_observation_spec

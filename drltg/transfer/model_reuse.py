@@ -2,13 +2,16 @@
 from __future__ import annotations
 
 from pathlib import Path
-
-from torch import nn
+from typing import TYPE_CHECKING
 
 from drltg.config import Field, builtin_options
-from drltg.modules.weights import LoadReport, freeze_parameters, load_weights
 from drltg.training.rundir import MODEL_REUSE, load_checkpoint
 from drltg.transfer.registry import Transfer, TransferMethod, register_method
+
+if TYPE_CHECKING:
+    from torch import nn
+
+    from drltg.modules.weights import LoadReport
 
 
 def load_from_run(loss_module: nn.Module, run_dir: str | Path, **kwargs) -> LoadReport:
@@ -16,6 +19,8 @@ def load_from_run(loss_module: nn.Module, run_dir: str | Path, **kwargs) -> Load
 
     Keyword arguments go to :func:`load_weights`. The checkpoint is unpickled: load only runs you trust.
     """
+    from drltg.modules.weights import load_weights
+
     checkpoint = load_checkpoint(Path(run_dir).expanduser())
     return load_weights(loss_module, checkpoint["loss"], **kwargs)
 
@@ -23,6 +28,8 @@ def load_from_run(loss_module: nn.Module, run_dir: str | Path, **kwargs) -> Load
 def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
     """Every network of the learner (actor, critics, targets) starts from the source run; a resumed
     run has its weights already, and only its frozen parameters are frozen again."""
+    from drltg.modules.weights import freeze_parameters
+
     t = cfg["transfer"]
     if resuming:
         freeze_parameters(agent.loss, t["freeze"])

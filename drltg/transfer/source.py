@@ -8,17 +8,19 @@ before anything is trained or written; :func:`source_actor` rebuilds the past po
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import yaml
-from tensordict.nn import TensorDictModuleBase
-from torchrl.envs import EnvBase
 
 from drltg.envs import make_env
 from drltg.envs.robosuite.layout import TASKS as MANIPULATION
 from drltg.errors import UsageError
-from drltg.learners import make_agent
 from drltg.training.rundir import CHECKPOINT, CONFIG, SUMMARY, is_complete, load_checkpoint
 from drltg.transfer.registry import get_method
+
+if TYPE_CHECKING:
+    from tensordict.nn import TensorDictModuleBase
+    from torchrl.envs import EnvBase
 
 DEMONSTRATOR = "demonstrator:"
 
@@ -84,6 +86,8 @@ def source_agent(cfg: dict, target_env: EnvBase | None = None):
     """The source run's learner (:class:`drltg.learners.Agent`: actor, critics, temperature), rebuilt from
     its saved config and checkpoint. With ``target_env``, a source that observes or acts differently is
     refused here rather than failing inside the first rollout."""
+    from drltg.learners import make_agent
+
     run = Path(cfg["transfer"]["source"]).expanduser()
     src_cfg = yaml.safe_load((run / CONFIG).read_text())
     env = make_env(src_cfg["task"], device=cfg["device"], **src_cfg["env"])
