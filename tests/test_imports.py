@@ -189,3 +189,13 @@ def test_the_parts_register_nothing_and_load_no_upper_layer():
 def test_import_drltg_is_cheap():
     done = _python(f"import drltg; import drltg.envs; {NO_TORCH}")
     assert done.returncode == 0, done.stderr
+
+
+def test_the_top_level_surface_is_documented_and_resolves():
+    import importlib
+
+    import drltg
+
+    for name, module in drltg._WHERE.items():
+        assert name in drltg.__doc__, f"drltg's docstring does not list {name}"
+        assert getattr(drltg, name) is getattr(importlib.import_module(module), name)

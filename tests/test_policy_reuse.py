@@ -255,6 +255,8 @@ def test_bad_arguments_are_usage_errors():
         PolicyReuse(constant(PAST), epsilon=0.1)  # random actions need the spec
     with pytest.raises(UsageError):
         PiReuse(psi=1.5)
+    with pytest.raises(UsageError, match="must be a TensorDict module writing 'action'.*not a Linear"):
+        PolicyReuse(nn.Linear(2, 2))
 
 
 def library_mixer(generator=None):

@@ -276,6 +276,12 @@ class PolicyReuse(TensorDictModuleBase):
         policies = [past_policy] if isinstance(past_policy, TensorDictModuleBase) else list(past_policy)
         if not policies:
             raise UsageError("PolicyReuse needs at least one past policy.")
+        for p in policies:
+            if not isinstance(p, TensorDictModuleBase):
+                raise UsageError(
+                    f"a past policy must be a TensorDict module writing {action_key!r} (e.g. "
+                    f"drltg.transfer.load_actor(run_dir)), not a {type(p).__name__}."
+                )
         if not 0.0 <= epsilon <= 1.0:
             raise UsageError(f"epsilon must lie in [0, 1], got {epsilon}.")
         if epsilon > 0 and spec is None:

@@ -1,6 +1,7 @@
 """The model-reuse method: the learner starts from a source run's weights (``load_weights``)."""
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -35,7 +36,7 @@ def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
         freeze_parameters(agent.loss, t["freeze"])
         return Transfer()
     report = load_from_run(agent.loss, t["source"], freeze=t["freeze"], partial=t["partial"])
-    print(report.summary(), flush=True)
+    logging.getLogger(__name__).info(report.summary())
     return Transfer(files={MODEL_REUSE: f"{report}\n"})
 
 
