@@ -273,7 +273,7 @@ class PolicyReuse(TensorDictModuleBase):
         reuse_index_key: NestedKey = "reuse_index",
     ) -> None:
         super().__init__()
-        policies = [past_policy] if isinstance(past_policy, TensorDictModuleBase) else list(past_policy)
+        policies = list(past_policy) if isinstance(past_policy, (list, tuple, nn.ModuleList)) else [past_policy]
         if not policies:
             raise UsageError("PolicyReuse needs at least one past policy.")
         for p in policies:
