@@ -13,10 +13,11 @@ when first used)::
     drltg.modules      load_weights (model reuse onto any module), option_transforms, make_option_policy
     drltg.config       resolve: a full, checked run config (task defaults, ``KEY=VALUE`` overrides)
     drltg.learners     make_agent(env, cfg): actor, exploration policy, loss, target updater, optimiser;
-                       UpdateStep: one gradient step of any learner
+                       UpdateStep: one gradient step of any learner; sample_batches(buffer, n)
     drltg.transfer     load_actor, load_critic, load_agent, load_from_run: a trained run as a source;
                        the named methods of ``drltg train -o transfer.method=...``
-    drltg.training     train(cfg, run_dir): the loop that writes a run directory; evaluate(env, actor)
+    drltg.training     train(cfg, run_dir): the loop that writes a run directory (is_complete(run_dir));
+                       evaluate(env, actor): success rate and return of deterministic episodes
     drltg.experiments  source, baseline and transfer runs over seeds (``drltg experiment``, ``drltg sweep``)
     drltg.analysis     transfer metrics, reports, plots and tables from run directories (no torch)
     drltg.cli          the ``drltg`` command
@@ -36,9 +37,9 @@ _SURFACE = {
     "drltg.losses": ["SoftOptionCriticLoss", "behaviour_cloning"],
     "drltg.modules": ["load_weights", "option_transforms", "make_option_policy"],
     "drltg.config": ["resolve"],
-    "drltg.learners": ["make_agent", "UpdateStep"],
+    "drltg.learners": ["make_agent", "UpdateStep", "sample_batches"],
     "drltg.transfer": ["load_actor", "load_critic", "load_agent", "load_from_run"],
-    "drltg.training.loop": ["train", "evaluate"],
+    "drltg.training.loop": ["train", "evaluate", "is_complete"],
 }
 _WHERE = {name: module for module, names in _SURFACE.items() for name in names}
 
