@@ -41,7 +41,9 @@ def runs(tmp_path_factory):
         argv[name] += ["--out", str(tmp / name)]
     done = subprocess.run(
         [sys.executable, "-c", RUNNER, json.dumps(argv), str(tmp / "results.json")],
-        cwd=tmp, capture_output=True, text=True, timeout=900, env={**os.environ, "RL_WARNINGS": "False"},
+        cwd=tmp, capture_output=True, text=True, timeout=900,
+        env={**os.environ, "RL_WARNINGS": "False", "PYTHONPATH": os.pathsep.join([str(EXAMPLES.parent), os.environ.get(
+            "PYTHONPATH", "")])},
     )
     assert done.returncode == 0, done.stderr[-3000:]
     return json.loads((tmp / "results.json").read_text())

@@ -145,3 +145,14 @@ def test_an_env_class_without_arguments_is_its_registered_default_task(cls, task
     b = registered.rollout(60, break_when_any_done=False)
     assert (a == b).all()
     assert (a["next", "reward"] == -0.01).any()
+
+
+def test_a_factory_named_module_attr_is_imported_when_the_task_is_built(scratch_registry):
+    spec = scratch_registry.register_task("mine/grid", "drltg.envs.gridrooms:GridFourRoomsEnv", "grid", goal=(9, 3))
+    assert spec.factory is GridFourRoomsEnv
+    assert scratch_registry.make_env("mine/grid").goal.tolist() == [9, 3]
+    with pytest.raises(UsageError, match=r"^task 'bad': .* is 'module:attr', got 'nowhere'\.$"):
+        scratch_registry.register_task("bad", "nowhere", "no colon")
+    scratch_registry.register_task("lost", "drltg.envs.nowhere:Env", "a module that does not exist")
+    with pytest.raises(UsageError, match=r"^task 'lost': its factory 'drltg.envs.nowhere:Env' cannot be imported"):
+        scratch_registry.make_env("lost")

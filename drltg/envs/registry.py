@@ -99,6 +99,8 @@ def register_task(
     registered task (a notebook cell run twice)."""
     if name in TASKS and not replace:
         raise UsageError(f"task {name!r} is already registered; pass replace=True to redefine it.")
+    if isinstance(factory, str) and not all(factory.partition(":")[::2]):
+        raise UsageError(f"task {name!r}: a factory named by a string is 'module:attr', got {factory!r}.")
     spec = TaskSpec(name, factory, description, dict(defaults), dict(train or {}), potential)
     TASKS[name] = spec
     return spec
