@@ -45,7 +45,14 @@ def sweep_reports(root: Path, report: str = "report") -> dict[tuple[str, str], d
     for path in sorted(Path(root).glob(f"*/*/**/{report}/transfer_metrics.json")):
         pair, _algo, *variant, method, _ = path.parent.relative_to(root).parts
         out[(" ".join([pair, *variant]), method)] = load(path)
-    return out
+    return dict(sorted(out.items(), key=lambda kv: (_rank(kv[0][0]), kv[0])))
+
+
+def _rank(pair: str) -> int:
+    """Targets by distance from the source goal where they have one, else by name."""
+    order = ["near", "inner", "northwest", "southeast", "far"]
+    target = _target(pair.split(" ")[0])
+    return order.index(target) if target in order else len(order)
 
 
 def family(reports: dict, metric: str = PRIMARY) -> dict:
@@ -108,7 +115,7 @@ def sweep_verdicts(root: Path, order: list[str]) -> str:
             m = r["metrics"]
             parts.append(f"{_target(pair)} {said(m, PRIMARY, adjusted.get((pair, meth)))}")
         lines.append(f"- **{METHOD_NAMES.get(method, method)}**: " + "; ".join(parts) + ".")
-    pairs = sorted({pair for pair, _ in reports})
+    pairs = list(dict.fromkeys(pair for pair, _ in reports))
     for pair in pairs:
         methods = {meth: r for (p, meth), r in reports.items() if p == pair}
         lines.append(f"- {cl.best_sentence(methods, _target(pair))}.")
@@ -133,6 +140,67 @@ def threshold_lines(root: Path, side: str, methods: list[str] | None = None) -> 
     return "\n".join(lines) + "\n"
 
 
+TARGETS = {"near": "near (1.0, same room)", "inner": "inner (2.1, same room)",
+           "northwest": "northwest (6.1, adjacent room)", "southeast": "southeast (6.1, adjacent room)",
+           "far": "far (9.9, opposite room)"}
+
+
+def results_table() -> str:
+    """README's table: the graded sweep's mean return gain per target and method; bold where the gain is a
+    finding within the sweep's family (interval excludes 0, Holm-adjusted p < 0.05)."""
+    reports = sweep_reports(GRADED)
+    adjusted = family(reports)
+    methods = ["model-reuse", "value-shaping", "policy-reuse", "reward-shaping"]
+    rows = [("target (free-path distance from the source goal)", *(METHOD_NAMES[m] for m in methods))]
+    for target, label in TARGETS.items():
+        cells = []
+        for method in methods:
+            key = (f"fourrooms-{target}", method)
+            m = reports[key]["metrics"]
+            ci = m.get(f"{PRIMARY}_ci")
+            value = cl.signed(m[PRIMARY])
+            if cl.direction(ci, adjusted.get(key)):
+                value = f"**{value}**"
+            cells.append(f"{value} [{cl.signed(ci[0])}, {cl.signed(ci[1])}]" if ci else value)
+        rows.append((label, *cells))
+    return render(rows, "markdown")
+
+
+def readme_others() -> str:
+    """README's one paragraph on the other studies, each sentence from its reports."""
+    grid = sweep_reports(RESULTS / "sweep-gridrooms")
+    adj_g = family(grid)
+    g = {k: said(r["metrics"], PRIMARY, adj_g.get(k)) for k, r in grid.items()}
+    h2h = {k: load(OPTIONS / "head-to-head" / f"fourrooms-{k}" / "transfer_metrics.json")
+           for k in ("near-k2", "near-k4", "far-k2", "far-k4")}
+    adj_h = family(h2h)
+    demo = load(LIFT / "demonstrations" / "report-success" / "transfer_metrics.json")
+    place = {pair: load(PLACE / pair / "sac" / "demonstrations" / "report-lifted" / "transfer_metrics.json")
+             for pair in ("lift-to-place", "lift-to-place-barrier")}
+    adj_p = family(place)
+    dense = load(DENSE / "vs-seed" / "transfer_metrics.json")
+    lines = [
+        f"- Grid FourRooms (`results/sweep-gridrooms/`, Holm over its {len(adj_g)} reports), mean return gain: "
+        + "; ".join(f"{METHOD_NAMES[m]} near {g[('gridrooms-near', m)]}, far {g[('gridrooms-far', m)]}"
+                    for m in ("model-reuse", "value-shaping", "policy-reuse")) + ".",
+        "- Soft option-critic minus SAC, both with model reuse, head to head (`results/sweep-options/`, Holm over "
+        f"{len(adj_h)}): " + "; ".join(
+            f"{k.replace('-k', ', K = ')}: {said(r['metrics'], PRIMARY, adj_h.get(k), higher='SOC higher', lower='SOC lower')}"
+            for k, r in h2h.items()) + ".",
+        f"- Lift from the scripted demonstrator (`results/sweep-lift-demonstrations/`): demonstrations with behaviour "
+        f"cloning, mean success gain {said(demo['metrics'])}; "
+        f"{cl.threshold_sentence(demo, 'transfer', 'success ≥ 0.8')}.",
+        f"- Lift → Lift+Place and Lift+Place with barrier from the same demonstrations (`results/sweep-lift-to-place/`), "
+        f"mean lifted-rate gain (Holm over the {len(adj_p)} targets): "
+        + "; ".join(f"{pair}: {said(r['metrics'], PRIMARY, adj_p.get(pair))}" for pair, r in place.items()) + ".",
+        f"- Lift on the dense reward against the seed project's one SB3 run (`results/lift-dense/`): mean return gain "
+        f"{cl.signed(dense['metrics'][PRIMARY], 1)} over frames {dense['settings']['start']:,} to "
+        f"{dense['settings']['budget']:,}, with no interval and no verdict (one run on one side); the SB3 curve is "
+        f"{dense['settings']['convergence']['baseline']} where the comparison stops.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
 # ------------------------------------------------------------------------------------------ options
 OPTIONS = RESULTS / "sweep-options"
 GRADED = RESULTS / "sweep-fourrooms-graded"
@@ -152,6 +220,25 @@ def options_table() -> str:
             rows.append((pair, f"SOC K={k}", _cell(own, PRIMARY), _cell(own, "jumpstart"), _cell(own, "transfer_ratio"),
                          _cell(h2h, PRIMARY), _cell(h2h, "probability_of_improvement", ".2f")))
     return render(rows, "markdown")
+
+
+def options_sources() -> str:
+    """Final success on the source task of each learner's source runs (what there was to transfer)."""
+    sides = [("SAC", GRADED / "fourrooms-near" / "sac" / "source")]
+    sides += [(f"SOC K = {k}", OPTIONS / "fourrooms-near" / "soc" / f"soc.num_options={k}" / "source") for k in (2, 4)]
+    lines = []
+    for name, folder in sides:
+        rates = [load(run / "summary.json")["final_eval"]["success_rate"] for run in _seeds(folder)]
+        lines.append(f"- {name}: mean {sum(rates) / len(rates):.2f} ({', '.join(f'{r:.2f}' for r in rates)}).")
+    return "\n".join(lines) + "\n"
+
+
+def lift_variants() -> str:
+    r = load(RESULTS / "lift-demonstrations-variants" / "bc-10-episodes-report-success" / "transfer_metrics.json")
+    final = [load(run / "summary.json")["final_eval"]["success_rate"]
+             for run in _seeds(RESULTS / "lift-demonstrations-variants" / "bc-10-episodes")]
+    return (f"  mean success gain {said(r['metrics'])}; final success {', '.join(f'{x:.1f}' for x in final)}; "
+            f"{cl.threshold_sentence(r, 'transfer', 'success ≥ 0.8')}.\n")
 
 
 def options_verdicts() -> str:
@@ -174,6 +261,104 @@ def options_verdicts() -> str:
             who = pair.replace("fourrooms-near soc.num_options=", "near, SOC K = ") + " with model reuse"
             lines.append(f"- {cl.threshold_sentence(r, 'transfer', who)}.")
     return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------------------------------ curves
+def _evals(path: Path, column: str) -> dict[float, float]:
+    from drltg.analysis.curves import read_run
+
+    if Path(path).is_dir() and (Path(path) / "eval.csv").is_file():
+        with open(Path(path) / "eval.csv") as f:
+            return {float(r["frames"]): float(r[column]) for r in csv.DictReader(f)}
+    c = read_run(path)  # a foreign log (Stable-Baselines3)
+    return dict(zip(map(float, c.frames), map(float, c.values)))
+
+
+def _at(evals: dict[float, float], frame: float, fmt: str) -> str:
+    if frame in evals:
+        return format(evals[frame], fmt)
+    later = [f for f in evals if f >= frame]
+    return "" if not later else f"{format(evals[min(later)], fmt)} (at {min(later):,.0f})"
+
+
+def curve_table(rows: list[tuple[str, list[Path]]], column: str, frames: list[float], fmt: str = ".1f",
+                note=None) -> str:
+    """Each row's evaluation at each frame; a row of several runs shows the highest of them."""
+    out = [("run", *(cl.frames(f) if f else "0" for f in frames))]
+    for label, paths in rows:
+        evals = [_evals(p, column) for p in paths]
+        cells = []
+        for f in frames:
+            if len(evals) == 1:
+                cell = _at(evals[0], f, fmt)
+                if note is not None:
+                    cell += note(paths[0], f)
+            else:
+                cell = format(max(e[f] for e in evals), fmt)
+            cells.append(cell)
+        out.append((label, *cells))
+    return render(out, "markdown")
+
+
+def _placed(run: Path, frame: float) -> str:
+    with open(run / "eval.csv") as f:
+        row = next(r for r in csv.DictReader(f) if float(r["frames"]) == frame)
+    placed = round(float(row["success_rate"]) * int(row["episodes"]))
+    return f" ({placed} placed)" if placed else ""
+
+
+def _seeds(folder: Path) -> list[Path]:
+    return sorted(folder.glob("seed-*"), key=lambda p: int(p.name.split("-")[1]))
+
+
+def lift_dense_curves() -> str:
+    rows = [(f"drltg SAC, {p.name.replace('-', ' ')}", [p]) for p in _seeds(DENSE / "sac")]
+    rows.append(("seed project, SB3 SAC", [ROOT / "tests" / "data" / "sb3_runs" / "lift_shaped_sac"]))
+    return curve_table(rows, "return_mean", [float(f) for f in range(0, 150_001, 10_000)])
+
+
+def lift_dense_study_table() -> str:
+    study = RESULTS / "lift-dense-study"
+    out = [("variant, seed", "return at 10k / 20k / 30k", "mean of the three", "frames/s")]
+    for variant in ("default", "utd-0.5", "utd-2", "batch-128", "batch-512", "hidden-128"):
+        for run in _seeds(study / variant):
+            e = _evals(run, "return_mean")
+            values = [e[f] for f in (10_000.0, 20_000.0, 30_000.0)]
+            fps = load(run / "summary.json")["frames_per_s"]
+            out.append((f"{variant}, {run.name}", " / ".join(f"{v:.1f}" for v in values),
+                        f"{sum(values) / 3:.1f}", f"{fps:.1f}"))
+    return render(out, "markdown")
+
+
+def lift_demonstrations_curves() -> str:
+    rows = [(f"demonstrations, {p.name.replace('-', ' ')}", [p]) for p in _seeds(LIFT / "demonstrations" / "transfer")]
+    others = [*_seeds(LIFT / "baseline"), *_seeds(LIFT / "policy-reuse" / "transfer"),
+              *_seeds(LIFT / "jumpstart" / "transfer")]
+    rows.append((f"baseline, policy reuse, jumpstart ({len(others)} runs, the highest)", others))
+    return curve_table(rows, "success_rate", [float(f) for f in range(0, 30_001, 2_500)])
+
+
+def lift_to_place_curves() -> str:
+    rows, baselines = [], []
+    for pair, name in (("lift-to-place", "Lift+Place"), ("lift-to-place-barrier", "barrier")):
+        d = PLACE / pair / "sac"
+        rows += [(f"{name}, demonstrations, {p.name.replace('-', ' ')}", [p])
+                 for p in _seeds(d / "demonstrations" / "transfer")]
+        baselines += _seeds(d / "baseline")
+    rows.append((f"baselines ({len(baselines)} runs, the highest)", baselines))
+    return curve_table(rows, "lifted_rate", [float(f) for f in range(0, 20_001, 2_500)], note=_placed)
+
+
+def lift_dense_peaks() -> str:
+    parts = []
+    for run in _seeds(DENSE / "sac"):
+        e = _evals(run, "return_mean")
+        peak = max(e, key=e.get)
+        late = [v for f, v in e.items() if f > peak]
+        parts.append(f"{run.name.replace('-', ' ')} peaks at {e[peak]:.1f} at {cl.frames(peak)} frames and then "
+                     f"stays between {min(late):.1f} and {max(late):.1f}" if late else
+                     f"{run.name.replace('-', ' ')} peaks at its last evaluation")
+    return "drltg's runs: " + "; ".join(parts) + ".\n"
 
 
 # ------------------------------------------------------------------------------------------- Lift
@@ -241,7 +426,8 @@ def lift_to_place_verdicts() -> str:
     lifted = {pair: load(PLACE / pair / "sac" / "demonstrations" / "report-lifted" / "transfer_metrics.json")
               for pair in ("lift-to-place", "lift-to-place-barrier")}
     adjusted = family(lifted)
-    lines = [f"The primary metric, the mean lifted-rate gain, on both targets (Holm over the {len(adjusted)}):"]
+    lines = [f"The report's headline metric on the lifted rate, the mean lifted-rate gain, on both targets (read "
+             f"together: Holm over the {len(adjusted)}):"]
     wins = total = 0
     for pair, r in lifted.items():
         m = r["metrics"]
@@ -336,7 +522,14 @@ REGIONS = {
         "grid-thresholds": lambda: threshold_lines(RESULTS / "sweep-gridrooms", "baseline"),
         "options-table": options_table,
         "options-verdicts": options_verdicts,
+        "options-sources": options_sources,
+        "lift-variants": lift_variants,
+        "lift-dense-curves": lift_dense_curves,
         "lift-dense-verdicts": lift_dense_verdicts,
+        "lift-dense-peaks": lift_dense_peaks,
+        "lift-dense-study": lift_dense_study_table,
+        "lift-demonstrations-curves": lift_demonstrations_curves,
+        "lift-to-place-curves": lift_to_place_curves,
         "lift-demonstrations-table": lift_demonstrations_table,
         "lift-demonstrations-verdicts": lift_demonstrations_verdicts,
         "lift-to-place-table": lift_to_place_table,
@@ -347,10 +540,11 @@ REGIONS = {
         "tasks": tasks_table,
         "methods": methods_table,
         "config": config_table,
+        "results-table": results_table,
         "results-verdicts": lambda: sweep_verdicts(GRADED, ["model-reuse", "value-shaping", "policy-reuse",
                                                             "reward-shaping"]),
-        "lift-demonstrations-verdicts": lift_demonstrations_verdicts,
-        "lift-to-place-verdicts": lift_to_place_verdicts,
+        "results-others": readme_others,
+        "lift-summary": lift_demonstrations_verdicts,
     },
 }
 

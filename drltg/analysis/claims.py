@@ -123,9 +123,8 @@ def threshold_sentence(report: Mapping, side: str = "transfer", who: str | None 
         text = (f"{who}: {seeds(k, n)} {agree(k, n, 'reaches', 'reach')} {threshold:g} at least once "
                 "(a first crossing, not a sustained one)")
     else:
-        span = (f"for {st['sustain']} evaluations in a row" if st.get("sustain") else
-                f"to the end of the budget (sustained: confirmed by at least {st.get('sustain_after', 2)} "
-                "evaluations after the crossing)")
+        span = (f"for {st['sustain']} evaluations in a row (sustained)" if st.get("sustain") else
+                f"to the end (sustained: at least {st.get('sustain_after', 2)} evaluations after the crossing)")
         text = f"{who}: {seeds(k, n)} {agree(k, n, 'holds', 'hold')} {threshold:g} {span}"
     if reached:
         first = sorted(reached)
