@@ -174,23 +174,32 @@ def readme_others() -> str:
     h2h = {k: load(OPTIONS / "head-to-head" / f"fourrooms-{k}" / "transfer_metrics.json")
            for k in ("near-k2", "near-k4", "far-k2", "far-k4")}
     adj_h = family(h2h)
-    demo = load(LIFT / "demonstrations" / "report-success" / "transfer_metrics.json")
-    place = {pair: load(PLACE / pair / "sac" / "demonstrations" / "report-lifted" / "transfer_metrics.json")
-             for pair in ("lift-to-place", "lift-to-place-barrier")}
-    adj_p = family(place)
-    dense = load(DENSE / "vs-seed" / "transfer_metrics.json")
     lines = [
         f"- Grid FourRooms (`results/sweep-gridrooms/`, Holm over its {len(adj_g)} reports), mean return gain: "
         + "; ".join(f"{METHOD_NAMES[m]} near {g[('gridrooms-near', m)]}, far {g[('gridrooms-far', m)]}"
                     for m in ("model-reuse", "value-shaping", "policy-reuse")) + ".",
         "- Soft option-critic minus SAC, both with model reuse, head to head (`results/sweep-options/`, Holm over "
         f"{len(adj_h)}): " + "; ".join(
-            f"{k.replace('-k', ', K = ')}: {said(r['metrics'], PRIMARY, adj_h.get(k), higher='SOC higher', lower='SOC lower')}"
+            f"{k.replace('-k', ', K = ')}: "
+            f"{said(r['metrics'], PRIMARY, adj_h.get(k), higher='SOC higher', lower='SOC lower')}"
             for k, r in h2h.items()) + ".",
+    ]
+    return "\n".join(lines) + "\n" + readme_lift()
+
+
+def readme_lift() -> str:
+    """README's sentences on the manipulation studies, each from its reports."""
+    demo = load(LIFT / "demonstrations" / "report-success" / "transfer_metrics.json")
+    place = {pair: load(PLACE / pair / "sac" / "demonstrations" / "report-lifted" / "transfer_metrics.json")
+             for pair in ("lift-to-place", "lift-to-place-barrier")}
+    adj_p = family(place)
+    dense = load(DENSE / "vs-seed" / "transfer_metrics.json")
+    lines = [
         f"- Lift from the scripted demonstrator (`results/sweep-lift-demonstrations/`): demonstrations with behaviour "
         f"cloning, mean success gain {said(demo['metrics'])}; "
         f"{cl.threshold_sentence(demo, 'transfer', 'success ≥ 0.8')}.",
-        f"- Lift → Lift+Place and Lift+Place with barrier from the same demonstrations (`results/sweep-lift-to-place/`), "
+        "- Lift → Lift+Place and Lift+Place with barrier from the same demonstrations "
+        "(`results/sweep-lift-to-place/`), "
         f"mean lifted-rate gain (Holm over the {len(adj_p)} targets): "
         + "; ".join(f"{pair}: {said(r['metrics'], PRIMARY, adj_p.get(pair))}" for pair, r in place.items()) + ".",
         f"- Lift on the dense reward against the seed project's one SB3 run (`results/lift-dense/`): mean return gain "
@@ -471,41 +480,73 @@ DEMO = RESULTS / "demo"
 
 
 def demo_sentence() -> str:
+    """README's quote of the committed `make demo` output, with where it ran and how far a rerun may move."""
     r = load(DEMO / "report" / "transfer_metrics.json")
     machine = load(DEMO / "machine.json")
-    src = [json.loads((DEMO / "source" / d / "summary.json").read_text())["final_eval"]["success_rate"]
-           for d in sorted(p.name for p in (DEMO / "source").iterdir())]
-    return (f"{cl.headline(r)} Measured on {machine['machine']}: {machine['wall_s'] / 60:.1f} minutes of wall "
-            f"time, {machine['cpu_s'] / 60:.1f} CPU-minutes, with the load average at {machine['load']} from other "
-            f"work. The source run reaches a success rate of {', '.join(f'{x:.2f}' for x in src)} on the source "
-            f"task. {machine['rerun']}\n")
+    source = _seeds(DEMO / "source")[0]
+    success = load(source / "summary.json")["final_eval"]["success_rate"]
+    lo, hi = r["metrics"][f"{PRIMARY}_ci"]
+    return (f"{cl.headline(r)} It ran on {machine['machine']} in {machine['wall_s'] / 60:.1f} minutes of wall time "
+            f"with the load average at {machine['load']} from other work, and {machine['cpu_s'] / 60:.1f} "
+            f"CPU-minutes (about {machine['cpu_s'] / 60 / machine['cores']:.1f} minutes on {machine['cores']} free "
+            "cores). "
+            f"Its one source run ends at a success rate of {success:.2f} on the source task. Another machine "
+            f"follows another floating-point stream and trains another source: the interval (half-width "
+            f"{(hi - lo) / 2:.2f}) covers the spread of target training from this source only, so a rerun's gain may "
+            "move further, with the quality of its source.\n")
 
 
 # ------------------------------------------------------------------------------------ registries
-def tasks_table() -> str:
+def _builtin(obj) -> bool:
+    """Defined by drltg itself, not by a plugin or a test registered in the same process."""
+    return getattr(obj, "__module__", "").startswith("drltg.")
+
+
+def tasks_table(kind: str) -> str:
+    """drltg's registered tasks and pairs of one kind (``"rooms"``: FourRooms and its grid; ``"robosuite"``)."""
     from drltg.envs import PAIRS, TASKS
 
-    rows = [("task", "description")] + [(f"`{name}`", t.description) for name, t in TASKS.items()]
+    tasks = {name: t for name, t in TASKS.items() if _builtin(t.factory)
+             and name.startswith(("fourrooms", "gridrooms")) == (kind == "rooms")}
+    rows = [("task", "description")] + [(f"`{name}`", t.description) for name, t in tasks.items()]
     pairs = [("pair", "source → target", "description")] + [
-        (f"`{name}`", f"`{p.source}` → `{p.target}`", p.description) for name, p in PAIRS.items()]
+        (f"`{name}`", f"`{p.source}` → `{p.target}`", p.description) for name, p in PAIRS.items()
+        if p.source in tasks and p.target in tasks]
     return render(rows, "markdown") + "\n" + render(pairs, "markdown")
 
 
-def methods_table() -> str:
+def _methods() -> dict:
+    import drltg.transfer  # noqa: F401  (registers the built-in methods and their transfer.* keys)
     from drltg.transfer.registry import METHODS
 
+    return {name: m for name, m in METHODS.items() if _builtin(m.build)}
+
+
+def methods_table() -> str:
     rows = [("`transfer.method`", "source", "what it is")]
-    for name, spec in METHODS.items():
+    for name, spec in _methods().items():
         source = {None: "—", "run": "a run", "policy": "a run or `demonstrator:TASK`"}[spec.source]
         rows.append((f"`{name}`", source, spec.help))
     return render(rows, "markdown")
 
 
 def config_table() -> str:
-    import drltg.transfer  # noqa: F401  (the methods register their transfer.* keys)
+    """``drltg.config.describe()`` for drltg's own keys (a plugin's method keys left out)."""
     from drltg import config
 
-    return config.describe() + "\n"
+    builtin = _methods()
+    own = {f"transfer.{key}" for m in builtin.values() for key in m.options}
+    lines = []
+    for line in config.describe().splitlines():
+        key = line.split("`")[1] if line.startswith("| `") else None
+        if key is None or not key.startswith("transfer.") or key in own or key.removeprefix("transfer.") not in \
+                config.METHOD_OPTIONS:
+            if key == "transfer.method":
+                cells = line.split(" | ")
+                cells[2] = "one of " + ", ".join(builtin)
+                line = " | ".join(cells)
+            lines.append(line)
+    return "\n".join(lines) + "\n"
 
 
 # --------------------------------------------------------------------------------------- regions
@@ -537,14 +578,15 @@ REGIONS = {
     },
     "README.md": {
         "demo": demo_sentence,
-        "tasks": tasks_table,
+        "tasks": lambda: tasks_table("rooms"),
+        "tasks-robosuite": lambda: tasks_table("robosuite"),
         "methods": methods_table,
         "config": config_table,
         "results-table": results_table,
         "results-verdicts": lambda: sweep_verdicts(GRADED, ["model-reuse", "value-shaping", "policy-reuse",
                                                             "reward-shaping"]),
         "results-others": readme_others,
-        "lift-summary": lift_demonstrations_verdicts,
+        "lift-summary": readme_lift,
     },
 }
 

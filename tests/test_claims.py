@@ -69,7 +69,8 @@ def test_a_sustained_threshold_names_its_confirming_evaluations_and_counts_seeds
 
 def test_a_first_crossing_is_never_called_sustained_or_held():
     text = cl.threshold_sentence(report(crossing="first"), "transfer", "near")
-    assert text == "near: 2 of 3 seeds reach 0.5 at least once (a first crossing, not a sustained one), from 1k, 3k frames"
+    assert text == ("near: 2 of 3 seeds reach 0.5 at least once (a first crossing, not a sustained one), "
+                    "from 1k, 3k frames")
     assert " hold" not in text
 
 
@@ -88,8 +89,8 @@ def test_best_needs_every_paired_difference_to_exclude_zero():
 
 def test_the_headline_concludes_or_says_there_is_no_evidence():
     assert cl.headline(report()) == ("Headline (model-reuse vs no transfer, 3 paired seeds, 20k frames): mean return "
-                                     "gain +0.40 [+0.10, +0.70], higher with transfer (Holm-adjusted p = 0.01 of 3).")
-    assert cl.headline(report(ci=(-0.1, 0.9), p_adjusted=0.3)).endswith(
+                                     "gain +0.40 [+0.10, +0.70], higher with transfer.")
+    assert cl.headline(report(ci=(-0.1, 0.9))).endswith(
         "+0.40 [\u22120.10, +0.90]: no evidence of a difference at this budget.")
 
 
@@ -126,14 +127,21 @@ def test_a_changed_number_changes_the_sentences(tmp_path):
     assert "near +1.08 [\u22120.20, +2.30]: no evidence of a difference at this budget" in after
 
 
-def test_the_registry_tables_list_every_task_method_and_key():
+def test_the_registry_tables_list_every_builtin_task_method_and_key():
     g = generator()
     from drltg import config
     from drltg.envs import PAIRS, TASKS
     from drltg.transfer.registry import METHODS
 
-    tasks, methods, keys = g.tasks_table(), g.methods_table(), g.config_table()
-    assert all(f"| `{name}` |" in tasks for name in [*TASKS, *PAIRS])
-    assert all(f"| `{name}` |" in methods for name in METHODS)
-    assert {"value-shaping", "jumpstart"} <= set(METHODS)
-    assert all(f"| `{key}` |" in keys for key in config.SCHEMA)
+    tasks = g.tasks_table("rooms") + g.tasks_table("robosuite")
+    methods, keys = g.methods_table(), g.config_table()
+    builtin = {n for n, m in METHODS.items() if m.build.__module__.startswith("drltg.")}
+    assert {"none", "reward-shaping", "value-shaping", "policy-reuse", "jumpstart", "model-reuse",
+            "demonstrations"} <= builtin
+    assert all(f"| `{name}` |" in methods for name in builtin)
+    assert all(f"| `{name}` |" in tasks for name, t in TASKS.items() if t.factory.__module__.startswith("drltg."))
+    assert all(f"| `{name}` |" in tasks for name in ("fourrooms-near", "gridrooms-far", "lift-to-place"))
+    assert len(PAIRS) >= 11
+    plugin_keys = {f"transfer.{k}" for k, m in config.METHOD_OPTIONS.items() if m not in builtin}
+    assert all(f"| `{key}` |" in keys for key in config.SCHEMA if key not in plugin_keys)
+    assert "transfer.demo_episodes" in config.SCHEMA and "| `transfer.demo_episodes` |" in keys

@@ -201,16 +201,16 @@ def best_sentence(reports: Mapping[str, Mapping], where: str, score: str = "mean
 
 
 def headline(report: Mapping, metric: str = "mean_return_gain") -> str:
-    """One sentence that concludes a report: the primary metric's verdict within the report's family."""
+    """One sentence that concludes a report: its headline metric, named in advance and read alone (the
+    report's other metrics form the family that its p (Holm) column adjusts)."""
     m, st = report["metrics"], report["settings"]
     n_b, n_t = m["n_seeds_baseline"], m["n_seeds_transfer"]
     design = f"{n_t} paired seeds" if st.get("paired") else f"{n_t} + {n_b} seeds"
     label = LABELS.get(metric, metric.replace("_", " "))
-    family = (st.get("family") or {}).get("size")
+    where = f"{st['transfer_label']} vs {st['baseline_label']}, {design}, {frames(st['budget'])} frames"
     if m.get(metric) is None:
-        return f"Headline ({st['transfer_label']} vs {st['baseline_label']}, {design}): {label} is not available."
-    return (f"Headline ({st['transfer_label']} vs {st['baseline_label']}, {design}, {frames(st['budget'])} "
-            f"frames): {label} {verdict(m[metric], m.get(f'{metric}_ci'), m.get(f'{metric}_p_adjusted'), family)}.")
+        return f"Headline ({where}): {label} is not available."
+    return f"Headline ({where}): {label} {verdict(m[metric], m.get(f'{metric}_ci'))}."
 
 
 def fill_regions(text: str, regions: Mapping[str, str]) -> str:

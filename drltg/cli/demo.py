@@ -84,6 +84,6 @@ def run(args: argparse.Namespace) -> int:
                                  [p for role, _, p in runs if role == "transfer"], out / "report",
                                  threshold=d["threshold"], baseline_label="no transfer", transfer_label=d["method"])
     print(format_table(result))
+    print("\n" + claims.headline(result))
     print(f"\nreport: {out / 'report'}")
-    print(claims.headline(result))
     return 0
