@@ -71,9 +71,9 @@ DEFAULTS: dict[str, Any] = {
 TRANSFER_KEYS = tuple(DEFAULTS["transfer"])
 """The ``transfer.*`` keys of every method; the others belong to one method (``TransferMethod.options``)."""
 METHOD_RULES: dict[str, Any] = {}
-"""``transfer.method`` -> the check its configs must pass, filled with the method's keys (``DEFAULTS``,
-``SCHEMA``) by :func:`drltg.transfer.register_method`: import :mod:`drltg.transfer` (the commands do)
-before resolving a config that uses a transfer method."""
+"""``transfer.method`` -> the check its configs must pass (``"+"``: the check of every combination
+``a+b``), filled with the method's keys (``DEFAULTS``, ``SCHEMA``) by :func:`drltg.transfer.register_method`:
+import :mod:`drltg.transfer` (the commands do) before resolving a config that uses a transfer method."""
 METHOD_OPTIONS: dict[str, str] = {}
 """``transfer.<key>`` -> the one method whose option it is (filled by ``register_method`` too)."""
 BUILTIN_METHOD_OPTIONS: dict[str, dict[str, Any]] = {
@@ -399,7 +399,8 @@ def config_changes(saved: dict, cfg: dict, *, env_defaults: bool = True) -> list
     builtin = {k: v for options in BUILTIN_METHOD_OPTIONS.values() for k, v in options.items()}
     defaults = {**DEFAULTS, "env": env, "transfer": {**builtin, **DEFAULTS["transfer"]}}
     owners = {**{k: m for m, options in BUILTIN_METHOD_OPTIONS.items() for k in options}, **METHOD_OPTIONS}
-    methods = {_lookup(saved, "transfer.method"), _lookup(cfg, "transfer.method")}
+    methods = {part for c in (saved, cfg) if isinstance(m := _lookup(c, "transfer.method"), str)
+               for part in m.split("+")}
     unknown = set() if env_defaults else set(env_keys_set_once(saved, cfg))
     if not env_defaults and (_lookup(saved, "env") is KeyError) != (_lookup(cfg, "env") is KeyError):
         unknown.add("env")
@@ -453,6 +454,9 @@ def validate(cfg: dict) -> None:
             raise UsageError(f"the config has no key '{key}'; resolve() fills in every key.") from None
         if key == "env":
             _check_env(cfg["task"], value)
+        elif key == "transfer.method" and isinstance(value, str) and "+" in value:
+            for part in value.split("+"):
+                field.check(key, part)
         else:
             checked = field.check(key, value)
             if checked is not value:
@@ -462,7 +466,8 @@ def validate(cfg: dict) -> None:
         raise UsageError(
             f"collector.frames_per_batch ({fpb}) must be a multiple of collector.num_envs ({n})."
         )
-    rule = METHOD_RULES.get(cfg["transfer"]["method"])
+    method = cfg["transfer"]["method"]
+    rule = METHOD_RULES.get(method) or (METHOD_RULES.get("+") if "+" in method else None)
     if rule is not None:
         rule(cfg)
     cfg["frames"] = -(-cfg["frames"] // fpb) * fpb  # whole collector batches: the budget is exact

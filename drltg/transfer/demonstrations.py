@@ -46,6 +46,7 @@ DEMONSTRATIONS = register_method(TransferMethod(
     "episodes of the source policy in a buffer of their own, a fixed share of every batch",
     _build,
     source="policy",
+    takes=("batches",),
     algos=("sac", "td3"),
     options=builtin_options("demonstrations", {
         "demo_episodes": Field(int, "demonstrations: episodes of the source policy collected", low=1),
