@@ -43,7 +43,7 @@ DEFAULTS: dict[str, Any] = {
         "gamma": 0.99,
         "tau": 0.005,
     },
-    "network": {"hidden": [256, 256]},
+    "network": {"hidden": [256, 256], "layer_norm": "none"},
     "sac": {"alpha_init": 1.0, "fixed_alpha": False, "target_entropy": "auto"},
     "td3": {"exploration_noise": 0.1, "policy_noise": 0.2, "noise_clip": 0.5, "policy_delay": 2},
     # soft option-critic (drltg.losses.soc); the action temperature comes from "sac"
@@ -81,7 +81,8 @@ BUILTIN_METHOD_OPTIONS: dict[str, dict[str, Any]] = {
     "jumpstart": {"guide_steps": 100, "guide_stages": 10, "guide_frames": 20_000},
     "model-reuse": {"freeze": [], "partial": False},
     "value-shaping": {"value_scale": 1.0},
-    "demonstrations": {"demo_episodes": 50, "demo_ratio": 0.25, "bc_weight": 10.0, "bc_q_filter": False},
+    "demonstrations": {"demo_episodes": 50, "demo_ratio": 0.25, "bc_weight": 10.0, "bc_q_filter": False,
+                       "bc_anneal_frames": 0},
 }
 """The built-in methods' ``transfer.*`` options at their defaults, as plain data: the method modules
 register them from here, and :func:`config_changes` reads them without importing the methods (and torch),
@@ -209,6 +210,8 @@ SCHEMA: dict[str, Field] = {
     "optim.tau": Field(float, "target-network smoothing", **_PROB, open_low=True),
     "network.hidden": Field(list, "MLP widths of actor and critics", item=Field(int, low=1), nonempty=True,
                             what="a non-empty list of positive integers (e.g. [64, 64])"),
+    "network.layer_norm": Field(str, "LayerNorm after every hidden layer of the critics, of every network, or none",
+                                choices=("none", "critics", "all")),
     "sac.alpha_init": Field(float, "initial entropy temperature", **_POSITIVE),
     "sac.fixed_alpha": Field(bool, "keep the temperature at alpha_init"),
     "sac.target_entropy": Field(float, "entropy the temperature is tuned to", auto=True),
@@ -466,6 +469,8 @@ def validate(cfg: dict) -> None:
         raise UsageError(
             f"collector.frames_per_batch ({fpb}) must be a multiple of collector.num_envs ({n})."
         )
+    if cfg["algo"] == "soc" and cfg["network"]["layer_norm"] != "none":
+        raise UsageError("network.layer_norm applies to sac and td3; the soft option-critic's networks have none.")
     method = cfg["transfer"]["method"]
     rule = METHOD_RULES.get(method) or (METHOD_RULES.get("+") if "+" in method else None)
     if rule is not None:
