@@ -145,3 +145,16 @@ def test_the_registry_tables_list_every_builtin_task_method_and_key():
     plugin_keys = {f"transfer.{k}" for k, m in config.METHOD_OPTIONS.items() if m not in builtin}
     assert all(f"| `{key}` |" in keys for key in config.SCHEMA if key not in plugin_keys)
     assert "transfer.demo_episodes" in config.SCHEMA and "| `transfer.demo_episodes` |" in keys
+
+
+def test_the_report_command_ends_with_the_generated_headline(tmp_path, capsys):
+    from drltg.analysis import report
+
+    demo = ROOT / "results" / "demo"
+    code = report.main(["--baseline", str(demo / "baseline"), "--transfer", str(demo / "transfer"),
+                        "--threshold", "0.5", "--out", str(tmp_path / "rep")])
+    assert code == 0
+    printed = capsys.readouterr().out
+    result = json.loads((tmp_path / "rep" / "transfer_metrics.json").read_text())
+    assert cl.headline(result) in printed
+    assert cl.headline(result).startswith("Headline (") and result["metrics"]["n_seeds_transfer"] == 6
