@@ -572,6 +572,7 @@ REGIONS = {
         "lift-demonstrations-curves": lift_demonstrations_curves,
         "lift-to-place-curves": lift_to_place_curves,
         "lift-demonstrations-table": lift_demonstrations_table,
+        "demo": demo_sentence,
         "lift-demonstrations-verdicts": lift_demonstrations_verdicts,
         "lift-to-place-table": lift_to_place_table,
         "lift-to-place-verdicts": lift_to_place_verdicts,
