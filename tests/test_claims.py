@@ -48,8 +48,8 @@ def test_verdicts_read_higher_lower_or_no_evidence():
     assert cl.verdict(0.25, (-0.03, 0.53)) == "+0.25 [\u22120.03, +0.53]: no evidence of a difference at this budget"
     assert cl.verdict(0.0, None) == "+0.00: no evidence of a difference at this budget"
     held_back = cl.verdict(-0.32, (-0.51, -0.13), p_adjusted=0.079, family=20)
-    assert held_back.endswith("no evidence of a difference at this budget after Holm's adjustment "
-                              "(Holm-adjusted p = 0.079 of 20)")
+    assert held_back == ("\u22120.32 [\u22120.51, \u22120.13]: no evidence of a difference at this budget after Holm's "
+                         "adjustment (adjusted p = 0.079 of 20)")
 
 
 def test_every_seed_only_when_every_seed():

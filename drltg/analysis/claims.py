@@ -66,17 +66,18 @@ def direction(ci: Sequence | None, p_adjusted: float | None = None, level: float
 
 def verdict(value: float, ci: Sequence | None, p_adjusted: float | None = None, family: int | None = None,
             higher: str = "higher with transfer", lower: str = "lower with transfer") -> str:
-    """``+1.08 [+0.91, +1.24], higher with transfer`` or ``..., no evidence of a difference at this budget``;
-    with a family, the Holm-adjusted p-value and the family's size are named."""
+    """``+1.08 [+0.91, +1.24], higher with transfer`` or ``...: no evidence of a difference at this budget``;
+    an interval that excludes 0 but is held back by the family's adjustment says so, naming the adjusted
+    p-value (and the family's size when given)."""
     sign = direction(ci, p_adjusted)
     text = estimate(value, ci)
-    holm = "" if family is None or p_adjusted is None else f" (Holm-adjusted p = {p_text(p_adjusted)} of {family})"
     if sign > 0:
-        return f"{text}, {higher}{holm}"
+        return f"{text}, {higher}"
     if sign < 0:
-        return f"{text}, {lower}{holm}"
-    if excludes_zero(ci) and holm:
-        return f"{text}: {NO_EVIDENCE} after Holm's adjustment{holm}"
+        return f"{text}, {lower}"
+    if excludes_zero(ci) and p_adjusted is not None:
+        of = "" if family is None else f" of {family}"
+        return f"{text}: {NO_EVIDENCE} after Holm's adjustment (adjusted p = {p_text(p_adjusted)}{of})"
     return f"{text}: {NO_EVIDENCE}"
 
 
