@@ -152,7 +152,8 @@ def test_the_report_command_ends_with_the_generated_headline(tmp_path, capsys):
 
     demo = ROOT / "results" / "demo"
     code = report.main(["--baseline", str(demo / "baseline"), "--transfer", str(demo / "transfer"),
-                        "--threshold", "0.5", "--out", str(tmp_path / "rep")])
+                        "--threshold", "0.5", "--baseline-label", "no transfer", "--transfer-label", "model-reuse",
+                        "--out", str(tmp_path / "rep")])
     assert code == 0
     printed = capsys.readouterr().out
     committed = json.loads((demo / "report" / "transfer_metrics.json").read_text())
