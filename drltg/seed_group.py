@@ -14,6 +14,7 @@ is vmapped the same way over blocks of a batched env (:mod:`drltg.envs.seeding`)
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 from typing import Sequence
 
@@ -24,6 +25,20 @@ from tensordict.nn import TensorDictModuleBase
 from drltg.learners import Agent, loss_total
 
 __all__ = ["SeedGroup", "GroupPolicy"]
+
+
+@contextlib.contextmanager
+def _vmappable_normal_draws():
+    """``torch.distributions.Normal.rsample`` draws with ``torch.empty(shape).normal_()``, an in-place draw
+    on an unbatched tensor that ``torch.vmap(randomness="different")`` refuses; ``torch.randn(shape)`` is
+    the same draw (``randn`` fills an empty tensor with ``normal_``) as a factory vmap can batch."""
+    normal = torch.distributions.normal
+    previous = normal._standard_normal
+    normal._standard_normal = lambda shape, dtype, device: torch.randn(shape, dtype=dtype, device=device)
+    try:
+        yield
+    finally:
+        normal._standard_normal = previous
 
 
 def _touch_lazy_buffers(agent: Agent) -> None:
@@ -75,7 +90,8 @@ class SeedGroup:
     def update(self, batch: TensorDictBase, update_actor: bool = True) -> TensorDictBase:
         """One step for every seed; ``batch`` has a leading seed dimension. Returns the detached losses
         (each entry with a leading seed dimension)."""
-        losses = self._losses(self.params, batch)
+        with _vmappable_normal_draws():
+            losses = self._losses(self.params, batch)
         self.optimizer.zero_grad(set_to_none=True)
         loss_total(losses, update_actor).sum().backward()
         self.optimizer.step()
@@ -137,7 +153,8 @@ class GroupPolicy(TensorDictModuleBase):
         seeds = self.params.batch_size[0]
         shape = tensordict.batch_size
         td = tensordict.select(*self.in_keys, strict=False).reshape(seeds, -1)
-        out = self._act(self.params, td).reshape(shape)
+        with _vmappable_normal_draws():
+            out = self._act(self.params, td).reshape(shape)
         tensordict.update(out.select(*self.out_keys, strict=False))
         if self.then is not None:
             tensordict = self.then(tensordict)

@@ -1,4 +1,4 @@
-"""`drltg train TASK --algo sac --frames N --seed S --run-dir DIR [--config FILE] [-o KEY=VALUE ...]`"""
+"""`drltg train TASK --algo sac --frames N --seed S [--seeds N] --run-dir DIR [--config FILE] [-o KEY=VALUE ...]`"""
 from __future__ import annotations
 
 import argparse
@@ -15,7 +15,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--options", type=int, metavar="K", help="number of options for --algo soc (soc.num_options)")
     p.add_argument("--frames", type=int, help="environment frames to train for")
     p.add_argument("--seed", type=int, help="random seed (envs, networks, sampling)")
-    p.add_argument("--run-dir", type=Path, help="output run directory (default: runs/<task>/<algo>-seed<seed>)")
+    p.add_argument("--seeds", type=int, metavar="N",
+                   help="train seeds S..S+N-1 (S: --seed) in one process, into RUN_DIR/seed-<k>/ (one vmapped "
+                        "update for all seeds where the learner supports it, else one seed after another)")
+    p.add_argument("--no-group", action="store_true", help="with --seeds: train the seeds one after another")
+    p.add_argument("--run-dir", type=Path,
+                   help="output run directory (default: runs/<task>/<algo>-seed<seed>; with --seeds, "
+                        "runs/<task>/<algo>-seeds)")
     p.add_argument("--config", type=Path, help="YAML config file (e.g. a run's config.yaml, to reproduce it)")
     p.add_argument("-o", "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key, e.g. -o optim.lr=1e-3 -o network.hidden=[64,64] (repeatable)")
@@ -44,6 +50,17 @@ def run(args: argparse.Namespace) -> int:
     cfg = config_lib.resolve(
         base, args.overrides, task=args.task, algo=args.algo, frames=args.frames, seed=args.seed, **explicit
     )
+    if args.seeds is not None:
+        from drltg.training.seeds import train_seeds
+
+        run_dir = args.run_dir or Path("runs") / cfg["task"].replace("/", "-") / f"{cfg['algo']}-seeds"
+        dirs = train_seeds(cfg, run_dir, args.seeds, resume=args.resume, progress=not args.no_progress,
+                           group=not args.no_group)
+        print(f"run directories: {', '.join(str(d) for d in dirs)}")
+        print(f"  report: drltg report {run_dir}")
+        return 0
+    if args.no_group:
+        raise UsageError("--no-group applies to --seeds N; add --seeds.")
     run_dir = args.run_dir or Path("runs") / cfg["task"].replace("/", "-") / f"{cfg['algo']}-seed{cfg['seed']}"
     run_dir = train(cfg, run_dir, resume=args.resume, progress=not args.no_progress)
     print(f"run directory: {run_dir}")

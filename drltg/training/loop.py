@@ -37,8 +37,8 @@ from drltg.training.rundir import CHECKPOINT, CONFIG, EPISODE_FLAGS, EVAL, RunWr
 from drltg.transfer import Transfer, get_method
 from drltg.transfer.source import check as check_source
 
-__all__ = ["train", "run_loop", "AgentLearner", "make_collector", "evaluate", "make_envs", "build_env", "check_config",
-           "is_complete", "read_eval_csv"]
+__all__ = ["train", "run_loop", "AgentLearner", "make_collector", "evaluate", "evaluate_seeds", "make_envs",
+           "build_env", "check_config", "is_complete", "read_eval_csv"]
 
 
 # ----------------------------------------------------------------------------- envs
@@ -73,7 +73,6 @@ def check_config(cfg: dict):
     return probe, make_agent(probe, cfg)
 
 
-@torch.no_grad()
 def evaluate(env: EnvBase, actor: Callable, max_steps: int = 100_000) -> dict:
     """Run one episode in every batch element of ``env`` with the deterministic actor.
 
@@ -82,6 +81,13 @@ def evaluate(env: EnvBase, actor: Callable, max_steps: int = 100_000) -> dict:
     in which it was ever true (``success_rate``, ``lifted_rate``), counting each element's first
     episode only.
     """
+    return evaluate_seeds(env, actor, 1, max_steps)[0]
+
+
+@torch.no_grad()
+def evaluate_seeds(env: EnvBase, actor: Callable, seeds: int, max_steps: int = 100_000) -> list[dict]:
+    """:func:`evaluate` of a seed group's env: one row per block of ``batch / seeds`` elements (seed k's
+    episodes), each computed as its seed's own evaluation would be."""
     td = env.reset()
     shape = env.batch_size
     alive = torch.ones(*shape, 1, dtype=torch.bool, device=env.device)
@@ -99,15 +105,17 @@ def evaluate(env: EnvBase, actor: Callable, max_steps: int = 100_000) -> dict:
             if not alive.any():
                 break
             td = td["next"].clone()
-    ret = ret.flatten().double()
-    row = {
-        "return_mean": ret.mean().item(),
-        "return_std": ret.std(unbiased=False).item(),
-        "episodes": ret.numel(),
-    }
-    for key in flags:
-        row[f"{key}_rate"] = ever[key].float().mean().item()
-    return row
+    rows = []
+    for k, block in enumerate(ret.flatten().double().chunk(seeds)):
+        row = {
+            "return_mean": block.mean().item(),
+            "return_std": block.std(unbiased=False).item(),
+            "episodes": block.numel(),
+        }
+        for key in flags:
+            row[f"{key}_rate"] = ever[key].flatten().chunk(seeds)[k].float().mean().item()
+        rows.append(row)
+    return rows
 
 
 # ----------------------------------------------------------------------------- run directory
