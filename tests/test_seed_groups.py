@@ -131,7 +131,7 @@ def test_a_group_writes_one_ordinary_run_directory_per_seed(group_run):
         rows = read_eval_csv(run / "eval.csv")
         assert [r["frames"] for r in rows] == [0, 256, 512]
         summary = json.loads((run / "summary.json").read_text())
-        assert summary["seed"] == seed and summary["seed_group"] == {"first_seed": 3, "seeds": 2}
+        assert summary["seed"] == seed and summary["seed_group"] == {"seeds": [3, 4]}
         assert summary["final_eval"] == rows[-1]
         # before any update a seed's evaluation is its run alone's: same networks, same evaluation starts
         cfg = tiny_cfg(seed=seed)
@@ -195,3 +195,58 @@ def test_cli_seed_options_bad_input_is_one_sentence(args, message, tmp_path, cap
     err = capsys.readouterr().err
     assert code == 2 and message in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "runs").exists()
+
+
+def test_a_seed_of_an_interrupted_group_resumes_alone(group_run, tmp_path, monkeypatch, capsys):
+    import drltg.training.loop as loop
+    from drltg.training.rundir import read_eval_csv
+    from drltg.training.seeds import train_seeds
+
+    real = loop._episode_stats
+
+    def crash_after_first_checkpoint(data, stats):
+        if (tmp_path / "seed-4" / "checkpoints" / "last.pt").exists():
+            raise KeyboardInterrupt
+        return real(data, stats)
+
+    monkeypatch.setattr(loop, "_episode_stats", crash_after_first_checkpoint)
+    with pytest.raises(KeyboardInterrupt):
+        train_seeds(tiny_cfg(), tmp_path, 2, progress=False)
+    monkeypatch.setattr(loop, "_episode_stats", real)
+    loop.train(tiny_cfg(seed=4), tmp_path / "seed-4", resume=True, progress=False)  # its checkpoint is a run's
+    rows = read_eval_csv(tmp_path / "seed-4" / "eval.csv")
+    assert [r["frames"] for r in rows] == [0, 256, 512]
+    assert rows[:2] == read_eval_csv(group_run / "seed-4" / "eval.csv")[:2]
+    train_seeds(tiny_cfg(), tmp_path, 2, resume=True, progress=False)  # the seeds now differ: one by one
+    assert "resuming them one after another" in capsys.readouterr().err
+    assert (tmp_path / "seed-3" / "summary.json").is_file()
+
+
+# ------------------------------------------------------------------------------- experiments
+def test_runs_that_differ_only_in_their_seed_form_one_unit(tmp_path):
+    from drltg.experiments.executor import Run, seed_groups
+
+    def run(name, needs=None, **kw):
+        return Run("baseline", tiny_cfg(**kw), tmp_path / name, tmp_path / f"{name}.log", needs)
+
+    baseline = [run("b0", seed=0), run("b100", seed=100)]
+    source = [run("s50", seed=50, task="fourrooms/southwest"), run("s150", seed=150, task="fourrooms/southwest")]
+    transfer = [run("t0", needs=tmp_path / "s50", seed=0), run("t100", needs=tmp_path / "s150", seed=100)]
+    soc = [run("o0", seed=0, algo="soc"), run("o100", seed=100, algo="soc")]
+    units = seed_groups([baseline[0], source[0], transfer[0], soc[0], baseline[1], source[1], transfer[1], soc[1]])
+    assert [[r.path.name for r in unit] for unit in units] == [
+        ["b0", "b100"], ["s50", "s150"], ["t0"], ["o0"], ["t100"], ["o100"]]
+
+
+def test_run_group_trains_an_experiments_seeds_together(tmp_path):
+    import json
+
+    from drltg.experiments.executor import run_group
+
+    cfgs = [tiny_cfg(seed=0, frames=128), tiny_cfg(seed=100, frames=128)]
+    dirs = [tmp_path / "baseline" / "seed-0", tmp_path / "baseline" / "seed-100"]
+    logs = [tmp_path / "logs" / "seed-0.log", tmp_path / "logs" / "seed-100.log"]
+    assert run_group(cfgs, [str(d) for d in dirs], [str(p) for p in logs]) == [("done", ""), ("done", "")]
+    for d in dirs:
+        assert json.loads((d / "summary.json").read_text())["seed_group"] == {"seeds": [0, 100]}
+    assert "output in" in logs[1].read_text()

@@ -12,7 +12,8 @@ seed, :mod:`drltg.envs.seeding`), its replay buffer, and its updates given a bat
 (``tests/test_seed_groups.py``). What differs: the policy's exploration draws, the replay buffer's
 sampling and the losses' random draws come from the process's one generator, seeded with the group's
 first seed, so a seed's curve in a group is not its curve alone. A group is reproduced exactly by the
-same group (same ``--seeds`` and ``--seed``); each seed's summary.json records its group.
+same group (same ``--seeds`` and ``--seed``); each seed's summary.json records its group
+(``seed_group.seeds``, the group's seeds in order).
 """
 from __future__ import annotations
 
@@ -45,7 +46,7 @@ from drltg.training.loop import (
 )
 from drltg.training.rundir import CHECKPOINT, CONFIG, RunWriter, is_complete
 
-__all__ = ["train_seeds", "group_support", "seed_dirs"]
+__all__ = ["train_seeds", "train_group", "group_support", "seed_dirs", "same_but_seed"]
 
 GROUPED_ALGOS = ("sac", "td3")
 """Learners whose seeds train as one group (SAC covers discrete SAC on discrete tasks)."""
@@ -53,6 +54,11 @@ GROUPED_ALGOS = ("sac", "td3")
 
 def seed_dirs(run_dir: Path, first: int, count: int) -> list[Path]:
     return [Path(run_dir) / f"seed-{first + k}" for k in range(count)]
+
+
+def same_but_seed(a: dict, b: dict) -> bool:
+    """Whether two configs differ in their seed at most: their runs can share a seed group."""
+    return {**a, "seed": 0} == {**b, "seed": 0}
 
 
 def group_support(cfg: dict) -> str | None:
@@ -84,7 +90,7 @@ def train_seeds(cfg: dict, run_dir: str | Path, seeds: int, *, resume: bool = Fa
         if reason is not None and seeds > 1:
             print(f"note: {reason}; training the {seeds} seeds one after another.", file=sys.stderr)
         return [train(c, d, resume=resume, progress=progress) for c, d in zip(cfgs, dirs)]
-    return _train_group(cfgs, dirs, resume=resume, progress=progress)
+    return train_group(cfgs, dirs, resume=resume, progress=progress)
 
 
 class GroupLearner:
@@ -128,14 +134,15 @@ class GroupLearner:
         ]
 
 
-def _group_env(cfg: dict, count: int, per_seed: int, seed_offset: int):
-    seeds = [cfg["seed"] + k for k in range(count)]
-    env = TransformedEnv(build_env(cfg, batch_size=(count * per_seed,), seed=seeds[0] + seed_offset))
+def _group_env(cfg: dict, seeds: list[int], per_seed: int, seed_offset: int):
+    env = TransformedEnv(build_env(cfg, batch_size=(len(seeds) * per_seed,), seed=seeds[0] + seed_offset))
     set_block_seeds(env, [s + seed_offset for s in seeds])
     return env
 
 
-def _train_group(cfgs: list[dict], dirs: list[Path], *, resume: bool, progress: bool) -> list[Path]:
+def train_group(cfgs: list[dict], dirs: list[Path], *, resume: bool = False, progress: bool = True) -> list[Path]:
+    """Train ``cfgs`` (configs equal but for their seeds, :func:`group_support` true) as one seed group
+    into ``dirs``, one run directory each; ``resume`` continues them from their checkpoints."""
     cfg, count = cfgs[0], len(cfgs)
     with contextlib.ExitStack() as owned:
         if resume:
@@ -179,9 +186,10 @@ def _train_group(cfgs: list[dict], dirs: list[Path], *, resume: bool, progress: 
                         f"checkpoint '{d / CHECKPOINT}' does not fit the run's config ({type(err).__name__})."
                     ) from None
         group = SeedGroup(agents)
-        train_env = _group_env(cfg, count, cfg["collector"]["num_envs"], 0)
+        seeds = [c["seed"] for c in cfgs]
+        train_env = _group_env(cfg, seeds, cfg["collector"]["num_envs"], 0)
         train_env.append_transform(RewardSum())
-        eval_env = _group_env(cfg, count, cfg["eval"]["episodes"], 10_000)
+        eval_env = _group_env(cfg, seeds, cfg["eval"]["episodes"], 10_000)
         learner = GroupLearner(group, buffers, eval_env)
 
         created = [not d.exists() for d in dirs]
@@ -205,7 +213,7 @@ def _train_group(cfgs: list[dict], dirs: list[Path], *, resume: bool, progress: 
                 torch.set_rng_state(ckpts[0]["rng"])
                 frames, updates = ckpts[0]["frames"], ckpts[0]["updates"]
             collector = make_collector(cfg, train_env, learner.policy, frames, seeds=count)
-            summary = {"seed_group": {"first_seed": cfg["seed"], "seeds": count}}
+            summary = {"seed_group": {"seeds": seeds}}
             with deferred_signals() as stop_if_signalled:
                 run_loop(cfg, collector, learner, writers, frames=frames, updates=updates, progress=progress,
                          stop_if_signalled=stop_if_signalled, extra_summary=summary)
