@@ -250,3 +250,21 @@ def test_run_group_trains_an_experiments_seeds_together(tmp_path):
     for d in dirs:
         assert json.loads((d / "summary.json").read_text())["seed_group"] == {"seeds": [0, 100]}
     assert "output in" in logs[1].read_text()
+
+
+@pytest.mark.parametrize("task, algo", [("gridrooms/northeast", "sac"), ("fourrooms/northeast", "td3")])
+def test_every_grouped_learner_trains_its_seeds_from_their_runs_alone(task, algo, tmp_path, capsys):
+    from drltg.training.loop import evaluate, make_envs
+    from drltg.training.rundir import read_eval_csv
+    from drltg.training.seeds import train_seeds
+
+    cfg = tiny_cfg(task=task, algo=algo, frames=192)
+    train_seeds(cfg, tmp_path, 2, progress=False)
+    assert "note:" not in capsys.readouterr().err  # grouped, not one after another
+    for seed in (3, 4):
+        rows = read_eval_csv(tmp_path / f"seed-{seed}" / "eval.csv")
+        assert [r["frames"] for r in rows] == [0, 192]
+        alone_cfg = {**cfg, "seed": seed}
+        torch.manual_seed(seed)
+        agent = make_agent(build_env(alone_cfg, seed=seed), alone_cfg)
+        assert rows[0] == {"frames": 0, **evaluate(make_envs(alone_cfg)[1], agent.actor)}

@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
         dirs = train_seeds(cfg, run_dir, args.seeds, resume=args.resume, progress=not args.no_progress,
                            group=not args.no_group)
         print(f"run directories: {', '.join(str(d) for d in dirs)}")
-        print(f"  report: drltg report {run_dir}")
+        print(f"  curves:  drltg report --baseline {run_dir} --transfer OTHER_RUNS (a folder of seed runs)")
         return 0
     if args.no_group:
         raise UsageError("--no-group applies to --seeds N; add --seeds.")
