@@ -24,7 +24,7 @@ from tensordict.nn import TensorDictModuleBase
 
 from drltg.learners import Agent, loss_total
 
-__all__ = ["SeedGroup", "GroupPolicy"]
+__all__ = ["SeedGroup", "GroupPolicy", "SeedLoopPolicy"]
 
 
 @contextlib.contextmanager
@@ -158,4 +158,28 @@ class GroupPolicy(TensorDictModuleBase):
         tensordict.update(out.select(*self.out_keys, strict=False))
         if self.then is not None:
             tensordict = self.then(tensordict)
+        return tensordict
+
+
+class SeedLoopPolicy(TensorDictModuleBase):
+    """A seed group's policy called once per seed block, for a policy ``torch.vmap`` cannot batch
+    (soft option-critic's option choice branches on the data): ``make_policy(loss)`` is built on the
+    group's loss, and block k runs with seed k's parameters swapped into it."""
+
+    def __init__(self, group: SeedGroup, make_policy):
+        super().__init__()
+        self.__dict__["group"] = group  # not a submodule: the group owns the parameters
+        self.policy = make_policy(group.loss)
+        self.in_keys, self.out_keys = list(self.policy.in_keys), list(self.policy.out_keys)
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        group, loss = self.group, self.group.loss
+        blocks = tensordict.reshape(group.seeds, -1)
+        outs = []
+        for k in range(group.seeds):
+            params = group.params[k].copy().unlock_()
+            with params.to_module(loss), params["actor_network_params"].to_module(loss.actor_network):
+                outs.append(self.policy(blocks[k].copy()))
+        out = torch.stack(outs).reshape(tensordict.batch_size)
+        tensordict.update(out.select(*self.out_keys, strict=False))
         return tensordict

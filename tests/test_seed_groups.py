@@ -177,12 +177,13 @@ def test_a_group_resumes_from_its_seeds_checkpoints(group_run, tmp_path, monkeyp
         assert (tmp_path / f"seed-{seed}" / "summary.json").is_file()
 
 
-def test_a_learner_without_a_grouped_form_trains_its_seeds_one_after_another(tmp_path, capsys):
+def test_a_method_without_a_grouped_form_trains_its_seeds_one_after_another(tmp_path, capsys):
     from drltg.training.seeds import train_seeds
 
-    cfg = tiny_cfg(frames=64, algo="soc", **{"soc.num_options": 2})
+    cfg = tiny_cfg(frames=64, **{"transfer.method": "reward-shaping"})
     dirs = train_seeds({**cfg, "eval": {**cfg["eval"], "every": 64}}, tmp_path, 2, progress=False)
-    assert "--algo soc has no grouped update; training the 2 seeds one after another" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "transfer method reward-shaping has no grouped form; training the 2 seeds one after another" in err
     assert [d.name for d in dirs] == ["seed-3", "seed-4"] and all((d / "summary.json").is_file() for d in dirs)
 
 
@@ -232,10 +233,13 @@ def test_runs_that_differ_only_in_their_seed_form_one_unit(tmp_path):
     baseline = [run("b0", seed=0), run("b100", seed=100)]
     source = [run("s50", seed=50, task="fourrooms/southwest"), run("s150", seed=150, task="fourrooms/southwest")]
     transfer = [run("t0", needs=tmp_path / "s50", seed=0), run("t100", needs=tmp_path / "s150", seed=100)]
-    soc = [run("o0", seed=0, algo="soc"), run("o100", seed=100, algo="soc")]
-    units = seed_groups([baseline[0], source[0], transfer[0], soc[0], baseline[1], source[1], transfer[1], soc[1]])
+    soc = [run("o0", seed=0, algo="soc"), run("o100", seed=100, algo="soc")]  # grouped too
+    shaped = [run("r0", seed=0, **{"transfer.method": "reward-shaping"}),
+              run("r100", seed=100, **{"transfer.method": "reward-shaping"})]
+    units = seed_groups([baseline[0], source[0], transfer[0], soc[0], shaped[0], baseline[1], source[1], transfer[1],
+                         soc[1], shaped[1]])
     assert [[r.path.name for r in unit] for unit in units] == [
-        ["b0", "b100"], ["s50", "s150"], ["t0"], ["o0"], ["t100"], ["o100"]]
+        ["b0", "b100"], ["s50", "s150"], ["t0"], ["o0", "o100"], ["r0"], ["t100"], ["r100"]]
 
 
 def test_run_group_trains_an_experiments_seeds_together(tmp_path):
@@ -252,13 +256,14 @@ def test_run_group_trains_an_experiments_seeds_together(tmp_path):
     assert "output in" in logs[1].read_text()
 
 
-@pytest.mark.parametrize("task, algo", [("gridrooms/northeast", "sac"), ("fourrooms/northeast", "td3")])
+@pytest.mark.parametrize("task, algo", [("gridrooms/northeast", "sac"), ("fourrooms/northeast", "td3"),
+                                       ("fourrooms/northeast", "soc")])
 def test_every_grouped_learner_trains_its_seeds_from_their_runs_alone(task, algo, tmp_path, capsys):
     from drltg.training.loop import evaluate, make_envs
     from drltg.training.rundir import read_eval_csv
     from drltg.training.seeds import train_seeds
 
-    cfg = tiny_cfg(task=task, algo=algo, frames=192)
+    cfg = tiny_cfg(task=task, algo=algo, frames=192, **({"soc.num_options": 2} if algo == "soc" else {}))
     train_seeds(cfg, tmp_path, 2, progress=False)
     assert "note:" not in capsys.readouterr().err  # grouped, not one after another
     for seed in (3, 4):
@@ -267,4 +272,4 @@ def test_every_grouped_learner_trains_its_seeds_from_their_runs_alone(task, algo
         alone_cfg = {**cfg, "seed": seed}
         torch.manual_seed(seed)
         agent = make_agent(build_env(alone_cfg, seed=seed), alone_cfg)
-        assert rows[0] == {"frames": 0, **evaluate(make_envs(alone_cfg)[1], agent.actor)}
+        assert rows[0] == {"frames": 0, **evaluate(make_envs(alone_cfg, agent.env_transforms)[1], agent.actor)}

@@ -3,15 +3,17 @@
 Seeds S … S+N−1 are written to ``DIR/seed-<S+k>/``, each an ordinary run directory (``report`` reads it
 alone, ``--resume`` continues it, alone or with its group). Where the learner supports it
 (:func:`group_support`) the seeds train as one :class:`~drltg.seed_group.SeedGroup`: one batched env of
-N × ``collector.num_envs`` envs, one vmapped policy call and one vmapped update per step, a replay
-buffer per seed. Otherwise they train one after another with :func:`~drltg.training.loop.train`.
+N × ``collector.num_envs`` envs, one vmapped policy call (one call per seed for soft option-critic,
+whose option choice branches on the data) and one vmapped update per step, a replay buffer per seed.
+Otherwise they train one after another with :func:`~drltg.training.loop.train`.
 
 What a seed shares with its run alone: its initial networks (built under ``torch.manual_seed(seed)``
 as a run alone builds them), its env's starts and noise, training and evaluation (a random stream per
 seed, :mod:`drltg.envs.seeding`), its replay buffer, and its updates given a batch and random draws
-(``tests/test_seed_groups.py``). What differs: the policy's exploration draws, the replay buffer's
-sampling and the losses' random draws come from the process's one generator, seeded with the group's
-first seed, so a seed's curve in a group is not its curve alone. A group is reproduced exactly by the
+(``tests/test_seed_groups.py``). What differs: the warm-up's random actions, the policy's exploration
+draws, the replay buffer's sampling and the losses' random draws come from the process's one
+generator, seeded with the group's first seed, so past frame 0 a seed's curve in a group is not its
+curve alone. A group is reproduced exactly by the
 same group (same ``--seeds`` and ``--seed``); each seed's summary.json records its group
 (``seed_group.seeds``, the group's seeds in order).
 """
@@ -29,7 +31,9 @@ from torchrl.envs import RewardSum, TransformedEnv
 from drltg.envs.seeding import set_block_seeds
 from drltg.errors import UsageError
 from drltg.learners import sample_batches
-from drltg.seed_group import GroupPolicy, SeedGroup
+from drltg.losses import SoftOptionCriticLoss
+from drltg.modules import make_option_policy
+from drltg.seed_group import GroupPolicy, SeedGroup, SeedLoopPolicy
 from drltg.training import rundir
 from drltg.training.loop import (
     _check_saved_config,
@@ -48,7 +52,7 @@ from drltg.training.rundir import CHECKPOINT, CONFIG, RunWriter, is_complete
 
 __all__ = ["train_seeds", "train_group", "group_support", "seed_dirs", "same_but_seed"]
 
-GROUPED_ALGOS = ("sac", "td3")
+GROUPED_ALGOS = ("sac", "td3", "soc")
 """Learners whose seeds train as one group (SAC covers discrete SAC on discrete tasks)."""
 
 
@@ -101,10 +105,13 @@ class GroupLearner:
         self.group, self.buffers, self.eval_env = group, buffers, eval_env
         self.seeds, self.actor_delay = group.seeds, group.actor_delay
         first = group.agents[0]
-        actor_params = group.params["actor_network_params"]
-        noise = None if first.policy is first.actor else first.policy[-1]
-        self.policy = GroupPolicy(first.actor, actor_params, then=noise)
-        self.actor = GroupPolicy(first.actor, actor_params)
+        if isinstance(first.loss, SoftOptionCriticLoss):  # the option choice branches on the data: no vmap
+            self.policy = self.actor = SeedLoopPolicy(group, make_option_policy)
+        else:
+            actor_params = group.params["actor_network_params"]
+            noise = None if first.policy is first.actor else first.policy[-1]
+            self.policy = GroupPolicy(first.actor, actor_params, then=noise)
+            self.actor = GroupPolicy(first.actor, actor_params)
         self.in_keys = list(group.loss.in_keys)
 
     def split(self, data: TensorDictBase) -> list[TensorDictBase]:
@@ -134,9 +141,11 @@ class GroupLearner:
         ]
 
 
-def _group_env(cfg: dict, seeds: list[int], per_seed: int, seed_offset: int):
+def _group_env(cfg: dict, seeds: list[int], per_seed: int, seed_offset: int, transforms=()):
     env = TransformedEnv(build_env(cfg, batch_size=(len(seeds) * per_seed,), seed=seeds[0] + seed_offset))
     set_block_seeds(env, [s + seed_offset for s in seeds])
+    for t in transforms:
+        env.append_transform(t.clone())
     return env
 
 
@@ -187,9 +196,10 @@ def train_group(cfgs: list[dict], dirs: list[Path], *, resume: bool = False, pro
                     ) from None
         group = SeedGroup(agents)
         seeds = [c["seed"] for c in cfgs]
-        train_env = _group_env(cfg, seeds, cfg["collector"]["num_envs"], 0)
+        transforms = agents[0].env_transforms  # what the policy needs the env to carry (SOC's option)
+        train_env = _group_env(cfg, seeds, cfg["collector"]["num_envs"], 0, transforms)
         train_env.append_transform(RewardSum())
-        eval_env = _group_env(cfg, seeds, cfg["eval"]["episodes"], 10_000)
+        eval_env = _group_env(cfg, seeds, cfg["eval"]["episodes"], 10_000, transforms)
         learner = GroupLearner(group, buffers, eval_env)
 
         created = [not d.exists() for d in dirs]
