@@ -170,6 +170,7 @@ def _check_settings(path: Path, settings: dict) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from drltg.analysis.claims import headline
     from drltg.analysis.report import format_table, parse_threshold, transfer_report
     from drltg.experiments.executor import LocalBackend, execute
 
@@ -206,5 +207,6 @@ def run(args: argparse.Namespace) -> int:
             transfer_label=args.method,
         )
     print(format_table(result))
+    print("\n" + headline(result))
     print(f"\nreport: {out / 'report'}")
     return 0
