@@ -273,3 +273,12 @@ def test_every_grouped_learner_trains_its_seeds_from_their_runs_alone(task, algo
         torch.manual_seed(seed)
         agent = make_agent(build_env(alone_cfg, seed=seed), alone_cfg)
         assert rows[0] == {"frames": 0, **evaluate(make_envs(alone_cfg, agent.env_transforms)[1], agent.actor)}
+
+
+def test_cli_resumes_a_finished_group_from_its_folder_alone(group_run, capsys):
+    from drltg.cli import main
+
+    stamps = {p: p.stat().st_mtime_ns for p in group_run.glob("seed-*/summary.json")}
+    assert main(["train", "--seeds", "2", "--seed", "3", "--resume", "--run-dir", str(group_run), "--no-progress"]) == 0
+    assert f"{group_run}/seed-3, {group_run}/seed-4" in capsys.readouterr().out
+    assert stamps == {p: p.stat().st_mtime_ns for p in stamps}  # complete: nothing trained or written again

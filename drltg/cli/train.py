@@ -40,6 +40,9 @@ def run(args: argparse.Namespace) -> int:
         base = absolute_source(config_lib.load_yaml(args.config), Path(args.config).parent)
     elif args.resume and (args.run_dir / CONFIG).is_file():
         base = absolute_source(config_lib.load_yaml(args.run_dir / CONFIG), args.run_dir)
+    elif args.resume and args.seeds is not None and _first_seed(args.run_dir) is not None:
+        first = _first_seed(args.run_dir)  # a seed group: its first seed's config
+        base = absolute_source(config_lib.load_yaml(first / CONFIG), first)
     else:
         base = {}
     if args.task is None and "task" not in base:
@@ -67,3 +70,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"  eval curve:  {run_dir / 'eval.csv'}")
     print(f"  tensorboard: tensorboard --logdir {run_dir / 'logs' / 'tensorboard'}")
     return 0
+
+
+def _first_seed(run_dir: Path) -> Path | None:
+    """The ``seed-<k>`` run directory with the lowest k under ``run_dir`` that holds a config."""
+    seeds = [p.parent for p in run_dir.glob("seed-*/" + CONFIG) if p.parent.name[5:].lstrip("-").isdigit()]
+    return min(seeds, key=lambda p: int(p.name[5:]), default=None)
