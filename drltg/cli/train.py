@@ -34,6 +34,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.resume and args.run_dir is None:
         raise UsageError("--resume needs --run-dir, the run directory to continue.")
+    if args.seeds is not None and args.seeds < 1:
+        raise UsageError(f"--seeds must be at least 1, got {args.seeds}.")
+    if args.no_group and args.seeds is None:
+        raise UsageError("--no-group applies to --seeds N; add --seeds.")
     if args.run_dir is not None:
         args.run_dir = check_directory(args.run_dir, "--run-dir")
     if args.config is not None:  # a relative transfer.source is relative to the file's folder
@@ -62,8 +66,6 @@ def run(args: argparse.Namespace) -> int:
         print(f"run directories: {', '.join(str(d) for d in dirs)}")
         print(f"  curves:  drltg report --baseline {run_dir} --transfer OTHER_RUNS (a folder of seed runs)")
         return 0
-    if args.no_group:
-        raise UsageError("--no-group applies to --seeds N; add --seeds.")
     run_dir = args.run_dir or Path("runs") / cfg["task"].replace("/", "-") / f"{cfg['algo']}-seed{cfg['seed']}"
     from drltg.transfer.source import check as check_source
 
