@@ -302,7 +302,7 @@ def _rounded(value):
     return value
 
 
-def test_the_pendulum_study_is_reproduced_from_its_curves_and_its_readme_block_from_its_report(tmp_path):
+def test_the_pendulum_study_is_reproduced_from_its_committed_curves(tmp_path):
     import json
 
     from drltg.analysis.report import transfer_report
@@ -313,10 +313,4 @@ def test_the_pendulum_study_is_reproduced_from_its_curves_and_its_readme_block_f
     assert settings["paired"] is True and committed["metrics"]["n_seeds_transfer"] == 5
     result = transfer_report(STUDY / "baseline", STUDY / "transfer", tmp_path, threshold=settings["threshold"],
                              baseline_label=settings["baseline_label"], transfer_label=settings["transfer_label"])
-    assert _rounded(result["metrics"]) == _rounded(committed["metrics"])
-    sys.path.insert(0, str(ROOT / "results"))
-    try:
-        import pendulum_summary
-    finally:
-        sys.path.remove(str(ROOT / "results"))
-    assert pendulum_summary.main(["--check"]) == 0, "results/README.md's block is not what the report gives"
+    assert _rounded(result["metrics"]) == _rounded(committed["metrics"])  # its sentences: tests/test_claims.py

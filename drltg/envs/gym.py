@@ -17,8 +17,6 @@ from __future__ import annotations
 import functools
 from typing import Any, Sequence
 
-import numpy as np
-
 from drltg.errors import UsageError
 
 PREFIX = "gym/"
@@ -84,6 +82,8 @@ def _flag_reader(base):
         bools, or numbers); a flag missing from an ``info`` is false."""
 
         def __call__(self, info_dict, tensordict):
+            import numpy as np
+
             flags = {k: np.asarray(info_dict[k]).astype(bool).reshape(1) for k in self.keys if k in info_dict}
             return super().__call__(flags, tensordict)
 

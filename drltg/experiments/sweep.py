@@ -114,7 +114,7 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
     from drltg.analysis.report import check_metric, parse_threshold
     from drltg.envs import TASKS, get_pair
     from drltg.learners import ALGOS
-    from drltg.transfer import METHODS
+    from drltg.transfer import METHODS, get_method
 
     if not isinstance(data, dict):
         raise UsageError(f"{where} must be a YAML mapping with keys like pairs, methods, seeds, frames.")
@@ -133,8 +133,13 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
         except UsageError as err:
             raise UsageError(f"{where}: {err}") from None
     for method in spec.methods:
-        if method not in METHODS or method == "none":
-            raise UsageError(f"{where}: unknown method '{method}'{_hint(method, [m for m in METHODS if m != 'none'])}")
+        for part in method.split("+"):
+            if part not in METHODS or part == "none":
+                raise UsageError(f"{where}: unknown method '{part}'{_hint(part, [m for m in METHODS if m != 'none'])}")
+        try:
+            get_method(method)
+        except UsageError as err:
+            raise UsageError(f"{where}: {err}") from None
     if "algos" in data:
         spec.algos = _axis(data, "algos", str, where)
     for algo in spec.algos:
@@ -407,6 +412,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, required=True, help="sweep directory (re-run to resume)")
     p.add_argument("--backend", choices=("local", "ray"), default="local",
                    help="local: a process pool on this machine (default); ray: Ray tasks")
+    p.add_argument("--no-seed-groups", action="store_true",
+                   help="train every run in its own task (default: runs that differ only in their seed train as one "
+                        "seed group where the learner supports it)")
     p.add_argument("--workers", type=int, default=os.cpu_count(),
                    help="local: runs in parallel (default: the CPU count); ray without --address: "
                         "CPUs of the local Ray instance")
@@ -455,7 +463,7 @@ def _execute_and_report(args, spec: Spec, out: Path, runs: list[Run], cells: lis
         backend = LocalBackend(args.workers)
     try:
         rundir.write_files(out, {"sweep.yaml": Path(args.spec).read_bytes()})
-        status = execute(runs, backend, desc="sweep")
+        status = execute(runs, backend, desc="sweep", group_seeds=not args.no_seed_groups)
     finally:
         backend.close()
 

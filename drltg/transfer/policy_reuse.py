@@ -1,23 +1,31 @@
 """The policy-reuse and jumpstart methods: the learner's policy followed by ``PolicyReuse`` over the source."""
 from __future__ import annotations
 
-from tensordict.nn import TensorDictSequential
+from typing import TYPE_CHECKING
 
-from drltg.collectors import JumpStart, PiReuse, PolicyReuse, ReuseSchedule
 from drltg.config import Field, builtin_options
 from drltg.errors import UsageError
 from drltg.transfer.registry import Transfer, TransferMethod, register_method
 
+if TYPE_CHECKING:
+    from drltg.collectors import ReuseSchedule
+
 
 def _mixed(cfg: dict, agent, env, schedule: ReuseSchedule) -> Transfer:
     """The learner's exploration policy followed by the mixer over the source's past policy."""
+    from tensordict.nn import TensorDictSequential
+
+    from drltg.collectors import PolicyReuse
     from drltg.transfer.source import source_actor
 
     mixer = PolicyReuse(source_actor(cfg, env), schedule=schedule)
-    return Transfer(policy=TensorDictSequential(agent.policy, mixer), on_frames=mixer.set_progress)
+    return Transfer(train_transforms=[mixer.primer()], policy=TensorDictSequential(agent.policy, mixer),
+                    on_frames=mixer.set_progress)
 
 
 def _pi_reuse(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
+    from drltg.collectors import PiReuse
+
     t = cfg["transfer"]
     return _mixed(cfg, agent, env, PiReuse(t["psi"], t["upsilon"], psi_end=t["psi_end"],
                                            annealing_frames=t["annealing_frames"]))
@@ -37,6 +45,7 @@ POLICY_REUSE = register_method(TransferMethod(
     "pi-reuse: the source policy acts with probability psi * upsilon^h at step h of every episode",
     _pi_reuse,
     source="policy",
+    takes=("policy",),
     check=_check_pi_reuse,
     options=builtin_options("policy-reuse", {
         "psi": Field(float, "pi-reuse: probability of reusing at an episode's first step", **_PROB),
@@ -49,6 +58,8 @@ POLICY_REUSE = register_method(TransferMethod(
 
 
 def _jumpstart(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
+    from drltg.collectors import JumpStart
+
     t = cfg["transfer"]
     stage = max(t["guide_frames"] // t["guide_stages"], 1)
     return _mixed(cfg, agent, env, JumpStart(t["guide_steps"], stages=t["guide_stages"], frames_per_stage=stage))
@@ -59,6 +70,7 @@ JUMPSTART = register_method(TransferMethod(
     "JSRL: the source policy acts for the first H steps of every episode, H shrinking to 0 in stages",
     _jumpstart,
     source="policy",
+    takes=("policy",),
     options=builtin_options("jumpstart", {
         "guide_steps": Field(int, "jumpstart: steps the source policy acts at the start (H at first)",
                                    low=0),
