@@ -44,13 +44,16 @@ def pair_ids(pair: str) -> tuple[str, str]:
 
 
 def register_ids(tasks: Iterable[str] | None = None) -> list[str]:
-    """Registers the Gymnasium id of each task (default: every registered task) that has none yet;
-    returns the ids registered. A task whose name cannot be an id is left out."""
+    """Registers the Gymnasium id of each task (default: every registered task, and from then on every
+    task registered) that has none yet; returns the ids registered. A task whose name cannot be an id is
+    left out."""
     import gymnasium
 
     if tasks is None:
-        from drltg.envs.registry import TASKS
+        from drltg.envs.registry import ON_REGISTER, TASKS
 
+        if _on_register not in ON_REGISTER:
+            ON_REGISTER.append(_on_register)
         tasks = list(TASKS)
     added = []
     for task in tasks:
@@ -64,6 +67,10 @@ def register_ids(tasks: Iterable[str] | None = None) -> list[str]:
                            kwargs={"task": task}, disable_env_checker=False)
         added.append(env_id)
     return added
+
+
+def _on_register(spec) -> None:
+    register_ids([spec.name])
 
 
 class _AfterGymnasiumImport(importlib.abc.MetaPathFinder):

@@ -19,7 +19,7 @@ from torchrl.envs import GymWrapper, SerialEnv
 
 import drltg
 from drltg import config as config_lib
-from drltg.envs import TASKS, FourRoomsEnv, get_task, make_env, register_pair, register_task
+from drltg.envs import PAIRS, TASKS, FourRoomsEnv, get_task, make_env, register_pair, register_task
 from drltg.envs.gym import make_gym_env, register_gym_task
 from drltg.envs.gymnasium_env import DrltgEnv, DrltgVectorEnv
 from drltg.errors import UsageError
@@ -31,6 +31,17 @@ OWN_TASKS = [name for name, spec in TASKS.items() if spec.factory is not make_gy
 
 
 # ----------------------------------------------------------------------------- Gymnasium in
+@pytest.fixture(autouse=True)
+def _registry_as_it_was():
+    """Tasks and pairs a test registers (``gym/...`` ones made on use included) are gone after it."""
+    tasks, pairs = set(TASKS), set(PAIRS)
+    yield
+    for name in set(TASKS) - tasks:
+        dict.pop(TASKS, name)
+    for name in set(PAIRS) - pairs:
+        PAIRS.pop(name)
+
+
 def test_gym_prefix_names_every_gymnasium_id_with_a_batch_of_gym_envs():
     env = make_env("gym/Pendulum-v1", batch_size=(3,), seed=0)
     assert isinstance(env, SerialEnv) and env.batch_size == (3,)

@@ -5,9 +5,10 @@ The registry imports no torch: the environment classes are imported when first u
 """
 import importlib
 
-from drltg.envs.gym import register_gym_task
+from drltg.envs.gym import register_gym_task, resolve
 from drltg.envs.registry import (
     PAIRS,
+    RESOLVERS,
     TASKS,
     PairSpec,
     TaskSpec,
@@ -17,6 +18,8 @@ from drltg.envs.registry import (
     register_pair,
     register_task,
 )
+
+RESOLVERS.append(resolve)  # gym/<ID> names every installed Gymnasium id
 
 _LAZY = {
     "FourRoomsEnv": "drltg.envs.fourrooms",

@@ -17,7 +17,6 @@ from __future__ import annotations
 import difflib
 import importlib
 import inspect
-import sys
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Callable, Sequence
 
@@ -62,14 +61,18 @@ class PairSpec:
     description: str
 
 
+RESOLVERS: list[Callable[[str], bool]] = []
+"""``resolve(name)`` registers the task ``name`` if it can make it on first use (``gym/<ID>``: drltg.envs.gym)."""
+ON_REGISTER: list[Callable[[TaskSpec], None]] = []
+"""Called with every task registered from then on (drltg.gymnasium_ids gives it a Gymnasium id)."""
+
+
 class _TaskTable(dict):
     """Tasks by name; a name nobody registered may still be made on first use by a resolver
     (``gym/<ID>``, :func:`drltg.envs.gym.resolve`), so every lookup (``in``, ``[]``) sees it."""
 
     def _resolve(self, name) -> bool:
-        from drltg.envs.gym import resolve
-
-        return isinstance(name, str) and resolve(name)
+        return isinstance(name, str) and any(resolve(name) for resolve in RESOLVERS)
 
     def __contains__(self, name) -> bool:
         return dict.__contains__(self, name) or self._resolve(name)
@@ -122,10 +125,8 @@ def register_task(
         raise UsageError(f"task {name!r}: a factory named by a string is 'module:attr', got {factory!r}.")
     spec = TaskSpec(name, factory, description, dict(defaults), dict(train or {}), potential)
     TASKS[name] = spec
-    if "gymnasium" in sys.modules:  # already registered ids: this task gets one too
-        from drltg.gymnasium_ids import register_ids
-
-        register_ids([name])
+    for hook in ON_REGISTER:
+        hook(spec)
     return spec
 
 
@@ -379,7 +380,7 @@ register_pair(
 )
 
 
-# Gymnasium's Pendulum with two gravities (drltg.envs.gym; Gymnasium is imported when one is built).
+# Gymnasium's Pendulum with two gravities (drltg.envs.gym.make_gym_env; Gymnasium is imported when one is built).
 # SAC as RL Zoo tunes it for Pendulum (lr 1e-3, one update per frame) with 2x64 nets: single-threaded,
 # small nets are several times faster and Pendulum needs no more.
 PENDULUM_TRAIN = {
@@ -390,10 +391,9 @@ PENDULUM_TRAIN = {
     "checkpoint": {"every": 5000},
 }
 
-from drltg.envs.gym import register_gym_task  # noqa: E402
-
-register_gym_task("pendulum/g10", "Pendulum-v1", "Gymnasium Pendulum-v1, gravity g = 10 (its default)",
-                  g=10.0, train=PENDULUM_TRAIN)
-register_gym_task("pendulum/g15", "Pendulum-v1", "Gymnasium Pendulum-v1, gravity g = 15: a heavier swing-up",
-                  g=15.0, train=PENDULUM_TRAIN)
+_GYM = "drltg.envs.gym:make_gym_env"  # drltg.envs.gym.register_gym_task's factory
+register_task("pendulum/g10", _GYM, "Gymnasium Pendulum-v1, gravity g = 10 (its default)",
+              gym_id="Pendulum-v1", g=10.0, train=PENDULUM_TRAIN)
+register_task("pendulum/g15", _GYM, "Gymnasium Pendulum-v1, gravity g = 15: a heavier swing-up",
+              gym_id="Pendulum-v1", g=15.0, train=PENDULUM_TRAIN)
 register_pair("pendulum-heavier", "pendulum/g10", "pendulum/g15", "Pendulum's gravity rises from 10 to 15")
