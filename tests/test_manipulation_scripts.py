@@ -1,0 +1,82 @@
+"""The manipulation study's scripts plan what they say, without training: one sweep spec per row, each
+transfer run reusing the kept source run of its own seed, >= 3 paired seeds, <= 300k frames, one
+baseline per target shared by every row on it, and a queue that trains the sources it names first."""
+from __future__ import annotations
+
+import re
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from drltg.config import config_changes
+from drltg.experiments.experiment import plan_runs
+from drltg.experiments.sweep import load_spec, plan
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPTS = ROOT / "results" / "manipulation"
+SPECS = ROOT / "examples" / "sweeps" / "manipulation-rows"
+ROWS = sorted(p.stem for p in SCRIPTS.glob("*.sh") if p.stem not in ("row", "queue"))
+SOURCED = re.compile(r"runs/manipulation/sources/([\w-]+)/seed-\{seed\}")
+
+
+def queue_sources() -> set[str]:
+    return set(re.findall(r"^\s+\[([\w-]+)\]=", (SCRIPTS / "queue.sh").read_text(), re.M))
+
+
+def test_every_script_parses_and_every_row_has_its_spec_and_a_place_in_the_queue():
+    for script in SCRIPTS.glob("*.sh"):
+        subprocess.run(["bash", "-n", str(script)], check=True)
+    assert ROWS == sorted(p.stem for p in SPECS.glob("*.yaml"))
+    for row in ROWS:
+        assert (SCRIPTS / f"{row}.sh").read_text().rstrip().endswith(f'row.sh" {row}')
+    queued = re.search(r'ROWS=\$\{ROWS:-"([^"]*)"\}', (SCRIPTS / "queue.sh").read_text()).group(1).split()
+    assert sorted(queued) == ROWS
+    assert queue_sources() == {"lift-sac", "lift-soc4"}
+
+
+@pytest.mark.parametrize("row", ROWS)
+def test_each_row_reuses_the_kept_source_of_its_own_seed(row, monkeypatch):
+    monkeypatch.chdir(ROOT)  # the scripts run from the repository root
+    spec = load_spec(SPECS / f"{row}.yaml")
+    assert spec.seeds >= 3 and max(spec.frames) <= 300_000 and len(spec.pairs) == len(spec.methods) == 1
+    source = spec.overrides.get("transfer.source")
+    runs, cells = plan(spec, ROOT / "runs" / "manipulation")
+    assert len(cells) == 1 and len(runs) == 2 * spec.seeds  # baselines and transfers, no source trained here
+    transfers = [r for r in runs if r.role == "transfer"]
+    for run in transfers:
+        if source is None:  # reward shaping: no source
+            assert run.cfg["transfer"]["source"] is None
+            continue
+        name = SOURCED.fullmatch(source).group(1)
+        assert name in queue_sources()
+        kept = ROOT / "runs" / "manipulation" / "sources" / name / f"seed-{run.cfg['seed']}"
+        assert run.cfg["transfer"]["source"] == str(kept)
+    assert [r.cfg["seed"] for r in transfers] == [100 * i for i in range(spec.seeds)]
+    assert all(r.cfg["transfer"]["source"] is None for r in runs if r.role == "baseline")
+
+
+def test_rows_on_one_target_share_its_baselines():
+    seen: dict[Path, dict] = {}
+    for row in ROWS:
+        runs, _ = plan(load_spec(SPECS / f"{row}.yaml"), ROOT / "runs" / "manipulation")
+        for r in runs:
+            if r.role == "baseline":
+                assert config_changes(seen.setdefault(r.path, r.cfg), r.cfg) == [], r.path
+    groups = {p.parent.relative_to(ROOT / "runs" / "manipulation").as_posix() for p in seen}
+    assert groups == {"lift/sac/baseline", "lift-to-place/sac/baseline", "lift-to-place/soc/baseline",
+                      "lift-to-place-barrier/sac/baseline"}
+
+
+def test_a_source_written_with_seed_serves_each_transfer_run_from_its_own_seed(tmp_path):
+    runs = plan_runs("fourrooms/northeast-shifted", "model-reuse", frames=100, out=tmp_path, seeds=3, seed=7,
+                     overrides=["transfer.source=kept/seed-{seed}"])
+    got = [(role, cfg["seed"], cfg["transfer"]["source"]) for role, cfg, _ in runs]
+    kept = Path.cwd() / "kept"
+    assert got == [("baseline", 7, None), ("transfer", 7, str(kept / "seed-7")),
+                   ("baseline", 107, None), ("transfer", 107, str(kept / "seed-107")),
+                   ("baseline", 207, None), ("transfer", 207, str(kept / "seed-207"))]
+    # a source without {seed} still serves every transfer run, and the baselines keep it as before
+    runs = plan_runs("fourrooms/northeast-shifted", "model-reuse", frames=100, out=tmp_path, seeds=2,
+                     overrides=["transfer.source=kept/one"])
+    assert {cfg["transfer"]["source"] for _, cfg, _ in runs} == {"kept/one"}
