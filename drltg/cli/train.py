@@ -24,7 +24,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drltg.training.loop import train
+    import drltg.transfer  # noqa: F401  (the methods' transfer.* keys, before the config is read)
 
     if args.resume and args.run_dir is None:
         raise UsageError("--resume needs --run-dir, the run directory to continue.")
@@ -45,6 +45,11 @@ def run(args: argparse.Namespace) -> int:
         base, args.overrides, task=args.task, algo=args.algo, frames=args.frames, seed=args.seed, **explicit
     )
     run_dir = args.run_dir or Path("runs") / cfg["task"].replace("/", "-") / f"{cfg['algo']}-seed{cfg['seed']}"
+    from drltg.transfer.source import check as check_source
+
+    check_source(cfg)
+    from drltg.training.loop import train  # torch: only once the command line is known to be right
+
     run_dir = train(cfg, run_dir, resume=args.resume, progress=not args.no_progress)
     print(f"run directory: {run_dir}")
     print(f"  eval curve:  {run_dir / 'eval.csv'}")

@@ -144,6 +144,8 @@ def move(pos: torch.Tensor, displacement: torch.Tensor, walls: torch.Tensor | No
 class FourRoomsEnv(EnvBase):
     """Continuous FourRooms (see the module docstring for geometry, dynamics and rewards).
 
+    With no arguments it is the registered task ``fourrooms/northeast`` (``make_env("fourrooms/northeast")``).
+
     Args:
         goal: the goal centre ``(x, y)`` in arena units; must lie in free space.
         goal_radius: radius of the goal disc.
@@ -171,7 +173,7 @@ class FourRoomsEnv(EnvBase):
         *,
         goal_radius: float = 0.5,
         max_step: float = 0.5,
-        step_cost: float = 0.0,
+        step_cost: float = 0.01,
         horizon: int = 100,
         start_room: str | None = None,
         observe_goal: bool = False,

@@ -111,6 +111,8 @@ def transition_matrix(slip: float = 0.0) -> torch.Tensor:
 class GridFourRoomsEnv(EnvBase):
     """The classic grid FourRooms (see the module docstring for layout, dynamics and rewards).
 
+    With no arguments it is the registered task ``gridrooms/northeast`` (``make_env("gridrooms/northeast")``).
+
     Args:
         goal: the goal cell ``(row, col)``; must be free.
         slip: probability that the action is replaced by one of the other three.
@@ -131,7 +133,7 @@ class GridFourRoomsEnv(EnvBase):
         goal: Sequence[int] = (3, 9),
         *,
         slip: float = 0.0,
-        step_cost: float = 0.0,
+        step_cost: float = 0.01,
         horizon: int = 100,
         start_room: str | None = None,
         observation: str = "onehot",
