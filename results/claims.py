@@ -613,8 +613,9 @@ def manipulation_cost() -> str:
                     f"{h:.1f} h"))
     return (render(out, "markdown") + f"\nWall time = ⌈runs / {WORKERS}⌉ × frames / rate (sources: all their frames / "
             f"({WORKERS} × rate)), at {fps:.1f} frames/s per run: the median of the {n} runs of "
-            f"`results/{RATE_RUNS.name}/` (Lift+Place, two at a time on this machine's 2 cores, evaluated every 2.5k "
-            "frames on 10 episodes; the rows evaluate every 5k). The soft option-critic's rate on these tasks is "
+            f"`results/{RATE_RUNS.name}/` (Lift+Place, run two at a time on this machine's 2 cores beside other work, "
+            "evaluated every 2.5k frames on 10 episodes; the rows evaluate every 5k). The soft option-critic's rate on "
+            "these tasks is "
             f"not measured at this scale and is taken as the same. All steps in the queue: about {total:.0f} h.\n")
 
 
@@ -634,29 +635,25 @@ def placement_noise() -> str:
 def placement_verdicts() -> str:
     s = load(PLACEMENT / "summary.json")
     p, h, phi = s["place_demonstrator"], s["lift_demonstrator_on_lift_place"], s["phi_states"]
-    noisy = {(r["task"], r["sigma"]): r for r in s["noise"]}
-    lost = min((sig for (task, sig), r in noisy.items() if task == "lift-place" and r["placed"] == 0), default=None)
     lines = [
         f"- The sparse reward pays placing and nothing else: on one noise-free episode (seed 0) the place "
         f"demonstrator grasps at step {p['first_grasped']}, lifts at {p['first_lifted']}, places at "
-        f"{p['first_placed']} and earns {p['return']:.0f} (discounted, γ = {s['gamma']}: {p['discounted_return']:.1f}); "
-        f"the Lift demonstrator on the same task grasps at {h['first_grasped']}, lifts at {h['first_lifted']}, holds "
-        f"the cube up to the end and earns {h['return']:.0f}. Holding does not earn what placing earns, so the "
-        "reward does not make placing unlearnable: a learner that lifts must still find the carry and the release "
-        "by itself, from a source that never showed them.",
+        f"{p['first_placed']} and earns {p['return']:.0f} (discounted, γ = {s['gamma']}: "
+        f"{p['discounted_return']:.1f}); the Lift demonstrator on the same task grasps at {h['first_grasped']}, "
+        f"lifts at {h['first_lifted']}, holds the cube up to the end and earns {h['return']:.0f}. A hold is not paid "
+        "like a placement, so the reward does not hold a learner at lifting; it pays nothing until a carry and a "
+        "release, which the Lift source never shows, have been found.",
         f"- The registered shaping potential does not pay the release: Φ is {phi['held_above_target']:.2f} with the "
         f"cube held 5 cm above the target's centre and {phi['resting_on_target']:.2f} with it released on the "
         f"target; along the episode Φ goes from {p['phi_start']:.2f} to {p['phi_end']:.2f} for the place "
         f"demonstrator and to {h['phi_end']:.2f} for the Lift demonstrator (the cube lifted, away from the target). "
-        "Under `reward-shaping` only the sparse term tells carrying-and-holding from placing.",
+        "Under `reward-shaping` only the sparse term tells a carry-and-hold from a placement.",
     ]
-    if lost is not None:
-        r = noisy[("lift-place", lost)]
-        lines.append(
-            f"- Placing needs an accurate path: with Gaussian action noise σ = {lost:g} the place demonstrator lifts the "
-            f"cube in {r['lifted']} of {r['episodes']} episodes and places it in {r['placed']} (barrier: lifted "
-            f"{noisy[('lift-place-barrier', lost)]['lifted']}, placed {noisy[('lift-place-barrier', lost)]['placed']}), "
-            "so exploration noise of that size around even a perfect policy does not reach the reward.")
+    for task in ("lift-place", "lift-place-barrier"):
+        cells = [r for r in s["noise"] if r["task"] == task]
+        lines.append(f"- {task}, the place demonstrator with action noise: " + "; ".join(
+            f"σ = {r['sigma']:g}: placed in {r['placed']} of {r['episodes']} episodes (lifted in {r['lifted']})"
+            for r in cells) + ".")
     return "\n".join(lines) + "\n"
 
 # --------------------------------------------------------------------------------------- regions

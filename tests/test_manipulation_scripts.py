@@ -80,3 +80,29 @@ def test_a_source_written_with_seed_serves_each_transfer_run_from_its_own_seed(t
     runs = plan_runs("fourrooms/northeast-shifted", "model-reuse", frames=100, out=tmp_path, seeds=2,
                      overrides=["transfer.source=kept/one"])
     assert {cfg["transfer"]["source"] for _, cfg, _ in runs} == {"kept/one"}
+
+
+def test_a_soc_lift_learner_hands_every_weight_to_a_soc_lift_place_learner():
+    """The soft option-critic row: SOC-4's weights on lift fit its learner on lift-place entry for entry
+    (the tasks share one observation layout), so model reuse copies them all."""
+    pytest.importorskip("robosuite")
+    import torch
+
+    from drltg.config import resolve
+    from drltg.envs import make_env
+    from drltg.learners import make_agent
+    from drltg.modules import load_weights
+
+    agents = []
+    for seed, task in enumerate(("lift", "lift-place")):
+        torch.manual_seed(seed)
+        env = make_env(task)
+        agents.append(make_agent(env, resolve(task=task, algo="soc", overrides=["soc.num_options=4"])))
+        env.close()
+    source, target = agents
+    report = load_weights(target.loss, source.loss.state_dict())
+    assert not (report.widened or report.narrowed or report.skipped or report.unused)
+    state = target.loss.state_dict()
+    assert state.keys() == source.loss.state_dict().keys()
+    for name, value in source.loss.state_dict().items():
+        assert torch.equal(state[name], value), name
