@@ -604,7 +604,8 @@ def manipulation_cost() -> str:
     seen = set()
     for row in rows:
         spec = yaml.safe_load((ROW_SPECS / f"{row}.yaml").read_text())
-        group = (spec["pairs"][0], spec["algos"][0])
+        nested = "/reference exec" in (MANIP / f"{row}.sh").read_text()  # runs in RUNS/reference, baselines too
+        group = (nested, spec["pairs"][0], spec["algos"][0])
         k = spec["seeds"] * (1 if group in seen else 2)
         seen.add(group)
         h = math.ceil(k / WORKERS) * spec["frames"] / fps / 3600

@@ -20,6 +20,12 @@ ROWS = sorted(p.stem for p in SCRIPTS.glob("*.sh") if p.stem not in ("row", "que
 SOURCED = re.compile(r"runs/manipulation/sources/([\w-]+)/seed-\{seed\}")
 
 
+def runs_of(row: str) -> Path:
+    """Where a row's runs go: the reference rows, whose method folder another row also uses, in their own."""
+    nested = "/reference exec" in (SCRIPTS / f"{row}.sh").read_text()
+    return ROOT / "runs" / "manipulation" / ("reference" if nested else "")
+
+
 def queue_sources() -> set[str]:
     return set(re.findall(r"^\s+\[([\w-]+)\]=", (SCRIPTS / "queue.sh").read_text(), re.M))
 
@@ -41,31 +47,33 @@ def test_each_row_reuses_the_kept_source_of_its_own_seed(row, monkeypatch):
     spec = load_spec(SPECS / f"{row}.yaml")
     assert spec.seeds >= 3 and max(spec.frames) <= 300_000 and len(spec.pairs) == len(spec.methods) == 1
     source = spec.overrides.get("transfer.source")
-    runs, cells = plan(spec, ROOT / "runs" / "manipulation")
+    runs, cells = plan(spec, runs_of(row))
     assert len(cells) == 1 and len(runs) == 2 * spec.seeds  # baselines and transfers, no source trained here
     transfers = [r for r in runs if r.role == "transfer"]
     for run in transfers:
-        if source is None:  # reward shaping: no source
-            assert run.cfg["transfer"]["source"] is None
+        if source is None or source.startswith("demonstrator:"):  # reward shaping; the scripted reference
+            assert run.cfg["transfer"]["source"] == source
             continue
         name = SOURCED.fullmatch(source).group(1)
         assert name in queue_sources()
         kept = ROOT / "runs" / "manipulation" / "sources" / name / f"seed-{run.cfg['seed']}"
         assert run.cfg["transfer"]["source"] == str(kept)
     assert [r.cfg["seed"] for r in transfers] == [100 * i for i in range(spec.seeds)]
-    assert all(r.cfg["transfer"]["source"] is None for r in runs if r.role == "baseline")
+    if source is None or "{seed}" in source:  # the baselines of every row on the target, whatever its source
+        assert all(r.cfg["transfer"]["source"] is None for r in runs if r.role == "baseline")
 
 
 def test_rows_on_one_target_share_its_baselines():
     seen: dict[Path, dict] = {}
     for row in ROWS:
-        runs, _ = plan(load_spec(SPECS / f"{row}.yaml"), ROOT / "runs" / "manipulation")
+        runs, _ = plan(load_spec(SPECS / f"{row}.yaml"), runs_of(row))
         for r in runs:
             if r.role == "baseline":
                 assert config_changes(seen.setdefault(r.path, r.cfg), r.cfg) == [], r.path
     groups = {p.parent.relative_to(ROOT / "runs" / "manipulation").as_posix() for p in seen}
     assert groups == {"lift/sac/baseline", "lift-to-place/sac/baseline", "lift-to-place/soc/baseline",
-                      "lift-to-place-barrier/sac/baseline"}
+                      "lift-to-place-barrier/sac/baseline", "reference/lift-to-place/sac/baseline",
+                      "reference/lift-to-place-barrier/sac/baseline"}
 
 
 def test_a_source_written_with_seed_serves_each_transfer_run_from_its_own_seed(tmp_path):

@@ -15,7 +15,8 @@ WORKERS=${WORKERS:-2}
 DRLTG=${DRLTG:-drltg}
 SOC_FRAMES=${SOC_FRAMES:-100000}
 ROWS=${ROWS:-"lift-shaping pi-reuse-place pi-reuse-barrier model-reuse-place soc-model-reuse-place
-  demonstrations-place demonstrations-barrier combined-place combined-barrier"}
+  demonstrations-place demonstrations-barrier combined-place combined-barrier demonstrations-reference-place
+  demonstrations-reference-barrier"}
 SEEDS="0 100 200"
 EVAL="-o eval.every=5000 -o eval.episodes=10 -o checkpoint.every=5000"
 declare -A SOURCE=(

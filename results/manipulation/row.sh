@@ -23,7 +23,7 @@ import yaml
 spec = yaml.safe_load(open(sys.argv[1]))
 source = (spec.get("overrides") or {}).get("transfer.source")
 print(spec["pairs"][0], spec["algos"][0], spec["methods"][0], spec["threshold"],
-      source.split("/")[-2] if source else "-")
+      source.split("/")[-2] if source and "{seed}" in source else "-")
 PY
 )
 GROUP=$PAIR/$ALGO
