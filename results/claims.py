@@ -636,6 +636,8 @@ def placement_noise() -> str:
 def placement_verdicts() -> str:
     s = load(PLACEMENT / "summary.json")
     p, h, phi = s["place_demonstrator"], s["lift_demonstrator_on_lift_place"], s["phi_states"]
+    gain = phi["resting_on_target"] - phi["held_above_target"]
+    release = "does not pay the release" if gain <= 0 else f"pays the release {gain:.2f}"
     lines = [
         f"- The sparse reward pays placing and nothing else: on one noise-free episode (seed 0) the place "
         f"demonstrator grasps at step {p['first_grasped']}, lifts at {p['first_lifted']}, places at "
@@ -644,17 +646,23 @@ def placement_verdicts() -> str:
         f"lifts at {h['first_lifted']}, holds the cube up to the end and earns {h['return']:.0f}. A hold is not paid "
         "like a placement, so the reward does not hold a learner at lifting; it pays nothing until a carry and a "
         "release, which the Lift source never shows, have been found.",
-        f"- The registered shaping potential does not pay the release: Φ is {phi['held_above_target']:.2f} with the "
+        f"- The registered shaping potential {release}: Φ is {phi['held_above_target']:.2f} with the "
         f"cube held 5 cm above the target's centre and {phi['resting_on_target']:.2f} with it released on the "
         f"target; along the episode Φ goes from {p['phi_start']:.2f} to {p['phi_end']:.2f} for the place "
         f"demonstrator and to {h['phi_end']:.2f} for the Lift demonstrator (the cube lifted, away from the target). "
         "Under `reward-shaping` only the sparse term tells a carry-and-hold from a placement.",
     ]
+    parts = []
     for task in ("lift-place", "lift-place-barrier"):
         cells = [r for r in s["noise"] if r["task"] == task]
-        lines.append(f"- {task}, the place demonstrator with action noise: " + "; ".join(
-            f"σ = {r['sigma']:g}: placed in {r['placed']} of {r['episodes']} episodes (lifted in {r['lifted']})"
-            for r in cells) + ".")
+        every = [r["sigma"] for r in cells if r["placed"] == r["episodes"]]
+        none = [r["sigma"] for r in cells if r["placed"] == 0]
+        parts.append(f"on {task} it places in every episode up to σ = {max(every):g}" if every else
+                     f"on {task} it never places in every episode")
+        if none:
+            lifted = sum(r["lifted"] for r in cells if r["sigma"] >= min(none))
+            parts[-1] += f" and in none from σ = {min(none):g} (lifting in {lifted} of those episodes)"
+    lines.append("- With Gaussian action noise (the table above), " + "; ".join(parts) + ".")
     return "\n".join(lines) + "\n"
 
 # --------------------------------------------------------------------------------------- regions
@@ -686,7 +694,6 @@ REGIONS = {
         "lift-to-place-verdicts": lift_to_place_verdicts,
         "placement-noise": placement_noise,
         "placement-verdicts": placement_verdicts,
-        "manipulation-cost": manipulation_cost,
     },
     "README.md": {
         "demo": demo_sentence,

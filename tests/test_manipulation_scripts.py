@@ -114,3 +114,31 @@ def test_a_soc_lift_learner_hands_every_weight_to_a_soc_lift_place_learner():
     assert state.keys() == source.loss.state_dict().keys()
     for name, value in source.loss.state_dict().items():
         assert torch.equal(state[name], value), name
+
+
+def test_the_committed_placement_diagnostics_agree_with_their_episode_and_the_potential():
+    """summary.json's account of the place demonstrator is the sum of episode.csv's steps, and the
+    potential's plateau is the stage formula: lifted and centred over the target, Phi = 0.5 + 0.5 * 1."""
+    import csv
+    import importlib.util
+    import json
+
+    from drltg.envs.robosuite import potential_for
+
+    folder = SCRIPTS / "placement-diagnostics"
+    summary = json.loads((folder / "summary.json").read_text())
+    with open(folder / "episode.csv") as f:
+        steps = list(csv.DictReader(f))
+    place = summary["place_demonstrator"]
+    assert place["return"] == sum(float(r["reward"]) for r in steps)
+    assert place["first_placed"] == next(int(r["step"]) for r in steps if r["placed"] == "1")
+    assert place["first_lifted"] == next(int(r["step"]) for r in steps if r["lifted"] == "1")
+    assert all(float(r["reward"]) == float(r["placed"]) for r in steps)  # the reward is the success flag
+    assert summary["lift_demonstrator_on_lift_place"]["return"] == 0.0
+    assert summary["phi_states"] == {"held_above_target": 1.0, "resting_on_target": 1.0}  # 0.5 + 0.5 (1 - tanh 0)
+    spec = importlib.util.spec_from_file_location("diagnose", folder / "diagnose.py")
+    diagnose = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(diagnose)
+    assert diagnose.held_versus_placed(potential_for("lift-place")) == summary["phi_states"]
+    for row in summary["noise"]:
+        assert 0 <= row["placed"] <= row["lifted"] <= row["episodes"] == 10
