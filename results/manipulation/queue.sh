@@ -38,6 +38,8 @@ done | xargs -r -d '\n' -P "$WORKERS" -I{} bash -c '{}'
 
 for name in "${!SOURCE[@]}"; do
   for s in $SEEDS; do
+    final=$(grep -o '"success_rate": [0-9.]*' "$RUNS/sources/$name/seed-$s/summary.json" | tail -1)
+    echo "source $name seed $s: final ${final:-success_rate unknown}"
     mkdir -p "results/manipulation/sources/$name/seed-$s"
     cp "$RUNS/sources/$name/seed-$s/"{config.yaml,eval.csv,summary.json} "results/manipulation/sources/$name/seed-$s/"
   done
