@@ -142,3 +142,30 @@ def test_the_committed_placement_diagnostics_agree_with_their_episode_and_the_po
     assert diagnose.held_versus_placed(potential_for("lift-place")) == summary["phi_states"]
     for row in summary["noise"]:
         assert 0 <= row["placed"] <= row["lifted"] <= row["episodes"] == 10
+
+
+def test_rebuild_keeps_only_the_rows_runs_and_their_relative_source(tmp_path):
+    """row.sh's `rebuild.py --only`: the row's baselines, transfers and source runs are copied in the runs'
+    layout, another row's are not, and a source path relative to the run still names the kept source."""
+    import importlib.util
+
+    import yaml
+
+    spec = importlib.util.spec_from_file_location("rebuild", ROOT / "results" / "rebuild.py")
+    rebuild = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(rebuild)
+    runs, kept = tmp_path / "runs", tmp_path / "kept"
+    relative = "../../../../../sources/lift-sac/seed-0"
+    for folder, source in (("p/sac/baseline/seed-0", None), ("p/sac/m/transfer/seed-0", relative),
+                           ("p/sac/other/transfer/seed-0", relative), ("sources/lift-sac/seed-0", None),
+                           ("sources/lift-soc4/seed-0", None)):
+        (runs / folder).mkdir(parents=True)
+        (runs / folder / "config.yaml").write_text(yaml.safe_dump({"transfer": {"source": source}}))
+        (runs / folder / "eval.csv").write_text("frames,return_mean\n0,0.0\n")
+        (runs / folder / "summary.json").write_text("{}")
+    assert rebuild.keep_curves(runs, kept, ["p/sac/baseline", "p/sac/m", "sources/lift-sac"]) == 3
+    assert sorted(str(p.parent.relative_to(kept)) for p in kept.rglob("summary.json")) == [
+        "p/sac/baseline/seed-0", "p/sac/m/transfer/seed-0", "sources/lift-sac/seed-0"]
+    transfer = kept / "p/sac/m/transfer/seed-0"
+    assert yaml.safe_load((transfer / "config.yaml").read_text())["transfer"]["source"] == relative
+    assert (transfer / relative / "eval.csv").is_file()
