@@ -14,10 +14,12 @@ when first used)::
     drltg.config       resolve: a full, checked run config (task defaults, ``KEY=VALUE`` overrides)
     drltg.learners     make_agent(env, cfg): actor, exploration policy, loss, target updater, optimiser;
                        UpdateStep: one gradient step of any learner; sample_batches(buffer, n)
+    drltg.seed_group   SeedGroup: N seeds' agents stacked, one vmapped update for all of them
     drltg.transfer     load_actor, load_critic, load_agent, load_from_run: a trained run as a source;
                        the named methods of ``drltg train -o transfer.method=...``
     drltg.training     train(cfg, run_dir): the loop that writes a run directory (is_complete(run_dir));
-                       evaluate(env, actor): success rate and return of deterministic episodes
+                       evaluate(env, actor): success rate and return of deterministic episodes;
+                       train_seeds(cfg, run_dir, n): seeds S..S+n-1 in one process, one run directory each
     drltg.experiments  source, baseline and transfer runs over seeds (``drltg experiment``, ``drltg sweep``)
     drltg.analysis     transfer metrics, reports, plots and tables from run directories (no torch)
     drltg.cli          the ``drltg`` command
@@ -38,8 +40,10 @@ _SURFACE = {
     "drltg.modules": ["load_weights", "option_transforms", "make_option_policy"],
     "drltg.config": ["resolve"],
     "drltg.learners": ["make_agent", "UpdateStep", "sample_batches"],
+    "drltg.seed_group": ["SeedGroup"],
     "drltg.transfer": ["load_actor", "load_critic", "load_agent", "load_from_run"],
     "drltg.training.loop": ["train", "evaluate", "is_complete"],
+    "drltg.training.seeds": ["train_seeds"],
 }
 _WHERE = {name: module for module, names in _SURFACE.items() for name in names}
 
