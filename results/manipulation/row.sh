@@ -34,7 +34,7 @@ fi
 
 mkdir -p "$RUNS/specs"
 sed "s#runs/manipulation/sources/#$RUNS/sources/#" "$SPEC" > "$RUNS/specs/$ROW.yaml"
-$DRLTG sweep "$RUNS/specs/$ROW.yaml" --out "$RUNS" --workers "$WORKERS"
+$DRLTG sweep "$RUNS/specs/$ROW.yaml" --out "$RUNS" --workers "$WORKERS" --no-seed-groups  # every run alone, as its pair
 
 only=(--only "$GROUP/baseline" --only "$GROUP/$METHOD")
 [ "$SOURCE" != - ] && only+=(--only "sources/$SOURCE")
