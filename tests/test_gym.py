@@ -158,7 +158,7 @@ def test_a_plugin_registers_gym_variants_that_a_sweep_and_gymnasium_take(tmp_pat
 
     (tmp_path / "drltg_test_gym_plugin.py").write_text(PLUGIN)
     monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.delenv("DRLTG_IMPORT", raising=False)
+    monkeypatch.setenv("DRLTG_IMPORT", "")  # plugins.load exports its modules here: undone after the test
     assert "drltg_test_gym_plugin" in plugins.load(["drltg_test_gym_plugin"])
     spec = parse_spec({"pairs": ["test-plugin-pendulum", "pendulum-heavier"], "methods": ["model-reuse"],
                        "frames": 100})
