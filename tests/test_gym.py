@@ -266,6 +266,7 @@ import sys
 import drltg
 assert "torch" not in sys.modules and "gymnasium" not in sys.modules, "import drltg is not cheap"
 import gymnasium
+assert "drltg/fourrooms-northeast-v0" in gymnasium.registry and "torch" not in sys.modules, "ids not cheap"
 env = gymnasium.make("drltg/fourrooms-northeast-v0")
 print(env.reset(seed=0)[0].shape)
 """
