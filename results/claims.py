@@ -510,12 +510,18 @@ def _builtin(obj) -> bool:
     return getattr(obj, "__module__", "").startswith("drltg.")
 
 
+def _kind(name: str, task) -> str:
+    if name.startswith(("fourrooms", "gridrooms")):
+        return "rooms"
+    return "gym" if "gym_id" in task.defaults else "robosuite"
+
+
 def tasks_table(kind: str) -> str:
-    """drltg's registered tasks and pairs of one kind (``"rooms"``: FourRooms and its grid; ``"robosuite"``)."""
+    """drltg's registered tasks and pairs of one kind (``"rooms"``: FourRooms and its grid; ``"robosuite"``;
+    ``"gym"``: Gymnasium envs)."""
     from drltg.envs import PAIRS, TASKS
 
-    tasks = {name: t for name, t in TASKS.items() if _builtin(t.factory)
-             and name.startswith(("fourrooms", "gridrooms")) == (kind == "rooms")}
+    tasks = {name: t for name, t in TASKS.items() if _builtin(t.factory) and _kind(name, t) == kind}
     rows = [("task", "description")] + [(f"`{name}`", t.description) for name, t in tasks.items()]
     pairs = [("pair", "source → target", "description")] + [
         (f"`{name}`", f"`{p.source}` → `{p.target}`", p.description) for name, p in PAIRS.items()
@@ -666,6 +672,21 @@ def placement_verdicts() -> str:
     return "\n".join(lines) + "\n"
 
 # --------------------------------------------------------------------------------------- regions
+def pendulum_heavier() -> str:
+    """The Pendulum study (results/pendulum-heavier/report): its table and its report's sentences."""
+    report = json.loads((RESULTS / "pendulum-heavier" / "report" / "transfer_metrics.json").read_text())
+    m = report["metrics"]
+    rows = [("mean return gain", "jumpstart", "asymptotic (last 10%)", "transfer ratio", "P(T > B)",
+             "final return, B / T")]
+    rows.append((*(estimate(m.get(k), m.get(f"{k}_ci"), "+.0f") for k in ("mean_return_gain", "jumpstart",
+                                                                          "asymptotic_performance")),
+                 estimate(m.get("transfer_ratio"), m.get("transfer_ratio_ci"), "+.2f"),
+                 estimate(m.get("probability_of_improvement"), m.get("probability_of_improvement_ci"), ".2f"),
+                 f"{m['final_performance_baseline']:.0f} / {m['final_performance_transfer']:.0f}"))
+    sentences = cl.report_sentences(report, ("mean_return_gain", "jumpstart", "asymptotic_performance"))
+    return render(rows, "markdown") + "\n" + "\n".join(f"- {s}" for s in sentences) + "\n"
+
+
 REGIONS = {
     "results/README.md": {
         "graded-table": lambda: sweep_table(GRADED),
@@ -692,6 +713,7 @@ REGIONS = {
         "lift-demonstrations-verdicts": lift_demonstrations_verdicts,
         "lift-to-place-table": lift_to_place_table,
         "lift-to-place-verdicts": lift_to_place_verdicts,
+        "pendulum-heavier": pendulum_heavier,
         "placement-noise": placement_noise,
         "placement-verdicts": placement_verdicts,
     },
@@ -699,6 +721,7 @@ REGIONS = {
         "demo": demo_sentence,
         "tasks": lambda: tasks_table("rooms"),
         "tasks-robosuite": lambda: tasks_table("robosuite"),
+        "tasks-gym": lambda: tasks_table("gym"),
         "methods": methods_table,
         "config": config_table,
         "results-table": results_table,

@@ -31,6 +31,7 @@ LAYERS = [
     ["drltg.errors"],
     ["drltg.plugins", "drltg.training.rundir"],
     ["drltg.envs"],
+    ["drltg.gymnasium_ids"],
     ["drltg.transforms", "drltg.collectors", "drltg.losses", "drltg.modules"],
     ["drltg.config"],
     ["drltg.learners"],
