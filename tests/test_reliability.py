@@ -384,3 +384,61 @@ def test_truncated_logs_drop_later_steps_and_torn_records(tmp_path):
     rundir.truncate_logs(tmp_path, 2)
     assert list(read_tensorboard(tmp_path / "logs" / "tensorboard", tag="eval/return_mean").frames) == [0, 1, 2]
     assert (scalars / "return_mean.csv").read_text() == "0,0.0\n1,1.0\n2,2.0\n"
+
+
+# ------------------------------------------------------------------- 13: per-run keys owned by the plan
+PLAN_VALUES = {"task": "gridrooms/northeast", "algo": "td3", "seed": 3, "frames": 128,
+               "transfer.method": "model-reuse"}
+
+
+def nested(key, value):
+    """``a.b=v`` as the mapping ``{a: {b: v}}`` (a key without a dot as it is)."""
+    head, _, rest = key.partition(".")
+    return {head: {rest: value}} if rest else {key: value}
+
+
+def test_every_per_run_key_has_a_test_value():
+    from drltg.experiments.experiment import PLAN_KEYS
+    from drltg.experiments.sweep import SET_BY_SWEEP
+
+    assert set(PLAN_VALUES) == set(PLAN_KEYS) == set(SET_BY_SWEEP)
+
+
+@pytest.mark.parametrize("key", sorted(PLAN_VALUES))
+@pytest.mark.parametrize("form", ["dotted", "nested"])
+def test_experiment_refuses_an_override_of_a_per_run_key(key, form, tmp_path, capsys):
+    from drltg.experiments.experiment import PLAN_KEYS
+
+    value = PLAN_VALUES[key]
+    text = f"{key}={value}" if form == "dotted" else "{}={}".format(*next(iter(
+        {k: yaml.safe_dump(v, default_flow_style=True).strip() for k, v in nested(key, value).items()}.items())))
+    one_sentence(capsys, main(EXPERIMENT + ["-o", text, "--out", str(tmp_path / "exp")]), 2,
+                 f"may not set '{key}'", f"use {PLAN_KEYS[key]} instead")
+    assert not (tmp_path / "exp").exists()
+
+
+@pytest.mark.parametrize("key", sorted(PLAN_VALUES))
+@pytest.mark.parametrize("where, form", [("overrides", "dotted"), ("overrides", "nested"), ("grid", "dotted"),
+                                         ("grid", "nested")])
+def test_sweep_refuses_an_override_of_a_per_run_key(key, where, form, tmp_path, capsys):
+    from drltg.experiments.sweep import SET_BY_SWEEP
+
+    value = PLAN_VALUES[key]
+    entry = {key: value} if form == "dotted" else nested(key, value)
+    if where == "grid":
+        entry = {k: [v] for k, v in entry.items()}
+    path = tmp_path / "spec.yaml"
+    path.write_text(yaml.safe_dump({"pairs": ["gridrooms-near"], "methods": ["reward-shaping"], "seeds": 1,
+                                    "frames": 64, where: entry}))
+    one_sentence(capsys, main(["sweep", str(path), "--out", str(tmp_path / "out")]), 2,
+                 f"'{where}' may not set '{key}'", f"use {SET_BY_SWEEP[key]} instead")
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_source_given_in_the_config_serves_the_transfer_runs_only(source, tmp_path):
+    from drltg.experiments.experiment import plan_runs
+
+    runs = plan_runs("fourrooms/northeast", "policy-reuse", frames=64, seeds=2, out=tmp_path,
+                     overrides=[f"transfer.source={source}"])
+    assert [(role, c["transfer"]["method"], c["transfer"]["source"]) for role, c, _ in runs] == [
+        ("baseline", "none", None), ("transfer", "policy-reuse", str(source))] * 2

@@ -49,6 +49,30 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--threshold", help="report threshold: a value, or a fraction of the best baseline like 80%%")
 
 
+PLAN_KEYS = {"task": "the PAIR argument", "algo": "--algo", "seed": "--seed", "frames": "--frames or --source-frames",
+             "transfer.method": "--method"}
+"""The config keys an experiment sets per run, and the option that sets them."""
+
+
+def owned_keys(key: str, value) -> list[str]:
+    """The per-run keys (``PLAN_KEYS``) that setting ``key`` to ``value`` would set: the key itself, or the
+    keys of a section given as a mapping (``transfer={method: x}`` sets ``transfer.method``)."""
+    if isinstance(value, dict):
+        return [k for sub, v in value.items() for k in owned_keys(f"{key}.{sub}", v)]
+    return [key] if key in PLAN_KEYS else []
+
+
+def refuse_plan_overrides(overrides, where: str, owner: str, flags: dict[str, str]) -> None:
+    """Refuse, in one sentence, an override (``KEY=VALUE`` or a ``(key, value)`` pair) of a key the
+    plan sets per run: it would give every run, the baseline included, the same value."""
+    for item in overrides:
+        key, value = config_lib.parse_override(item) if isinstance(item, str) else item
+        for owned in owned_keys(str(key), value):
+            given = "" if owned == key else f" (through '{key}')"
+            raise UsageError(f"{where} may not set '{owned}'{given}: the {owner} sets it per run; "
+                             f"use {flags[owned]} instead.")
+
+
 def plan(args: argparse.Namespace) -> list[tuple[str, dict, Path]]:
     """The experiment's runs as (role, config, run directory), sources first."""
     return plan_runs(args.pair, args.method, algo=args.algo, seeds=args.seeds, seed=args.seed,
@@ -79,6 +103,7 @@ def plan_runs(
     from drltg.envs import PAIRS, TASKS
     from drltg.transfer import get_method
 
+    refuse_plan_overrides(overrides, "-o", "experiment", PLAN_KEYS)
     spec = get_method(method)
     if spec.name == "none":
         raise UsageError("--method none has nothing to compare; choose a transfer method (`drltg tasks`).")
@@ -101,7 +126,9 @@ def plan_runs(
     shared = out if shared is None else Path(shared).expanduser().resolve()
 
     def cfg(task, seed, frames, **transfer):
-        over = list(overrides) + [f"transfer.{k}={v}" for k, v in transfer.items()]
+        # a source given in the config serves the transfer runs only: source and baseline runs have none
+        plain = ["transfer.source=null"] if given_source is not None and not transfer else []
+        over = list(overrides) + plain + [f"transfer.{k}={v}" for k, v in transfer.items()]
         return config_lib.resolve(base, over, task=task, algo=algo, frames=frames, seed=seed)
 
     runs = []

@@ -61,7 +61,9 @@ from drltg.training import rundir
 KEYS = ("pairs", "methods", "algos", "seeds", "seed", "frames", "source_frames", "overrides", "grid",
         "threshold", "primary_metric", "resources")
 RESOURCES = ("num_cpus", "num_gpus")
-SET_BY_SWEEP = ("task", "algo", "seed", "frames", "transfer.method")
+SET_BY_SWEEP = {"task": "'pairs'", "algo": "'algos'", "seed": "'seed' and 'seeds'",
+                "frames": "'frames' or 'source_frames'", "transfer.method": "'methods'"}
+"""The config keys the sweep sets per run, and the spec key that sets them."""
 
 
 # ------------------------------------------------------------------------------------------- spec
@@ -103,9 +105,10 @@ def _axis(data: dict, key: str, kind: type, where: str) -> list:
 def _config_keys(mapping, key: str, where: str) -> dict:
     if not isinstance(mapping, dict):
         raise UsageError(f"{where}: '{key}' must be a mapping of config keys like {{eval.every: 1000}}.")
-    for k in mapping:
-        if k in SET_BY_SWEEP:
-            raise UsageError(f"{where}: '{key}' may not set '{k}'; the sweep sets it from its own keys.")
+    from drltg.experiments.experiment import refuse_plan_overrides
+
+    values = [(k, v) for k, vs in mapping.items() for v in (vs if key == "grid" and isinstance(vs, list) else [vs])]
+    refuse_plan_overrides(values, f"{where}: '{key}'", "sweep", SET_BY_SWEEP)
     return dict(mapping)
 
 
