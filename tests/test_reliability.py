@@ -442,3 +442,114 @@ def test_a_source_given_in_the_config_serves_the_transfer_runs_only(source, tmp_
                      overrides=[f"transfer.source={source}"])
     assert [(role, c["transfer"]["method"], c["transfer"]["source"]) for role, c, _ in runs] == [
         ("baseline", "none", None), ("transfer", "policy-reuse", str(source))] * 2
+
+
+# --------------------------------------------------------------------- 14: checked before the first frame
+def write_spec(tmp_path, text: str | bytes) -> Path:
+    path = tmp_path / "spec.yaml"
+    (path.write_bytes if isinstance(text, bytes) else path.write_text)(text)
+    return path
+
+
+SPEC = "pairs: [gridrooms-near]\nmethods: [reward-shaping]\nseeds: 1\nframes: 64\n"
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--threshold", "nan"], "--threshold 'nan' must be a finite number"),
+    (["--threshold", "inf%"], "--threshold 'inf%' must be a finite percentage"),
+    (["--threshold", "1.7e308"], "--threshold '1.7e308' must be a finite number of magnitude at most 1e+15"),
+    (["--source-frames", "0"], "--source-frames must be positive, got 0"),
+    (["--seeds", str(10**9)], "more than the 1000 runs a side"),
+    (["--seed", "-1"], "--seed -1 with --seeds 1 gives run seeds outside [0, 2147483647]"),
+])
+def test_experiment_refuses_bad_numbers_before_training(extra, message, tmp_path, capsys):
+    one_sentence(capsys, main(EXPERIMENT + extra + ["--out", str(tmp_path / "exp")]), 2, message)
+    assert not (tmp_path / "exp").exists()
+
+
+@pytest.mark.parametrize("spec, message", [
+    (SPEC + "threshold: .nan\n", "threshold 'nan' must be a finite number"),
+    (SPEC + "seeds: 2\n", "key 'seeds' appears twice (line 5)"),
+    (SPEC.replace("[reward-shaping]", "[reward-shaping, reward-shaping]"), "'methods' lists 'reward-shaping' twice"),
+    (SPEC + "grid: {optim.lr: [0.001, 0.001]}\n", "'grid: optim.lr' lists 0.001 twice"),
+    (SPEC + "overrides: {eval.every: 64, eval.every: 128}\n", "key 'eval.every' appears twice"),
+    (SPEC + "source_frames: 0\n", "'source_frames' must be positive"),
+    (SPEC.encode() + b"# caf\xe9\n", f"is not UTF-8 text (byte {len(SPEC) + 5})"),
+])
+def test_sweep_refuses_a_bad_spec_before_training(spec, message, tmp_path, capsys):
+    one_sentence(capsys, main(["sweep", str(write_spec(tmp_path, spec)), "--out", str(tmp_path / "out")]), 2, message)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_variant_name_the_file_system_cannot_hold_is_refused_by_dry_run(tmp_path, capsys):
+    spec = write_spec(tmp_path, SPEC + f"grid: {{network.hidden: [[16], {[16] * 70}]}}\n")
+    one_sentence(capsys, main(["sweep", str(spec), "--out", str(tmp_path / "out"), "--dry-run"]), 2,
+                 "bytes, more than the 255 the file system allows")
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["-o", "buffer.size=100000000000"], "buffer.size=100000000000 needs"),
+    (["-o", "network.hidden=[1000000,1000000]"], "network.hidden=[1000000, 1000000] needs at least"),
+])
+def test_sizes_beyond_the_machine_are_refused_before_the_run_dir_exists(extra, message, tmp_path, capsys):
+    one_sentence(capsys, main(train_args(tmp_path / "run", *extra)), 2, message, "GiB of device 'cpu'")
+    assert not (tmp_path / "run").exists()
+
+
+def test_experiment_out_into_a_run_directory_is_refused(source, tmp_path, capsys):
+    before = tree(source)
+    one_sentence(capsys, main(EXPERIMENT + ["--out", str(source)]), 2, "is the run directory of one run")
+    spec = write_spec(tmp_path, SPEC)
+    one_sentence(capsys, main(["sweep", str(spec), "--out", str(source)]), 2, "is the run directory of one run")
+    assert tree(source) == before
+
+
+def test_experiment_over_a_stray_folder_names_it_without_suggesting_resume(tmp_path, capsys):
+    stray = tmp_path / "exp" / "baseline" / "seed-0"
+    stray.mkdir(parents=True)
+    (stray / "notes.txt").write_text("mine\n")
+    err = one_sentence(capsys, main(EXPERIMENT + ["--out", str(tmp_path / "exp")]), 2,
+                       f"'{stray}' exists but holds no config.yaml")
+    assert "--resume" not in err
+    assert sorted(p.name for p in (tmp_path / "exp").rglob("*")) == ["baseline", "notes.txt", "seed-0"]
+
+
+def test_a_task_that_ignores_the_batch_size_is_refused_before_the_run_dir_exists(tmp_path, capsys):
+    from drltg.envs import TASKS, register_task
+    from drltg.envs.fourrooms import FourRoomsEnv
+
+    def one_env_only(batch_size=(), device=None, **options):  # a plugin factory that drops batch_size
+        return FourRoomsEnv(device=device, **options)
+
+    register_task("test/one-env-only", one_env_only, "FourRooms that ignores batch_size", goal=(8.0, 8.0))
+    try:
+        one_sentence(capsys, main(train_args(tmp_path / "run", task="test/one-env-only")), 2,
+                     "built an env of batch size () when asked for (4,) (collector.num_envs=4)")
+    finally:
+        del TASKS["test/one-env-only"]
+    assert not (tmp_path / "run").exists()
+
+
+REPORT_FLAGS = [
+    (["--seed", "-1"], "--seed must be an integer in [0, 2**32 - 1], got -1"),
+    (["--threshold", "1.7e308"], "--threshold '1.7e308' must be a finite number"),
+    (["--threshold", "nan"], "--threshold 'nan' must be a finite number"),
+    (["--budget", "1.7e308"], "--budget '1.7e308' must be a finite number of frames"),
+    (["--source-frames", "1.7e308"], "--source-frames '1.7e308' must be a finite number of frames"),
+]
+
+
+@pytest.mark.parametrize("extra, message", REPORT_FLAGS)
+def test_report_refuses_out_of_range_numbers(extra, message, tmp_path, capsys):
+    runs = {}
+    for side in ("b", "t"):
+        for seed in range(3):
+            run = tmp_path / side / str(seed)
+            run.mkdir(parents=True)
+            (run / "eval.csv").write_text("frames,return_mean,return_std,episodes\n0,0.1,0,4\n100,0.5,0,4\n"
+                                          "200,0.6,0,4\n300,0.7,0,4\n")
+            runs.setdefault(side, []).append(str(run))
+    one_sentence(capsys, main(["report", "--baseline", *runs["b"], "--transfer", *runs["t"],
+                               "--out", str(tmp_path / "r"), *extra]), 2, message)
+    assert not (tmp_path / "r").exists()

@@ -192,6 +192,7 @@ class ReportSettings:
              "--sustain applies to a sustained crossing; drop it or --crossing first.")
         need(0.0 < float(self.confidence) < 1.0, f"--confidence must lie in (0, 1), got {self.confidence}.")
         need(int(self.bootstrap) >= 100, f"--bootstrap needs at least 100 resamples, got {self.bootstrap}.")
+        need(0 <= int(self.seed) < 2**32, f"--seed must be an integer in [0, 2**32 - 1], got {self.seed}.")
         need(self.interval in M.INTERVALS,
              f"unknown --interval '{self.interval}'; choose one of {', '.join(M.INTERVALS)}.")
         need(self.format in FORMATS, f"unknown log format '{self.format}'; choose one of {', '.join(FORMATS)}.")
@@ -208,34 +209,49 @@ class ReportSettings:
 SETTINGS_DEFAULTS = {f.name: f.default for f in fields(ReportSettings)}
 
 
+LARGEST = 1e15
+"""The largest magnitude of a threshold, a frame count or a seed's span the report accepts: beyond it a
+number is a typo (and floats lose whole units, plots their ticks)."""
+
+
+def _bounded(value: float, text, option: str, what: str) -> float:
+    if not math.isfinite(value) or abs(value) > LARGEST:
+        raise UsageError(f"{option} '{text}' must be a finite {what} of magnitude at most {LARGEST:.0e}.")
+    return value
+
+
 def parse_threshold(threshold) -> tuple[float | None, float | None]:
-    """``150`` -> (150, None); ``"80%"`` -> (None, 0.8)."""
+    """``150`` -> (150, None); ``"80%"`` -> (None, 0.8); a non-finite or huge value is refused."""
     if threshold is None:
         return None, None
     if isinstance(threshold, str):
         text = threshold.strip()
+        percent = text.endswith("%")
         try:
-            if text.endswith("%"):
-                return None, float(text[:-1]) / 100.0
-            return float(text), None
+            value = float(text[:-1] if percent else text)
         except ValueError:
             raise UsageError(
                 f"--threshold '{threshold}' is neither a number (e.g. 150) nor a percentage of the best "
                 "baseline performance (e.g. 80%)."
             ) from None
-    return float(threshold), None
+        if percent:
+            return None, _bounded(value, threshold, "--threshold", "percentage") / 100.0
+        return _bounded(value, threshold, "--threshold", "number"), None
+    return _bounded(float(threshold), threshold, "--threshold", "number"), None
 
 
 def parse_frames(text, option: str = "--budget") -> float | None:
     """``"1e6"``, ``"500k"``, ``"1.5M"`` -> frames."""
-    if text is None or isinstance(text, (int, float)):
+    if text is None:
         return text
+    if isinstance(text, (int, float)):
+        return _bounded(text, text, option, "number of frames")
     m = re.fullmatch(r"\s*([0-9.eE+-]+)\s*([kKmM]?)\s*", str(text))
     try:
         value = float(m.group(1)) * {"": 1, "k": 1e3, "m": 1e6}[m.group(2).lower()]
     except (AttributeError, ValueError):
         raise UsageError(f"{option} '{text}' is not a number of frames (e.g. 200000, 200k, 1.5M).") from None
-    return value
+    return _bounded(value, text, option, "number of frames")
 
 
 def settings_of(settings: dict) -> ReportSettings:

@@ -49,6 +49,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--threshold", help="report threshold: a value, or a fraction of the best baseline like 80%%")
 
 
+MAX_SEEDS = 1000
+"""The most runs a side one experiment plans (a larger count is a typo, and planning it would take long)."""
+SEED_MAX = 2**31 - 1
 PLAN_KEYS = {"task": "the PAIR argument", "algo": "--algo", "seed": "--seed", "frames": "--frames or --source-frames",
              "transfer.method": "--method"}
 """The config keys an experiment sets per run, and the option that sets them."""
@@ -109,6 +112,15 @@ def plan_runs(
         raise UsageError("--method none has nothing to compare; choose a transfer method (`drltg tasks`).")
     if seeds < 1 or frames < 1:
         raise UsageError("--seeds and --frames must be positive.")
+    if source_frames is not None and source_frames < 1:
+        raise UsageError(f"--source-frames must be positive, got {source_frames}; omit it to give source runs "
+                         "--frames.")
+    if seeds > MAX_SEEDS:
+        raise UsageError(f"--seeds {seeds} is more than the {MAX_SEEDS} runs a side an experiment plans; "
+                         "split it into experiments with different --seed.")
+    if not 0 <= seed <= SEED_MAX - 100 * (seeds - 1) - 50:
+        raise UsageError(f"--seed {seed} with --seeds {seeds} gives run seeds outside [0, {SEED_MAX}] "
+                         f"(run i uses seed + 100 i, its source seed + 100 i + 50).")
     if pair in PAIRS:
         source_task, target_task = PAIRS[pair].source, PAIRS[pair].target
     elif pair in TASKS:  # a task alone: the method needs no source, or the config names one
@@ -196,13 +208,16 @@ def _check_settings(path: Path, settings: dict) -> None:
 def run(args: argparse.Namespace) -> int:
     from drltg.analysis.report import format_table, parse_threshold, transfer_report
     from drltg.experiments.executor import LocalBackend, execute
+    from drltg.experiments.sweep import check_existing
 
     if args.workers < 1:
         raise UsageError("--workers must be at least 1.")
     parse_threshold(args.threshold)
     out = rundir.check_directory(args.out, "--out")
+    rundir.refuse_run_directory(out, "--out")
     runs = plan(args)
     check_runs(runs)
+    check_existing(as_runs(runs, out))
     settings, saved = _settings(args), out / "experiment.yaml"
     _check_settings(saved, settings)
     try:

@@ -99,7 +99,17 @@ def _axis(data: dict, key: str, kind: type, where: str) -> list:
             continue
         if not isinstance(v, kind) or (kind is int and isinstance(v, bool)):
             raise UsageError(f"{where}: '{key}' must hold {kind.__name__} values, got {v!r}.")
-    return [int(v) if kind is int else v for v in values]
+    values = [int(v) if kind is int else v for v in values]
+    _no_repeats(values, key, where)
+    return values
+
+
+def _no_repeats(values: list, key: str, where: str) -> None:
+    seen = []
+    for v in values:
+        if v in seen:
+            raise UsageError(f"{where}: '{key}' lists {v!r} twice; each value is one point of the sweep.")
+        seen.append(v)
 
 
 def _config_keys(mapping, key: str, where: str) -> dict:
@@ -153,11 +163,14 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
         raise UsageError(f"{where}: 'seeds' and 'frames' must be positive.")
     if data.get("source_frames") is not None:
         spec.source_frames = _axis(data, "source_frames", int, where)
+        if min(spec.source_frames) < 1:
+            raise UsageError(f"{where}: 'source_frames' must be positive; omit it to give source runs 'frames'.")
     spec.overrides = _config_keys(data.get("overrides") or {}, "overrides", where)
     spec.grid = _config_keys(data.get("grid") or {}, "grid", where)
     for key, values in spec.grid.items():
         if not isinstance(values, list) or not values:
             raise UsageError(f"{where}: grid key '{key}' must be a non-empty list of values.")
+        _no_repeats(values, f"grid: {key}", where)
     threshold = data.get("threshold")
     if threshold is not None and (isinstance(threshold, bool) or not isinstance(threshold, (int, float, str))):
         raise UsageError(f"{where}: 'threshold' must be a number or a percentage like \"80%\".")
@@ -191,7 +204,7 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
 def load_spec(path: str | Path) -> Spec:
     from drltg.config import load_yaml
 
-    return parse_spec(load_yaml(path), where=f"sweep spec '{path}'")
+    return parse_spec(load_yaml(path, "sweep spec"), where=f"sweep spec '{path}'")
 
 
 # ------------------------------------------------------------------------------------------- plan
@@ -260,6 +273,9 @@ def plan(spec: Spec, out: Path) -> tuple[list[Run], list[Cell]]:
                 if path in runs and runs[path].cfg != cfg:
                     raise UsageError(f"two runs of the spec would share '{path}'; check the grid values.")
                 log = out / "logs" / path.relative_to(out).with_suffix(".log")
+                if path not in runs:
+                    rundir.check_name_lengths(log, "the run log")
+                    rundir.check_name_lengths(path / "checkpoints" / f".last.pt.{'x' * 8}.tmp", "the run directory")
                 runs.setdefault(path, Run(role, cfg, path, log, needs))
                 sides.get(role, []).append(path)
             cells.append(Cell(pair, algo, variant, method, sides["baseline"], sides["transfer"]))
@@ -432,6 +448,7 @@ def run(args: argparse.Namespace) -> int:
     resources = {**spec.resources, **{k: v for k, v in (("num_cpus", args.num_cpus),
                                                          ("num_gpus", args.num_gpus)) if v is not None}}
     out = rundir.check_directory(args.out, "--out")
+    rundir.refuse_run_directory(out, "--out")
     runs, cells = plan(spec, out)
     if args.dry_run:
         for r in runs:

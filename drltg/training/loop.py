@@ -32,7 +32,7 @@ from drltg.config import config_changes
 from drltg.envs import make_env
 from drltg.errors import UsageError
 from drltg.learners import UpdateStep, make_agent, sample_batches
-from drltg.training import rundir
+from drltg.training import preflight, rundir
 from drltg.training.rundir import CHECKPOINT, CONFIG, EPISODE_FLAGS, EVAL, SUMMARY, is_complete, read_eval_csv
 from drltg.transfer import Transfer, get_method
 from drltg.transfer.source import check as check_source
@@ -58,6 +58,7 @@ def make_envs(cfg: dict, agent_transforms=()) -> tuple[EnvBase, EnvBase]:
     seed = cfg["seed"]
     train_env = TransformedEnv(build_env(cfg, batch_size=(cfg["collector"]["num_envs"],), seed=seed))
     eval_env = TransformedEnv(build_env(cfg, batch_size=(cfg["eval"]["episodes"],), seed=seed + 10_000))
+    preflight.check_batch(cfg, train_env, eval_env)
     for t in agent_transforms:
         train_env.append_transform(t.clone())
         eval_env.append_transform(t.clone())
@@ -69,7 +70,10 @@ def check_config(cfg: dict):
     """Build the task's env and the learner of ``cfg`` (writing nothing): the checks a config can
     fail before any run directory is created. Returns the env and the agent."""
     probe = build_env(cfg, seed=cfg["seed"])
-    return probe, make_agent(probe, cfg)
+    preflight.check_network(cfg, probe)
+    agent = make_agent(probe, cfg)
+    preflight.check_buffer(cfg, probe, agent.loss.in_keys)
+    return probe, agent
 
 
 @torch.no_grad()

@@ -197,6 +197,30 @@ def check_directory(path: str | Path, option: str) -> Path:
     return path
 
 
+def refuse_run_directory(path: Path, option: str) -> None:
+    """Refuse a folder of many runs (``--out`` of an experiment or a sweep) that is itself one run."""
+    if (path / CONFIG).is_file() or (path / SUMMARY).is_file():
+        raise UsageError(f"{option} '{path}' is the run directory of one run (it holds {CONFIG}); choose a new "
+                         f"or an experiment's folder.")
+
+
+def check_name_lengths(path: Path, what: str) -> None:
+    """Refuse a path the file system cannot create: a component longer than its NAME_MAX or a whole path
+    longer than PATH_MAX (e.g. a sweep variant named by many grid values)."""
+    existing = next(p for p in (path, *path.parents) if p.exists())
+    try:
+        name_max, path_max = (os.pathconf(existing, n) for n in ("PC_NAME_MAX", "PC_PATH_MAX"))
+    except (OSError, ValueError):
+        name_max, path_max = 255, 4096
+    for part in path.parts:
+        if len(os.fsencode(part)) > name_max:
+            raise UsageError(f"{what} '{path}' has a name of {len(os.fsencode(part))} bytes, more than the "
+                             f"{name_max} the file system allows: '{part[:40]}...'; use shorter names or values.")
+    if len(os.fsencode(str(path))) >= path_max:
+        raise UsageError(f"{what} '{path}' is {len(os.fsencode(str(path)))} bytes long, more than the {path_max} "
+                         "the file system allows; choose a shorter --out.")
+
+
 def _alive(pid: int, host: str) -> bool:
     if host != socket.gethostname():
         return True  # cannot tell from here
