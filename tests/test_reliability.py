@@ -1,5 +1,6 @@
 """Runs own their directories, nothing is lost or mixed, and every mistake is one sentence (exit 2)."""
 import errno
+import json
 import os
 import shutil
 import signal
@@ -553,3 +554,93 @@ def test_report_refuses_out_of_range_numbers(extra, message, tmp_path, capsys):
     one_sentence(capsys, main(["report", "--baseline", *runs["b"], "--transfer", *runs["t"],
                                "--out", str(tmp_path / "r"), *extra]), 2, message)
     assert not (tmp_path / "r").exists()
+
+
+# ------------------------------------------------------------------------------------- 15: run health
+@pytest.fixture
+def nan_reward_task():
+    """A task whose rewards are NaN: the critic's loss is NaN from its first update on."""
+    from drltg.envs import TASKS, register_task
+    from drltg.envs.fourrooms import FourRoomsEnv
+
+    class NanReward(FourRoomsEnv):
+        def _step(self, td):
+            out = super()._step(td)
+            out["reward"] = out["reward"] * float("nan")
+            return out
+
+    register_task("test/nan-reward", NanReward, "FourRooms with NaN rewards", goal=(8.0, 8.0))
+    yield "test/nan-reward"
+    del TASKS["test/nan-reward"]
+
+
+def test_a_diverging_run_stops_non_zero_with_status_diverged(nan_reward_task, tmp_path, capsys):
+    import json
+
+    run = tmp_path / "run"
+    err = one_sentence(capsys, main(train_args(run, task=nan_reward_task, frames=128)), 1,
+                       "the run diverged: the loss term '", "' became nan at frame 32")
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["status"] == "diverged" and summary["reason"] in err and summary["seed"] == 0
+    assert [r["frames"] for r in rundir.read_eval_csv(run / "eval.csv")] == [0]  # nothing after the first update
+    assert not (run / "checkpoints" / "last.pt").exists()
+    assert rundir.summary_status(run) == ("diverged", summary["reason"])
+
+
+def test_non_finite_parameters_are_named():
+    from drltg.training import health
+
+    net = torch.nn.Sequential(torch.nn.Linear(2, 2), torch.nn.Linear(2, 1))
+    health.check_parameters(net, 10)
+    with torch.no_grad():
+        net[1].bias.fill_(float("inf"))
+    with pytest.raises(health.Diverged, match=r"parameter '1.bias' holds non-finite values at frame 10"):
+        health.check_parameters(net, 10)
+    with pytest.raises(health.Diverged, match=r"loss term 'loss_actor' became -inf at frame 3"):
+        health.check_losses({"loss_qvalue": torch.tensor(1.0), "loss_actor": torch.tensor(float("-inf"))}, 3)
+
+
+def fake_run(path: Path, values, *, seed: int, status: str | None = "complete", config: bool = True,
+             logs: bool = True) -> Path:
+    """A drltg run directory on disk: eval.csv, config.yaml, logs/ and a summary.json with ``status``."""
+    import json
+
+    path.mkdir(parents=True)
+    rows = "".join(f"{100 * i},{v},0,4\n" for i, v in enumerate(values))
+    (path / "eval.csv").write_text("frames,return_mean,return_std,episodes\n" + rows)
+    if config:
+        (path / "config.yaml").write_text(yaml.safe_dump({"task": "fourrooms/northeast", "seed": seed,
+                                                          "eval": {"episodes": 4, "every": 100}}))
+    if logs:
+        (path / "logs").mkdir()
+    if status is not None:
+        (path / "summary.json").write_text(json.dumps({"status": status}))
+    return path
+
+
+def test_report_lists_unfinished_runs_apart_and_counts_them_only_when_asked(tmp_path, capsys):
+    base = [fake_run(tmp_path / "b" / f"seed-{i}", [0.1, 0.2, 0.3, 0.4], seed=i) for i in range(3)]
+    transfer = [fake_run(tmp_path / "t" / f"seed-{i}", [0.2, 0.4, 0.6, 0.8], seed=i) for i in range(3)]
+    diverged = fake_run(tmp_path / "t" / "seed-3", [0.0, -1.0, -1.0, -1.0], seed=3, status="diverged")
+    incomplete = fake_run(tmp_path / "t" / "seed-4", [0.0, -1.0, -1.0, -1.0], seed=4, status=None)
+    args = ["report", "--baseline", *map(str, base), "--transfer", *map(str, transfer + [diverged, incomplete])]
+    assert main(args + ["--out", str(tmp_path / "r1")]) == 0
+    err = capsys.readouterr().err
+    for state, run in (("diverged", diverged), ("incomplete", incomplete)):
+        assert f"1 transfer run(s) {state}, left out of the metrics (--include-unfinished counts them): {run}" in err
+    result = json.loads((tmp_path / "r1" / "transfer_metrics.json").read_text())
+    assert (result["metrics"]["n_seeds_baseline"], result["metrics"]["n_seeds_transfer"]) == (3, 3)
+    assert result["metrics"]["jumpstart"] == pytest.approx(0.1)  # 0.2 - 0.1: the unfinished runs' 0.0 left out
+    assert main(args + ["--out", str(tmp_path / "r2"), "--include-unfinished"]) == 0
+    result = json.loads((tmp_path / "r2" / "transfer_metrics.json").read_text())
+    assert result["metrics"]["n_seeds_transfer"] == 5
+    assert result["metrics"]["jumpstart"] == pytest.approx((0.2 * 3 + 0.0 * 2) / 5 - 0.1)
+
+
+def test_report_names_a_config_less_run(tmp_path, capsys):
+    base = [fake_run(tmp_path / "b" / f"seed-{i}", [0.1, 0.2, 0.3], seed=i) for i in range(3)]
+    transfer = [fake_run(tmp_path / "t" / f"seed-{i}", [0.2, 0.3, 0.4], seed=i, config=i != 2) for i in range(3)]
+    assert main(["report", "--baseline", *map(str, base), "--transfer", *map(str, transfer),
+                 "--out", str(tmp_path / "r")]) == 0
+    assert f"1 transfer run(s) without config.yaml, counted: {transfer[2]}" in capsys.readouterr().err

@@ -86,6 +86,7 @@ import pandas as pd
 from drltg.analysis import metrics as M
 from drltg.analysis import tables
 from drltg.analysis.curves import FORMATS, Curve, read_curves
+from drltg.analysis.run_state import partition
 from drltg.analysis.tables import number
 from drltg.errors import UsageError
 from drltg.training import rundir
@@ -119,6 +120,9 @@ class ReportSettings:
                                          help="name of the transfer runs in the plot and table")
     allow_mixed: bool = _option(False, "--allow-mixed", "runs", action="store_true",
                                 help="accept runs of different configs or methods under one side")
+    include_unfinished: bool = _option(False, "--include-unfinished", "runs", action="store_true",
+                                       help="count diverged and incomplete drltg runs (listed and left out "
+                                       "by default)")
     threshold: object = _option(None, "--threshold", help="return to reach for time-to-threshold: a "
                                 "number (150) or a percentage of the best baseline mean performance (80%%)")
     crossing: str = _option("sustained", "--crossing", choices=("sustained", "first"),
@@ -431,6 +435,12 @@ def check_runs(baseline: Sequence[Curve], transfer: Sequence[Curve], s: ReportSe
     baseline, transfer = list(baseline), list(transfer)
     if not baseline or not transfer:
         raise UsageError("both a baseline and a transfer run set are needed.")
+    baseline, left_b = partition("baseline", baseline, bool(s.include_unfinished), warnings)
+    transfer, left_t = partition("transfer", transfer, bool(s.include_unfinished), warnings)
+    for side, runs, left in (("baseline", baseline, left_b), ("transfer", transfer, left_t)):
+        if not runs:
+            raise UsageError(f"every {side} run is unfinished ({', '.join(left)}); finish them, or pass "
+                             "--include-unfinished.")
     _check_duplicates(baseline, transfer)
     task = _check_tasks(baseline, transfer)
     for side, runs in (("baseline", baseline), ("transfer", transfer)):

@@ -62,6 +62,7 @@ def run_one(cfg: dict, run_dir: str, log_path: str) -> tuple[str, str]:
     Never raises for a broken run: the traceback goes to the log, the sweep goes on.
     """
     from drltg import plugins
+    from drltg.training.health import DIVERGED, Diverged
     from drltg.training.loop import train
 
     plugins.load()  # a worker process registers the user's tasks too
@@ -76,6 +77,9 @@ def run_one(cfg: dict, run_dir: str, log_path: str) -> tuple[str, str]:
         except UsageError as err:
             print(f"error: {err}", flush=True)
             return "failed", str(err)
+        except Diverged as err:
+            print(f"{err}.", flush=True)
+            return DIVERGED, str(err)
         except Exception as err:
             traceback.print_exc()
             return "failed", f"{type(err).__name__}: {err}"
@@ -229,10 +233,14 @@ class RayBackend:
 # --------------------------------------------------------------------------------------- schedule
 def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs") -> dict[Path, tuple[str, str]]:
     """Run every incomplete run (each after the run it needs) and return ``{path: (status, detail)}``
-    with status ``skipped`` (complete before), ``done`` or ``failed``."""
+    with status ``skipped`` (complete before), ``done``, ``diverged`` or ``failed``."""
     from tqdm.auto import tqdm
 
-    status: dict[Path, tuple[str, str]] = {r.path: ("skipped", "") for r in runs if rundir.is_complete(r.path)}
+    status: dict[Path, tuple[str, str]] = {}
+    for r in runs:
+        finished = rundir.summary_status(r.path)
+        if finished is not None:
+            status[r.path] = ("skipped", "") if finished[0] == "complete" else finished
     todo = [r for r in runs if r.path not in status]
     reached = {r.path: _frames_done(r) for r in todo}
     bar = tqdm(total=sum(r.frames for r in todo), initial=sum(reached.values()), unit="frame",
@@ -250,8 +258,8 @@ def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs") -> 
                 state = status.get(run.needs, ("done", ""))[0] if run.needs else "done"
                 if run.needs and run.needs not in status:
                     continue  # its source is not trained yet
-                if state == "failed":
-                    status[run.path] = ("failed", f"not run: the run it needs failed ({run.needs})")
+                if state in ("failed", "diverged"):
+                    status[run.path] = ("failed", f"not run: the run it needs {state} ({run.needs})")
                     todo.remove(run)
                 elif len(running) < backend.capacity:
                     running[backend.submit(run)] = run

@@ -236,6 +236,9 @@ def run(args: argparse.Namespace) -> int:
         if failures:
             print("failed runs:\n  " + "\n  ".join(failures))
             return 1
+        diverged = [f"{path}: {detail}" for path, (state, detail) in status.items() if state == "diverged"]
+        if diverged:
+            print("diverged runs (left out of the report):\n  " + "\n  ".join(diverged))
         result = transfer_report(
             [d for role, _, d in runs if role == "baseline"],
             [d for role, _, d in runs if role == "transfer"],
@@ -246,4 +249,4 @@ def run(args: argparse.Namespace) -> int:
         )
     print(format_table(result))
     print(f"\nreport: {out / 'report'}")
-    return 0
+    return 1 if diverged else 0

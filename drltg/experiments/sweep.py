@@ -310,14 +310,18 @@ def write_reports(cells: list[Cell], status: dict, threshold) -> list[dict]:
     for c in cells:
         row = {"pair": c.pair, "algo": c.algo, "variant": c.variant, "method": c.method,
                "report": str(c.report), "metrics": None}
-        missing = [p for p in c.baseline + c.transfer if status.get(p, ("",))[0] not in ("done", "skipped")]
+        states = [status.get(p, ("",))[0] for p in c.baseline + c.transfer]
+        missing = sum(state not in ("done", "skipped", "diverged") for state in states)
+        diverged = states.count("diverged")
         if missing:
-            row["note"] = f"{len(missing)} run(s) incomplete"
+            row["note"] = f"{missing} run(s) incomplete"
         else:
             try:
                 result = transfer_report(c.baseline, c.transfer, c.report, threshold=threshold,
                                          baseline_label="no transfer", transfer_label=c.method)
                 row["metrics"] = result["metrics"]
+                if diverged:
+                    row["note"] = f"{diverged} run(s) diverged, left out"
             except UsageError as err:
                 row["note"] = str(err)
         rows.append(row)
@@ -493,6 +497,9 @@ def _execute_and_report(args, spec: Spec, out: Path, runs: list[Run], cells: lis
     for r in failed:
         print(f"failed: {r.path.relative_to(out)}: {status[r.path][1]}"
               + (f"\n        log: {r.log}" if r.log.exists() else ""))
-    print(f"{len(runs)} runs: {counts.count('done')} done, {len(failed)} failed, "
+    for r in runs:
+        if status[r.path][0] == "diverged":
+            print(f"diverged: {r.path.relative_to(out)}: {status[r.path][1]}")
+    print(f"{len(runs)} runs: {counts.count('done')} done, {len(failed)} failed, {counts.count('diverged')} diverged, "
           f"{counts.count('skipped')} skipped (complete before); summary: {out / 'summary.md'}")
-    return 1 if failed else 0
+    return 1 if failed or "diverged" in counts else 0

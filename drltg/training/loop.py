@@ -32,7 +32,7 @@ from drltg.config import config_changes
 from drltg.envs import make_env
 from drltg.errors import UsageError
 from drltg.learners import UpdateStep, make_agent, sample_batches
-from drltg.training import preflight, rundir
+from drltg.training import health, preflight, rundir
 from drltg.training.rundir import CHECKPOINT, CONFIG, EPISODE_FLAGS, EVAL, SUMMARY, is_complete, read_eval_csv
 from drltg.transfer import Transfer, get_method
 from drltg.transfer.source import check as check_source
@@ -240,11 +240,11 @@ def train(
         try:
             for name, text in transfer.files.items():
                 rundir.atomic_write(run_dir / name, text)
-            with deferred_signals() as stop_if_signalled:
+            with deferred_signals() as stop_if_signalled, health.on_divergence(run_dir, cfg):
                 _loop(cfg, run_dir, agent, train_env, eval_env, transfer, buffer, ckpt, rows, progress,
                       stop_if_signalled)
-        except BaseException:
-            if not resume and not (run_dir / CHECKPOINT).is_file():
+        except BaseException as err:
+            if not resume and not (run_dir / CHECKPOINT).is_file() and not isinstance(err, health.Diverged):
                 _remove_start(run_dir, created)
             raise
     return run_dir
@@ -312,6 +312,7 @@ def _loop(cfg, run_dir, agent, train_env, eval_env, transfer: Transfer, buffer, 
         bar.set_postfix(eval_return=f"{row['return_mean']:.3f}", refresh=False)
 
     def save_checkpoint() -> None:
+        health.check_parameters(agent.loss, frames)
         rundir.atomic_torch_save(
             {
                 "loss": agent.loss.state_dict(),
@@ -356,6 +357,7 @@ def _loop(cfg, run_dir, agent, train_env, eval_env, transfer: Transfer, buffer, 
             if frames >= init_random:
                 for batch in (transfer.batches or sample_batches)(buffer, opt["updates_per_batch"]):
                     losses = update(batch, update_actor=updates % agent.actor_delay == 0)
+                    health.check_losses(losses, frames)
                     updates += 1
                     for k, v in losses.items():
                         if v.numel() == 1:
@@ -383,6 +385,7 @@ def _loop(cfg, run_dir, agent, train_env, eval_env, transfer: Transfer, buffer, 
     save_checkpoint()
     wall = time.perf_counter() - start
     summary = {
+        "status": health.COMPLETE,
         "task": cfg["task"],
         "algo": cfg["algo"],
         "seed": cfg["seed"],

@@ -185,7 +185,25 @@ def _cell(column: str, text: str) -> int | float:
 
 
 def is_complete(run_dir: str | Path) -> bool:
+    """Whether the run finished (``summary.json`` is written last), as ``complete`` or ``diverged``."""
     return (Path(run_dir) / SUMMARY).is_file()
+
+
+def summary_status(run_dir: str | Path) -> tuple[str, str] | None:
+    """``(status, reason)`` from a finished run's ``summary.json`` (``complete`` when it names none, as
+    older runs' do); ``None`` for a run that has not finished."""
+    import json
+
+    path = Path(run_dir) / SUMMARY
+    try:
+        summary = json.loads(path.read_text())
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError):
+        return "unreadable", f"'{path}' is not readable JSON"
+    if not isinstance(summary, dict):
+        return "unreadable", f"'{path}' holds no JSON object"
+    return str(summary.get("status", "complete")), str(summary.get("reason", ""))
 
 
 # ---------------------------------------------------------------------------------------- ownership
