@@ -644,3 +644,89 @@ def test_report_names_a_config_less_run(tmp_path, capsys):
     assert main(["report", "--baseline", *map(str, base), "--transfer", *map(str, transfer),
                  "--out", str(tmp_path / "r")]) == 0
     assert f"1 transfer run(s) without config.yaml, counted: {transfer[2]}" in capsys.readouterr().err
+
+
+# ----------------------------------------------------------------------------------- 16: integrity
+def flip_a_tensor_byte(checkpoint: Path) -> None:
+    """Flip one byte in the middle of the largest tensor of a torch zip checkpoint (it still loads)."""
+    import zipfile
+
+    with zipfile.ZipFile(checkpoint) as z:
+        info = max(z.infolist(), key=lambda i: i.file_size)
+    data = bytearray(checkpoint.read_bytes())
+    name_len, extra_len = int.from_bytes(data[info.header_offset + 26:info.header_offset + 28], "little"), \
+        int.from_bytes(data[info.header_offset + 28:info.header_offset + 30], "little")
+    data[info.header_offset + 30 + name_len + extra_len + info.file_size // 2] ^= 0x01
+    checkpoint.write_bytes(bytes(data))
+
+
+def test_a_bit_flipped_checkpoint_is_refused(copy_of_killed, capsys):
+    checkpoint = copy_of_killed / "checkpoints" / "last.pt"
+    flip_a_tensor_byte(checkpoint)
+    assert torch.load(checkpoint, weights_only=False)["frames"] == 256  # it still loads
+    before = tree(copy_of_killed)
+    one_sentence(capsys, main(["train", "--resume", "--run-dir", str(copy_of_killed), "--no-progress"]), 2,
+                 f"cannot read '{checkpoint}': it does not match its SHA-256 in {copy_of_killed / 'manifest.json'}")
+    assert tree(copy_of_killed) == before
+
+
+def test_the_manifest_of_a_finished_run_covers_every_file(source):
+    from drltg.training import manifest
+
+    files = manifest.read(source)
+    on_disk = {p.relative_to(source).as_posix() for p in source.rglob("*") if p.is_file()}
+    assert set(files) == on_disk - {"manifest.json"}
+    assert {"eval.csv", "checkpoints/last.pt", "summary.json", "config.yaml"} <= set(files)
+    assert all(digests == [manifest.digest(source / name)] for name, digests in files.items())
+
+
+def test_an_edited_curve_of_a_finished_run_is_refused_by_the_report(source, tmp_path, capsys):
+    run = tmp_path / "run"
+    shutil.copytree(source, run)
+    lines = (run / "eval.csv").read_text().splitlines(True)
+    frames, rest = lines[-1].split(",", 1)
+    (run / "eval.csv").write_text("".join(lines[:-1]) + f"{frames},{9.0},{rest.split(',', 1)[1]}")
+    one_sentence(capsys, main(["report", "--baseline", str(source), "--transfer", str(run), "--out",
+                               str(tmp_path / "r")]), 2, f"cannot read '{run / 'eval.csv'}': it does not match")
+    assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize("name, text, last", [
+    ("eval.csv", "frames,return_mean,return_std,episodes\n0,0.5,0,4\n100,0.7,0,4\n200,0.8,0,4\n", 4),
+    ("progress.csv", "time/total_timesteps,eval/mean_reward\n0,0.5\n100,0.7\n200,0.8\n", 4),
+    ("scalars/eval/return_mean.csv", "0,0.5\n100,0.7\n200,0.8\n", 3),
+])
+def test_a_torn_last_line_is_refused_naming_file_and_line(name, text, last, tmp_path):
+    from drltg.analysis.curves import read_curves
+
+    path = tmp_path / "run" / name
+    path.parent.mkdir(parents=True)
+    path.write_text(text)
+    assert list(read_curves(path)[0].values) == [0.5, 0.7, 0.8]
+    path.write_text(text[:-3])  # cut inside the last value: "0.8" would be read as 0
+    with pytest.raises(UsageError, match=rf"'{path}' line {last} is torn: the file ends without a newline"):
+        read_curves(path)
+
+
+def test_a_corrupt_tensorboard_event_file_is_named(tmp_path):
+    from torch.utils.tensorboard import SummaryWriter
+
+    writer = SummaryWriter(str(tmp_path / "tb"))
+    for step in range(20):
+        writer.add_scalar("eval/return_mean", float(step), step)
+    writer.close()
+    (event,) = (tmp_path / "tb").glob("*tfevents*")
+    assert len(read_tensorboard(tmp_path / "tb").frames) == 20
+    data = bytearray(event.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    event.write_bytes(bytes(data))
+    with pytest.raises(UsageError, match=rf"'{event}' is a corrupt TensorBoard event file: record \d+ fails its CRC"):
+        read_tensorboard(tmp_path / "tb")
+
+
+def test_resume_without_logs_is_refused(copy_of_killed, capsys):
+    shutil.rmtree(copy_of_killed / "logs")
+    before = tree(copy_of_killed)
+    one_sentence(capsys, main(["train", "--resume", "--run-dir", str(copy_of_killed), "--no-progress"]), 2,
+                 "its logs/ folder is missing, so the training scalars up to the checkpoint at frame 256 are lost")
+    assert tree(copy_of_killed) == before

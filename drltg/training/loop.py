@@ -32,7 +32,7 @@ from drltg.config import config_changes
 from drltg.envs import make_env
 from drltg.errors import UsageError
 from drltg.learners import UpdateStep, make_agent, sample_batches
-from drltg.training import health, preflight, rundir
+from drltg.training import health, manifest, preflight, rundir
 from drltg.training.rundir import CHECKPOINT, CONFIG, EPISODE_FLAGS, EVAL, SUMMARY, is_complete, read_eval_csv
 from drltg.transfer import Transfer, get_method
 from drltg.transfer.source import check as check_source
@@ -397,6 +397,7 @@ def _loop(cfg, run_dir, agent, train_env, eval_env, transfer: Transfer, buffer, 
         **transfer.summary,
     }
     rundir.atomic_write(run_dir / SUMMARY, json.dumps(summary, indent=2) + "\n")
+    manifest.finalize(run_dir)
 
 
 def _episode_stats(data: TensorDictBase, stats: dict) -> None:

@@ -6,7 +6,9 @@
     logs/csv/, logs/tensorboard/   training scalars (TorchRL CSVLogger + TensorboardLogger)
     checkpoints/last.pt  weights, optimizer, replay buffer and RNG state (for --resume and model reuse)
     model_reuse.txt      what model reuse loaded (model-reuse runs)
-    summary.json         written last: the run is complete when it exists
+    summary.json         the run is finished when it exists: status complete (or diverged, with the reason)
+    manifest.json        SHA-256 of the checkpoint and eval.csv, and when the run ends (written last) of
+                         every file: a changed or damaged file is refused (drltg.training.manifest)
     .drltg.lock          the pid and host of the process writing the directory, while it runs
 
 Every file is written through a temporary file in the same folder and a rename, so a reader never sees
@@ -27,6 +29,7 @@ from pathlib import Path
 from typing import Iterator
 
 from drltg.errors import UsageError
+from drltg.training import manifest
 
 CONFIG = "config.yaml"
 EVAL = "eval.csv"
@@ -132,11 +135,16 @@ def atomic_write(path: str | Path, data: str | bytes) -> None:
 
 
 def atomic_torch_save(obj, path: str | Path) -> None:
+    """``torch.save`` atomically; a run's checkpoint with its digest in the run's manifest."""
     import torch
 
     buf = io.BytesIO()
     torch.save(obj, buf)
-    atomic_write(path, buf.getvalue())
+    path = Path(path)
+    if path.as_posix().endswith(CHECKPOINT.as_posix()):
+        manifest.write_tracked(path.parents[1], CHECKPOINT.as_posix(), buf.getvalue())
+    else:
+        atomic_write(path, buf.getvalue())
 
 
 def write_files(directory: str | Path, files: dict[str, bytes | str]) -> None:
@@ -152,7 +160,7 @@ def write_eval_csv(path: str | Path, rows: list[dict]) -> None:
     writer = csv.DictWriter(out, fieldnames=columns, restval="", extrasaction="ignore", lineterminator="\n")
     writer.writeheader()
     writer.writerows(rows)
-    atomic_write(path, out.getvalue())
+    manifest.write_tracked(Path(path).parent, Path(path).name, out.getvalue().encode())
 
 
 def read_eval_csv(path: str | Path) -> list[dict]:
@@ -348,6 +356,7 @@ def load_checkpoint(run_dir: str | Path, map_location="cpu", mmap: bool = False)
         ckpt = torch.load(path, map_location=map_location, weights_only=False, mmap=mmap)
     except Exception as err:  # a truncated or foreign file surfaces as one of many library errors
         raise UsageError(f"cannot read checkpoint '{path}' ({type(err).__name__}); is it truncated?") from None
+    manifest.verify(run_dir, CHECKPOINT.as_posix())
     if not isinstance(ckpt, dict) or "loss" not in ckpt:
         raise UsageError(f"checkpoint '{path}' has no 'loss' entry; is it a drltg training checkpoint?")
     return ckpt
@@ -361,6 +370,10 @@ def truncate_logs(run_dir: str | Path, frame: int) -> None:
     steps twice and their curves would run backwards.
     """
     logs = Path(run_dir) / LOGS
+    if frame >= 0 and not logs.is_dir():
+        raise UsageError(f"cannot resume '{run_dir}': its {LOGS}/ folder is missing, so the training scalars up to "
+                         f"the checkpoint at frame {frame} are lost; restore it or start the run again in another "
+                         "--run-dir.")
     for path in sorted((logs / "csv").rglob("*.csv")):
         _truncate_csv(path, frame)
     for path in sorted((logs / "tensorboard").rglob("*tfevents*")):
