@@ -611,6 +611,7 @@ def fake_run(path: Path, values, *, seed: int, status: str | None = "complete", 
     (path / "eval.csv").write_text("frames,return_mean,return_std,episodes\n" + rows)
     if config:
         (path / "config.yaml").write_text(yaml.safe_dump({"task": "fourrooms/northeast", "seed": seed,
+                                                          "env": {"horizon": 100},
                                                           "eval": {"episodes": 4, "every": 100}}))
     if logs:
         (path / "logs").mkdir()
@@ -730,3 +731,121 @@ def test_resume_without_logs_is_refused(copy_of_killed, capsys):
     one_sentence(capsys, main(["train", "--resume", "--run-dir", str(copy_of_killed), "--no-progress"]), 2,
                  "its logs/ folder is missing, so the training scalars up to the checkpoint at frame 256 are lost")
     assert tree(copy_of_killed) == before
+
+
+# ------------------------------------------------------------------------ 17: comparable by construction
+def sides_with(tmp_path, change: dict) -> list[str]:
+    """Three baseline and three transfer runs; the transfer configs carry ``change``."""
+    args = []
+    for side, values in (("b", [0.1, 0.2, 0.3, 0.4]), ("t", [0.2, 0.4, 0.6, 0.8])):
+        runs = [fake_run(tmp_path / side / f"seed-{i}", values, seed=i) for i in range(3)]
+        if side == "t":
+            for run in runs:
+                cfg = yaml.safe_load((run / "config.yaml").read_text())
+                for key, value in change.items():
+                    section, _, leaf = key.partition(".")
+                    cfg.setdefault(section, {})[leaf] = value
+                cfg["transfer"] = {"method": "reward-shaping"}
+                (run / "config.yaml").write_text(yaml.safe_dump(cfg))
+        args += ["--baseline" if side == "b" else "--transfer", *map(str, runs)]
+    return ["report", *args]
+
+
+@pytest.mark.parametrize("change, shown", [
+    ({"eval.episodes": 16}, "eval.episodes (4 vs 16)"),
+    ({"eval.every": 200}, "eval.every (100 vs 200)"),
+    ({"env.horizon": 50}, "env.horizon (100 vs 50)"),
+    ({"network.hidden": [32]}, "network.hidden ((unset) vs [32])"),
+])
+def test_report_refuses_sides_whose_curves_mean_different_things(change, shown, tmp_path, capsys):
+    args = sides_with(tmp_path, change)
+    one_sentence(capsys, main(args + ["--out", str(tmp_path / "r")]), 2,
+                 "runs differ in settings that change what a curve means: " + shown, "--allow-mismatch")
+    assert not (tmp_path / "r").exists()
+    assert main(args + ["--out", str(tmp_path / "r"), "--allow-mismatch"]) == 0
+    warnings = json.loads((tmp_path / "r" / "transfer_metrics.json").read_text())["settings"]["warnings"]
+    assert f"baseline and transfer settings differ (--allow-mismatch): {shown}" in warnings
+
+
+def test_a_transfer_method_is_no_mismatch(tmp_path):
+    assert main(sides_with(tmp_path, {}) + ["--out", str(tmp_path / "r")]) == 0
+
+
+def test_a_report_that_fails_midway_leaves_the_old_report_whole(tmp_path, monkeypatch, capsys):
+    args = sides_with(tmp_path, {}) + ["--out", str(tmp_path / "r")]
+    assert main(args) == 0
+    capsys.readouterr()
+    before = tree(tmp_path / "r")
+    real, calls = os.write, {"n": 0}
+
+    def third_write_fails(fd, data):  # the disk fills up after two report files
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return real(fd, data)
+
+    monkeypatch.setattr(rundir, "os", types.SimpleNamespace(**{**vars(os), "write": third_write_fails}))
+    one_sentence(capsys, main(args + ["--threshold", "0.3"]), 2,
+                 f"cannot write '{tmp_path / 'r' / 'transfer_plot.png'}' (No space left on device)")
+    assert tree(tmp_path / "r") == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b", "r", "t"]
+
+
+# ------------------------------------------------------------------------------ 18: processes and locks
+def test_a_lock_whose_pid_was_reused_is_taken_over(tmp_path):
+    host = os.uname().nodename
+    started = rundir._started(os.getpid())
+    (tmp_path / rundir.LOCK).write_text(f"{os.getpid()} {host} x {started}\n")  # this process: alive
+    with pytest.raises(UsageError, match=f"is in use by process {os.getpid()}"):
+        with rundir.lock(tmp_path):
+            pass
+    (tmp_path / rundir.LOCK).write_text(f"{os.getpid()} {host} x {int(started) - 1}\n")  # the pid, reused
+    with rundir.lock(tmp_path):
+        assert (tmp_path / rundir.LOCK).read_text().split()[3] == started
+    assert not (tmp_path / rundir.LOCK).exists()
+
+
+def test_workers_die_with_a_killed_experiment(tmp_path):
+    out = tmp_path / "exp"
+    args = ["experiment", "fourrooms-near", "--method", "model-reuse", "--seeds", "1", "--frames", "128",
+            "--source-frames", str(10**6), "--out", str(out), *OPTS]
+    proc = subprocess.Popen([sys.executable, "-m", "drltg.cli", *args], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    source = out / "source" / "seed-50"
+    worker = None
+    try:
+        while not (source / "checkpoints" / "last.pt").exists() and proc.poll() is None:
+            time.sleep(0.1)
+        worker = int((source / rundir.LOCK).read_text().split()[0])
+        assert worker != proc.pid
+        proc.kill()  # kill -9: no handler runs in the parent
+        proc.wait(timeout=30)
+        deadline = time.monotonic() + 60
+        while rundir._alive(worker, os.uname().nodename) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not rundir._alive(worker, os.uname().nodename)
+    finally:
+        if worker is not None and rundir._alive(worker, os.uname().nodename):
+            os.kill(worker, signal.SIGKILL)
+    assert not (source / rundir.LOCK).exists()  # the worker unwound: its run is free to resume
+    assert torch.load(source / "checkpoints" / "last.pt", weights_only=False)["frames"] >= 256
+
+
+def test_a_ray_address_that_stays_silent_is_one_sentence(tmp_path):
+    import socket
+    import threading
+
+    from drltg.experiments.executor import RayBackend
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen()
+    accepted = []
+    threading.Thread(target=lambda: accepted.append(server.accept()), daemon=True).start()
+    address = f"127.0.0.1:{server.getsockname()[1]}"
+    try:
+        with pytest.raises(UsageError, match=rf"the Ray cluster at '{address}' did not answer within 1 s"):
+            RayBackend(address, {}, connect_timeout=1.0)
+    finally:
+        server.close()
+    assert accepted  # the address took the connection and said nothing

@@ -120,6 +120,10 @@ class ReportSettings:
                                          help="name of the transfer runs in the plot and table")
     allow_mixed: bool = _option(False, "--allow-mixed", "runs", action="store_true",
                                 help="accept runs of different configs or methods under one side")
+    allow_mismatch: bool = _option(False, "--allow-mismatch", "runs", action="store_true",
+                                   help="compare baseline and transfer runs whose settings differ in what a curve "
+                                   "means (task options, learner, network, evaluation, frames); the differences "
+                                   "are listed in the report")
     include_unfinished: bool = _option(False, "--include-unfinished", "runs", action="store_true",
                                        help="count diverged and incomplete drltg runs (listed and left out "
                                        "by default)")
@@ -377,7 +381,7 @@ def transfer_report(
     st = result["settings"]
     out = Path(out_dir) if out_dir is not None else fresh_dir(
         f"report-{st['transfer_label']}-vs-{st['baseline_label']}")
-    rundir.write_files(out, files)
+    rundir.write_directory(out, files)
     return {"metrics": result["metrics"], "settings": st, "per_seed": result["per_seed"],
             "scores": result["scores"], "out_dir": str(out)}
 
@@ -445,6 +449,7 @@ def check_runs(baseline: Sequence[Curve], transfer: Sequence[Curve], s: ReportSe
     task = _check_tasks(baseline, transfer)
     for side, runs in (("baseline", baseline), ("transfer", transfer)):
         _check_configs(side, runs, bool(s.allow_mixed), warnings)
+    _check_sides(baseline, transfer, bool(s.allow_mismatch), warnings)
     paired, pairing, transfer = _pairing(baseline, transfer, s.paired)
     return Sides(baseline, transfer, task, paired, pairing)
 
@@ -533,6 +538,34 @@ def _check_configs(side: str, curves: Sequence[Curve], allow_mixed: bool, warnin
                         + (f" and {len(keys) - 3} more env settings" if len(keys) > 3 else "")
                         + "; those keys are not compared (their defaults are the task's, which the report "
                         "does not load).")
+
+
+PER_RUN = ("seed", "device", "threads", "log", "checkpoint", "transfer")
+"""Config sections and keys that do not change what a curve means (``transfer`` is what the report compares)."""
+
+
+def _check_sides(baseline: Sequence[Curve], transfer: Sequence[Curve], allow: bool, warnings: list[str]) -> None:
+    """Baseline and transfer runs must share every setting that changes what their curves mean: the task's
+    options, the learner and its network, buffer, collector and optimizer, the evaluation's episodes and
+    interval, and the frames; a mismatch is refused, or with ``--allow-mismatch`` listed in the report."""
+    from drltg.config import config_changes
+
+    configs = [max((c for c in side if c.config), key=lambda c: len(_flat(c.config)), default=None)
+               for side in (baseline, transfer)]
+    if None in configs:
+        return
+    b, t = configs
+    keys = [k for k in config_changes(b.config, t.config, env_defaults=False)
+            if k.split(".")[0] not in PER_RUN]
+    if not keys:
+        return
+    ref, other = _flat(b.config), _flat(t.config)
+    leaves = [x for k in keys for x in sorted({x for x in (*ref, *other) if x == k or x.startswith(f"{k}.")})]
+    text = ", ".join(f"{k} ({ref.get(k, '(unset)')} vs {other.get(k, '(unset)')})" for k in leaves)
+    if not allow:
+        raise UsageError(f"the baseline {_name(b)} and transfer {_name(t)} runs differ in settings that change what "
+                         f"a curve means: {text}; compare like with like, or pass --allow-mismatch.")
+    warnings.append(f"baseline and transfer settings differ (--allow-mismatch): {text}")
 
 
 def _seed(curve: Curve):

@@ -97,12 +97,31 @@ def _frames_done(run: Run) -> int:
 
 
 # --------------------------------------------------------------------------------------- backends
-def _worker_init() -> None:
+PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(parent: int) -> None:
+    """Have the kernel send SIGTERM to this worker when the process that started it dies, even by
+    ``kill -9`` (Linux ``prctl(PR_SET_PDEATHSIG)``); a worker whose parent is already gone exits now.
+    Without it an orphaned worker trains on for hours, holding its run's lock."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    if os.getppid() != parent:
+        os.kill(os.getpid(), signal.SIGTERM)
+
+
+def _worker_init(parent: int | None = None) -> None:
     """One torch thread per run; SIGTERM unwinds the run as in ``drltg train`` (lock released, its
-    checkpoint kept), so an interrupted experiment resumes where it stopped."""
+    checkpoint kept), so an interrupted experiment resumes where it stopped; the worker gets SIGTERM when
+    its parent dies."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     os.environ.setdefault("MKL_NUM_THREADS", "1")
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
+    if parent is not None:
+        _die_with_parent(parent)
 
 
 class LocalBackend:
@@ -123,7 +142,7 @@ class LocalBackend:
 
         if self.pool is None:
             self.pool = cf.ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"),
-                                               initializer=_worker_init)
+                                               initializer=_worker_init, initargs=(os.getpid(),))
         return self.pool
 
     def submit(self, run: Run):
@@ -180,6 +199,28 @@ def _loopback_only() -> None:
         ray_constants.ENABLE_RAY_CLUSTER = False
 
 
+CONNECT_TIMEOUT = 15.0
+"""Seconds a Ray cluster's address has to answer before ``drltg sweep`` gives up (Ray itself waits minutes)."""
+
+
+def check_answers(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
+    """Refuse, in one sentence, a ``HOST:PORT`` Ray address whose gRPC server does not answer within
+    ``timeout`` seconds: nothing listening, or a socket that accepts and stays silent. ``auto`` is left to Ray."""
+    target = address.removeprefix("ray://")
+    if target == "auto" or ":" not in target:
+        return
+    import grpc
+
+    channel = grpc.insecure_channel(target)
+    try:
+        grpc.channel_ready_future(channel).result(timeout=timeout)
+    except grpc.FutureTimeoutError:
+        raise UsageError(f"the Ray cluster at '{address}' did not answer within {timeout:g} s; check the address "
+                         "and that `ray start --head` runs there.") from None
+    finally:
+        channel.close()
+
+
 class RayBackend:
     """Ray tasks declaring ``num_cpus``/``num_gpus`` each; Ray places them on the cluster's nodes.
 
@@ -187,7 +228,8 @@ class RayBackend:
     ``address="auto"`` or ``"ip:port"`` joins a running cluster (`ray start --head`).
     """
 
-    def __init__(self, address: str | None, resources: dict, num_cpus: int | None = None):
+    def __init__(self, address: str | None, resources: dict, num_cpus: int | None = None,
+                 connect_timeout: float = CONNECT_TIMEOUT):
         if address is None:
             _loopback_only()
         try:
@@ -201,6 +243,7 @@ class RayBackend:
             print(f"ray: a local instance on {ray.util.get_node_ip_address()} with {num_cpus} CPUs",
                   file=sys.stderr)
         else:
+            check_answers(address, connect_timeout)
             try:
                 ray.init(address=address, configure_logging=False, log_to_driver=False)
             except (ConnectionError, ValueError, RuntimeError) as err:

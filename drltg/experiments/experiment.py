@@ -217,9 +217,9 @@ def run(args: argparse.Namespace) -> int:
     rundir.refuse_run_directory(out, "--out")
     runs = plan(args)
     check_runs(runs)
-    check_existing(as_runs(runs, out))
     settings, saved = _settings(args), out / "experiment.yaml"
     _check_settings(saved, settings)
+    check_existing(as_runs(runs, out))
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:

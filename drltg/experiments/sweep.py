@@ -500,6 +500,7 @@ def _execute_and_report(args, spec: Spec, out: Path, runs: list[Run], cells: lis
     for r in runs:
         if status[r.path][0] == "diverged":
             print(f"diverged: {r.path.relative_to(out)}: {status[r.path][1]}")
-    print(f"{len(runs)} runs: {counts.count('done')} done, {len(failed)} failed, {counts.count('diverged')} diverged, "
+    diverged = f"{counts.count('diverged')} diverged, " if "diverged" in counts else ""
+    print(f"{len(runs)} runs: {counts.count('done')} done, {len(failed)} failed, {diverged}"
           f"{counts.count('skipped')} skipped (complete before); summary: {out / 'summary.md'}")
     return 1 if failed or "diverged" in counts else 0

@@ -9,7 +9,7 @@
     summary.json         the run is finished when it exists: status complete (or diverged, with the reason)
     manifest.json        SHA-256 of the checkpoint and eval.csv, and when the run ends (written last) of
                          every file: a changed or damaged file is refused (drltg.training.manifest)
-    .drltg.lock          the pid and host of the process writing the directory, while it runs
+    .drltg.lock          pid, host and start time of the process writing the directory, while it runs
 
 Every file is written through a temporary file in the same folder and a rename, so a reader never sees
 half a file and a failed write leaves the previous version. Experiment and sweep folders are owned
@@ -153,6 +153,42 @@ def write_files(directory: str | Path, files: dict[str, bytes | str]) -> None:
         atomic_write(Path(directory) / name, data)
 
 
+def write_directory(directory: str | Path, files: dict[str, bytes | str]) -> None:
+    """Make ``directory`` hold ``files``, all of them or, on any failure, its previous content whole.
+
+    The files are written into a temporary sibling folder that is then renamed over ``directory``. A
+    folder that holds other files than these (a user's own folder given as ``--out``) is never replaced:
+    its files are then written one by one, each atomically."""
+    import shutil
+
+    directory = Path(directory)
+    if directory.is_dir() and any(p.name not in files for p in directory.iterdir()):
+        write_files(directory, files)
+        return
+    tmp = None
+    try:
+        directory.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(dir=directory.parent, prefix=f".{directory.name}.", suffix=".tmp"))
+        try:
+            write_files(tmp, files)
+        except UsageError as err:  # name the folder the user gave, not the temporary one
+            raise UsageError(str(err).replace(str(tmp), str(directory))) from None
+        os.chmod(tmp, 0o777 & ~_umask())
+        if directory.exists():
+            old = tmp.with_suffix(".old")
+            os.rename(directory, old)
+            os.rename(tmp, directory)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.rename(tmp, directory)
+    except BaseException as err:
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
+        if isinstance(err, OSError):
+            raise UsageError(f"cannot write '{directory}' ({err.strerror or err}).") from None
+        raise
+
+
 # ---------------------------------------------------------------------------------------- eval.csv
 def write_eval_csv(path: str | Path, rows: list[dict]) -> None:
     columns = [c for c in EVAL_COLUMNS if any(c in r for r in rows)]
@@ -247,7 +283,24 @@ def check_name_lengths(path: Path, what: str) -> None:
                          "the file system allows; choose a shorter --out.")
 
 
-def _alive(pid: int, host: str) -> bool:
+def _stat(pid: int) -> list[str]:
+    """The fields of ``/proc/<pid>/stat`` after the command name (state first); empty if unknown."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
+        return []
+
+
+def _started(pid: int) -> str | None:
+    """When process ``pid`` started (clock ticks since boot); ``None`` if unknown."""
+    fields = _stat(pid)
+    return fields[19] if len(fields) > 19 else None
+
+
+def _alive(pid: int, host: str, started: str | None = None) -> bool:
+    """Whether the lock's owner still runs: its pid exists and, where the lock records it, started when
+    the owner did (a pid reused by an unrelated process after a crash does not hold the lock)."""
     if host != socket.gethostname():
         return True  # cannot tell from here
     try:
@@ -255,21 +308,23 @@ def _alive(pid: int, host: str) -> bool:
     except ProcessLookupError:
         return False
     except PermissionError:  # another user's process
-        return True
-    return True
+        pass
+    if _stat(pid)[:1] == ["Z"]:  # exited, not yet reaped (an orphan's zombie where nothing reaps)
+        return False
+    return started is None or _started(pid) in (None, started)
 
 
-def _holder(path: Path) -> tuple[str, int, str] | None:
-    """(text, pid, host) of the lock file, ``None`` if it is gone; pid 0 while it is being written."""
+def _holder(path: Path) -> tuple[str, int, str, str | None] | None:
+    """(text, pid, host, start time) of the lock file, ``None`` if it is gone; pid 0 while it is being written."""
     try:
         text = path.read_text()
     except FileNotFoundError:
         return None
     parts = text.split()
     try:
-        return text, int(parts[0]), parts[1]
+        return text, int(parts[0]), parts[1], parts[3] if len(parts) > 3 else None
     except (IndexError, ValueError):
-        return text, 0, ""
+        return text, 0, "", None
 
 
 def _break_stale(path: Path, seen: str) -> None:
@@ -287,7 +342,7 @@ def _break_stale(path: Path, seen: str) -> None:
 
 def _acquire(directory: Path, what: str) -> str:
     path = directory / LOCK
-    token = f"{os.getpid()} {socket.gethostname()} {uuid.uuid4().hex}\n"
+    token = f"{os.getpid()} {socket.gethostname()} {uuid.uuid4().hex} {_started(os.getpid()) or '-'}\n"
     for _ in range(10):
         try:
             fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
@@ -295,14 +350,14 @@ def _acquire(directory: Path, what: str) -> str:
             held = _holder(path)
             if held is None:
                 continue
-            text, pid, host = held
+            text, pid, host, started = held
             if pid == 0:  # written right now, or left empty by a crash
                 with contextlib.suppress(FileNotFoundError):
                     if time.time() - path.stat().st_mtime > 10:
                         _break_stale(path, text)
                 time.sleep(0.05)
                 continue
-            if _alive(pid, host):
+            if _alive(pid, host, None if started == "-" else started):
                 raise UsageError(
                     f"{what} '{directory}' is in use by process {pid} on {host}; wait for it to end, or "
                     f"delete '{path}' if that process is gone."
