@@ -43,7 +43,7 @@ DEFAULTS: dict[str, Any] = {
         "gamma": 0.99,
         "tau": 0.005,
     },
-    "network": {"hidden": [256, 256]},
+    "network": {"hidden": [256, 256], "layer_norm": "none"},
     "sac": {"alpha_init": 1.0, "fixed_alpha": False, "target_entropy": "auto"},
     "td3": {"exploration_noise": 0.1, "policy_noise": 0.2, "noise_clip": 0.5, "policy_delay": 2},
     # soft option-critic (drltg.losses.soc); the action temperature comes from "sac"
@@ -71,9 +71,9 @@ DEFAULTS: dict[str, Any] = {
 TRANSFER_KEYS = tuple(DEFAULTS["transfer"])
 """The ``transfer.*`` keys of every method; the others belong to one method (``TransferMethod.options``)."""
 METHOD_RULES: dict[str, Any] = {}
-"""``transfer.method`` -> the check its configs must pass, filled with the method's keys (``DEFAULTS``,
-``SCHEMA``) by :func:`drltg.transfer.register_method`: import :mod:`drltg.transfer` (the commands do)
-before resolving a config that uses a transfer method."""
+"""``transfer.method`` -> the check its configs must pass (``"+"``: the check of every combination
+``a+b``), filled with the method's keys (``DEFAULTS``, ``SCHEMA``) by :func:`drltg.transfer.register_method`:
+import :mod:`drltg.transfer` (the commands do) before resolving a config that uses a transfer method."""
 METHOD_OPTIONS: dict[str, str] = {}
 """``transfer.<key>`` -> the one method whose option it is (filled by ``register_method`` too)."""
 BUILTIN_METHOD_OPTIONS: dict[str, dict[str, Any]] = {
@@ -81,7 +81,8 @@ BUILTIN_METHOD_OPTIONS: dict[str, dict[str, Any]] = {
     "jumpstart": {"guide_steps": 100, "guide_stages": 10, "guide_frames": 20_000},
     "model-reuse": {"freeze": [], "partial": False},
     "value-shaping": {"value_scale": 1.0},
-    "demonstrations": {"demo_episodes": 50, "demo_ratio": 0.25, "bc_weight": 10.0, "bc_q_filter": False},
+    "demonstrations": {"demo_episodes": 50, "demo_ratio": 0.25, "bc_weight": 10.0, "bc_q_filter": False,
+                       "bc_anneal_frames": 0},
 }
 """The built-in methods' ``transfer.*`` options at their defaults, as plain data: the method modules
 register them from here, and :func:`config_changes` reads them without importing the methods (and torch),
@@ -209,6 +210,8 @@ SCHEMA: dict[str, Field] = {
     "optim.tau": Field(float, "target-network smoothing", **_PROB, open_low=True),
     "network.hidden": Field(list, "MLP widths of actor and critics", item=Field(int, low=1), nonempty=True,
                             what="a non-empty list of positive integers (e.g. [64, 64])"),
+    "network.layer_norm": Field(str, "LayerNorm after every hidden layer of the critics, of every network, or none",
+                                choices=("none", "critics", "all")),
     "sac.alpha_init": Field(float, "initial entropy temperature", **_POSITIVE),
     "sac.fixed_alpha": Field(bool, "keep the temperature at alpha_init"),
     "sac.target_entropy": Field(float, "entropy the temperature is tuned to", auto=True),
@@ -421,7 +424,8 @@ def config_changes(saved: dict, cfg: dict, *, env_defaults: bool = True) -> list
     builtin = {k: v for options in BUILTIN_METHOD_OPTIONS.values() for k, v in options.items()}
     defaults = {**DEFAULTS, "env": env, "transfer": {**builtin, **DEFAULTS["transfer"]}}
     owners = {**{k: m for m, options in BUILTIN_METHOD_OPTIONS.items() for k in options}, **METHOD_OPTIONS}
-    methods = {_lookup(saved, "transfer.method"), _lookup(cfg, "transfer.method")}
+    methods = {part for c in (saved, cfg) if isinstance(m := _lookup(c, "transfer.method"), str)
+               for part in m.split("+")}
     unknown = set() if env_defaults else set(env_keys_set_once(saved, cfg))
     if not env_defaults and (_lookup(saved, "env") is KeyError) != (_lookup(cfg, "env") is KeyError):
         unknown.add("env")
@@ -475,6 +479,9 @@ def validate(cfg: dict) -> None:
             raise UsageError(f"the config has no key '{key}'; resolve() fills in every key.") from None
         if key == "env":
             _check_env(cfg["task"], value)
+        elif key == "transfer.method" and isinstance(value, str) and "+" in value:
+            for part in value.split("+"):
+                field.check(key, part)
         else:
             checked = field.check(key, value)
             if checked is not value:
@@ -484,7 +491,10 @@ def validate(cfg: dict) -> None:
         raise UsageError(
             f"collector.frames_per_batch ({fpb}) must be a multiple of collector.num_envs ({n})."
         )
-    rule = METHOD_RULES.get(cfg["transfer"]["method"])
+    if cfg["algo"] == "soc" and cfg["network"]["layer_norm"] != "none":
+        raise UsageError("network.layer_norm applies to sac and td3; the soft option-critic's networks have none.")
+    method = cfg["transfer"]["method"]
+    rule = METHOD_RULES.get(method) or (METHOD_RULES.get("+") if "+" in method else None)
     if rule is not None:
         rule(cfg)
     cfg["frames"] = -(-cfg["frames"] // fpb) * fpb  # whole collector batches: the budget is exact

@@ -62,8 +62,15 @@ class Agent:
     env_transforms: list[Transform] = field(default_factory=list)
 
 
-def _mlp(out_features: int, cfg: dict) -> MLP:
-    return MLP(out_features=out_features, num_cells=list(cfg["network"]["hidden"]), activation_class=nn.ReLU)
+def _mlp(out_features: int, cfg: dict, *, critic: bool = False) -> MLP:
+    """A ReLU MLP; with ``network.layer_norm`` (``critics`` or ``all``) each hidden layer is Linear ->
+    LayerNorm -> ReLU, which keeps critics from over-estimating on out-of-distribution actions when
+    offline data share the batches (Ball et al. 2023)."""
+    hidden, norm = list(cfg["network"]["hidden"]), cfg["network"].get("layer_norm", "none")
+    kwargs = {}
+    if norm == "all" or (norm == "critics" and critic):
+        kwargs = {"norm_class": nn.LayerNorm, "norm_kwargs": [{"normalized_shape": w} for w in hidden]}
+    return MLP(out_features=out_features, num_cells=hidden, activation_class=nn.ReLU, **kwargs)
 
 
 def _action_spec(env: EnvBase):
@@ -107,7 +114,7 @@ def make_sac_agent(env: EnvBase, cfg: dict) -> Agent:
         distribution_kwargs={"low": spec.space.low, "high": spec.space.high},
         return_log_prob=False,
     )
-    qvalue = ValueOperator(_mlp(1, cfg), in_keys=["observation", "action"])
+    qvalue = ValueOperator(_mlp(1, cfg, critic=True), in_keys=["observation", "action"])
     _init_lazy(env, actor, qvalue)
     loss = SACLoss(
         actor,
@@ -134,7 +141,7 @@ def make_discrete_sac_agent(env: EnvBase, cfg: dict) -> Agent:
         distribution_class=OneHotCategorical,
         return_log_prob=False,
     )
-    qvalue = TensorDictModule(_mlp(n, cfg), in_keys=["observation"], out_keys=["action_value"])
+    qvalue = TensorDictModule(_mlp(n, cfg, critic=True), in_keys=["observation"], out_keys=["action_value"])
     _init_lazy(env, actor, qvalue)
     loss = DiscreteSACLoss(
         actor,
@@ -161,7 +168,7 @@ def make_td3_agent(env: EnvBase, cfg: dict) -> Agent:
         TensorDictModule(_mlp(spec.shape[-1], cfg), in_keys=["observation"], out_keys=["param"]),
         TanhModule(in_keys=["param"], out_keys=["action"], spec=spec),
     )
-    qvalue = ValueOperator(_mlp(1, cfg), in_keys=["observation", "action"])
+    qvalue = ValueOperator(_mlp(1, cfg, critic=True), in_keys=["observation", "action"])
     _init_lazy(env, actor, qvalue)
     td3 = cfg["td3"]
     sigma = td3["exploration_noise"]

@@ -204,3 +204,24 @@ def test_behaviour_cloning_refuses_discrete_actions():
     env = make_env("gridrooms/northeast")
     with pytest.raises(UsageError, match="bc_weight clones continuous actions"):
         get_method("demonstrations").build(cfg, make_agent(env, cfg), env, resuming=False)
+
+
+def test_annealed_behaviour_cloning_falls_linearly_to_zero(source_run):
+    from drltg.learners import make_agent
+    from drltg.transfer import get_method
+
+    cfg = config_lib.resolve({}, TINY + [f"transfer.source={source_run}", "transfer.method=demonstrations",
+                                         "transfer.demo_episodes=1", "transfer.bc_anneal_frames=200"],
+                             task="fourrooms/northeast-shifted", seed=2)
+    env = make_env("fourrooms/northeast-shifted", batch_size=(4,), horizon=20)
+    agent = make_agent(env, cfg)
+    transfer = get_method("demonstrations").build(cfg, agent, env, resuming=False)
+    buffer = ReplayBuffer(storage=LazyTensorStorage(64), batch_size=32)
+    buffer.extend(env.rollout(8, break_when_any_done=False).reshape(-1).select(*agent.loss.in_keys))
+    batch = next(iter(transfer.batches(buffer, 1)))
+    bc = []
+    for frames in (0, 50, 200, 400):
+        transfer.on_frames(frames)
+        bc.append(transfer.loss_terms(batch)["loss_actor_bc"].item())
+    assert bc[0] > 0
+    assert bc[1] == pytest.approx(0.75 * bc[0], rel=1e-6) and bc[2] == 0.0 and bc[3] == 0.0

@@ -210,3 +210,25 @@ def test_training_curve_unchanged(tmp_path, monkeypatch):
     reference = read_eval_csv(train(cfg, tmp_path / "reference", progress=False) / "eval.csv")
     assert [r["frames"] for r in built] == [0, 512, 1024]
     assert built == reference
+
+
+@pytest.mark.parametrize("layer_norm, critic, actor", [("none", 0, 0), ("critics", 2, 0), ("all", 2, 2)])
+@pytest.mark.parametrize("algo", ["sac", "td3"])
+def test_layer_norm_goes_after_every_hidden_layer_of_the_networks_asked(algo, layer_norm, critic, actor):
+    from torch import nn
+
+    cfg = config_lib.resolve({}, ["network.hidden=[8,8]", f"network.layer_norm={layer_norm}"],
+                             task="fourrooms/northeast", algo=algo)
+    loss = make_agent(make_env("fourrooms/northeast"), cfg).loss
+    count = lambda module: sum(isinstance(m, nn.LayerNorm) for m in module.modules())  # noqa: E731
+    assert (count(loss.qvalue_network), count(loss.actor_network)) == (critic, actor)
+    layers = list(loss.qvalue_network.module.modules()) if critic else []
+    kinds = [type(m).__name__ for m in layers if type(m).__name__ in ("Linear", "LayerNorm", "ReLU")]
+    assert kinds[:3] == (["Linear", "LayerNorm", "ReLU"] if critic else [])
+
+
+def test_layer_norm_is_refused_for_the_soft_option_critic():
+    from drltg.errors import UsageError
+
+    with pytest.raises(UsageError, match="network.layer_norm applies to sac and td3"):
+        config_lib.resolve({}, ["network.layer_norm=critics"], task="fourrooms/northeast", algo="soc")

@@ -1473,6 +1473,9 @@ def run(args) -> int:
     for w in result["settings"]["warnings"]:
         print(f"warning: {w}", file=sys.stderr)
     print(format_table(result))
+    from drltg.analysis.claims import headline
+
+    print("\n" + headline(result))
     print(f"\nwrote {result['out_dir']}/transfer_metrics.{{json,csv}} and transfer_plot.{{png,svg}}")
     return 0
 

@@ -206,6 +206,7 @@ def _check_settings(path: Path, settings: dict) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from drltg.analysis.claims import headline
     from drltg.analysis.report import format_table, parse_threshold, transfer_report
     from drltg.experiments.executor import LocalBackend, execute
     from drltg.experiments.sweep import check_existing
@@ -248,5 +249,6 @@ def run(args: argparse.Namespace) -> int:
             transfer_label=args.method,
         )
     print(format_table(result))
+    print("\n" + headline(result))
     print(f"\nreport: {out / 'report'}")
     return 1 if diverged else 0

@@ -127,7 +127,7 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
     from drltg.analysis.report import check_metric, parse_threshold
     from drltg.envs import TASKS, get_pair
     from drltg.learners import ALGOS
-    from drltg.transfer import METHODS
+    from drltg.transfer import METHODS, get_method
 
     if not isinstance(data, dict):
         raise UsageError(f"{where} must be a YAML mapping with keys like pairs, methods, seeds, frames.")
@@ -146,8 +146,13 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
         except UsageError as err:
             raise UsageError(f"{where}: {err}") from None
     for method in spec.methods:
-        if method not in METHODS or method == "none":
-            raise UsageError(f"{where}: unknown method '{method}'{_hint(method, [m for m in METHODS if m != 'none'])}")
+        for part in method.split("+"):
+            if part not in METHODS or part == "none":
+                raise UsageError(f"{where}: unknown method '{part}'{_hint(part, [m for m in METHODS if m != 'none'])}")
+        try:
+            get_method(method)
+        except UsageError as err:
+            raise UsageError(f"{where}: {err}") from None
     if "algos" in data:
         spec.algos = _axis(data, "algos", str, where)
     for algo in spec.algos:

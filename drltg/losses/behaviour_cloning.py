@@ -1,6 +1,8 @@
 """Behaviour cloning on demonstrations as an extra actor loss (Nair et al. 2018), Q-filtered on request."""
 from __future__ import annotations
 
+from typing import Callable
+
 import torch
 from tensordict import TensorDictBase
 from torchrl.envs import ExplorationType, set_exploration_type
@@ -15,7 +17,7 @@ def _min_q(loss, td: TensorDictBase) -> torch.Tensor:
     return torch.stack(values).amin(0).squeeze(-1)
 
 
-def behaviour_cloning(loss, count: int, weight: float, *, q_filter: bool = False):
+def behaviour_cloning(loss, count: int, weight: float | Callable[[], float], *, q_filter: bool = False):
     """Nair et al. (2018)'s behaviour-cloning term on the first ``count`` transitions of each batch (the
     demonstrations, as :func:`drltg.collectors.mixed_batches` lays them out), for a SAC or TD3 loss module:
 
@@ -23,7 +25,8 @@ def behaviour_cloning(loss, count: int, weight: float, *, q_filter: bool = False
 
     ``mu`` the actor's deterministic action, ``Q`` the smaller of the current critics. The Q filter
     clones a demonstrated action only while the critic rates it above the actor's own, so the term fades
-    where the learner has become better than its demonstrator. Returns ``loss_terms(batch)`` for
+    where the learner has become better than its demonstrator. ``weight`` may be a function read at every
+    step (an annealed weight). Returns ``loss_terms(batch)`` for
     :class:`~drltg.learners.UpdateStep`, with ``bc_accepted``, the share of demonstrations kept."""
     actor, actor_params = loss.actor_network, loss.actor_network_params
     obs_keys = list(actor.in_keys)
@@ -37,6 +40,7 @@ def behaviour_cloning(loss, count: int, weight: float, *, q_filter: bool = False
         if q_filter:
             pair = demo.select(*obs_keys, "action")
             accepted = (_min_q(loss, pair) > _min_q(loss, pair.clone(False).set("action", action.detach()))).float()
-        return {"loss_actor_bc": weight * (error * accepted).mean(), "bc_accepted": accepted.mean()}
+        w = weight() if callable(weight) else weight
+        return {"loss_actor_bc": w * (error * accepted).mean(), "bc_accepted": accepted.mean()}
 
     return loss_terms

@@ -11,10 +11,10 @@
 
 :mod:`drltg.transfer.registry` defines what a method is (:class:`TransferMethod`) and what it adds to a
 run (:class:`Transfer`); :mod:`drltg.transfer.source` reads ``transfer.source``. Importing this package
-registers the built-in methods; the parts themselves (``drltg.transforms``, ``drltg.collectors``,
-``drltg.losses``, ``drltg.modules``) register nothing.
+registers the built-in methods (``a+b`` names a combination, :func:`combine`); the parts themselves
+(``drltg.transforms``, ``drltg.collectors``, ``drltg.losses``, ``drltg.modules``) register nothing.
 """
-from drltg.transfer.registry import METHODS, Transfer, TransferMethod, get_method, register_method
+from drltg.transfer.registry import METHODS, Transfer, TransferMethod, combine, get_method, register_method
 
 register_method(TransferMethod("none", "plain learning on the task: the baseline", lambda *a, **k: Transfer()))
 
@@ -22,6 +22,6 @@ from drltg.transfer import reward_shaping, value_shaping, policy_reuse, model_re
 from drltg.transfer.model_reuse import load_from_run  # noqa: E402
 
 __all__ = [
-    "METHODS", "Transfer", "TransferMethod", "get_method", "register_method", "load_from_run",
+    "METHODS", "Transfer", "TransferMethod", "combine", "get_method", "register_method", "load_from_run",
     "reward_shaping", "value_shaping", "policy_reuse", "model_reuse", "demonstrations",
 ]

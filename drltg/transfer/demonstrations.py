@@ -35,9 +35,15 @@ def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
         demo_env.close()
     demos = demonstration_buffer(data, agent.loss.in_keys)
     count = round(t["demo_ratio"] * cfg["buffer"]["batch_size"])
-    bc = behaviour_cloning(agent.loss, count, t["bc_weight"], q_filter=t["bc_q_filter"])
+    weight = [t["bc_weight"]]
+
+    def anneal(frames: int) -> None:  # w_f = w * max(0, 1 - f / bc_anneal_frames)
+        weight[0] = t["bc_weight"] * max(0.0, 1.0 - frames / t["bc_anneal_frames"])
+
+    bc = behaviour_cloning(agent.loss, count, lambda: weight[0], q_filter=t["bc_q_filter"])
     return Transfer(batches=lambda own, n: mixed_batches(own, demos, n, t["demo_ratio"]),
                     loss_terms=bc if t["bc_weight"] > 0 and count > 0 else None,
+                    on_frames=anneal if t["bc_anneal_frames"] > 0 else None,
                     summary={"demonstration_frames": data.numel()})
 
 
@@ -46,11 +52,14 @@ DEMONSTRATIONS = register_method(TransferMethod(
     "episodes of the source policy in a buffer of their own, a fixed share of every batch",
     _build,
     source="policy",
+    takes=("batches",),
     algos=("sac", "td3"),
     options=builtin_options("demonstrations", {
         "demo_episodes": Field(int, "demonstrations: episodes of the source policy collected", low=1),
         "demo_ratio": Field(float, "demonstrations: share of every batch drawn from them", low=0.0, high=1.0),
         "bc_weight": Field(float, "demonstrations: weight of the behaviour-cloning term (0: none)", low=0.0),
         "bc_q_filter": Field(bool, "demonstrations: clone only where Q(s, a_demo) > Q(s, mu(s))"),
+        "bc_anneal_frames": Field(int, "demonstrations: frames over which bc_weight falls linearly to 0 (0: constant)",
+                                  low=0),
     }),
 ))

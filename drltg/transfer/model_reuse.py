@@ -37,6 +37,7 @@ MODEL_REUSE_METHOD = register_method(TransferMethod(
     "the learner starts from the source run's weights (observation-size changes mapped)",
     _build,
     source="run",
+    takes=("weights",),
     options=builtin_options("model-reuse", {
         "freeze": Field(list, "model reuse: parameter-name patterns to keep fixed", item=Field(str),
                              what="a list of parameter-name patterns (e.g. [actor_network_params])"),

@@ -37,6 +37,7 @@ POLICY_REUSE = register_method(TransferMethod(
     "pi-reuse: the source policy acts with probability psi * upsilon^h at step h of every episode",
     _pi_reuse,
     source="policy",
+    takes=("policy",),
     check=_check_pi_reuse,
     options=builtin_options("policy-reuse", {
         "psi": Field(float, "pi-reuse: probability of reusing at an episode's first step", **_PROB),
@@ -59,6 +60,7 @@ JUMPSTART = register_method(TransferMethod(
     "JSRL: the source policy acts for the first H steps of every episode, H shrinking to 0 in stages",
     _jumpstart,
     source="policy",
+    takes=("policy",),
     options=builtin_options("jumpstart", {
         "guide_steps": Field(int, "jumpstart: steps the source policy acts at the start (H at first)",
                                    low=0),

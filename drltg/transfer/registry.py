@@ -31,7 +31,7 @@ from drltg import config
 from drltg.config import Field
 from drltg.errors import UsageError
 
-__all__ = ["Transfer", "TransferMethod", "METHODS", "register_method", "get_method"]
+__all__ = ["Transfer", "TransferMethod", "METHODS", "register_method", "get_method", "combine"]
 
 
 @dataclass
@@ -79,6 +79,9 @@ class TransferMethod:
         check: ``check(cfg)`` raises one :class:`UsageError` sentence on a config the method cannot
             run (rules that tie keys together); called by ``drltg.config.validate``.
         algos: the learners it works with (``None``: every learner).
+        takes: the places of the pipeline it owns alone (``"policy"``: the collector's policy,
+            ``"batches"``: the minibatches, ``"weights"``: the learner's initial weights); two methods
+            that take one place cannot be combined.
     """
 
     name: str
@@ -88,6 +91,7 @@ class TransferMethod:
     options: dict[str, tuple[Any, Field]] = field(default_factory=dict)
     check: Callable[[dict], None] | None = None
     algos: tuple[str, ...] | None = None
+    takes: tuple[str, ...] = ()
 
     def validate(self, cfg: dict) -> None:
         if self.algos is not None and cfg["algo"] not in self.algos:
@@ -101,6 +105,7 @@ class TransferMethod:
 
 METHODS: dict[str, TransferMethod] = {}
 """Every registered method by name; ``none`` is plain learning (the baseline)."""
+config.METHOD_RULES["+"] = lambda cfg: get_method(cfg["transfer"]["method"]).validate(cfg)
 
 _SOURCES = (None, "run", "policy")
 
@@ -139,6 +144,9 @@ def register_method(method: TransferMethod, *, replace: bool = False) -> Transfe
 
 
 def get_method(name: str) -> TransferMethod:
+    """The registered method ``name``, or the combination ``a+b`` of registered methods (:func:`combine`)."""
+    if "+" in name:
+        return combine(*(get_method(part) for part in name.split("+")))
     if name not in METHODS:
         import difflib
 
@@ -148,3 +156,73 @@ def get_method(name: str) -> TransferMethod:
             + (f"; did you mean '{hint[0]}'?" if hint else f"; choose one of: {', '.join(METHODS)}.")
         )
     return METHODS[name]
+
+
+def combine(*methods: TransferMethod) -> TransferMethod:
+    """One method that applies several, in order (``transfer.method=model-reuse+demonstrations``).
+
+    The parts' ``Transfer`` fields are joined: transforms and loss terms add up, schedules are all told
+    the frames, files and summaries are merged. A place only one method may own (``takes``) refuses a
+    second owner, and so do sources of different kinds: with one ``transfer.source``, a method that
+    reuses a run's weights and one that asks for a demonstrator cannot share it.
+    """
+    names = [m.name for m in methods]
+    name = "+".join(names)
+    if len(methods) < 2 or "none" in names or len(set(names)) < len(names):
+        raise UsageError(f"transfer.method '{name}': a combination joins two or more different methods, none of "
+                         "them 'none'.")
+    owners: dict[str, str] = {}
+    for m in methods:
+        for place in m.takes:
+            if place in owners:
+                raise UsageError(f"transfer.method '{name}': {owners[place]} and {m.name} both set the "
+                                 f"{_PLACES[place]}; combine at most one of them.")
+            owners[place] = m.name
+    algos = None
+    for m in methods:
+        if m.algos is not None:
+            algos = tuple(a for a in (algos or m.algos) if a in m.algos)
+    if algos == ():
+        each = "; ".join(f"{m.name}: {', '.join(m.algos)}" for m in methods if m.algos)
+        raise UsageError(f"transfer.method '{name}': its parts share no learner ({each}).")
+    sources = {m.source for m in methods} - {None}
+    source = "run" if "run" in sources else next(iter(sources), None)
+
+    def check(cfg: dict) -> None:
+        for m in methods:
+            m.validate(cfg)
+
+    def build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
+        return _join([m.build(cfg, agent, env, resuming=resuming) for m in methods])
+
+    options = {k: v for m in methods for k, v in m.options.items()}
+    return TransferMethod(name, " + ".join(m.help for m in methods), build, source=source, options=options,
+                          check=check, algos=algos, takes=tuple(owners))
+
+
+_PLACES = {"policy": "collector's policy", "batches": "minibatches", "weights": "learner's initial weights"}
+
+
+def _join(parts: list[Transfer]) -> Transfer:
+    policies = [t.policy for t in parts if t.policy is not None]
+    batches = [t.batches for t in parts if t.batches is not None]
+    on_frames = [t.on_frames for t in parts if t.on_frames is not None]
+    terms = [t.loss_terms for t in parts if t.loss_terms is not None]
+    assert len(policies) <= 1 and len(batches) <= 1, "combine() admits one owner per place"
+
+    def tell(frames: int) -> None:
+        for f in on_frames:
+            f(frames)
+
+    def loss_terms(batch) -> dict:
+        return {k: v for f in terms for k, v in f(batch).items()}
+
+    return Transfer(
+        train_transforms=[x for t in parts for x in t.train_transforms],
+        policy=policies[0] if policies else None,
+        on_frames=tell if on_frames else None,
+        batches=batches[0] if batches else None,
+        loss_terms=loss_terms if terms else None,
+        files={k: v for t in parts for k, v in t.files.items()},
+        summary={k: v for t in parts for k, v in t.summary.items()},
+    )

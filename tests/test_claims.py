@@ -1,0 +1,161 @@
+"""Result sentences follow fixed rules, and the committed prose says what the committed numbers say."""
+import importlib.util
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from drltg.analysis import claims as cl
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def generator():
+    spec = importlib.util.spec_from_file_location("results_claims", ROOT / "results" / "claims.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def report(times=(1000.0, None, 3000.0), crossing="sustained", value=0.4, ci=(0.1, 0.7), p_adjusted=0.01, **st):
+    """A hand-made transfer_metrics.json: three transfer seeds with the given threshold times."""
+    per_seed = [{"seed": 100 * i, "mean_return": 0.5 + i, "time_to_threshold": t} for i, t in enumerate(times)]
+    return {
+        "metrics": {"n_seeds_baseline": len(times), "n_seeds_transfer": len(times), "mean_return_gain": value,
+                    "mean_return_gain_ci": list(ci) if ci else None, "mean_return_gain_p_adjusted": p_adjusted,
+                    "time_to_threshold_transfer": None},
+        "settings": {"threshold": 0.5, "crossing": crossing, "sustain": None, "sustain_after": 2, "paired": True,
+                     "budget": 20000, "transfer_label": "model-reuse", "baseline_label": "no transfer",
+                     "family": {"size": 3}, **st},
+        "per_seed": {"transfer": per_seed, "baseline": per_seed},
+    }
+
+
+# ------------------------------------------------------------------------------------------ rules
+@pytest.mark.parametrize("ci, p_adjusted, expected", [
+    ((0.1, 0.5), None, 1), ((-0.5, -0.1), None, -1), ((-0.1, 0.5), None, 0), (None, None, 0),
+    ((0.1, 0.5), 0.2, 0),  # excludes 0 alone, not after Holm: no verdict
+    ((0.1, 0.5), 0.049, 1),
+])
+def test_a_difference_has_a_direction_only_when_its_interval_excludes_zero(ci, p_adjusted, expected):
+    assert cl.direction(ci, p_adjusted) == expected
+
+
+def test_verdicts_read_higher_lower_or_no_evidence():
+    assert cl.verdict(1.08, (0.91, 1.24)) == "+1.08 [+0.91, +1.24], higher with transfer"
+    assert cl.verdict(-0.41, (-0.6, -0.21)) == "\u22120.41 [\u22120.60, \u22120.21], lower with transfer"
+    assert cl.verdict(0.25, (-0.03, 0.53)) == "+0.25 [\u22120.03, +0.53]: no evidence of a difference at this budget"
+    assert cl.verdict(0.0, None) == "+0.00: no evidence of a difference at this budget"
+    held_back = cl.verdict(-0.32, (-0.51, -0.13), p_adjusted=0.079, family=20)
+    assert held_back == ("\u22120.32 [\u22120.51, \u22120.13]: no evidence of a difference at this budget after Holm's "
+                         "adjustment (adjusted p = 0.079 of 20)")
+
+
+def test_every_seed_only_when_every_seed():
+    assert cl.seeds(5, 5) == "every seed (5 of 5)"
+    assert cl.seeds(4, 5) == "4 of 5 seeds"
+    assert cl.seeds(0, 3) == "no seed (0 of 3)"
+    assert [cl.agree(k, 5, "holds", "hold") for k in (0, 1, 3, 5)] == ["holds", "holds", "hold", "holds"]
+
+
+def test_a_sustained_threshold_names_its_confirming_evaluations_and_counts_seeds():
+    text = cl.threshold_sentence(report(), "transfer", "near")
+    assert text == ("near: 2 of 3 seeds hold 0.5 to the end (sustained: at least 2 evaluations after the crossing), "
+                    "from 1k, 3k frames")
+    every = cl.threshold_sentence(report(times=(1000.0, 2500.0, 3000.0)), "transfer", "near")
+    assert every.startswith("near: every seed (3 of 3) holds 0.5") and every.endswith("the last of them from 3k frames")
+
+
+def test_a_first_crossing_is_never_called_sustained_or_held():
+    text = cl.threshold_sentence(report(crossing="first"), "transfer", "near")
+    assert text == ("near: 2 of 3 seeds reach 0.5 at least once (a first crossing, not a sustained one), "
+                    "from 1k, 3k frames")
+    assert " hold" not in text
+
+
+def test_best_needs_every_paired_difference_to_exclude_zero():
+    def method(scores):
+        return {"per_seed": {"transfer": [{"seed": s, "mean_return": v} for s, v in enumerate(scores)]}}
+
+    a, b = method([3.0, 4.2, 4.8, 6.0]), method([1.0, 2.0, 3.0, 4.0])  # A − B = 2.0, 2.2, 1.8, 2.0
+    c = method([3.5, 3.0, 5.5, 5.0])  # A − C = −0.5, +1.2, −0.7, +1.0: mean 0.25, sd 0.988, t(3) 3.182
+    best = cl.best_sentence({"A": a, "B": b}, "near")
+    assert best.startswith("near: A is best, ahead of every other method (paired by seed, Holm over 1): B +2.00 [")
+    level = cl.best_sentence({"A": a, "B": b, "C": c}, "near")
+    assert level == ("near: no method is best; A leads, and its paired difference to C is +0.25 [\u22121.32, +1.82]: "
+                     "no evidence of a difference at this budget")
+
+
+def test_the_headline_concludes_or_says_there_is_no_evidence():
+    assert cl.headline(report()) == ("Headline (model-reuse vs no transfer, 3 paired seeds, 20k frames): mean return "
+                                     "gain +0.40 [+0.10, +0.70], higher with transfer.")
+    assert cl.headline(report(ci=(-0.1, 0.9))).endswith(
+        "+0.40 [\u22120.10, +0.90]: no evidence of a difference at this budget.")
+
+
+def test_regions_are_replaced_between_their_markers_and_a_missing_one_is_an_error():
+    text = "a\n<!-- claims:x -->\nold 1\n<!-- /claims:x -->\nb\n"
+    assert cl.fill_regions(text, {"x": "new 2"}) == "a\n<!-- claims:x -->\nnew 2\n<!-- /claims:x -->\nb\n"
+    with pytest.raises(ValueError, match="no region 'y'"):
+        cl.fill_regions(text, {"y": "z"})
+
+
+# -------------------------------------------------------------------------------- committed prose
+@pytest.mark.parametrize("file", ["results/README.md", "README.md"])
+def test_every_generated_region_matches_the_committed_numbers(file):
+    """Fails on any drift: regenerate with `python results/claims.py`."""
+    g = generator()
+    text = (ROOT / file).read_text()
+    regions = g.generated(file)
+    assert cl.fill_regions(text, regions) == text, f"{file} drifted from results/**: run python results/claims.py"
+
+
+def test_a_changed_number_changes_the_sentences(tmp_path):
+    g = generator()
+    for path in g.GRADED.rglob("transfer_metrics.json"):
+        target = tmp_path / path.relative_to(g.GRADED)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(path, target)
+    changed = tmp_path / "fourrooms-near" / "sac" / "model-reuse" / "report" / "transfer_metrics.json"
+    data = json.loads(changed.read_text())
+    data["metrics"]["mean_return_gain_ci"] = [-0.2, 2.3]
+    changed.write_text(json.dumps(data))
+    order = ["model-reuse", "value-shaping", "policy-reuse", "reward-shaping"]
+    before, after = g.sweep_verdicts(g.GRADED, order), g.sweep_verdicts(tmp_path, order)
+    assert "near +1.08 [+0.91, +1.24], higher with transfer" in before
+    assert "near +1.08 [\u22120.20, +2.30]: no evidence of a difference at this budget" in after
+
+
+def test_the_registry_tables_list_every_builtin_task_method_and_key():
+    g = generator()
+    from drltg import config
+    from drltg.envs import PAIRS, TASKS
+    from drltg.transfer.registry import METHODS
+
+    tasks = g.tasks_table("rooms") + g.tasks_table("robosuite")
+    methods, keys = g.methods_table(), g.config_table()
+    builtin = {n for n, m in METHODS.items() if m.build.__module__.startswith("drltg.")}
+    assert {"none", "reward-shaping", "value-shaping", "policy-reuse", "jumpstart", "model-reuse",
+            "demonstrations"} <= builtin
+    assert all(f"| `{name}` |" in methods for name in builtin)
+    assert all(f"| `{name}` |" in tasks for name, t in TASKS.items() if t.factory.__module__.startswith("drltg."))
+    assert all(f"| `{name}` |" in tasks for name in ("fourrooms-near", "gridrooms-far", "lift-to-place"))
+    assert len(PAIRS) >= 11
+    plugin_keys = {f"transfer.{k}" for k, m in config.METHOD_OPTIONS.items() if m not in builtin}
+    assert all(f"| `{key}` |" in keys for key in config.SCHEMA if key not in plugin_keys)
+    assert "transfer.demo_episodes" in config.SCHEMA and "| `transfer.demo_episodes` |" in keys
+
+
+def test_the_report_command_ends_with_the_generated_headline(tmp_path, capsys):
+    from drltg.analysis import report
+
+    demo = ROOT / "results" / "demo"
+    code = report.main(["--baseline", str(demo / "baseline"), "--transfer", str(demo / "transfer"),
+                        "--threshold", "0.5", "--baseline-label", "no transfer", "--transfer-label", "model-reuse",
+                        "--out", str(tmp_path / "rep")])
+    assert code == 0
+    printed = capsys.readouterr().out
+    committed = json.loads((demo / "report" / "transfer_metrics.json").read_text())
+    assert cl.headline(committed) in printed  # the committed curves give back the quoted headline
+    assert committed["metrics"]["n_seeds_transfer"] == 6 and committed["settings"]["paired"]
