@@ -76,6 +76,14 @@ def _workers_of(pid: int) -> list[int]:
     return found
 
 
+def _running(pid: int) -> bool:
+    """Whether ``pid`` runs (a zombie, exited but not reaped by this container's init, does not)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return False
+
+
 def trial(kind: str, reference: Path, work: Path, rng: random.Random) -> dict:
     from drltg.training import manifest, rundir
 
@@ -92,9 +100,9 @@ def trial(kind: str, reference: Path, work: Path, rng: random.Random) -> dict:
         proc.kill()
     proc.wait()
     deadline = time.monotonic() + 60
-    while any(Path(f"/proc/{c}").exists() for c in children) and time.monotonic() < deadline:
+    while any(_running(c) for c in children) and time.monotonic() < deadline:
         time.sleep(0.1)
-    orphans = [c for c in children if Path(f"/proc/{c}").exists()]
+    orphans = [c for c in children if _running(c)]
     checkpoints = {}
     for name, run in _runs(out).items():
         ckpt = run / rundir.CHECKPOINT

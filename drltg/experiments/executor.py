@@ -124,6 +124,17 @@ def _worker_init(parent: int | None = None) -> None:
         _die_with_parent(parent)
 
 
+def _run_in_pool(cfg: dict, run_dir: str, log_path: str) -> tuple[str, str]:
+    """:func:`run_one` in a pool worker. A SIGTERM (from the parent stopping the pool, or from the kernel
+    when the parent died) unwinds the run, releasing its lock and keeping its checkpoint, and then ends the
+    worker: the pool would catch the ``SystemExit`` and wait for work from a parent that may be gone."""
+    try:
+        return run_one(cfg, run_dir, log_path)
+    except SystemExit as stop:
+        sys.stdout.flush(), sys.stderr.flush()
+        os._exit(stop.code if isinstance(stop.code, int) else 1)
+
+
 class LocalBackend:
     """A pool of ``workers`` spawned processes, one run at a time in each (torch single-threaded)."""
 
@@ -147,7 +158,7 @@ class LocalBackend:
 
     def submit(self, run: Run):
         pool = self._pool()
-        future = pool.submit(run_one, run.cfg, str(run.path), str(run.log))
+        future = pool.submit(_run_in_pool, run.cfg, str(run.path), str(run.log))
         self.pool_of[future] = pool
         return future
 
