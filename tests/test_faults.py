@@ -52,20 +52,22 @@ def damage(path: Path, rng: random.Random) -> str:
 
 
 def read_everything(run: Path) -> None:
-    """What drltg reads of a finished run: its curve and config (report), its checkpoint (model or policy
-    reuse, video) and its summary."""
+    """What drltg reads of a finished run: its curve and config (report), every logged scalar file, its
+    checkpoint (model or policy reuse, video) and its summary."""
     from drltg.analysis.curves import read_csvlogger, read_run, read_tensorboard
 
     read_run(run)
-    read_csvlogger(run / "logs" / "csv" / "scalars")
-    read_tensorboard(run / "logs" / "tensorboard")
+    for path in sorted((run / "logs" / "csv").rglob("*.csv")):
+        read_csvlogger(path)
+    for path in sorted((run / "logs" / "tensorboard").rglob("*tfevents*")):
+        read_tensorboard(path)
     rundir.load_checkpoint(run)
     status = rundir.summary_status(run)
     if status[0] != "complete":
         raise UsageError(status[1])
 
 
-@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("seed", range(8))
 def test_damage_to_any_file_of_a_finished_run_is_named(finished, seed, tmp_path):
     rng = random.Random(seed)
     run = tmp_path / "run"

@@ -217,6 +217,7 @@ def _config_of(directory: Path) -> dict | None:
     config = Path(directory) / "config.yaml"
     if not config.is_file():
         return None
+    _verify(config)
     import yaml
 
     try:
@@ -253,7 +254,7 @@ def _verify(path: Path) -> None:
     from drltg.training import manifest
 
     folder = path.resolve().parent
-    for run in [folder, *folder.parents][:4]:
+    for run in [folder, *folder.parents][:6]:  # logs/csv/scalars/<group>/<tag>.csv lies 4 folders down
         if (run / manifest.MANIFEST).is_file():
             manifest.verify(run, path.resolve().relative_to(run).as_posix())
             return

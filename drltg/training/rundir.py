@@ -247,6 +247,10 @@ def summary_status(run_dir: str | Path) -> tuple[str, str] | None:
         return "unreadable", f"'{path}' is not readable JSON"
     if not isinstance(summary, dict):
         return "unreadable", f"'{path}' holds no JSON object"
+    try:
+        manifest.verify(run_dir, SUMMARY)
+    except UsageError as err:
+        return "unreadable", str(err)
     return str(summary.get("status", "complete")), str(summary.get("reason", ""))
 
 
