@@ -6,7 +6,8 @@ Suites: ``env`` (FourRooms vs a NumPy reference), ``robosuite`` (wrapper overhea
 ``sac`` (update throughput vs TorchRL, plain PyTorch, Stable-Baselines3; SOC K=4), ``train`` (whole
 ``drltg train`` runs), ``memory`` (1e6-transition replay buffer); all five by default. ``lift``
 (``drltg train lift`` against Stable-Baselines3 SAC on robosuite's Lift, several minutes) and ``demo``
-(``drltg demo``, several minutes) run only when named.
+(``drltg demo``, several minutes) and ``seeds`` (N seeds in one process against N runs one after
+another, many minutes) run only when named.
 """
 from __future__ import annotations
 
@@ -26,7 +27,7 @@ import torch
 from benchmarks.common import REPO, machine, versions
 
 DEFAULT = ("env", "robosuite", "sac", "train", "memory")
-NAMED_ONLY = ("lift", "demo")
+NAMED_ONLY = ("lift", "demo", "seeds")
 
 
 def _suite(name: str):
@@ -42,6 +43,8 @@ def _suite(name: str):
         from benchmarks.e2e import run_memory as run
     elif name == "lift":
         from benchmarks.lift_e2e import run
+    elif name == "seeds":
+        from benchmarks.seeds import run
     else:
         run = _demo
     return run
@@ -95,6 +98,19 @@ def summarize(suites: dict, device: str) -> dict:
     for key in ("drltg/sb3", "drltg/drltg_robosuite_step", "drltg_robosuite_step/sb3"):
         if key in lift:
             out[f"lift: {key} training frames/s (wall clock)"] = {"value": lift[key]["wall"]}
+    seeds = suites.get("seeds", {})
+    for n, r in seeds.get("fourrooms", {}).get("per_n", {}).items():
+        for clock, target in (("command_wall", 4.0 if int(n) == 8 else None), ("loop", None)):
+            entry = {"value": r[f"ratio_{clock}"]}
+            if target is not None:
+                entry |= {"target": f">= {target}", "met": _met(r[f"ratio_{clock}"], target)}
+            out[f"seeds: fourrooms {n} seeds, group / one after another ({clock})"] = entry
+    for key, r in seeds.get("lift_update", {}).get("ratios", {}).items():
+        target = 1.5 if key == "group_8/separate_8" else 0.85 if key.startswith("group_") and "matmul" in key else None
+        entry = {"value": r["wall"]}
+        if target is not None:
+            entry |= {"target": f">= {target}", "met": _met(r["wall"], target)}
+        out[f"seeds: lift-sized update {key} (wall clock)"] = entry
     mem = suites.get("memory", {}).get("loss_keys")
     if mem:
         out["memory: replay RSS growth / raw bytes"] = {

@@ -1,3 +1,60 @@
-"""drltg — the DRL Transfer Gym: transfer-learning methods for deep RL as composable TorchRL parts."""
+"""drltg — the DRL Transfer Gym: transfer-learning methods for deep RL as composable TorchRL parts.
+
+Where each part is (every name below is also importable from ``drltg`` itself, e.g.
+``from drltg import make_env, PotentialShaping``; ``import drltg`` imports no torch, a name is imported
+when first used)::
+
+    drltg.envs         make_env, get_task, get_pair, register_task, register_pair,
+                       FourRoomsEnv, GridFourRoomsEnv                    tasks (FourRoomsEnv() is fourrooms/northeast)
+    drltg.transforms   PotentialShaping, TimeDependentPotential, SourceValue      reward and value shaping
+    drltg.collectors   PolicyReuse, PiReuse, JumpStart, PRQL                     policy reuse, jump-start
+                       collect_demonstrations, demonstration_buffer, mixed_batches   demonstrations
+    drltg.losses       SoftOptionCriticLoss, behaviour_cloning
+    drltg.modules      load_weights (model reuse onto any module), option_transforms, make_option_policy
+    drltg.config       resolve: a full, checked run config (task defaults, ``KEY=VALUE`` overrides)
+    drltg.learners     make_agent(env, cfg): actor, exploration policy, loss, target updater, optimiser;
+                       UpdateStep: one gradient step of any learner; sample_batches(buffer, n)
+    drltg.seed_group   SeedGroup: N seeds' agents stacked, one vmapped update for all of them
+    drltg.transfer     load_actor, load_critic, load_agent, load_from_run: a trained run as a source;
+                       the named methods of ``drltg train -o transfer.method=...``
+    drltg.training     train(cfg, run_dir): the loop that writes a run directory (is_complete(run_dir));
+                       evaluate(env, actor): success rate and return of deterministic episodes;
+                       train_seeds(cfg, run_dir, n): seeds S..S+n-1 in one process, one run directory each
+    drltg.experiments  source, baseline and transfer runs over seeds (``drltg experiment``, ``drltg sweep``)
+    drltg.analysis     transfer metrics, reports, plots and tables from run directories (no torch)
+    drltg.cli          the ``drltg`` command
+
+The examples in ``examples/`` compose these parts by hand, one transfer method each.
+"""
+import importlib
 
 __version__ = "0.1.0"
+
+_SURFACE = {
+    "drltg.envs": ["make_env", "get_task", "get_pair", "register_task", "register_pair", "FourRoomsEnv",
+                   "GridFourRoomsEnv"],
+    "drltg.transforms": ["PotentialShaping", "TimeDependentPotential", "SourceValue"],
+    "drltg.collectors": ["PolicyReuse", "PiReuse", "JumpStart", "PRQL", "collect_demonstrations",
+                         "demonstration_buffer", "mixed_batches"],
+    "drltg.losses": ["SoftOptionCriticLoss", "behaviour_cloning"],
+    "drltg.modules": ["load_weights", "option_transforms", "make_option_policy"],
+    "drltg.config": ["resolve"],
+    "drltg.learners": ["make_agent", "UpdateStep", "sample_batches"],
+    "drltg.seed_group": ["SeedGroup"],
+    "drltg.transfer": ["load_actor", "load_critic", "load_agent", "load_from_run"],
+    "drltg.training.loop": ["train", "evaluate", "is_complete"],
+    "drltg.training.seeds": ["train_seeds"],
+}
+_WHERE = {name: module for module, names in _SURFACE.items() for name in names}
+
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name: str):
+    if name in _WHERE:
+        return getattr(importlib.import_module(_WHERE[name]), name)
+    raise AttributeError(f"module 'drltg' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted([*globals(), *_WHERE])

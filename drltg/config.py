@@ -471,8 +471,10 @@ def _plain(value: Any) -> Any:
 
 def validate(cfg: dict) -> None:
     """Check every key of a full config against ``SCHEMA`` and the rules that tie keys together;
-    integral floats of integer keys become ``int`` and ``frames`` is rounded up to whole batches."""
-    for key, field in SCHEMA.items():
+    integral floats of integer keys become ``int`` and ``frames`` is rounded up to whole batches. The keys
+    whose check imports torch or the task's module (``device``, ``env``) come last, so that any other
+    mistake is reported at once."""
+    for key, field in sorted(SCHEMA.items(), key=lambda item: item[0] in ("device", "env")):
         try:
             value = _get(cfg, key)
         except (KeyError, TypeError):

@@ -39,7 +39,6 @@ def _policy_and_env(args):
     """The acting policy, the env to step (with the agent's transforms), the env that renders, the
     policy's name and the task."""
     import yaml
-    from torchrl.envs import TransformedEnv
 
     from drltg.envs import make_env
 
@@ -56,14 +55,16 @@ def _policy_and_env(args):
         env = make_env(args.task, seed=args.seed)
         return policy, env, env, "demonstrator", args.task
 
-    from drltg.learners import make_agent
-    from drltg.training.loop import build_env
-    from drltg.transfer.source import check_same_spaces
-
     run = Path(args.source).expanduser().resolve()
     config, checkpoint = run / rundir.CONFIG, run / rundir.CHECKPOINT
     if not config.is_file() or not checkpoint.is_file():
         raise UsageError(f"'{run}' is not a run directory with {rundir.CONFIG} and {rundir.CHECKPOINT.as_posix()}.")
+    from torchrl.envs import TransformedEnv
+
+    from drltg.learners import make_agent
+    from drltg.training.loop import build_env
+    from drltg.transfer.source import check_same_spaces
+
     cfg = yaml.safe_load(config.read_text())
     task = args.task or cfg["task"]
     env_settings = cfg["env"] if task == cfg["task"] else {}  # another task: its own settings

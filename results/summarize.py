@@ -9,7 +9,8 @@ that hold it.
 import sys
 from pathlib import Path
 
-from claims import sweep_table
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # results/claims.py, also under runpy
+from claims import sweep_table  # noqa: E402
 
 root = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parent / "sweep-fourrooms-graded"
 print(sweep_table(root), end="")

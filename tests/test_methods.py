@@ -44,7 +44,8 @@ def test_every_method_builds_a_transfer_for_a_run(name, tmp_path):
     changed = {k for k, v in vars(transfer).items() if v not in (None, [], {})}
     expected = {
         "none": set(), "reward-shaping": {"train_transforms"}, "value-shaping": {"train_transforms"},
-        "policy-reuse": {"policy", "on_frames"}, "jumpstart": {"policy", "on_frames"},
+        "policy-reuse": {"train_transforms", "policy", "on_frames"},
+        "jumpstart": {"train_transforms", "policy", "on_frames"},
         "model-reuse": {"files"}, "demonstrations": {"batches", "loss_terms", "summary"},
     }
     assert changed == expected[name]
@@ -114,3 +115,33 @@ def test_resumed_model_reuse_keeps_its_frozen_parameters_frozen(tmp_path):
         get_method("model-reuse").build(cfg, agent, env, resuming=resuming)
         frozen = {n for n, p in agent.loss.named_parameters() if not p.requires_grad}
         assert frozen and all(n.startswith("actor_network_params") for n in frozen)
+
+
+def test_a_run_is_a_source_in_one_silent_call(tmp_path, capsys):
+    from drltg.transfer import load_actor, load_critic
+
+    run, agent = _source_run(tmp_path / "src")
+    actor, value = load_actor(run), load_critic(run, scale=2.0)
+    assert capsys.readouterr() == ("", "")
+    td = TensorDict({"observation": make_env("fourrooms/northeast", batch_size=(4,), seed=0).reset()["observation"]},
+                    batch_size=[4])
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        torch.testing.assert_close(actor(td.clone())["action"], agent.actor(td.clone())["action"])
+    torch.testing.assert_close(value(td["observation"]), SourceValue(agent.loss, discrete=False, scale=2.0)(
+        td["observation"]))
+
+
+def test_a_source_that_cannot_be_built_says_why_in_one_sentence(tmp_path):
+    from drltg.transfer import load_actor
+
+    with pytest.raises(UsageError, match=r"is not a drltg run directory: it holds no config.yaml\.$"):
+        load_actor(tmp_path)
+    run, _ = _source_run(tmp_path / "src")
+    cfg = yaml.safe_load((run / "config.yaml").read_text())
+    (run / "config.yaml").write_text(yaml.safe_dump({**cfg, "network": {**cfg["network"], "hidden": [16, 16]}}))
+    with pytest.raises(UsageError, match=r"does not fit the sac learner its config.yaml describes \(.*\)\.$") as err:
+        load_actor(run)
+    assert "\n" not in str(err.value)
+    (run / "config.yaml").write_text(yaml.safe_dump({**cfg, "task": "nowhere/lost"}))
+    with pytest.raises(UsageError, match=r"cannot be rebuilt: unknown task 'nowhere/lost'"):
+        load_actor(run)

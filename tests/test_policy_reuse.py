@@ -7,11 +7,12 @@ from tensordict.nn import NormalParamExtractor, TensorDictModule, TensorDictSequ
 from torch import nn
 from torchrl.collectors import Collector
 from torchrl.data import Bounded, Composite, Unbounded
-from torchrl.envs import EnvBase, StepCounter, TransformedEnv
+from torchrl.envs import EnvBase, StepCounter, TransformedEnv, step_mdp
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 from torchrl.modules import ProbabilisticActor, TanhNormal
 
 from drltg.collectors import PRQL, JumpStart, PiReuse, PolicyReuse
+from drltg.collectors.policy_reuse import NOT_CHOSEN
 from drltg.errors import UsageError
 
 LEARNER, PAST = -0.5, 0.5
@@ -49,13 +50,22 @@ def constant(value):
 def steps_td(step_count, obs_dim=1):
     step_count = torch.as_tensor(step_count).reshape(-1, 1)
     n = step_count.shape[0]
-    return TensorDict(observation=torch.zeros(n, obs_dim), step_count=step_count, batch_size=(n,))
+    return TensorDict(
+        observation=torch.zeros(n, obs_dim),
+        step_count=step_count,
+        reuse_index=torch.full((n, 1), NOT_CHOSEN),
+        batch_size=(n,),
+    )
 
 
 def mix(module, td, learner=LEARNER):
     td["action"] = torch.full((*td.batch_size, 1), learner)
     with set_exploration_type(ExplorationType.RANDOM):
         return module(td)
+
+
+def with_primer(env, mixer):
+    return env.append_transform(mixer.primer())
 
 
 def collect(env, policy, frames):
@@ -75,7 +85,7 @@ def test_pi_reuse_psi_h_per_env():
 
 def test_pi_reuse_psi_decays_over_training():
     schedule = PiReuse(psi=1.0, upsilon=0.9, psi_end=0.5, annealing_frames=100)
-    schedule.step(50)
+    schedule.set_progress(50)
     torch.testing.assert_close(schedule.probability(torch.tensor([[0], [2]])), torch.tensor([[0.75], [0.75 * 0.81]]))
     schedule.set_progress(1000)
     assert schedule.psi.item() == pytest.approx(0.5)
@@ -83,8 +93,9 @@ def test_pi_reuse_psi_decays_over_training():
 
 def test_psi_resets_at_each_episode_start_per_env():
     # psi = 1, upsilon = 0: the past policy acts exactly at each episode's first step.
-    env = TransformedEnv(LineEnv([2, 3, 5]), StepCounter())
-    policy = TensorDictSequential(constant(LEARNER), PolicyReuse(constant(PAST), schedule=PiReuse(1.0, 0.0)))
+    mixer = PolicyReuse(constant(PAST), schedule=PiReuse(1.0, 0.0))
+    env = with_primer(TransformedEnv(LineEnv([2, 3, 5]), StepCounter()), mixer)
+    policy = TensorDictSequential(constant(LEARNER), mixer)
     batch = collect(env, policy, 3 * 12)
     steps = batch["step_count"].squeeze(-1)
     for i, length in enumerate([2, 3, 5]):
@@ -205,8 +216,8 @@ def test_prql_learns_discounted_returns_across_batches():
 
 def test_prql_chooses_one_policy_per_episode():
     torch.manual_seed(0)
-    env = TransformedEnv(LineEnv([2, 3, 4, 5]), StepCounter())
     mixer = PolicyReuse([constant(PAST), constant(0.25)], schedule=PRQL(PiReuse(1.0, 1.0), tau_step=0.0))
+    env = with_primer(TransformedEnv(LineEnv([2, 3, 4, 5]), StepCounter()), mixer)
     batch = collect(env, TensorDictSequential(constant(LEARNER), mixer), 4 * 30)
     steps, index = batch["step_count"].squeeze(-1), batch["reuse_index"].squeeze(-1)
     starts = steps == 0
@@ -224,15 +235,14 @@ def test_jump_start_horizon_shrinks_on_the_curriculum():
         schedule.set_progress(frames)
         horizons.append(schedule.horizon)
     assert horizons == [100, 100, 75, 50, 25, 0, 0]
-    schedule.set_progress(2000)
-    schedule.step(500)
+    schedule.set_progress(2500)
     psi_h = schedule.probability(torch.tensor([[0], [49], [50]]))
     assert psi_h.squeeze(-1).tolist() == [1.0, 1.0, 0.0]
 
 
 def test_mixer_progress_is_saved_in_its_state_dict():
     mixer = PolicyReuse(constant(PAST), schedule=JumpStart(10, stages=2, frames_per_stage=5))
-    mixer.step(7)
+    mixer.set_progress(7)
     restored = PolicyReuse(constant(PAST), schedule=JumpStart(10, stages=2, frames_per_stage=5))
     restored.load_state_dict(mixer.state_dict())
     assert restored.schedule.horizon == 5
@@ -245,3 +255,63 @@ def test_bad_arguments_are_usage_errors():
         PolicyReuse(constant(PAST), epsilon=0.1)  # random actions need the spec
     with pytest.raises(UsageError):
         PiReuse(psi=1.5)
+    with pytest.raises(UsageError, match="must be a TensorDict module writing 'action'.*not a Linear"):
+        PolicyReuse(nn.Linear(2, 2))
+
+
+def library_mixer(generator=None):
+    """Two past policies and the learner, each chosen with probability 1/3 at an episode's start."""
+    return PolicyReuse(
+        [constant(PAST), constant(0.25)], schedule=PRQL(PiReuse(1.0, 1.0), tau_step=0.0), generator=generator
+    )
+
+
+def test_the_episode_choice_is_carried_in_the_rollout_tensordict():
+    torch.manual_seed(0)
+    mixer = library_mixer()
+    env = with_primer(TransformedEnv(LineEnv([3, 3, 3, 3, 3, 3]), StepCounter()), mixer)
+    assert env.observation_spec["reuse_index"].dtype == torch.int64
+    policy = TensorDictSequential(constant(LEARNER), mixer)
+    with set_exploration_type(ExplorationType.RANDOM):
+        rollout = env.rollout(9, policy, break_when_any_done=False)
+    index = rollout["reuse_index"].squeeze(-1)
+    # reset -> -1 (not chosen), drawn at the first step, then carried unchanged to the episode's end
+    assert (index >= 0).all()
+    episodes = index.reshape(6, 3, 3)
+    assert (episodes == episodes[..., :1]).all()
+    assert (rollout["next", "reuse_index"].squeeze(-1).reshape(6, 3, 3)[..., :2] == episodes[..., :2]).all()
+    assert len(index.unique()) == 3
+    torch.testing.assert_close(rollout["action"].squeeze(-1), torch.tensor([PAST, 0.25, LEARNER])[index])
+
+
+def test_a_partial_reset_redraws_only_the_reset_envs():
+    mixer = library_mixer(torch.Generator().manual_seed(7))
+    reference = torch.Generator().manual_seed(7)
+    probs = torch.full((3,), 1 / 3)
+    env = with_primer(TransformedEnv(LineEnv([100] * 6), StepCounter()), mixer)
+    policy = TensorDictSequential(constant(LEARNER), mixer)
+    with set_exploration_type(ExplorationType.RANDOM):
+        td = policy(env.reset())
+        first = torch.multinomial(probs, 6, replacement=True, generator=reference)
+        assert torch.equal(td["reuse_index"].squeeze(-1), first)
+        for _ in range(3):
+            td = policy(step_mdp(env.step(td)))
+            assert torch.equal(td["reuse_index"].squeeze(-1), first)
+
+        reset = torch.tensor([False, True, False, True, True, False])
+        td = env.reset(td.set("_reset", reset.unsqueeze(-1)))
+        index = td["reuse_index"].squeeze(-1)
+        assert torch.equal(index, torch.where(reset, NOT_CHOSEN, first))
+        assert torch.equal(td["step_count"].squeeze(-1), torch.where(reset, 0, 3))
+        td = policy(td)
+    redrawn = torch.multinomial(probs, 3, replacement=True, generator=reference)
+    expected = first.clone()
+    expected[reset] = redrawn
+    assert torch.equal(td["reuse_index"].squeeze(-1), expected)
+
+
+def test_the_mixer_refuses_an_environment_without_its_primer():
+    mixer = PolicyReuse(constant(PAST))
+    td = steps_td([0, 1]).exclude("reuse_index")
+    with pytest.raises(KeyError, match="primer"):
+        mix(mixer, td)

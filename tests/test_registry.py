@@ -6,7 +6,7 @@ import torch
 from torchrl.envs.utils import check_env_specs
 
 from drltg.cli import tasks as tasks_cmd
-from drltg.envs import PAIRS, TASKS, FourRoomsEnv, get_pair, get_task, make_env, registry
+from drltg.envs import PAIRS, TASKS, FourRoomsEnv, GridFourRoomsEnv, get_pair, get_task, make_env, registry
 from drltg.errors import UsageError
 
 # robosuite tasks take seconds to build; tests/test_robosuite.py checks their specs and workers.
@@ -126,3 +126,33 @@ def test_graded_fourrooms_targets_lie_in_their_rooms_at_growing_distances():
         assert bool(in_free_space(goal)) and ROOM_NAMES[room_of(goal)] == room
         straight.append((goal - source).norm().item())
     assert straight[0] < straight[1] < min(straight[2:4]) and max(straight[2:4]) < straight[4]
+
+
+@pytest.mark.parametrize(
+    "cls, task", [(FourRoomsEnv, "fourrooms/northeast"), (GridFourRoomsEnv, "gridrooms/northeast")]
+)
+def test_an_env_class_without_arguments_is_its_registered_default_task(cls, task):
+    plain, registered = cls(batch_size=(4,), seed=3), make_env(task, batch_size=(4,), seed=3)
+    assert plain.full_observation_spec == registered.full_observation_spec
+    assert plain.full_action_spec == registered.full_action_spec
+    assert plain.full_reward_spec == registered.full_reward_spec and plain.full_done_spec == registered.full_done_spec
+    for option, value in get_task(task).defaults.items():
+        assert torch.equal(torch.as_tensor(getattr(plain, option)), torch.as_tensor(getattr(registered, option)))
+    assert plain.step_cost == 0.01
+    torch.manual_seed(0)
+    a = plain.rollout(60, break_when_any_done=False)
+    torch.manual_seed(0)
+    b = registered.rollout(60, break_when_any_done=False)
+    assert (a == b).all()
+    assert (a["next", "reward"] == -0.01).any()
+
+
+def test_a_factory_named_module_attr_is_imported_when_the_task_is_built(scratch_registry):
+    spec = scratch_registry.register_task("mine/grid", "drltg.envs.gridrooms:GridFourRoomsEnv", "grid", goal=(9, 3))
+    assert spec.factory is GridFourRoomsEnv
+    assert scratch_registry.make_env("mine/grid").goal.tolist() == [9, 3]
+    with pytest.raises(UsageError, match=r"^task 'bad': .* is 'module:attr', got 'nowhere'\.$"):
+        scratch_registry.register_task("bad", "nowhere", "no colon")
+    scratch_registry.register_task("lost", "drltg.envs.nowhere:Env", "a module that does not exist")
+    with pytest.raises(UsageError, match=r"^task 'lost': its factory 'drltg.envs.nowhere:Env' cannot be imported"):
+        scratch_registry.make_env("lost")

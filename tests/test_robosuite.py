@@ -409,8 +409,9 @@ def test_demonstrator_as_past_policy_acts_through_the_reuse_mixer(envs):
     assert isinstance(past, PickPlaceDemonstrator) and not past.place  # lift's skill: reach, grasp, lift
     env = envs["lift-place"]
     env.set_seed(0)
-    td = env.reset()
-    policy = get_method("policy-reuse").build(cfg, make_agent(env, cfg), env, resuming=False).policy
+    transfer = get_method("policy-reuse").build(cfg, make_agent(env, cfg), env, resuming=False)
+    (primer,) = transfer.train_transforms  # declares the episode's choice of past policy, "reuse_index"
+    td, policy = primer(env.reset()), transfer.policy
     with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
         out = policy(td.clone())
     assert out["reused"].item()  # psi_h = 1 * 1^h: the demonstrator always acts

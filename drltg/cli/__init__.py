@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import logging
 import signal
 import sys
 
@@ -44,6 +45,12 @@ def main(argv: list[str] | None = None) -> int:
             importlib.import_module(module).add_arguments(p)
     args = parser.parse_args(argv)
     previous = signal.signal(signal.SIGTERM, _terminate)
+    messages = logging.StreamHandler(sys.stdout)  # what the library logs (e.g. model reuse's summary) shows here
+    messages.setFormatter(logging.Formatter("%(message)s"))
+    logger = logging.getLogger("drltg")
+    logger.addHandler(messages)
+    level = logger.level
+    logger.setLevel(logging.INFO)
     try:
         plugins.load(args.imports)
         return importlib.import_module(args._module).run(args) or 0
@@ -58,6 +65,8 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     finally:
         signal.signal(signal.SIGTERM, previous)
+        logger.removeHandler(messages)
+        logger.setLevel(level)
 
 
 def _terminate(signum, frame):

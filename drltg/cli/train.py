@@ -1,4 +1,4 @@
-"""`drltg train TASK --algo sac --frames N --seed S --run-dir DIR [--config FILE] [-o KEY=VALUE ...]`"""
+"""`drltg train TASK --algo sac --frames N --seed S [--seeds N] --run-dir DIR [--config FILE] [-o KEY=VALUE ...]`"""
 from __future__ import annotations
 
 import argparse
@@ -15,7 +15,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--options", type=int, metavar="K", help="number of options for --algo soc (soc.num_options)")
     p.add_argument("--frames", type=int, help="environment frames to train for")
     p.add_argument("--seed", type=int, help="random seed (envs, networks, sampling)")
-    p.add_argument("--run-dir", type=Path, help="output run directory (default: runs/<task>/<algo>-seed<seed>)")
+    p.add_argument("--seeds", type=int, metavar="N",
+                   help="train seeds S..S+N-1 (S: --seed) in one process, into RUN_DIR/seed-<k>/ (one vmapped "
+                        "update for all seeds where the learner supports it, else one seed after another)")
+    p.add_argument("--no-group", action="store_true", help="with --seeds: train the seeds one after another")
+    p.add_argument("--run-dir", type=Path,
+                   help="output run directory (default: runs/<task>/<algo>-seed<seed>; with --seeds, "
+                        "runs/<task>/<algo>-seeds)")
     p.add_argument("--config", type=Path, help="YAML config file (e.g. a run's config.yaml, to reproduce it)")
     p.add_argument("-o", "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key, e.g. -o optim.lr=1e-3 -o network.hidden=[64,64] (repeatable)")
@@ -24,16 +30,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drltg.training.loop import train
+    import drltg.transfer  # noqa: F401  (the methods' transfer.* keys, before the config is read)
 
     if args.resume and args.run_dir is None:
         raise UsageError("--resume needs --run-dir, the run directory to continue.")
+    if args.seeds is not None and args.seeds < 1:
+        raise UsageError(f"--seeds must be at least 1, got {args.seeds}.")
+    if args.no_group and args.seeds is None:
+        raise UsageError("--no-group applies to --seeds N; add --seeds.")
     if args.run_dir is not None:
         args.run_dir = check_directory(args.run_dir, "--run-dir")
     if args.config is not None:  # a relative transfer.source is relative to the file's folder
         base = absolute_source(config_lib.load_yaml(args.config), Path(args.config).parent)
     elif args.resume and (args.run_dir / CONFIG).is_file():
         base = absolute_source(config_lib.load_yaml(args.run_dir / CONFIG), args.run_dir)
+    elif args.resume and args.seeds is not None and _first_seed(args.run_dir) is not None:
+        first = _first_seed(args.run_dir)  # a seed group: its first seed's config
+        base = absolute_source(config_lib.load_yaml(first / CONFIG), first)
     else:
         base = {}
     if args.task is None and "task" not in base:
@@ -44,9 +57,29 @@ def run(args: argparse.Namespace) -> int:
     cfg = config_lib.resolve(
         base, args.overrides, task=args.task, algo=args.algo, frames=args.frames, seed=args.seed, **explicit
     )
+    if args.seeds is not None:
+        from drltg.training.seeds import train_seeds
+
+        run_dir = args.run_dir or Path("runs") / cfg["task"].replace("/", "-") / f"{cfg['algo']}-seeds"
+        dirs = train_seeds(cfg, run_dir, args.seeds, resume=args.resume, progress=not args.no_progress,
+                           group=not args.no_group)
+        print(f"run directories: {', '.join(str(d) for d in dirs)}")
+        print(f"  curves:  drltg report --baseline {run_dir} --transfer OTHER_RUNS (a folder of seed runs)")
+        return 0
     run_dir = args.run_dir or Path("runs") / cfg["task"].replace("/", "-") / f"{cfg['algo']}-seed{cfg['seed']}"
+    from drltg.transfer.source import check as check_source
+
+    check_source(cfg)
+    from drltg.training.loop import train  # torch: only once the command line is known to be right
+
     run_dir = train(cfg, run_dir, resume=args.resume, progress=not args.no_progress)
     print(f"run directory: {run_dir}")
     print(f"  eval curve:  {run_dir / 'eval.csv'}")
     print(f"  tensorboard: tensorboard --logdir {run_dir / 'logs' / 'tensorboard'}")
     return 0
+
+
+def _first_seed(run_dir: Path) -> Path | None:
+    """The ``seed-<k>`` run directory with the lowest k under ``run_dir`` that holds a config."""
+    seeds = [p.parent for p in run_dir.glob("seed-*/" + CONFIG) if p.parent.name[5:].lstrip("-").isdigit()]
+    return min(seeds, key=lambda p: int(p.name[5:]), default=None)

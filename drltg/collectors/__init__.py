@@ -1,6 +1,7 @@
 """Collector-side parts: the policy-reuse mixer and its schedules, and demonstration episodes.
 
-    PolicyReuse(source, spec, schedule)   after the learner's policy: the source acts with prob. psi_h
+    PolicyReuse(source, spec, schedule)   after the learner's policy: the source acts with prob. psi_h;
+                                          its primer() carries the episode's choice in the env
     PiReuse, JumpStart, PRQL              schedules: psi * upsilon^h; the guide's first H steps; a library
     collect_demonstrations, demonstration_buffer, mixed_batches   a policy's episodes, in a buffer of
                                           their own, a fixed share of every minibatch

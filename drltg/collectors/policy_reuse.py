@@ -32,12 +32,16 @@ from tensordict import NestedKey, TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 from tensordict.utils import expand_as_right
 from torch import nn
-from torchrl.data import Composite, TensorSpec
+from torchrl.data import Composite, TensorSpec, Unbounded
+from torchrl.envs import TensorDictPrimer
 from torchrl.envs.utils import ExplorationType, exploration_type, set_exploration_type
 
 from drltg.errors import UsageError
 
 __all__ = ["PolicyReuse", "ReuseSchedule", "PiReuse", "JumpStart", "PRQL"]
+
+NOT_CHOSEN = -1
+"""``reuse_index`` of an episode whose past policy is not drawn yet (set by the primer at reset)."""
 
 
 class ReuseSchedule(nn.Module):
@@ -50,10 +54,6 @@ class ReuseSchedule(nn.Module):
     def __init__(self) -> None:
         super().__init__()
         self.register_buffer("frames", torch.zeros((), dtype=torch.long))
-
-    def step(self, frames: int = 1) -> None:
-        """Advance training progress by ``frames`` collected frames."""
-        self.frames += frames
 
     def set_progress(self, frames: int) -> None:
         """Set training progress to ``frames`` collected frames."""
@@ -71,7 +71,7 @@ class ReuseSchedule(nn.Module):
                 "use the PRQL schedule to choose among several."
             )
 
-    def choose(self, n: int, device: torch.device) -> torch.Tensor:
+    def choose(self, n: int, device: torch.device, generator: torch.Generator | None = None) -> torch.Tensor:
         """Index of the past policy for ``n`` new episodes (== the library size: the learner's own)."""
         return torch.zeros(n, dtype=torch.long, device=device)
 
@@ -181,10 +181,6 @@ class PRQL(ReuseSchedule):
         self.gain = torch.zeros(num_policies + 1, device=self.tau.device)
         self.uses = torch.zeros(num_policies + 1, dtype=torch.long, device=self.tau.device)
 
-    def step(self, frames: int = 1) -> None:
-        super().step(frames)
-        self.schedule.step(frames)
-
     def set_progress(self, frames: int) -> None:
         super().set_progress(frames)
         self.schedule.set_progress(frames)
@@ -196,8 +192,8 @@ class PRQL(ReuseSchedule):
         """P(k) for k = 0..K (the last one is the learner's own policy)."""
         return torch.softmax(self.tau * self.gain, dim=0)
 
-    def choose(self, n: int, device: torch.device) -> torch.Tensor:
-        return torch.multinomial(self.choice_probabilities(), n, replacement=True).to(device)
+    def choose(self, n: int, device: torch.device, generator: torch.Generator | None = None) -> torch.Tensor:
+        return torch.multinomial(self.choice_probabilities(), n, replacement=True, generator=generator).to(device)
 
     def update(self, index: torch.Tensor, returns: torch.Tensor) -> None:
         """Add finished episodes, in order: the policy each chose and its discounted return."""
@@ -220,9 +216,12 @@ class PRQL(ReuseSchedule):
 class PolicyReuse(TensorDictModuleBase):
     """Mixes the learner's action with a past policy's action, per environment.
 
-    Chain it after the learner's exploration policy and give the result to a ``Collector``::
+    Chain it after the learner's exploration policy, add its primer to the environment, and give the
+    result to a ``Collector``::
 
-        policy = TensorDictSequential(actor, PolicyReuse(source_actor, spec=env.action_spec_unbatched))
+        reuse = PolicyReuse(source_actor, spec=env.action_spec_unbatched)
+        env = env.append_transform(reuse.primer())
+        policy = TensorDictSequential(actor, reuse)
 
     Per environment, with probability psi_h (from ``schedule``) the action is the past policy's
     deterministic action (its mean/greedy action, under ``ExplorationType.DETERMINISTIC``);
@@ -232,10 +231,17 @@ class PolicyReuse(TensorDictModuleBase):
     every episode start, per environment. Under any exploration type other than RANDOM (e.g.
     evaluation under DETERMINISTIC) the learner's action passes through unchanged.
 
+    The episode's choice of past policy is environment state, not module state: ``reuse_index``
+    (int64 [*, 1]) is declared by :meth:`primer`, which sets it to -1 ("not chosen yet") at every
+    reset, partial resets included; the first step of an episode draws it from the schedule and the
+    environment carries it to the next step, as soft option-critic's option. The module itself holds
+    only training progress and what schedules learn (buffers, synchronised with the weights), so a
+    copy in every collector worker acts exactly like the original. Every call writes ``reused`` (bool
+    [*, 1]: the past policy acted) and ``reuse_index`` (K, the library size, when :class:`PRQL` chose
+    the learner).
+
     The past policies are copied, frozen (no gradient) and never trained; they are not parameters
-    of the learner, whose loss module is built from ``actor`` alone. Every call writes ``reused``
-    (bool [*, 1]: the past policy acted) and ``reuse_index`` (int64 [*, 1]: the past policy chosen
-    for this episode; K, the library size, when :class:`PRQL` chose the learner).
+    of the learner, whose loss module is built from ``actor`` alone.
 
     Args:
         past_policy: a past policy, or a sequence of them (a library, for :class:`PRQL`).
@@ -243,11 +249,12 @@ class PolicyReuse(TensorDictModuleBase):
         schedule: the reuse schedule. Default ``PiReuse(psi=1, upsilon=0.95)``.
         epsilon: probability of a uniform random action when the learner acts. Default 0 (the
             learner's stochastic action is its exploration).
+        generator: the random generator of the episode choices (default: torch's global one).
 
-    Call :meth:`step` with the frames of each collected batch (decaying schedules), and
-    :meth:`observe` with the batch as collected, before flattening (schedules that learn from
-    returns). A ``Collector``'s ``init_random_frames`` replace the whole policy by random actions,
-    so the past policy only starts acting after them.
+    Call :meth:`set_progress` with the frames collected so far after each batch (schedules that decay
+    over training), and :meth:`observe` with the batch as collected, before flattening (schedules that
+    learn from returns). A ``Collector``'s ``init_random_frames`` replace the whole policy by random
+    actions, so the past policy only starts acting after them.
 
     Only for off-policy learners: see the module docstring.
     """
@@ -259,15 +266,22 @@ class PolicyReuse(TensorDictModuleBase):
         spec: TensorSpec | None = None,
         schedule: ReuseSchedule | None = None,
         epsilon: float = 0.0,
+        generator: torch.Generator | None = None,
         action_key: NestedKey = "action",
         step_count_key: NestedKey = "step_count",
         reused_key: NestedKey = "reused",
         reuse_index_key: NestedKey = "reuse_index",
     ) -> None:
         super().__init__()
-        policies = [past_policy] if isinstance(past_policy, TensorDictModuleBase) else list(past_policy)
+        policies = list(past_policy) if isinstance(past_policy, (list, tuple, nn.ModuleList)) else [past_policy]
         if not policies:
             raise UsageError("PolicyReuse needs at least one past policy.")
+        for p in policies:
+            if not isinstance(p, TensorDictModuleBase):
+                raise UsageError(
+                    f"a past policy must be a TensorDict module writing {action_key!r} (e.g. "
+                    f"drltg.transfer.load_actor(run_dir)), not a {type(p).__name__}."
+                )
         if not 0.0 <= epsilon <= 1.0:
             raise UsageError(f"epsilon must lie in [0, 1], got {epsilon}.")
         if epsilon > 0 and spec is None:
@@ -277,16 +291,17 @@ class PolicyReuse(TensorDictModuleBase):
         self.schedule.attach(len(policies))
         self.spec = spec[action_key] if isinstance(spec, Composite) else spec
         self.epsilon = epsilon
+        self.generator = generator
         self.action_key, self.step_count_key = action_key, step_count_key
         self.reused_key, self.reuse_index_key = reused_key, reuse_index_key
         past_in_keys = [k for p in self.past_policies for k in p.in_keys]
-        self.in_keys = list(dict.fromkeys([*past_in_keys, step_count_key, action_key]))
+        self.in_keys = list(dict.fromkeys([*past_in_keys, step_count_key, reuse_index_key, action_key]))
         self.out_keys = [action_key, reused_key, reuse_index_key]
-        self._choice: torch.Tensor | None = None
 
-    def step(self, frames: int = 1) -> None:
-        """Advance the schedule's training progress by ``frames`` collected frames."""
-        self.schedule.step(frames)
+    def primer(self) -> TensorDictPrimer:
+        """The environment transform that declares ``reuse_index`` and sets it to -1 at every reset."""
+        spec = Unbounded(shape=(1,), dtype=torch.int64)
+        return TensorDictPrimer({self.reuse_index_key: spec}, default_value=NOT_CHOSEN, expand_specs=True)
 
     def set_progress(self, frames: int) -> None:
         """Set the schedule's training progress to ``frames`` collected frames."""
@@ -301,15 +316,19 @@ class PolicyReuse(TensorDictModuleBase):
             batch.get(("next", "done")).squeeze(-1),
         )
 
-    def _episode_choice(self, new_episode: torch.Tensor) -> torch.Tensor:
-        if self._choice is None or self._choice.shape != new_episode.shape:
-            self._choice = torch.zeros(new_episode.shape, dtype=torch.long, device=new_episode.device)
-            new_episode = torch.ones_like(new_episode)
-        if new_episode.any():
-            self._choice = self._choice.masked_scatter(
-                new_episode, self.schedule.choose(int(new_episode.sum()), new_episode.device)
+    def _episode_choice(self, tensordict: TensorDictBase) -> torch.Tensor:
+        choice = tensordict.get(self.reuse_index_key, None)
+        if choice is None:
+            raise KeyError(
+                f"PolicyReuse needs {self.reuse_index_key!r} in the tensordict: append its primer() to the "
+                "environment, e.g. env = env.append_transform(reuse.primer())."
             )
-        return self._choice
+        choice = choice.squeeze(-1)
+        new = choice == NOT_CHOSEN
+        if new.any():
+            drawn = self.schedule.choose(int(new.sum()), choice.device, self.generator)
+            choice = choice.masked_scatter(new, drawn)
+        return choice
 
     def _random_action(self, action: torch.Tensor) -> torch.Tensor:
         return self.spec.rand(action.shape[: action.ndim - self.spec.ndim]).to(action.device)
@@ -318,12 +337,10 @@ class PolicyReuse(TensorDictModuleBase):
         action = tensordict.get(self.action_key)
         shape = tensordict.batch_size
         if exploration_type() not in (ExplorationType.RANDOM, None):
-            reused = torch.zeros(*shape, 1, dtype=torch.bool, device=action.device)
-            index = torch.zeros(*shape, 1, dtype=torch.long, device=action.device)
-            return tensordict.update({self.reused_key: reused, self.reuse_index_key: index})
+            return tensordict.set(self.reused_key, torch.zeros(*shape, 1, dtype=torch.bool, device=action.device))
 
+        choice = self._episode_choice(tensordict)
         step_count = tensordict.get(self.step_count_key).squeeze(-1)
-        choice = self._episode_choice(step_count == 0)
         psi = self.schedule.probability(step_count)
         reused = (torch.rand(shape, device=action.device) < psi) & (choice < len(self.past_policies))
 

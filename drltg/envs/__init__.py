@@ -1,6 +1,10 @@
-"""Task environments (TorchRL ``EnvBase``) and the registry of tasks and task pairs."""
-from drltg.envs.fourrooms import FourRoomsEnv
-from drltg.envs.gridrooms import GridFourRoomsEnv
+"""Task environments (TorchRL ``EnvBase``) and the registry of tasks and task pairs.
+
+The registry imports no torch: the environment classes are imported when first used
+(``from drltg.envs import FourRoomsEnv`` or building a task), so listing tasks stays fast.
+"""
+import importlib
+
 from drltg.envs.registry import (
     PAIRS,
     TASKS,
@@ -12,7 +16,19 @@ from drltg.envs.registry import (
     register_pair,
     register_task,
 )
-from drltg.envs.robosuite import RobosuiteEnv  # robosuite itself is imported when one is built
+
+_LAZY = {
+    "FourRoomsEnv": "drltg.envs.fourrooms",
+    "GridFourRoomsEnv": "drltg.envs.gridrooms",
+    "RobosuiteEnv": "drltg.envs.robosuite.env",  # robosuite itself is imported when one is built
+}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'drltg.envs' has no attribute {name!r}")
+
 
 __all__ = [
     "FourRoomsEnv",

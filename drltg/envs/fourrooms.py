@@ -50,6 +50,7 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
+from drltg.envs.seeding import block_generators, blocks
 from drltg.errors import UsageError
 
 ARENA_SIZE = 10.0
@@ -144,6 +145,8 @@ def move(pos: torch.Tensor, displacement: torch.Tensor, walls: torch.Tensor | No
 class FourRoomsEnv(EnvBase):
     """Continuous FourRooms (see the module docstring for geometry, dynamics and rewards).
 
+    With no arguments it is the registered task ``fourrooms/northeast`` (``make_env("fourrooms/northeast")``).
+
     Args:
         goal: the goal centre ``(x, y)`` in arena units; must lie in free space.
         goal_radius: radius of the goal disc.
@@ -171,7 +174,7 @@ class FourRoomsEnv(EnvBase):
         *,
         goal_radius: float = 0.5,
         max_step: float = 0.5,
-        step_cost: float = 0.0,
+        step_cost: float = 0.01,
         horizon: int = 100,
         start_room: str | None = None,
         observe_goal: bool = False,
@@ -224,6 +227,7 @@ class FourRoomsEnv(EnvBase):
         ).expand(self.batch_size)
 
     def _set_seed(self, seed: int | None) -> None:
+        self.block_rngs = None
         self.rng = torch.Generator()
         if seed is not None:
             self.rng.manual_seed(seed)
@@ -234,19 +238,29 @@ class FourRoomsEnv(EnvBase):
             obs = torch.cat((obs, (self.goal * (2.0 / ARENA_SIZE) - 1.0).expand_as(obs)), -1)
         return obs
 
-    def _sample_start(self, n: int) -> torch.Tensor:
+    def set_block_seeds(self, seeds: Sequence[int]) -> None:
+        """See :func:`drltg.envs.seeding.set_block_seeds`: block ``k`` of the batch draws its starts as
+        this env with ``1/len(seeds)`` of the batch, seeded ``seeds[k]``, would."""
+        self.block_rngs = block_generators(self.batch_size, seeds)
+
+    def _starts(self, mask: torch.Tensor) -> torch.Tensor:
+        """Starts for the flat batch elements where ``mask`` is true, in order."""
+        return torch.cat([self._sample_start(int(m.sum()), rng) for m, rng in blocks(self, mask)])
+
+    def _sample_start(self, n: int, rng: torch.Generator | None = None) -> torch.Tensor:
         """``n`` positions uniform over the start regions (weighted by area) minus the goal disc.
 
         Draws on the CPU generator, so a seed gives the same starts on every device.
         """
+        rng = self.rng if rng is None else rng
         regions = self._regions
         areas = (regions[:, 2] - regions[:, 0]) * (regions[:, 3] - regions[:, 1])
         goal = self.goal.cpu()
         pos = torch.empty(n, 2)
         todo = torch.arange(n)
         while todo.numel():
-            box = regions[torch.multinomial(areas, todo.numel(), replacement=True, generator=self.rng)]
-            pos[todo] = box[:, :2] + torch.rand(todo.numel(), 2, generator=self.rng) * (box[:, 2:] - box[:, :2])
+            box = regions[torch.multinomial(areas, todo.numel(), replacement=True, generator=rng)]
+            pos[todo] = box[:, :2] + torch.rand(todo.numel(), 2, generator=rng) * (box[:, 2:] - box[:, :2])
             todo = todo[(pos[todo] - goal).norm(dim=-1) <= self.goal_radius]
         return pos.to(self.device)
 
@@ -256,11 +270,11 @@ class FourRoomsEnv(EnvBase):
         if kwargs.get("set_state") and tensordict is not None and "position" in tensordict.keys():
             position = tensordict["position"].clone()
         elif reset is None:
-            position = self._sample_start(shape.numel()).reshape(*shape, 2)
+            position = self._starts(torch.ones(shape.numel(), dtype=torch.bool)).reshape(*shape, 2)
         else:  # a partial reset: only the reset elements need a start (the others are kept)
             mask = reset.squeeze(-1)
             position = torch.zeros((*shape, 2), device=self.device)
-            position[mask] = self._sample_start(int(mask.sum()))
+            position[mask] = self._starts(mask.reshape(-1).cpu())
         return TensorDict(
             {
                 "observation": self._observe(position),

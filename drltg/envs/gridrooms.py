@@ -47,6 +47,7 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, OneHot, Unbounded
 from torchrl.envs import EnvBase
 
+from drltg.envs.seeding import block_generators, blocks
 from drltg.errors import UsageError
 
 LAYOUT = (
@@ -111,6 +112,8 @@ def transition_matrix(slip: float = 0.0) -> torch.Tensor:
 class GridFourRoomsEnv(EnvBase):
     """The classic grid FourRooms (see the module docstring for layout, dynamics and rewards).
 
+    With no arguments it is the registered task ``gridrooms/northeast`` (``make_env("gridrooms/northeast")``).
+
     Args:
         goal: the goal cell ``(row, col)``; must be free.
         slip: probability that the action is replaced by one of the other three.
@@ -131,7 +134,7 @@ class GridFourRoomsEnv(EnvBase):
         goal: Sequence[int] = (3, 9),
         *,
         slip: float = 0.0,
-        step_cost: float = 0.0,
+        step_cost: float = 0.01,
         horizon: int = 100,
         start_room: str | None = None,
         observation: str = "onehot",
@@ -193,7 +196,13 @@ class GridFourRoomsEnv(EnvBase):
             done=flag.clone(), terminated=flag.clone(), truncated=flag.clone(), device=self.device
         ).expand(self.batch_size)
 
+    def set_block_seeds(self, seeds: Sequence[int]) -> None:
+        """See :func:`drltg.envs.seeding.set_block_seeds`: block ``k`` of the batch draws its starts and
+        slips as this env with ``1/len(seeds)`` of the batch, seeded ``seeds[k]``, would."""
+        self.block_rngs = block_generators(self.batch_size, seeds)
+
     def _set_seed(self, seed: int | None) -> None:
+        self.block_rngs = None
         self.rng = torch.Generator()
         if seed is not None:
             self.rng.manual_seed(seed)
@@ -214,9 +223,15 @@ class GridFourRoomsEnv(EnvBase):
         shape = self.batch_size
         if kwargs.get("set_state") and tensordict is not None and "cell" in tensordict.keys():
             cell = tensordict["cell"].clone()
-        else:
-            pick = torch.randint(len(self._starts), shape, generator=self.rng)
-            cell = self._starts[pick].to(self.device)
+        else:  # a partial reset draws for the whole batch; only the reset elements are kept
+            reset = None if tensordict is None else tensordict.get("_reset", None)
+            mask = torch.ones(shape.numel(), dtype=torch.bool) if reset is None else reset.reshape(-1).cpu()
+            pick = torch.cat([
+                torch.randint(len(self._starts), (m.numel(),), generator=rng) if m.any() or self.block_rngs is None
+                else torch.zeros(m.numel(), dtype=torch.int64)
+                for m, rng in blocks(self, mask)
+            ])
+            cell = self._starts[pick.reshape(shape)].to(self.device)
         return TensorDict(
             {
                 "observation": self._observe(cell),
@@ -231,8 +246,11 @@ class GridFourRoomsEnv(EnvBase):
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         action = tensordict["action"].long().argmax(-1)
         if self.slip > 0:
-            slipped = torch.rand(action.shape, generator=self.rng) < self.slip
-            other = torch.randint(1, 4, action.shape, generator=self.rng)
+            every = torch.ones(action.numel(), dtype=torch.bool)
+            draws = [(torch.rand(m.numel(), generator=rng), torch.randint(1, 4, (m.numel(),), generator=rng))
+                     for m, rng in blocks(self, every)]
+            slipped = torch.cat([d[0] for d in draws]).reshape(action.shape) < self.slip
+            other = torch.cat([d[1] for d in draws]).reshape(action.shape)
             action = torch.where(slipped.to(action.device), (action + other.to(action.device)) % 4, action)
         cell = next_cell(tensordict["cell"], action, self._walls)
         step_count = tensordict["step_count"] + 1

@@ -2,8 +2,9 @@
 
 A task is a factory of :class:`~torchrl.envs.EnvBase` plus default keyword arguments; a pair names
 a source task and a target task. Factories are called as
-``factory(batch_size=..., device=..., **defaults, **overrides)`` and must be cheap to import: a
-factory that needs a heavy library imports it inside the function.
+``factory(batch_size=..., device=..., **defaults, **overrides)``. A factory may be given as a string
+``"module:attr"``, imported when the task is first built or inspected: listing and validating tasks
+then imports neither torch nor the task's simulator.
 
 Examples:
     >>> from drltg.envs import make_env, register_task, register_pair, FourRoomsEnv
@@ -14,16 +15,16 @@ Examples:
 from __future__ import annotations
 
 import difflib
+import importlib
 import inspect
 from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
-import torch
-from torchrl.envs import EnvBase
-
-from drltg.envs.fourrooms import FourRoomsEnv
-from drltg.envs.gridrooms import GridFourRoomsEnv
 from drltg.errors import UsageError
+
+if TYPE_CHECKING:
+    import torch
+    from torchrl.envs import EnvBase
 
 
 @dataclass(frozen=True)
@@ -31,12 +32,23 @@ class TaskSpec:
     """A named task: ``factory(**defaults)`` builds it; ``train`` overrides the training config."""
 
     name: str
-    factory: Callable[..., EnvBase]
+    entry: Callable[..., EnvBase] | str
+    """The factory, or ``"module:attr"`` naming it (imported on first use of :attr:`factory`)."""
     description: str
     defaults: dict[str, Any] = field(default_factory=dict)
     train: dict[str, Any] = field(default_factory=dict)
     potential: Callable[[dict[str, Any]], Callable] | None = None
     """``potential(env_options)`` builds the task's shaping potential (``drltg.transforms.PotentialShaping``)."""
+
+    @property
+    def factory(self) -> Callable[..., EnvBase]:
+        if not isinstance(self.entry, str):
+            return self.entry
+        module, _, attr = self.entry.partition(":")
+        try:
+            return getattr(importlib.import_module(module), attr)
+        except (ImportError, AttributeError) as err:
+            raise UsageError(f"task {self.name!r}: its factory {self.entry!r} cannot be imported ({err}).") from None
 
 
 @dataclass(frozen=True)
@@ -73,7 +85,7 @@ def get_pair(name: str) -> PairSpec:
 
 def register_task(
     name: str,
-    factory: Callable[..., EnvBase],
+    factory: Callable[..., EnvBase] | str,
     description: str,
     *,
     train: dict[str, Any] | None = None,
@@ -81,11 +93,14 @@ def register_task(
     replace: bool = False,
     **defaults,
 ) -> TaskSpec:
-    """Registers a task; ``defaults`` are keyword arguments of ``factory``, ``train`` config overrides,
+    """Registers a task; ``factory`` is a callable or ``"module:attr"`` (imported when the task is first
+    built); ``defaults`` are keyword arguments of ``factory``, ``train`` config overrides,
     ``potential(env_options)`` builds its reward-shaping potential. ``replace=True`` redefines a
     registered task (a notebook cell run twice)."""
     if name in TASKS and not replace:
         raise UsageError(f"task {name!r} is already registered; pass replace=True to redefine it.")
+    if isinstance(factory, str) and not all(factory.partition(":")[::2]):
+        raise UsageError(f"task {name!r}: a factory named by a string is 'module:attr', got {factory!r}.")
     spec = TaskSpec(name, factory, description, dict(defaults), dict(train or {}), potential)
     TASKS[name] = spec
     return spec
@@ -154,7 +169,7 @@ def _grid_potential(options: dict[str, Any]):
 
 register_task(
     "fourrooms/northeast",
-    FourRoomsEnv,
+    "drltg.envs.fourrooms:FourRoomsEnv",
     "continuous FourRooms, goal disc (r 0.5) at (8.0, 8.0) in the north-east room, random start",
     goal=(8.0, 8.0),
     step_cost=0.01,
@@ -163,7 +178,7 @@ register_task(
 )
 register_task(
     "fourrooms/northeast-shifted",
-    FourRoomsEnv,
+    "drltg.envs.fourrooms:FourRoomsEnv",
     "continuous FourRooms, goal disc (r 0.5) at (8.0, 7.0), 1 unit south of fourrooms/northeast",
     goal=(8.0, 7.0),
     step_cost=0.01,
@@ -172,7 +187,7 @@ register_task(
 )
 register_task(
     "fourrooms/southwest",
-    FourRoomsEnv,
+    "drltg.envs.fourrooms:FourRoomsEnv",
     "continuous FourRooms, goal disc (r 0.5) at (2.0, 2.0) in the south-west room, random start",
     goal=(2.0, 2.0),
     step_cost=0.01,
@@ -184,7 +199,7 @@ register_task(
 # (southwest) units.
 register_task(
     "fourrooms/northeast-inner",
-    FourRoomsEnv,
+    "drltg.envs.fourrooms:FourRoomsEnv",
     "continuous FourRooms, goal disc (r 0.5) at (6.5, 6.5), the north-east room's inner corner",
     goal=(6.5, 6.5),
     step_cost=0.01,
@@ -193,7 +208,7 @@ register_task(
 )
 register_task(
     "fourrooms/southeast",
-    FourRoomsEnv,
+    "drltg.envs.fourrooms:FourRoomsEnv",
     "continuous FourRooms, goal disc (r 0.5) at (8.0, 2.0) in the south-east room, random start",
     goal=(8.0, 2.0),
     step_cost=0.01,
@@ -202,7 +217,7 @@ register_task(
 )
 register_task(
     "fourrooms/northwest",
-    FourRoomsEnv,
+    "drltg.envs.fourrooms:FourRoomsEnv",
     "continuous FourRooms, goal disc (r 0.5) at (2.0, 8.0) in the north-west room, random start",
     goal=(2.0, 8.0),
     step_cost=0.01,
@@ -211,7 +226,7 @@ register_task(
 )
 register_task(
     "gridrooms/northeast",
-    GridFourRoomsEnv,
+    "drltg.envs.gridrooms:GridFourRoomsEnv",
     "grid FourRooms 13x13, goal cell (row 3, col 9) in the north-east room, random start",
     goal=(3, 9),
     step_cost=0.01,
@@ -220,7 +235,7 @@ register_task(
 )
 register_task(
     "gridrooms/northeast-shifted",
-    GridFourRoomsEnv,
+    "drltg.envs.gridrooms:GridFourRoomsEnv",
     "grid FourRooms 13x13, goal cell (row 4, col 9), 1 cell below gridrooms/northeast",
     goal=(4, 9),
     step_cost=0.01,
@@ -229,7 +244,7 @@ register_task(
 )
 register_task(
     "gridrooms/southwest",
-    GridFourRoomsEnv,
+    "drltg.envs.gridrooms:GridFourRoomsEnv",
     "grid FourRooms 13x13, goal cell (row 9, col 3) in the south-west room, random start",
     goal=(9, 3),
     step_cost=0.01,
@@ -293,30 +308,6 @@ ROBOSUITE_TRAIN = {
 }
 
 
-def _robosuite(**options):
-    from drltg.envs.robosuite.env import make_robosuite_env
-
-    return make_robosuite_env(**options)
-
-
-def _robosuite_signature() -> inspect.Signature:
-    """``make_robosuite_env``'s keywords and ``RobosuiteEnv``'s, so configs can check their types
-    (robosuite's own task keywords stay open: ``**task_kwargs``)."""
-    from drltg.envs.robosuite.env import RobosuiteEnv, make_robosuite_env
-
-    outer = [p for p in inspect.signature(make_robosuite_env).parameters.values() if p.kind is not p.VAR_KEYWORD]
-    names = {p.name for p in outer}
-    inner = [
-        p if p.kind is p.VAR_KEYWORD else p.replace(kind=p.KEYWORD_ONLY)
-        for p in inspect.signature(RobosuiteEnv.__init__).parameters.values()
-        if p.name not in names | {"self"}
-    ]
-    return inspect.Signature(outer + sorted(inner, key=lambda p: p.kind))
-
-
-_robosuite.__signature__ = _robosuite_signature()
-
-
 def _manipulation_potential(options: dict[str, Any]):
     from drltg.envs.robosuite.potentials import potential_for
 
@@ -325,7 +316,7 @@ def _manipulation_potential(options: dict[str, Any]):
 
 register_task(
     "lift",
-    _robosuite,
+    "drltg.envs.robosuite.env:robosuite_task",
     "robosuite Lift: the Panda lifts the cube 4 cm (reward 1 per lifted step), horizon 500",
     task="lift",
     train=ROBOSUITE_TRAIN,
@@ -333,7 +324,7 @@ register_task(
 )
 register_task(
     "lift-place",
-    _robosuite,
+    "drltg.envs.robosuite.env:robosuite_task",
     "lift the cube and set it down on the green target disc 0.32 m away, horizon 500",
     task="lift-place",
     train=ROBOSUITE_TRAIN,
@@ -341,7 +332,7 @@ register_task(
 )
 register_task(
     "lift-place-barrier",
-    _robosuite,
+    "drltg.envs.robosuite.env:robosuite_task",
     "lift-place with a heavy 7 cm wall between cube and target (pushing cannot work), horizon 500",
     task="lift-place-barrier",
     train=ROBOSUITE_TRAIN,
@@ -349,7 +340,7 @@ register_task(
 )
 register_task(
     "lift-dense",
-    _robosuite,
+    "drltg.envs.robosuite.env:robosuite_task",
     "robosuite Lift with robosuite's dense reward (reach + grasp + lift, at most 1 per step), horizon 500",
     task="lift",
     reward_shaping=True,

@@ -5,7 +5,9 @@
 :class:`RayBackend` (Ray tasks on a local instance or a cluster). A run's output goes to its own log;
 a broken run is reported with its log and the others go on; a complete run (``summary.json``) is
 skipped and an interrupted one resumes from its checkpoint, so running the same plan again finishes
-what is missing.
+what is missing. Runs that share everything but the seed (and need no other run) train as one seed
+group in one task (:mod:`drltg.training.seeds`) where the learner supports it, unless ``group_seeds``
+is off.
 """
 from __future__ import annotations
 
@@ -23,7 +25,7 @@ from typing import Any
 from drltg.errors import UsageError
 from drltg.training import rundir
 
-__all__ = ["Run", "run_one", "LocalBackend", "RayBackend", "execute"]
+__all__ = ["Run", "run_one", "run_group", "LocalBackend", "RayBackend", "execute", "seed_groups"]
 
 
 @dataclass
@@ -87,6 +89,59 @@ def run_one(cfg: dict, run_dir: str, log_path: str) -> tuple[str, str]:
     return "done", ""
 
 
+def run_group(cfgs: list[dict], run_dirs: list[str], log_paths: list[str]) -> list[tuple[str, str]]:
+    """:func:`run_one` for a seed group: the runs train (or resume) together, their output in the first
+    run's log (each other log says where); one ``(status, detail)`` per run."""
+    from drltg import plugins
+    from drltg.training.health import DIVERGED, Diverged
+    from drltg.training.seeds import train_group
+
+    plugins.load()
+    dirs, logs = [Path(d) for d in run_dirs], [Path(p) for p in log_paths]
+    for log_path in logs:
+        log_path.parent.mkdir(parents=True, exist_ok=True)
+    for log_path in logs[1:]:
+        with open(log_path, "a") as log:
+            print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] trains in a seed group; output in {logs[0]}", file=log)
+    resume = all((d / rundir.CONFIG).is_file() for d in dirs)
+    with open(logs[0], "a", buffering=1) as log, _output_to(log):
+        print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] {'resume' if resume else 'start'} seed group "
+              f"{', '.join(str(d) for d in dirs)} (pid {os.getpid()})", flush=True)
+        try:
+            train_group(cfgs, dirs, resume=resume, progress=False)
+        except UsageError as err:
+            print(f"error: {err}", flush=True)
+            return [("failed", str(err))] * len(dirs)
+        except Diverged as err:
+            print(f"{err}.", flush=True)
+            return [(DIVERGED, str(err))] * len(dirs)
+        except Exception as err:
+            traceback.print_exc()
+            return [("failed", f"{type(err).__name__}: {err}")] * len(dirs)
+        print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] complete", flush=True)
+    return [("done", "")] * len(dirs)
+
+
+def seed_groups(runs: list[Run]) -> list[list[Run]]:
+    """``runs`` in units of work, in order: runs that need no other run, whose configs differ only in
+    the seed and whose learner trains as a seed group (:func:`~drltg.training.seeds.group_support`),
+    and that are all new or all resumable, form one unit; every other run is a unit of one."""
+    from drltg.training.seeds import group_support, same_but_seed
+
+    units: list[list[Run]] = []
+    for run in runs:
+        for unit in units:
+            first = unit[0]
+            if (run.needs is None and first.needs is None and same_but_seed(first.cfg, run.cfg)
+                    and (run.path / rundir.CONFIG).is_file() == (first.path / rundir.CONFIG).is_file()
+                    and group_support(run.cfg) is None):
+                unit.append(run)
+                break
+        else:
+            units.append([run])
+    return units
+
+
 def _frames_done(run: Run) -> int:
     """Frames a run has reached so far (its last evaluation; 0 before the first)."""
     try:
@@ -124,12 +179,13 @@ def _worker_init(parent: int | None = None) -> None:
         _die_with_parent(parent)
 
 
-def _run_in_pool(cfg: dict, run_dir: str, log_path: str) -> tuple[str, str]:
-    """:func:`run_one` in a pool worker. A SIGTERM (from the parent stopping the pool, or from the kernel
-    when the parent died) unwinds the run, releasing its lock and keeping its checkpoint, and then ends the
-    worker: the pool would catch the ``SystemExit`` and wait for work from a parent that may be gone."""
+def _run_in_pool(train, *args):
+    """``train(*args)`` (:func:`run_one`, :func:`run_group`) in a pool worker. A SIGTERM (from the parent
+    stopping the pool, or from the kernel when the parent died) unwinds the run, releasing its lock and
+    keeping its checkpoint, and then ends the worker: the pool would catch the ``SystemExit`` and wait for
+    work from a parent that may be gone."""
     try:
-        return run_one(cfg, run_dir, log_path)
+        return train(*args)
     except SystemExit as stop:
         sys.stdout.flush(), sys.stderr.flush()
         os._exit(stop.code if isinstance(stop.code, int) else 1)
@@ -158,7 +214,14 @@ class LocalBackend:
 
     def submit(self, run: Run):
         pool = self._pool()
-        future = pool.submit(_run_in_pool, run.cfg, str(run.path), str(run.log))
+        future = pool.submit(_run_in_pool, run_one, run.cfg, str(run.path), str(run.log))
+        self.pool_of[future] = pool
+        return future
+
+    def submit_group(self, runs: list[Run]):
+        pool = self._pool()
+        future = pool.submit(_run_in_pool, run_group, [r.cfg for r in runs], [str(r.path) for r in runs],
+                             [str(r.log) for r in runs])
         self.pool_of[future] = pool
         return future
 
@@ -262,11 +325,15 @@ class RayBackend:
         imports = os.environ.get("DRLTG_IMPORT")  # workers on other nodes import the same plugins
         runtime_env = {"env_vars": {"DRLTG_IMPORT": imports}} if imports else None
         self.task = ray.remote(run_one).options(max_retries=0, runtime_env=runtime_env, **resources)
+        self.group_task = ray.remote(run_group).options(max_retries=0, runtime_env=runtime_env, **resources)
 
     capacity = math.inf  # Ray queues the tasks and runs as many as the cluster's resources allow
 
     def submit(self, run: Run):
         return self.task.remote(run.cfg, str(run.path), str(run.log))
+
+    def submit_group(self, runs: list[Run]):
+        return self.group_task.remote([r.cfg for r in runs], [str(r.path) for r in runs], [str(r.log) for r in runs])
 
     def wait(self, handles: list, timeout: float) -> list[tuple[Any, tuple[str, str]]]:
         ready, _ = self.ray.wait(handles, num_returns=1, timeout=timeout)
@@ -285,9 +352,11 @@ class RayBackend:
 
 
 # --------------------------------------------------------------------------------------- schedule
-def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs") -> dict[Path, tuple[str, str]]:
+def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs",
+            group_seeds: bool = True) -> dict[Path, tuple[str, str]]:
     """Run every incomplete run (each after the run it needs) and return ``{path: (status, detail)}``
-    with status ``skipped`` (complete before), ``done``, ``diverged`` or ``failed``."""
+    with status ``skipped`` (complete before), ``done``, ``diverged`` or ``failed``. With ``group_seeds``,
+    runs that differ only in their seed train as one seed group (:func:`seed_groups`)."""
     from tqdm.auto import tqdm
 
     status: dict[Path, tuple[str, str]] = {}
@@ -297,37 +366,43 @@ def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs") -> 
             status[r.path] = ("skipped", "") if finished[0] == "complete" else finished
     todo = [r for r in runs if r.path not in status]
     reached = {r.path: _frames_done(r) for r in todo}
+    units = seed_groups(todo) if group_seeds else [[r] for r in todo]
     bar = tqdm(total=sum(r.frames for r in todo), initial=sum(reached.values()), unit="frame",
                desc=desc, dynamic_ncols=True, smoothing=0.05)
-    running: dict[Any, Run] = {}
+    running: dict[Any, list[Run]] = {}
 
     def postfix() -> None:
         counts = [s for s, _ in status.values()]
+        busy = sum(len(unit) for unit in running.values())
         bar.set_postfix_str(f"runs {len(counts)}/{len(runs)} ({counts.count('failed')} failed), "
-                            f"{len(running)} running", refresh=False)
+                            f"{busy} running", refresh=False)
 
     try:
-        while todo or running:
-            for run in list(todo):
+        while units or running:
+            for unit in list(units):
+                run = unit[0]
                 state = status.get(run.needs, ("done", ""))[0] if run.needs else "done"
                 if run.needs and run.needs not in status:
                     continue  # its source is not trained yet
                 if state in ("failed", "diverged"):
                     status[run.path] = ("failed", f"not run: the run it needs {state} ({run.needs})")
-                    todo.remove(run)
+                    units.remove(unit)
                 elif len(running) < backend.capacity:
-                    running[backend.submit(run)] = run
-                    todo.remove(run)
+                    handle = backend.submit(run) if len(unit) == 1 else backend.submit_group(unit)
+                    running[handle] = unit
+                    units.remove(unit)
             postfix()
             for handle, result in backend.wait(list(running), poll) if running else ():
-                run = running.pop(handle)
-                status[run.path] = result
-                bar.update(run.frames - reached[run.path])
-                reached[run.path] = run.frames
-            for run in running.values():
-                now = _frames_done(run)
-                bar.update(max(now - reached[run.path], 0))
-                reached[run.path] = max(now, reached[run.path])
+                unit = running.pop(handle)
+                for run, one in zip(unit, result if isinstance(result, list) else [result] * len(unit)):
+                    status[run.path] = one
+                    bar.update(run.frames - reached[run.path])
+                    reached[run.path] = run.frames
+            for unit in running.values():
+                for run in unit:
+                    now = _frames_done(run)
+                    bar.update(max(now - reached[run.path], 0))
+                    reached[run.path] = max(now, reached[run.path])
             postfix()
             bar.refresh()
     finally:

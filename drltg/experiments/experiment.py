@@ -44,6 +44,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--source-frames", type=int, help="frame budget of each source run (default --frames)")
     p.add_argument("--out", type=Path, required=True, help="experiment directory")
     p.add_argument("--workers", type=int, default=1, help="runs trained in parallel processes (default 1)")
+    p.add_argument("--no-seed-groups", action="store_true",
+                   help="train every run in its own task (default: runs that differ only in their seed train as one "
+                        "seed group where the learner supports it)")
     p.add_argument("-o", "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="config override applied to every run, e.g. -o transfer.upsilon=0.9")
     p.add_argument("--threshold", help="report threshold: a value, or a fraction of the best baseline like 80%%")
@@ -190,7 +193,7 @@ def as_runs(runs: list[tuple[str, dict, Path]], out: Path) -> list:
 def _settings(args: argparse.Namespace) -> dict:
     """What must match to continue an experiment (the folder itself may be named any way)."""
     return {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()
-            if k not in ("out", "workers", "threshold", "_module", "command")}
+            if k not in ("out", "workers", "threshold", "_module", "command", "no_seed_groups")}
 
 
 def _check_settings(path: Path, settings: dict) -> None:
@@ -230,7 +233,7 @@ def run(args: argparse.Namespace) -> int:
         rundir.atomic_write(saved, yaml.safe_dump(settings, sort_keys=False))
         backend = LocalBackend(args.workers)
         try:
-            status = execute(as_runs(runs, out), backend, desc="experiment")
+            status = execute(as_runs(runs, out), backend, desc="experiment", group_seeds=not args.no_seed_groups)
         finally:
             backend.close()
         failures = [f"{path}: {detail}" for path, (state, detail) in status.items() if state == "failed"]

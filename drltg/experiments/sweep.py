@@ -435,6 +435,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, required=True, help="sweep directory (re-run to resume)")
     p.add_argument("--backend", choices=("local", "ray"), default="local",
                    help="local: a process pool on this machine (default); ray: Ray tasks")
+    p.add_argument("--no-seed-groups", action="store_true",
+                   help="train every run in its own task (default: runs that differ only in their seed train as one "
+                        "seed group where the learner supports it)")
     p.add_argument("--workers", type=int, default=os.cpu_count(),
                    help="local: runs in parallel (default: the CPU count); ray without --address: "
                         "CPUs of the local Ray instance")
@@ -484,7 +487,7 @@ def _execute_and_report(args, spec: Spec, out: Path, runs: list[Run], cells: lis
         backend = LocalBackend(args.workers)
     try:
         rundir.write_files(out, {"sweep.yaml": Path(args.spec).read_bytes()})
-        status = execute(runs, backend, desc="sweep")
+        status = execute(runs, backend, desc="sweep", group_seeds=not args.no_seed_groups)
     finally:
         backend.close()
 

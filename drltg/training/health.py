@@ -40,6 +40,13 @@ def check_parameters(module: torch.nn.Module, frames: int) -> None:
             raise Diverged(f"the run diverged: the parameter '{name}' holds non-finite values at frame {frames}")
 
 
+def check_state(state: dict, frames: int) -> None:
+    """:func:`check_parameters` on a module's ``state_dict`` (one seed's, in a seed group)."""
+    for name, value in state.items():
+        if isinstance(value, torch.Tensor) and value.is_floating_point() and not torch.isfinite(value).all():
+            raise Diverged(f"the run diverged: the parameter '{name}' holds non-finite values at frame {frames}")
+
+
 def write_diverged(run_dir: str | Path, cfg: dict, err: Diverged) -> None:
     """``summary.json`` of a diverged run: its status and why; the run is finished, not resumable."""
     summary = {"status": DIVERGED, "reason": str(err), "task": cfg["task"], "algo": cfg["algo"],

@@ -2,14 +2,15 @@
 
 Evaluation runs at frame 0 (before any update) and every ``eval.every`` frames, with the deterministic
 actor on a separate evaluation env that measures the task's own reward (never a shaped one) and
-success. What a run directory holds is described in :mod:`drltg.training.rundir`; :func:`train` owns it (its
+success. :func:`run_loop` is the loop over parts (a collector, a learner, one
+:class:`~drltg.training.rundir.RunWriter` per seed) and writes no file itself; what a run directory holds
+and how it is written is :mod:`drltg.training.rundir`. :func:`train` builds the parts, owns the directory (its
 lock) while it runs, checks everything it can before creating it, and removes what a failed start
 wrote before its first checkpoint, so a retry is never blocked.
 """
 from __future__ import annotations
 
 import contextlib
-import json
 import math
 import shutil
 import signal
@@ -25,19 +26,19 @@ from tensordict import TensorDictBase
 from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, ReplayBuffer
 from torchrl.envs import EnvBase, ExplorationType, RewardSum, TransformedEnv, set_exploration_type
-from torchrl.record.loggers import CSVLogger, TensorboardLogger
 from tqdm.auto import tqdm
 
 from drltg.config import config_changes
 from drltg.envs import make_env
 from drltg.errors import UsageError
-from drltg.learners import UpdateStep, make_agent, sample_batches
-from drltg.training import health, manifest, preflight, rundir
-from drltg.training.rundir import CHECKPOINT, CONFIG, EPISODE_FLAGS, EVAL, SUMMARY, is_complete, read_eval_csv
+from drltg.learners import Agent, UpdateStep, make_agent, sample_batches
+from drltg.training import health, preflight, rundir
+from drltg.training.rundir import CHECKPOINT, CONFIG, EPISODE_FLAGS, EVAL, RunWriter, is_complete, read_eval_csv
 from drltg.transfer import Transfer, get_method
 from drltg.transfer.source import check as check_source
 
-__all__ = ["train", "evaluate", "make_envs", "build_env", "check_config", "is_complete", "read_eval_csv"]
+__all__ = ["train", "run_loop", "AgentLearner", "make_collector", "evaluate", "evaluate_seeds", "make_envs",
+           "build_env", "check_config", "is_complete", "read_eval_csv"]
 
 
 # ----------------------------------------------------------------------------- envs
@@ -76,7 +77,6 @@ def check_config(cfg: dict):
     return probe, agent
 
 
-@torch.no_grad()
 def evaluate(env: EnvBase, actor: Callable, max_steps: int = 100_000) -> dict:
     """Run one episode in every batch element of ``env`` with the deterministic actor.
 
@@ -85,6 +85,13 @@ def evaluate(env: EnvBase, actor: Callable, max_steps: int = 100_000) -> dict:
     in which it was ever true (``success_rate``, ``lifted_rate``), counting each element's first
     episode only.
     """
+    return evaluate_seeds(env, actor, 1, max_steps)[0]
+
+
+@torch.no_grad()
+def evaluate_seeds(env: EnvBase, actor: Callable, seeds: int, max_steps: int = 100_000) -> list[dict]:
+    """:func:`evaluate` of a seed group's env: one row per block of ``batch / seeds`` elements (seed k's
+    episodes), each computed as its seed's own evaluation would be."""
     td = env.reset()
     shape = env.batch_size
     alive = torch.ones(*shape, 1, dtype=torch.bool, device=env.device)
@@ -102,15 +109,17 @@ def evaluate(env: EnvBase, actor: Callable, max_steps: int = 100_000) -> dict:
             if not alive.any():
                 break
             td = td["next"].clone()
-    ret = ret.flatten().double()
-    row = {
-        "return_mean": ret.mean().item(),
-        "return_std": ret.std(unbiased=False).item(),
-        "episodes": ret.numel(),
-    }
-    for key in flags:
-        row[f"{key}_rate"] = ever[key].float().mean().item()
-    return row
+    rows = []
+    for k, block in enumerate(ret.flatten().double().chunk(seeds)):
+        row = {
+            "return_mean": block.mean().item(),
+            "return_std": block.std(unbiased=False).item(),
+            "episodes": block.numel(),
+        }
+        for key in flags:
+            row[f"{key}_rate"] = ever[key].flatten().chunk(seeds)[k].float().mean().item()
+        rows.append(row)
+    return rows
 
 
 # ----------------------------------------------------------------------------- run directory
@@ -238,16 +247,39 @@ def train(
             owned.enter_context(rundir.lock(run_dir))
             _refuse_existing(run_dir)  # another process started it first
         try:
-            for name, text in transfer.files.items():
-                rundir.atomic_write(run_dir / name, text)
+            writer = RunWriter(run_dir, cfg, rows)
+            writer.start(transfer.files)
+            frames, updates = 0, 0
+            if ckpt is not None:
+                torch.set_rng_state(ckpt["rng"])
+                frames, updates = ckpt["frames"], ckpt["updates"]
+            learner = AgentLearner(agent, buffer, eval_env, transfer)
+            collector = make_collector(cfg, train_env, learner.policy, frames)
             with deferred_signals() as stop_if_signalled, health.on_divergence(run_dir, cfg):
-                _loop(cfg, run_dir, agent, train_env, eval_env, transfer, buffer, ckpt, rows, progress,
-                      stop_if_signalled)
+                run_loop(cfg, collector, learner, [writer], frames=frames, updates=updates, progress=progress,
+                         stop_if_signalled=stop_if_signalled, extra_summary=transfer.summary)
         except BaseException as err:
             if not resume and not (run_dir / CHECKPOINT).is_file() and not isinstance(err, health.Diverged):
                 _remove_start(run_dir, created)
             raise
     return run_dir
+
+
+def make_collector(cfg: dict, env: EnvBase, policy, frames: int = 0, seeds: int = 1) -> Collector:
+    """TorchRL's single-process collector for the frames left after ``frames`` (per seed), random
+    actions until ``collector.init_random_frames``; ``seeds`` runs in step share one batched env."""
+    col = cfg["collector"]
+    fpb = col["frames_per_batch"]
+    init_random = math.ceil(col["init_random_frames"] / fpb) * fpb
+    return Collector(
+        env,
+        policy,
+        frames_per_batch=fpb * seeds,
+        total_frames=(cfg["frames"] - frames) * seeds,
+        init_random_frames=max(init_random - frames, 0) * seeds,
+        device=cfg["device"],
+        auto_register_policy_transforms=False,
+    )
 
 
 @contextlib.contextmanager
@@ -284,89 +316,103 @@ def deferred_signals(signums=(signal.SIGINT, signal.SIGTERM)):
     deliver()
 
 
-def _loop(cfg, run_dir, agent, train_env, eval_env, transfer: Transfer, buffer, ckpt, rows, progress,
-          stop_if_signalled) -> None:
+class AgentLearner:
+    """One agent as the loop's learner: its replay buffer, its update step and its evaluation env.
+
+    The loop speaks to a learner in lists with one entry per seed (here, one): ``split`` the
+    collected frames, ``store`` them, draw ``batches``, ``update`` (losses with a leading seed
+    dimension), ``evaluate`` and ``state`` (what a checkpoint holds).
+    """
+
+    seeds = 1
+
+    def __init__(self, agent: Agent, buffer: ReplayBuffer, eval_env: EnvBase, transfer: Transfer):
+        self.agent, self.buffer, self.eval_env, self.transfer = agent, buffer, eval_env, transfer
+        self.actor_delay = agent.actor_delay
+        self.policy = agent.policy if transfer.policy is None else transfer.policy
+        self.step = UpdateStep(agent, loss_terms=transfer.loss_terms)
+
+    def split(self, data: TensorDictBase) -> list[TensorDictBase]:
+        return [data.reshape(-1)]
+
+    def store(self, data: list[TensorDictBase], frames: int) -> None:
+        if self.transfer.on_frames is not None:
+            self.transfer.on_frames(frames)
+        self.buffer.extend(data[0].select(*self.agent.loss.in_keys))  # only what the loss reads is stored
+
+    def batches(self, count: int):
+        return (self.transfer.batches or sample_batches)(self.buffer, count)
+
+    def update(self, batch: TensorDictBase, update_actor: bool) -> TensorDictBase:
+        return self.step(batch, update_actor=update_actor).unsqueeze(0)
+
+    def evaluate(self) -> list[dict]:
+        return [evaluate(self.eval_env, self.agent.actor)]
+
+    def state(self) -> list[dict]:
+        return [{
+            "loss": self.agent.loss.state_dict(),
+            "optimizer": self.agent.optimizer.state_dict(),
+            "buffer": self.buffer.state_dict(),
+            "rng": torch.get_rng_state(),
+        }]
+
+
+def run_loop(cfg: dict, collector, learner, writers: list[RunWriter], *, frames: int = 0, updates: int = 0,
+             progress: bool = True, stop_if_signalled: Callable[[], None] = lambda: None,
+             extra_summary: dict | None = None) -> None:
+    """Collect, store, update, evaluate and checkpoint until ``cfg["frames"]`` frames per seed.
+
+    ``learner`` trains one or several seeds in step (see :class:`AgentLearner`); ``writers`` gets one
+    :class:`~drltg.training.rundir.RunWriter` per seed and receives every evaluation, logged scalar,
+    checkpoint and the summary: the loop itself writes no file. ``frames`` counts one seed's frames.
+    """
     col, opt = cfg["collector"], cfg["optim"]
-    fpb = col["frames_per_batch"]
-    init_random = math.ceil(col["init_random_frames"] / fpb) * fpb
-    frames = updates = 0
-    if ckpt is not None:
-        torch.set_rng_state(ckpt["rng"])
-        frames, updates = ckpt["frames"], ckpt["updates"]
-
-    rundir.write_config(run_dir, cfg)
-    loggers = [CSVLogger("csv", log_dir=str(run_dir / rundir.LOGS))]
-    if cfg["log"]["tensorboard"]:
-        loggers.append(TensorboardLogger("tensorboard", log_dir=str(run_dir / rundir.LOGS)))
-
-    def log(metrics: dict, step: int) -> None:
-        for logger in loggers:
-            for k, v in metrics.items():
-                logger.log_scalar(k, float(v), step=step)
+    seeds = learner.seeds
+    init_random = math.ceil(col["init_random_frames"] / col["frames_per_batch"]) * col["frames_per_batch"]
 
     def run_eval() -> None:
-        row = {"frames": frames, **evaluate(eval_env, agent.actor)}
-        rows.append(row)
-        rundir.write_eval_csv(run_dir / EVAL, rows)
-        log({f"eval/{k}": v for k, v in row.items() if k != "frames"}, frames)
-        bar.set_postfix(eval_return=f"{row['return_mean']:.3f}", refresh=False)
+        for writer, row in zip(writers, learner.evaluate()):
+            writer.evaluation({"frames": frames, **row})
+        bar.set_postfix(eval_return=f"{writers[0].rows[-1]['return_mean']:.3f}", refresh=False)
 
     def save_checkpoint() -> None:
-        health.check_parameters(agent.loss, frames)
-        rundir.atomic_torch_save(
-            {
-                "loss": agent.loss.state_dict(),
-                "optimizer": agent.optimizer.state_dict(),
-                "buffer": buffer.state_dict(),
-                "rng": torch.get_rng_state(),
-                "frames": frames,
-                "updates": updates,
-                "evaluations": [r["frames"] for r in rows],
-            },
-            run_dir / CHECKPOINT,
-        )
+        for writer, state in zip(writers, learner.state()):
+            health.check_state(state["loss"], frames)
+            writer.checkpoint(state, frames, updates)
 
-    collector = Collector(
-        train_env,
-        agent.policy if transfer.policy is None else transfer.policy,
-        frames_per_batch=fpb,
-        total_frames=cfg["frames"] - frames,
-        init_random_frames=max(init_random - frames, 0),
-        device=cfg["device"],
-        auto_register_policy_transforms=False,
-    )
     bar = tqdm(total=cfg["frames"], initial=frames, unit="frame", disable=not progress, dynamic_ncols=True)
     try:
-        if not rows:
+        if not writers[0].rows:
             run_eval()
         next_eval = (frames // cfg["eval"]["every"] + 1) * cfg["eval"]["every"]
         next_ckpt = (frames // cfg["checkpoint"]["every"] + 1) * cfg["checkpoint"]["every"]
         next_log = frames + cfg["log"]["every"]
-        stats: dict[str, list[float]] = defaultdict(list)
-        update = UpdateStep(agent, loss_terms=transfer.loss_terms)
+        stats: list[dict[str, list[float]]] = [defaultdict(list) for _ in range(seeds)]
         start, start_frames = time.perf_counter(), frames
 
         for data in collector:
             stop_if_signalled()
-            data = data.reshape(-1)
-            frames += data.numel()
-            if transfer.on_frames is not None:
-                transfer.on_frames(frames)
-            buffer.extend(data.select(*agent.loss.in_keys))  # only what the loss reads is stored
-            _episode_stats(data, stats)
+            pieces = learner.split(data)
+            frames += pieces[0].numel()
+            learner.store(pieces, frames)
+            for piece, seed_stats in zip(pieces, stats):
+                _episode_stats(piece, seed_stats)
             if frames >= init_random:
-                for batch in (transfer.batches or sample_batches)(buffer, opt["updates_per_batch"]):
-                    losses = update(batch, update_actor=updates % agent.actor_delay == 0)
+                for batch in learner.batches(opt["updates_per_batch"]):
+                    losses = learner.update(batch, update_actor=updates % learner.actor_delay == 0)
                     health.check_losses(losses, frames)
                     updates += 1
                     for k, v in losses.items():
-                        if v.numel() == 1:
-                            stats[f"train/{k}"].append(v.item())
-            bar.update(data.numel())
+                        if v.numel() == seeds:
+                            for seed_stats, x in zip(stats, v.reshape(-1).tolist()):
+                                seed_stats[f"train/{k}"].append(x)
+            bar.update(pieces[0].numel())
             if frames >= next_log:
                 fps = (frames - start_frames) / (time.perf_counter() - start)
-                log({k: sum(v) / len(v) for k, v in stats.items() if v} | {"train/fps": fps}, frames)
-                stats.clear()
+                for writer, seed_stats in zip(writers, stats):
+                    writer.log({k: sum(v) / len(v) for k, v in seed_stats.items() if v} | {"train/fps": fps}, frames)
+                    seed_stats.clear()
                 next_log = frames + cfg["log"]["every"]
             if frames >= next_eval or frames >= cfg["frames"]:
                 run_eval()
@@ -377,27 +423,14 @@ def _loop(cfg, run_dir, agent, train_env, eval_env, transfer: Transfer, buffer, 
     finally:
         collector.shutdown()
         bar.close()
-        for logger in loggers:
-            if isinstance(logger, TensorboardLogger):
-                logger.experiment.close()
-    if rows[-1]["frames"] != frames:
+        for writer in writers:
+            writer.close()
+    if writers[0].rows[-1]["frames"] != frames:
         run_eval()
     save_checkpoint()
     wall = time.perf_counter() - start
-    summary = {
-        "status": health.COMPLETE,
-        "task": cfg["task"],
-        "algo": cfg["algo"],
-        "seed": cfg["seed"],
-        "frames": frames,
-        "updates": updates,
-        "wall_time_s": round(wall, 2),
-        "frames_per_s": round((frames - start_frames) / max(wall, 1e-9), 1),
-        "final_eval": rows[-1],
-        **transfer.summary,
-    }
-    rundir.atomic_write(run_dir / SUMMARY, json.dumps(summary, indent=2) + "\n")
-    manifest.finalize(run_dir)
+    for writer in writers:
+        writer.finish(frames, updates, wall, (frames - start_frames) / max(wall, 1e-9), extra_summary)
 
 
 def _episode_stats(data: TensorDictBase, stats: dict) -> None:

@@ -44,7 +44,7 @@ EVAL_COLUMNS = ["frames", "return_mean", "return_std", "episodes", *(f"{flag}_ra
 
 __all__ = ["atomic_write", "atomic_torch_save", "atomic_path", "write_files", "read_eval_csv", "write_eval_csv",
            "read_config", "write_config", "absolute_source", "is_complete", "check_directory", "lock",
-           "load_checkpoint", "truncate_logs"]
+           "load_checkpoint", "truncate_logs", "RunWriter"]
 
 
 # ------------------------------------------------------------------------------------------ config
@@ -464,3 +464,76 @@ def _truncate_events(path: Path, frame: int) -> None:
         for record in kept:
             writer.write(record)
         f.flush()
+
+
+# -------------------------------------------------------------------------------------------- writer
+class RunWriter:
+    """What one run writes while it trains, in the order the training loop reports it: the config at
+    the start, a row of eval.csv per evaluation, scalars to the loggers, checkpoints, and summary.json
+    last. The loop computes; this object is the only one that touches the directory's files.
+
+    Args:
+        run_dir: the run directory (created and locked by the caller).
+        cfg: the resolved config, written as config.yaml and summarised in summary.json.
+        rows: the evaluations kept from before a resumed checkpoint (``[]`` for a new run).
+    """
+
+    def __init__(self, run_dir: str | Path, cfg: dict, rows: list[dict] | None = None):
+        self.run_dir = Path(run_dir)
+        self.cfg = cfg
+        self.rows = list(rows or [])
+        self.loggers: list = []
+
+    def start(self, files: dict[str, str | bytes] | None = None) -> None:
+        """Write the config (and a method's own ``files``) and open the loggers."""
+        from torchrl.record.loggers import CSVLogger, TensorboardLogger
+
+        write_files(self.run_dir, files or {})
+        write_config(self.run_dir, self.cfg)
+        self.loggers = [CSVLogger("csv", log_dir=str(self.run_dir / LOGS))]
+        if self.cfg["log"]["tensorboard"]:
+            self.loggers.append(TensorboardLogger("tensorboard", log_dir=str(self.run_dir / LOGS)))
+
+    def log(self, metrics: dict, step: int) -> None:
+        for logger in self.loggers:
+            for k, v in metrics.items():
+                logger.log_scalar(k, float(v), step=step)
+
+    def evaluation(self, row: dict) -> None:
+        """Append an evaluation (``{"frames": ..., "return_mean": ...}``) to eval.csv and the loggers."""
+        self.rows.append(row)
+        write_eval_csv(self.run_dir / EVAL, self.rows)
+        self.log({f"eval/{k}": v for k, v in row.items() if k != "frames"}, row["frames"])
+
+    def checkpoint(self, state: dict, frames: int, updates: int) -> None:
+        """Save ``state`` (weights, optimiser, buffer, RNG) with the counters a resume needs."""
+        evaluations = [r["frames"] for r in self.rows]
+        atomic_torch_save(
+            {**state, "frames": frames, "updates": updates, "evaluations": evaluations}, self.run_dir / CHECKPOINT
+        )
+
+    def finish(self, frames: int, updates: int, wall: float, frames_per_s: float, extra: dict | None = None) -> None:
+        """Write summary.json: the run is complete."""
+        import json
+
+        summary = {
+            "status": "complete",
+            "task": self.cfg["task"],
+            "algo": self.cfg["algo"],
+            "seed": self.cfg["seed"],
+            "frames": frames,
+            "updates": updates,
+            "wall_time_s": round(wall, 2),
+            "frames_per_s": round(frames_per_s, 1),
+            "final_eval": self.rows[-1],
+            **(extra or {}),
+        }
+        atomic_write(self.run_dir / SUMMARY, json.dumps(summary, indent=2) + "\n")
+        manifest.finalize(self.run_dir)
+
+    def close(self) -> None:
+        from torchrl.record.loggers import TensorboardLogger
+
+        for logger in self.loggers:
+            if isinstance(logger, TensorboardLogger):
+                logger.experiment.close()

@@ -9,6 +9,11 @@
     demonstrations   collectors.collect_demonstrations + mixed_batches, losses.behaviour_cloning
                                                                                             (demonstrations)
 
+A trained run as a source, in one call each (they print nothing): ``load_actor(run_dir)`` (the past
+policy of policy reuse), ``load_critic(run_dir)`` (its value V(s), the potential of value shaping),
+``load_agent(run_dir)`` (the whole learner) and ``load_from_run(module, run_dir)`` (its weights into
+another network, model reuse).
+
 :mod:`drltg.transfer.registry` defines what a method is (:class:`TransferMethod`) and what it adds to a
 run (:class:`Transfer`); :mod:`drltg.transfer.source` reads ``transfer.source``. Importing this package
 registers the built-in methods (``a+b`` names a combination, :func:`combine`); the parts themselves
@@ -20,8 +25,10 @@ register_method(TransferMethod("none", "plain learning on the task: the baseline
 
 from drltg.transfer import reward_shaping, value_shaping, policy_reuse, model_reuse, demonstrations  # noqa: E402,I001
 from drltg.transfer.model_reuse import load_from_run  # noqa: E402
+from drltg.transfer.source import load_actor, load_agent, load_critic  # noqa: E402
 
 __all__ = [
-    "METHODS", "Transfer", "TransferMethod", "combine", "get_method", "register_method", "load_from_run",
+    "METHODS", "Transfer", "TransferMethod", "combine", "get_method", "register_method",
+    "load_actor", "load_critic", "load_agent", "load_from_run",
     "reward_shaping", "value_shaping", "policy_reuse", "model_reuse", "demonstrations",
 ]

@@ -1,13 +1,8 @@
 """The demonstrations method: source episodes in their own buffer, a share of every batch, behaviour cloning."""
 from __future__ import annotations
 
-from torchrl.data import OneHot
-from torchrl.envs import TransformedEnv
-
-from drltg.collectors import collect_demonstrations, demonstration_buffer, mixed_batches
 from drltg.config import Field, builtin_options
 from drltg.errors import UsageError
-from drltg.losses import behaviour_cloning
 from drltg.transfer.registry import Transfer, TransferMethod, register_method
 
 
@@ -15,7 +10,12 @@ def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
     """``transfer.demo_episodes`` episodes of the source policy on the training task, from an env
     seeded apart from the training and evaluation envs, kept in a buffer of their own; a resumed run
     collects the same episodes again."""
+    from torchrl.data import OneHot
+    from torchrl.envs import TransformedEnv
+
+    from drltg.collectors import collect_demonstrations, demonstration_buffer, mixed_batches
     from drltg.envs import make_env
+    from drltg.losses import behaviour_cloning
     from drltg.transfer.source import source_actor
 
     t = cfg["transfer"]

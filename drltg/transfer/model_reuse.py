@@ -1,14 +1,18 @@
 """The model-reuse method: the learner starts from a source run's weights (``load_weights``)."""
 from __future__ import annotations
 
+import logging
 from pathlib import Path
-
-from torch import nn
+from typing import TYPE_CHECKING
 
 from drltg.config import Field, builtin_options
-from drltg.modules.weights import LoadReport, freeze_parameters, load_weights
 from drltg.training.rundir import MODEL_REUSE, load_checkpoint
 from drltg.transfer.registry import Transfer, TransferMethod, register_method
+
+if TYPE_CHECKING:
+    from torch import nn
+
+    from drltg.modules.weights import LoadReport
 
 
 def load_from_run(loss_module: nn.Module, run_dir: str | Path, **kwargs) -> LoadReport:
@@ -16,6 +20,8 @@ def load_from_run(loss_module: nn.Module, run_dir: str | Path, **kwargs) -> Load
 
     Keyword arguments go to :func:`load_weights`. The checkpoint is unpickled: load only runs you trust.
     """
+    from drltg.modules.weights import load_weights
+
     checkpoint = load_checkpoint(Path(run_dir).expanduser())
     return load_weights(loss_module, checkpoint["loss"], **kwargs)
 
@@ -23,12 +29,14 @@ def load_from_run(loss_module: nn.Module, run_dir: str | Path, **kwargs) -> Load
 def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
     """Every network of the learner (actor, critics, targets) starts from the source run; a resumed
     run has its weights already, and only its frozen parameters are frozen again."""
+    from drltg.modules.weights import freeze_parameters
+
     t = cfg["transfer"]
     if resuming:
         freeze_parameters(agent.loss, t["freeze"])
         return Transfer()
     report = load_from_run(agent.loss, t["source"], freeze=t["freeze"], partial=t["partial"])
-    print(report.summary(), flush=True)
+    logging.getLogger(__name__).info(report.summary())
     return Transfer(files={MODEL_REUSE: f"{report}\n"})
 
 

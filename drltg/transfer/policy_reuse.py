@@ -1,23 +1,31 @@
 """The policy-reuse and jumpstart methods: the learner's policy followed by ``PolicyReuse`` over the source."""
 from __future__ import annotations
 
-from tensordict.nn import TensorDictSequential
+from typing import TYPE_CHECKING
 
-from drltg.collectors import JumpStart, PiReuse, PolicyReuse, ReuseSchedule
 from drltg.config import Field, builtin_options
 from drltg.errors import UsageError
 from drltg.transfer.registry import Transfer, TransferMethod, register_method
 
+if TYPE_CHECKING:
+    from drltg.collectors import ReuseSchedule
+
 
 def _mixed(cfg: dict, agent, env, schedule: ReuseSchedule) -> Transfer:
     """The learner's exploration policy followed by the mixer over the source's past policy."""
+    from tensordict.nn import TensorDictSequential
+
+    from drltg.collectors import PolicyReuse
     from drltg.transfer.source import source_actor
 
     mixer = PolicyReuse(source_actor(cfg, env), schedule=schedule)
-    return Transfer(policy=TensorDictSequential(agent.policy, mixer), on_frames=mixer.set_progress)
+    return Transfer(train_transforms=[mixer.primer()], policy=TensorDictSequential(agent.policy, mixer),
+                    on_frames=mixer.set_progress)
 
 
 def _pi_reuse(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
+    from drltg.collectors import PiReuse
+
     t = cfg["transfer"]
     return _mixed(cfg, agent, env, PiReuse(t["psi"], t["upsilon"], psi_end=t["psi_end"],
                                            annealing_frames=t["annealing_frames"]))
@@ -50,6 +58,8 @@ POLICY_REUSE = register_method(TransferMethod(
 
 
 def _jumpstart(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
+    from drltg.collectors import JumpStart
+
     t = cfg["transfer"]
     stage = max(t["guide_frames"] // t["guide_stages"], 1)
     return _mixed(cfg, agent, env, JumpStart(t["guide_steps"], stages=t["guide_stages"], frames_per_stage=stage))

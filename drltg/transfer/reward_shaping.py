@@ -3,7 +3,6 @@ from __future__ import annotations
 
 from drltg.errors import UsageError
 from drltg.transfer.registry import Transfer, TransferMethod, register_method
-from drltg.transforms import PotentialShaping
 
 
 def _check(cfg: dict) -> None:
@@ -16,6 +15,7 @@ def _check(cfg: dict) -> None:
 def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
     """The task's own potential (registered with the task), the learner's gamma."""
     from drltg.envs import get_task
+    from drltg.transforms import PotentialShaping
 
     spec = get_task(cfg["task"])
     potential = spec.potential({**spec.defaults, **cfg["env"]})

@@ -3,22 +3,26 @@
 ``transfer.source`` is a drltg run directory (its ``config.yaml`` and ``checkpoints/last.pt``), or for
 methods that reuse a policy on the manipulation tasks ``demonstrator:TASK``, the scripted policy of
 ``TASK`` (:func:`drltg.envs.robosuite.demonstrator_for`) acting as the past policy. :func:`check` runs
-before anything is trained or written; :func:`source_actor` rebuilds the past policy.
+before anything is trained or written; :func:`source_actor` rebuilds the past policy. In user code,
+:func:`load_actor`, :func:`load_critic` and :func:`load_agent` rebuild a run's actor, value or whole
+learner from its run directory in one call.
 """
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import yaml
-from tensordict.nn import TensorDictModuleBase
-from torchrl.envs import EnvBase
 
 from drltg.envs import make_env
 from drltg.envs.robosuite.layout import TASKS as MANIPULATION
 from drltg.errors import UsageError
-from drltg.learners import make_agent
 from drltg.training.rundir import CHECKPOINT, CONFIG, SUMMARY, is_complete, load_checkpoint
 from drltg.transfer.registry import get_method
+
+if TYPE_CHECKING:
+    from tensordict.nn import TensorDictModuleBase
+    from torchrl.envs import EnvBase
 
 DEMONSTRATOR = "demonstrator:"
 
@@ -80,18 +84,77 @@ def check_same_spaces(source: EnvBase, target: EnvBase, source_name: str, target
         )
 
 
+def _rebuild(run_dir, device: str = "cpu"):
+    """A run's learner, its env and its config, rebuilt from ``config.yaml`` and ``checkpoints/last.pt``;
+    anything that keeps it from being built is one :class:`UsageError` sentence."""
+    from drltg.learners import make_agent
+
+    run = Path(run_dir).expanduser()
+    for name in (CONFIG, CHECKPOINT):
+        if not (run / name).is_file():
+            raise UsageError(f"'{run_dir}' is not a drltg run directory: it holds no {Path(name).as_posix()}.")
+    cfg = yaml.safe_load((run / CONFIG).read_text())
+    if not isinstance(cfg, dict) or not {"task", "algo", "env"} <= set(cfg):
+        raise UsageError(f"'{run / CONFIG}' is not a drltg run config (it lacks task, algo or env).")
+    try:
+        env = make_env(cfg["task"], device=device, **cfg["env"])
+    except UsageError as err:
+        raise UsageError(f"run '{run_dir}' cannot be rebuilt: {err}") from None
+    agent = make_agent(env, cfg)
+    saved = load_checkpoint(run, map_location=device).get("loss", {})
+    mismatch = _first_mismatch(agent.loss.state_dict(), saved)
+    if mismatch:
+        raise UsageError(
+            f"the checkpoint of run '{run_dir}' does not fit the {cfg['algo']} learner its {CONFIG} describes "
+            f"({mismatch})."
+        )
+    agent.loss.load_state_dict(saved)
+    return agent, env, cfg
+
+
+def _first_mismatch(expected: dict, saved: dict) -> str | None:
+    """The first entry a saved state dict lacks or holds in another shape, in words."""
+    for key, value in expected.items():
+        if key not in saved:
+            return f"it has no {key}"
+        if hasattr(value, "shape") and tuple(getattr(saved[key], "shape", ())) != tuple(value.shape):
+            return f"{key} is {list(saved[key].shape)} there, {list(value.shape)} here"
+    return None
+
+
+def load_agent(run_dir, *, device: str = "cpu"):
+    """A trained run's learner (:class:`drltg.learners.Agent`: actor, loss with critics, temperature),
+    rebuilt from the run directory's ``config.yaml`` and ``checkpoints/last.pt``. Prints nothing.
+    The checkpoint is unpickled: load only runs you trust."""
+    return _rebuild(run_dir, device)[0]
+
+
+def load_actor(run_dir, *, device: str = "cpu") -> TensorDictModuleBase:
+    """A trained run's actor: reads ``"observation"``, writes ``"action"`` (its mean/greedy action under
+    ``ExplorationType.DETERMINISTIC``), e.g. the past policy of :class:`drltg.collectors.PolicyReuse`."""
+    return load_agent(run_dir, device=device).actor
+
+
+def load_critic(run_dir, *, device: str = "cpu", scale: float = 1.0):
+    """A trained run's value of a state, V(s) = scale * min_k Q_k(s, mu(s)) (its twin critics at its own
+    deterministic action), as a frozen module of the observation: :class:`drltg.transforms.SourceValue`,
+    the potential of value shaping. SAC, discrete-SAC and TD3 runs."""
+    from torchrl.data import OneHot
+
+    from drltg.transforms import SourceValue
+
+    agent, env, _ = _rebuild(run_dir, device)
+    discrete = isinstance(env.full_action_spec_unbatched["action"], OneHot)
+    return SourceValue(agent.loss, discrete=discrete, scale=scale)
+
+
 def source_agent(cfg: dict, target_env: EnvBase | None = None):
-    """The source run's learner (:class:`drltg.learners.Agent`: actor, critics, temperature), rebuilt from
-    its saved config and checkpoint. With ``target_env``, a source that observes or acts differently is
-    refused here rather than failing inside the first rollout."""
-    run = Path(cfg["transfer"]["source"]).expanduser()
-    src_cfg = yaml.safe_load((run / CONFIG).read_text())
-    env = make_env(src_cfg["task"], device=cfg["device"], **src_cfg["env"])
+    """The learner of ``transfer.source`` (:func:`load_agent`). With ``target_env``, a source that
+    observes or acts differently is refused here rather than failing inside the first rollout."""
+    agent, env, src_cfg = _rebuild(cfg["transfer"]["source"], cfg["device"])
     if target_env is not None:
         check_same_spaces(env, target_env, f"transfer.source '{cfg['transfer']['source']}' ({src_cfg['task']})",
                           f"task '{cfg['task']}'")
-    agent = make_agent(env, src_cfg)
-    agent.loss.load_state_dict(load_checkpoint(run, map_location=cfg["device"])["loss"])
     return agent
 
 

@@ -1,15 +1,15 @@
 """The value-shaping method: ``PotentialShaping`` with Phi = the source run's value (``SourceValue``)."""
 from __future__ import annotations
 
-from torchrl.data import OneHot
-
 from drltg.config import Field, builtin_options
 from drltg.transfer.registry import Transfer, TransferMethod, register_method
-from drltg.transforms import PotentialShaping, SourceValue
 
 
 def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
+    from torchrl.data import OneHot
+
     from drltg.transfer.source import source_agent
+    from drltg.transforms import PotentialShaping, SourceValue
 
     source = source_agent(cfg, env)
     discrete = isinstance(env.full_action_spec_unbatched["action"], OneHot)

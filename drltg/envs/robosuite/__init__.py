@@ -1,34 +1,33 @@
 """robosuite manipulation tasks (Lift, Lift+Place, Lift+Place with barrier) as TorchRL envs.
 
-Importing this package does not import robosuite; building a :class:`RobosuiteEnv` does.
+Importing this package imports neither robosuite nor torch (its names are imported on first use);
+building a :class:`RobosuiteEnv` imports robosuite.
 """
-from drltg.envs.robosuite.demonstrator import PickPlaceDemonstrator, demonstrator_for
-from drltg.envs.robosuite.env import TASK_CLASSES, RobosuiteEnv, make_robosuite_env
-from drltg.envs.robosuite.layout import LAYOUT, OBSERVABLES, OBSERVATION_SIZE
-from drltg.envs.robosuite.potentials import (
-    Carry,
-    Grasp,
-    LiftHeight,
-    LiftPotential,
-    PlacePotential,
-    Reach,
-    potential_for,
-)
+import importlib
 
-__all__ = [
-    "Carry",
-    "Grasp",
-    "LAYOUT",
-    "LiftHeight",
-    "LiftPotential",
-    "OBSERVABLES",
-    "OBSERVATION_SIZE",
-    "PickPlaceDemonstrator",
-    "PlacePotential",
-    "Reach",
-    "RobosuiteEnv",
-    "TASK_CLASSES",
-    "demonstrator_for",
-    "make_robosuite_env",
-    "potential_for",
-]
+_LAZY = {
+    "PickPlaceDemonstrator": "demonstrator",
+    "demonstrator_for": "demonstrator",
+    "TASK_CLASSES": "env",
+    "RobosuiteEnv": "env",
+    "make_robosuite_env": "env",
+    "LAYOUT": "layout",
+    "OBSERVABLES": "layout",
+    "OBSERVATION_SIZE": "layout",
+    "Carry": "potentials",
+    "Grasp": "potentials",
+    "LiftHeight": "potentials",
+    "LiftPotential": "potentials",
+    "PlacePotential": "potentials",
+    "Reach": "potentials",
+    "potential_for": "potentials",
+}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        return getattr(importlib.import_module(f"drltg.envs.robosuite.{_LAZY[name]}"), name)
+    raise AttributeError(f"module 'drltg.envs.robosuite' has no attribute {name!r}")
+
+
+__all__ = sorted(_LAZY)

@@ -11,6 +11,7 @@ bit-identical to robosuite's ``env.step`` (``fast=False`` steps through robosuit
 from __future__ import annotations
 
 import functools
+import inspect
 import logging
 import os
 from typing import Sequence
@@ -286,3 +287,25 @@ def make_robosuite_env(
     if parallel and n > 1:
         return ParallelEnv(n, make, mp_start_method=mp_start_method)
     return SerialEnv(n, make)
+
+
+def robosuite_task(**options) -> EnvBase:
+    """The task registry's factory of the manipulation tasks: :func:`make_robosuite_env`, with a signature
+    that also lists :class:`RobosuiteEnv`'s keywords."""
+    return make_robosuite_env(**options)
+
+
+def _robosuite_signature() -> inspect.Signature:
+    """``make_robosuite_env``'s keywords and ``RobosuiteEnv``'s, so configs can check their types
+    (robosuite's own task keywords stay open: ``**task_kwargs``)."""
+    outer = [p for p in inspect.signature(make_robosuite_env).parameters.values() if p.kind is not p.VAR_KEYWORD]
+    names = {p.name for p in outer}
+    inner = [
+        p if p.kind is p.VAR_KEYWORD else p.replace(kind=p.KEYWORD_ONLY)
+        for p in inspect.signature(RobosuiteEnv.__init__).parameters.values()
+        if p.name not in names | {"self"}
+    ]
+    return inspect.Signature(outer + sorted(inner, key=lambda p: p.kind))
+
+
+robosuite_task.__signature__ = _robosuite_signature()

@@ -1,0 +1,161 @@
+"""Suite ``seeds``: N seeds in one process (a seed group) against the same N seeds run one after another.
+
+Everything single-threaded (``OMP_NUM_THREADS=1``, ``torch.set_num_threads(1)``), N = 1, 4, 8, 16:
+
+* ``fourrooms``: whole commands, as a user runs them, on ``fourrooms/northeast`` with the task's
+  defaults: ``drltg train fourrooms/northeast --seeds N --frames F`` against N commands
+  ``drltg train fourrooms/northeast --seed k --frames F`` one after another. Reported: the commands'
+  wall time (start-up included) and the training loop's time per frame from each run's summary.json
+  (``frames / frames_per_s``: start-up, imports and the final files excluded), summed over the N
+  separate runs. The group and the separate runs of each N alternate, round after round.
+* ``lift_update``: the update alone at Lift's size (SAC, 2x256 actor and twin critics, batch 256,
+  observation 50, action 7; ``benchmarks.sac``'s work): one :class:`~drltg.seed_group.SeedGroup` update
+  of N seeds against N ``UpdateStep`` updates one after another, each seed drawing from its own replay
+  buffer, in interleaved rounds; and the group against the matrix-product bound of the same N-seed
+  work (the update's products as N-batched ``bmm`` into preallocated outputs).
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import torch
+
+from benchmarks.common import REPO, interleaved, ratios
+from benchmarks.sac import SpecEnv, _buffer, _config, sac_matmuls, transitions
+from drltg.learners import UpdateStep, make_sac_agent, sample_batches
+from drltg.seed_group import SeedGroup
+
+SEEDS = (1, 4, 8, 16)
+TASK = "fourrooms/northeast"
+
+
+def _command(args: list[str], run_dir: Path) -> float:
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": str(REPO)}
+    start = time.perf_counter()
+    done = subprocess.run([sys.executable, "-m", "drltg.cli", "train", TASK, *args, "--run-dir", str(run_dir),
+                           "--no-progress"], cwd=REPO, env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - start
+    if done.returncode:
+        raise RuntimeError(done.stderr.strip().splitlines()[-1])
+    return wall
+
+
+def _loop_seconds(run_dir: Path) -> float:
+    summary = json.loads((run_dir / "summary.json").read_text())
+    return summary["frames"] / summary["frames_per_s"]
+
+
+def fourrooms(frames: int, rounds: int) -> dict:
+    walls = {f"{kind}_{n}": [] for n in SEEDS for kind in ("group", "separate")}
+    loops = {name: [] for name in walls}
+    with tempfile.TemporaryDirectory() as tmp:
+        for r in range(rounds):
+            for n in SEEDS:
+                order = ("group", "separate") if r % 2 == 0 else ("separate", "group")
+                for kind in order:
+                    root = Path(tmp) / f"{kind}{n}-{r}"
+                    if kind == "group":
+                        walls[f"group_{n}"].append(_command(["--seeds", str(n), "--frames", str(frames)], root))
+                        loops[f"group_{n}"].append(_loop_seconds(root / "seed-0"))
+                    else:
+                        dirs = [root / f"seed-{k}" for k in range(n)]
+                        walls[f"separate_{n}"].append(sum(
+                            _command(["--seed", str(k), "--frames", str(frames)], d) for k, d in enumerate(dirs)))
+                        loops[f"separate_{n}"].append(sum(_loop_seconds(d) for d in dirs))
+
+    def median(xs):
+        return sorted(xs)[len(xs) // 2]
+
+    out = {"frames_per_seed": frames, "rounds": rounds, "per_n": {}}
+    for n in SEEDS:
+        g, s = f"group_{n}", f"separate_{n}"
+        out["per_n"][n] = {
+            "command_wall_s": {"group": round(median(walls[g]), 2), "separate": round(median(walls[s]), 2)},
+            "loop_frames_per_s": {"group": round(n * frames / median(loops[g]), 1),
+                                  "separate": round(n * frames / median(loops[s]), 1)},
+            "ratio_command_wall": round(median(walls[s]) / median(walls[g]), 3),
+            "ratio_loop": round(median(loops[s]) / median(loops[g]), 3),
+        }
+    out["commands"] = {"group": f"drltg train {TASK} --seeds N --frames {frames}",
+                       "separate": f"drltg train {TASK} --seed k --frames {frames}  (k = 0 .. N-1, one after another)"}
+    return out
+
+
+def _separate_case(n: int, chunk: int):
+    steps, buffers = [], []
+    for k in range(n):
+        torch.manual_seed(k)
+        steps.append(UpdateStep(make_sac_agent(SpecEnv(), _config())))
+        buffers.append(_buffer(transitions(seed=k), "cpu"))
+
+    def run() -> int:
+        for step, buffer in zip(steps, buffers):
+            for batch in sample_batches(buffer, chunk):
+                step(batch)
+        return n * chunk
+
+    return run
+
+
+def _group_case(n: int, chunk: int):
+    agents, buffers = [], []
+    for k in range(n):
+        torch.manual_seed(k)
+        agents.append(make_sac_agent(SpecEnv(), _config()))
+        buffers.append(_buffer(transitions(seed=k), "cpu"))
+    group = SeedGroup(agents)
+
+    def run() -> int:
+        per_seed = [sample_batches(buffer, chunk) for buffer in buffers]
+        for batches in zip(*per_seed):
+            group.update(torch.stack(batches))
+        return n * chunk
+
+    return run
+
+
+def _matmul_case(n: int, chunk: int):
+    g = torch.Generator().manual_seed(0)
+    operands = [(torch.randn(n, m, k, generator=g), torch.randn(n, k, p, generator=g), torch.empty(n, m, p))
+                for m, k, p in sac_matmuls()]
+
+    def run() -> int:
+        for _ in range(chunk):
+            for a, b, out in operands:
+                torch.bmm(a, b, out=out)
+        return n * chunk
+
+    return run
+
+
+def lift_update(chunk: int, rounds: int) -> dict:
+    cases = {}
+    for n in SEEDS:
+        cases[f"group_{n}"] = _group_case(n, chunk)
+        cases[f"separate_{n}"] = _separate_case(n, chunk)
+        cases[f"matmul_bound_{n}"] = _matmul_case(n, chunk)
+    results = interleaved(cases, rounds=rounds, warmup=1)
+    pairs = [(f"group_{n}", f"separate_{n}") for n in SEEDS] + [(f"group_{n}", f"matmul_bound_{n}") for n in SEEDS]
+    return {"unit": "seed-updates/s", "work": "SAC, batch 256, obs 50, act 7, 2x256 actor and twin critics",
+            "chunk": chunk, "rates": results, "ratios": ratios(results, pairs)}
+
+
+def run(device: str = "cpu", quick: bool = False) -> dict:
+    if device != "cpu":
+        return {"missing": "the seeds suite measures single-threaded CPU runs"}
+    torch.set_num_threads(1)
+    frames, rounds = (2048, 1) if quick else (4096, 2)
+    chunk, update_rounds = (4, 3) if quick else (8, 7)
+    return {
+        "threads": 1,
+        "lift_update": lift_update(chunk, update_rounds),
+        "fourrooms": fourrooms(frames, rounds),
+        "targets": ">= 4x at 8 seeds on FourRooms, >= 1.5x on the Lift-sized update, group >= 0.85 of the "
+                   "matmul bound",
+    }

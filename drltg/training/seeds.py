@@ -1,0 +1,236 @@
+"""Training N seeds of one config in one process: ``drltg train TASK --seeds N --seed S --run-dir DIR``.
+
+Seeds S … S+N−1 are written to ``DIR/seed-<S+k>/``, each an ordinary run directory (``report`` reads it
+alone, ``--resume`` continues it, alone or with its group). Where the learner supports it
+(:func:`group_support`) the seeds train as one :class:`~drltg.seed_group.SeedGroup`: one batched env of
+N × ``collector.num_envs`` envs, one vmapped policy call (one call per seed for soft option-critic,
+whose option choice branches on the data) and one vmapped update per step, a replay buffer per seed.
+Otherwise they train one after another with :func:`~drltg.training.loop.train`.
+
+What a seed shares with its run alone: its initial networks (built under ``torch.manual_seed(seed)``
+as a run alone builds them), its env's starts and noise, training and evaluation (a random stream per
+seed, :mod:`drltg.envs.seeding`), its replay buffer, and its updates given a batch and random draws
+(``tests/test_seed_groups.py``). What differs: the warm-up's random actions, the policy's exploration
+draws, the replay buffer's sampling and the losses' random draws come from the process's one
+generator, seeded with the group's first seed, so past frame 0 a seed's curve in a group is not its
+curve alone. A group is reproduced exactly by the
+same group (same ``--seeds`` and ``--seed``); each seed's summary.json records its group
+(``seed_group.seeds``, the group's seeds in order).
+"""
+from __future__ import annotations
+
+import contextlib
+import sys
+from pathlib import Path
+
+import torch
+from tensordict import TensorDictBase
+from torchrl.data import LazyTensorStorage, ReplayBuffer
+from torchrl.envs import RewardSum, TransformedEnv
+
+from drltg.envs.seeding import set_block_seeds
+from drltg.errors import UsageError
+from drltg.learners import sample_batches
+from drltg.losses import SoftOptionCriticLoss
+from drltg.modules import make_option_policy
+from drltg.seed_group import GroupPolicy, SeedGroup, SeedLoopPolicy
+from drltg.training import rundir
+from drltg.training.loop import (
+    _check_saved_config,
+    _refuse_existing,
+    _remove_start,
+    _resume_state,
+    build_env,
+    check_config,
+    deferred_signals,
+    evaluate_seeds,
+    make_collector,
+    run_loop,
+    train,
+)
+from drltg.training.rundir import CHECKPOINT, CONFIG, RunWriter, is_complete
+
+__all__ = ["train_seeds", "train_group", "group_support", "seed_dirs", "same_but_seed"]
+
+GROUPED_ALGOS = ("sac", "td3", "soc")
+"""Learners whose seeds train as one group (SAC covers discrete SAC on discrete tasks)."""
+
+
+def seed_dirs(run_dir: Path, first: int, count: int) -> list[Path]:
+    return [Path(run_dir) / f"seed-{first + k}" for k in range(count)]
+
+
+def same_but_seed(a: dict, b: dict) -> bool:
+    """Whether two configs differ in their seed at most: their runs can share a seed group."""
+    return {**a, "seed": 0} == {**b, "seed": 0}
+
+
+def group_support(cfg: dict) -> str | None:
+    """``None`` if the seeds of ``cfg`` can train as one group, else why not (one clause)."""
+    if cfg["algo"] not in GROUPED_ALGOS:
+        return f"--algo {cfg['algo']} has no grouped update"
+    if cfg["transfer"]["method"] != "none":
+        return f"transfer method {cfg['transfer']['method']} has no grouped form"
+    from drltg.envs import get_task
+
+    factory = get_task(cfg["task"]).factory
+    if not hasattr(factory, "set_block_seeds"):
+        return f"task {cfg['task']} has no per-seed random streams"
+    return None
+
+
+def train_seeds(cfg: dict, run_dir: str | Path, seeds: int, *, resume: bool = False, progress: bool = True,
+                group: bool = True) -> list[Path]:
+    """Train seeds ``cfg["seed"]`` … ``cfg["seed"] + seeds - 1`` of ``cfg`` into ``run_dir/seed-<k>/``;
+    as one group where :func:`group_support` allows and ``group`` is true, else one after another (with
+    a note on stderr saying why). Returns the run directories."""
+    if seeds < 1:
+        raise UsageError(f"--seeds must be at least 1, got {seeds}.")
+    run_dir = rundir.check_directory(run_dir, "--run-dir")
+    cfgs = [{**cfg, "seed": cfg["seed"] + k} for k in range(seeds)]
+    dirs = seed_dirs(run_dir, cfg["seed"], seeds)
+    reason = group_support(cfg) if group else "grouping is turned off"
+    if reason is not None or seeds == 1:
+        if reason is not None and seeds > 1:
+            print(f"note: {reason}; training the {seeds} seeds one after another.", file=sys.stderr)
+        return [train(c, d, resume=resume, progress=progress) for c, d in zip(cfgs, dirs)]
+    return train_group(cfgs, dirs, resume=resume, progress=progress)
+
+
+class GroupLearner:
+    """A :class:`SeedGroup` as the training loop's learner (see :class:`~drltg.training.loop.AgentLearner`):
+    a replay buffer per seed, stacked batches, per-seed evaluation on a blocked env."""
+
+    def __init__(self, group: SeedGroup, buffers: list[ReplayBuffer], eval_env):
+        self.group, self.buffers, self.eval_env = group, buffers, eval_env
+        self.seeds, self.actor_delay = group.seeds, group.actor_delay
+        first = group.agents[0]
+        if isinstance(first.loss, SoftOptionCriticLoss):  # the option choice branches on the data: no vmap
+            self.policy = self.actor = SeedLoopPolicy(group, make_option_policy)
+        else:
+            actor_params = group.params["actor_network_params"]
+            noise = None if first.policy is first.actor else first.policy[-1]
+            self.policy = GroupPolicy(first.actor, actor_params, then=noise)
+            self.actor = GroupPolicy(first.actor, actor_params)
+        self.in_keys = list(group.loss.in_keys)
+
+    def split(self, data: TensorDictBase) -> list[TensorDictBase]:
+        return list(data.reshape(self.seeds, -1).unbind(0))
+
+    def store(self, data: list[TensorDictBase], frames: int) -> None:
+        for buffer, piece in zip(self.buffers, data):
+            buffer.extend(piece.select(*self.in_keys))
+
+    def batches(self, count: int):
+        per_seed = [sample_batches(buffer, count) for buffer in self.buffers]
+        return (torch.stack(batch) for batch in zip(*per_seed))
+
+    def update(self, batch: TensorDictBase, update_actor: bool) -> TensorDictBase:
+        return self.group.update(batch, update_actor)
+
+    def evaluate(self) -> list[dict]:
+        return evaluate_seeds(self.eval_env, self.actor, self.seeds)
+
+    def state(self) -> list[dict]:
+        self.group.sync()
+        rng = torch.get_rng_state()
+        return [
+            {"loss": agent.loss.state_dict(), "optimizer": self.group.optimizer_state(k),
+             "buffer": buffer.state_dict(), "rng": rng}
+            for k, (agent, buffer) in enumerate(zip(self.group.agents, self.buffers))
+        ]
+
+
+def _group_env(cfg: dict, seeds: list[int], per_seed: int, seed_offset: int, transforms=()):
+    env = TransformedEnv(build_env(cfg, batch_size=(len(seeds) * per_seed,), seed=seeds[0] + seed_offset))
+    set_block_seeds(env, [s + seed_offset for s in seeds])
+    for t in transforms:
+        env.append_transform(t.clone())
+    return env
+
+
+def train_group(cfgs: list[dict], dirs: list[Path], *, resume: bool = False, progress: bool = True) -> list[Path]:
+    """Train ``cfgs`` (configs equal but for their seeds, :func:`group_support` true) as one seed group
+    into ``dirs``, one run directory each; ``resume`` continues them from their checkpoints."""
+    cfg, count = cfgs[0], len(cfgs)
+    with contextlib.ExitStack() as owned:
+        if resume:
+            for c, d in zip(cfgs, dirs):
+                if not (d / CONFIG).is_file():
+                    raise UsageError(f"cannot resume: '{d}' holds no {CONFIG} (is it a seed of this group?).")
+                _check_saved_config(c, d)
+            if all(is_complete(d) for d in dirs):
+                return dirs
+            for d in dirs:
+                owned.enter_context(rundir.lock(d))
+            states = [_resume_state(c, d) for c, d in zip(cfgs, dirs)]
+            frames = {None if ckpt is None else ckpt["frames"] for ckpt, _ in states}
+            if any(is_complete(d) for d in dirs) or len(frames) > 1:
+                owned.close()
+                print("note: the group's seeds stopped at different points; resuming them one after another.",
+                      file=sys.stderr)
+                return [train(c, d, resume=True, progress=progress) for c, d in zip(cfgs, dirs)]
+        else:
+            for d in dirs:
+                _refuse_existing(d)
+            states = [(None, []) for _ in dirs]
+
+        torch.set_num_threads(cfg["threads"])
+        agents = []
+        for c in cfgs:  # each seed's networks as its run alone builds them
+            torch.manual_seed(c["seed"])
+            agents.append(check_config(c)[1])
+        torch.manual_seed(cfg["seed"])
+        buffers = [ReplayBuffer(storage=LazyTensorStorage(cfg["buffer"]["size"], device=cfg["device"]),
+                                batch_size=cfg["buffer"]["batch_size"]) for _ in cfgs]
+        ckpts = [ckpt for ckpt, _ in states]
+        if ckpts[0] is not None:
+            for agent, buffer, ckpt, d in zip(agents, buffers, ckpts, dirs):
+                try:
+                    agent.loss.load_state_dict(ckpt["loss"])
+                    agent.optimizer.load_state_dict(ckpt["optimizer"])
+                    buffer.load_state_dict(ckpt["buffer"])
+                except (KeyError, RuntimeError, ValueError) as err:
+                    raise UsageError(
+                        f"checkpoint '{d / CHECKPOINT}' does not fit the run's config ({type(err).__name__})."
+                    ) from None
+        group = SeedGroup(agents)
+        seeds = [c["seed"] for c in cfgs]
+        transforms = agents[0].env_transforms  # what the policy needs the env to carry (SOC's option)
+        train_env = _group_env(cfg, seeds, cfg["collector"]["num_envs"], 0, transforms)
+        train_env.append_transform(RewardSum())
+        eval_env = _group_env(cfg, seeds, cfg["eval"]["episodes"], 10_000, transforms)
+        learner = GroupLearner(group, buffers, eval_env)
+
+        created = [not d.exists() for d in dirs]
+        if resume:
+            for d, ckpt in zip(dirs, ckpts):
+                rundir.truncate_logs(d, ckpt["frames"] if ckpt is not None else -1)
+        else:
+            for d in dirs:
+                try:
+                    d.mkdir(parents=True, exist_ok=True)
+                except OSError as err:
+                    raise UsageError(f"cannot create '{d}' ({err.strerror}).") from None
+                owned.enter_context(rundir.lock(d))
+                _refuse_existing(d)
+        try:
+            writers = [RunWriter(d, c, rows) for d, c, (_, rows) in zip(dirs, cfgs, states)]
+            for writer in writers:
+                writer.start()
+            frames, updates = 0, 0
+            if ckpts[0] is not None:
+                torch.set_rng_state(ckpts[0]["rng"])
+                frames, updates = ckpts[0]["frames"], ckpts[0]["updates"]
+            collector = make_collector(cfg, train_env, learner.policy, frames, seeds=count)
+            summary = {"seed_group": {"seeds": seeds}}
+            with deferred_signals() as stop_if_signalled:
+                run_loop(cfg, collector, learner, writers, frames=frames, updates=updates, progress=progress,
+                         stop_if_signalled=stop_if_signalled, extra_summary=summary)
+        except BaseException:
+            if not resume:
+                for d, new in zip(dirs, created):
+                    if not (d / CHECKPOINT).is_file():
+                        _remove_start(d, new)
+            raise
+    return dirs

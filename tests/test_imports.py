@@ -1,0 +1,202 @@
+"""Imports point down the pipeline, form no cycle, and the CLI's quick answers import no torch.
+
+The layers, lowest first (a module may import its own package and lower layers only; packages of one
+layer import nothing from each other)::
+
+    errors       drltg.errors
+    base         drltg.plugins | drltg.training.rundir (the run-directory format)
+    envs         drltg.envs
+    parts        drltg.transforms | drltg.collectors | drltg.losses | drltg.modules
+    config       drltg.config
+    learners     drltg.learners
+    transfer     drltg.transfer (methods compose parts; a source is rebuilt with a learner)
+    training     drltg.training
+    analysis     drltg.analysis (no torch)
+    experiments  drltg.experiments, drltg.video (run, then report)
+    cli          drltg.cli
+
+Every import counts, those inside functions included: a lazy import is still a dependency.
+"""
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "drltg"
+
+LAYERS = [
+    ["drltg.errors"],
+    ["drltg.plugins", "drltg.training.rundir"],
+    ["drltg.envs"],
+    ["drltg.transforms", "drltg.collectors", "drltg.losses", "drltg.modules"],
+    ["drltg.config"],
+    ["drltg.learners"],
+    ["drltg.seed_group"],
+    ["drltg.transfer"],
+    ["drltg.training"],
+    ["drltg.analysis"],
+    ["drltg.experiments", "drltg.video"],
+    ["drltg.cli"],
+]
+HEAVY = ("torch", "torchrl", "tensordict")
+
+
+def _modules() -> dict[str, Path]:
+    modules = {}
+    for path in PACKAGE.rglob("*.py"):
+        parts = path.relative_to(ROOT).with_suffix("").parts
+        modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    return modules
+
+
+MODULES = _modules()
+
+
+def imports(name: str, *, top_level_only: bool = False) -> set[str]:
+    """The modules ``name`` imports (submodules resolved; ``from pkg import sub`` is ``pkg.sub``)."""
+    path = MODULES[name]
+    tree = ast.parse(path.read_text())
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    nodes = tree.body if top_level_only else ast.walk(tree)
+    found = set()
+    for node in nodes:
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join(anchor + ([base] if base else []))
+            for alias in node.names:
+                found.add(f"{base}.{alias.name}" if f"{base}.{alias.name}" in MODULES else base)
+    return found
+
+
+def layer(name: str) -> tuple[int, str]:
+    """(rank, the layer entry ``name`` belongs to): the longest listed prefix wins."""
+    best = None
+    for rank, entries in enumerate(LAYERS):
+        for entry in entries:
+            if (name == entry or name.startswith(entry + ".")) and (best is None or len(entry) > len(best[1])):
+                best = (rank, entry)
+    assert best is not None, f"{name} belongs to no layer: add it to LAYERS"
+    return best
+
+
+def _edges(top_level_only=False):
+    for name in MODULES:
+        for target in imports(name, top_level_only=top_level_only):
+            if target.startswith("drltg.") and target != name:
+                yield name, target
+
+
+def test_every_module_has_a_layer():
+    for name in MODULES:
+        if name != "drltg":
+            layer(name)
+
+
+def test_imports_point_down_the_pipeline():
+    wrong = []
+    for name, target in _edges():
+        if name == "drltg":  # the package's own surface is checked by test_import_drltg_is_cheap
+            continue
+        (rank, entry), (target_rank, target_entry) = layer(name), layer(target)
+        if entry == target_entry:
+            continue
+        if target_rank > rank or (target_rank == rank and entry != target_entry):
+            wrong.append(f"{name} ({LAYERS[rank][0]}) imports {target} ({LAYERS[target_rank][0]})")
+    assert not wrong, "\n".join(wrong)
+
+
+def test_packages_that_hold_a_lower_layer_import_nothing_above_it():
+    # importing drltg.training.rundir runs drltg/training/__init__.py first: it must not pull the loop in
+    for name in MODULES:
+        rank, _ = layer(name) if name != "drltg" else (0, "")
+        parent = name.rpartition(".")[0]
+        while parent and parent != "drltg":
+            above = [t for t in imports(parent, top_level_only=True) if t.startswith("drltg.") and layer(t)[0] > rank]
+            assert not above, f"importing {name} runs {parent}/__init__.py, which imports {above}"
+            parent = parent.rpartition(".")[0]
+
+
+def test_no_import_cycles():
+    graph: dict[str, set[str]] = {name: set() for name in MODULES}
+    for name, target in _edges():
+        graph[name].add(target)
+    state: dict[str, int] = {}
+
+    def visit(node, path):
+        state[node] = 1
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == 1:
+                cycle = path[path.index(nxt):] + [nxt]
+                pytest.fail("import cycle: " + " -> ".join(cycle))
+            if nxt not in state:
+                visit(nxt, path + [nxt])
+        state[node] = 2
+
+    for name in sorted(graph):
+        if name not in state:
+            visit(name, [name])
+
+
+def test_analysis_and_the_package_root_import_no_torch_at_all():
+    for name in MODULES:
+        if name == "drltg" or name.startswith("drltg.analysis"):
+            heavy = {t for t in imports(name) if t.split(".")[0] in HEAVY}
+            assert not heavy, f"{name} imports {heavy}"
+
+
+def _python(code: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=60)
+
+
+NO_TORCH = "import sys; assert not [m for m in sys.modules if m.split('.')[0] in ('torch', 'torchrl', 'tensordict')]"
+
+
+@pytest.mark.parametrize(
+    "argv, rc, stream, text",
+    [
+        (["tasks"], 0, "stdout", "fourrooms/northeast"),
+        (["train", "fourrooms/northeastt"], 2, "stderr", "did you mean 'fourrooms/northeast'?"),
+        (["train", "fourrooms/northeast", "-o", "optim.lrr=1"], 2, "stderr", "optim.lrr"),
+        (["train", "fourrooms/northeast", "-o", "optim.lr=-1"], 2, "stderr", "optim.lr"),
+    ],
+)
+def test_cli_answers_without_importing_torch(argv, rc, stream, text):
+    code = f"from drltg.cli import main; rc = main({argv!r}); {NO_TORCH}; print('rc', rc)"
+    done = _python(code)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines()[-1] == f"rc {rc}"
+    assert text in getattr(done, stream)
+
+
+def test_the_parts_register_nothing_and_load_no_upper_layer():
+    code = (
+        "import sys, drltg, drltg.envs, drltg.transforms, drltg.collectors, drltg.losses, drltg.modules\n"
+        "upper = ('drltg.transfer', 'drltg.analysis', 'drltg.cli', 'drltg.experiments', 'drltg.config',"
+        " 'drltg.learners', 'drltg.training')\n"
+        "print(sorted(m for m in sys.modules if m.startswith(upper)))"
+    )
+    done = _python(code)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"
+
+
+def test_import_drltg_is_cheap():
+    done = _python(f"import drltg; import drltg.envs; {NO_TORCH}")
+    assert done.returncode == 0, done.stderr
+
+
+def test_the_top_level_surface_is_documented_and_resolves():
+    import importlib
+
+    import drltg
+
+    for name, module in drltg._WHERE.items():
+        assert name in drltg.__doc__, f"drltg's docstring does not list {name}"
+        assert getattr(drltg, name) is getattr(importlib.import_module(module), name)

@@ -1,0 +1,284 @@
+"""Seed groups: one vmapped update equals each seed's own update; per-seed env streams; group runs."""
+import copy
+
+import pytest
+import torch
+from torchrl.envs import TransformedEnv
+
+from drltg import config as config_lib
+from drltg.learners import UpdateStep, make_agent
+from drltg.seed_group import SeedGroup
+from drltg.training.loop import build_env
+
+SMALL = ["network.hidden=[16,16]"]
+LEARNERS = [("gridrooms/northeast", "sac"), ("fourrooms/northeast", "sac"), ("fourrooms/northeast", "td3"),
+            ("fourrooms/northeast", "soc")]
+
+
+def _agents_and_batches(task, algo, seeds=3, batch=32):
+    cfg = config_lib.resolve({}, SMALL, task=task, algo=algo)
+    probe = build_env(cfg, seed=0)
+    agents = []
+    for seed in range(seeds):
+        torch.manual_seed(seed)
+        agents.append(make_agent(probe, cfg))
+    env = TransformedEnv(build_env(cfg, batch_size=(16,), seed=1))
+    for t in agents[0].env_transforms:
+        env.append_transform(t.clone())
+    torch.manual_seed(5)
+    data = env.rollout(8, break_when_any_done=False).reshape(-1)
+    batches = [data[torch.randperm(data.numel())[:batch]] for _ in range(seeds)]
+    return agents, batches
+
+
+@pytest.mark.parametrize("task, algo", LEARNERS)
+@pytest.mark.parametrize("update_actor", [True, False])
+def test_one_vmapped_update_is_each_seeds_own_update(task, algo, update_actor):
+    agents, batches = _agents_and_batches(task, algo)
+    group = SeedGroup(agents, randomness="same")  # stacks copies: the agents keep their parameters
+    torch.manual_seed(11)
+    grouped = group.update(torch.stack(batches), update_actor=update_actor)
+    group_grads = [p.grad for p in group._param_list]
+    for k, (agent, batch) in enumerate(zip(agents, batches)):
+        torch.manual_seed(11)  # the same random draws as the group's shared ("same") draw
+        single = UpdateStep(agent)(batch, update_actor=update_actor)
+        assert sorted(single.keys()) == sorted(grouped.keys())
+        for key in single.keys():
+            torch.testing.assert_close(grouped[key][k], single[key], atol=1e-5, rtol=1e-5)
+        for (name, p), g in zip(agent.loss.named_parameters(), group_grads):
+            assert (p.grad is None) == (g is None), name
+            if g is not None:
+                torch.testing.assert_close(g[k], p.grad, atol=1e-5, rtol=1e-5)
+        after = {name: value for name, value in agent.loss.state_dict().items()}
+        for name, value in after.items():
+            stacked = group.params.get(tuple(name.split(".")))
+            torch.testing.assert_close(stacked[k], value, atol=1e-5, rtol=1e-5, msg=name)
+
+
+def test_different_randomness_draws_independent_noise_per_seed():
+    agents, batches = _agents_and_batches("fourrooms/northeast", "sac", seeds=1)
+    twins = [agents[0], copy.deepcopy(agents[0])]  # identical parameters and batch: only the noise can differ
+    group = SeedGroup(twins, randomness="different")
+    losses = group.update(torch.stack([batches[0], batches[0]]))
+    assert losses["loss_actor"][0] != losses["loss_actor"][1]
+    same = SeedGroup(twins, randomness="same").update(torch.stack([batches[0], batches[0]]))
+    assert same["loss_actor"][0] == same["loss_actor"][1]
+
+
+# ------------------------------------------------------------------------------------ per-seed envs
+def _fixed_policy(discrete: bool):
+    """Deterministic actions from the observation alone, so blocks and single envs act alike."""
+    def act(td):
+        obs = td["observation"]
+        if discrete:
+            td["action"] = torch.nn.functional.one_hot(((obs.sum(-1) * 7).long() % 4), 4).float()
+        else:
+            td["action"] = torch.stack((torch.cos(7 * obs.sum(-1)), torch.sin(5 * obs[..., 0])), -1)
+        return td
+    return act
+
+
+@pytest.mark.parametrize("task, options", [("fourrooms/northeast", {"horizon": 7}),
+                                           ("gridrooms/northeast", {"horizon": 7, "slip": 0.3})])
+def test_a_blocked_env_gives_each_seed_its_own_env_streams(task, options):
+    from drltg.envs import make_env
+    from drltg.envs.seeding import set_block_seeds
+
+    seeds, per_seed = [4, 9, 2], 5
+    grouped = make_env(task, batch_size=(len(seeds) * per_seed,), seed=0, **options)
+    set_block_seeds(grouped, seeds)
+    policy = _fixed_policy(discrete=task.startswith("grid"))
+    together = grouped.rollout(40, policy, break_when_any_done=False)  # partial resets included
+    for k, seed in enumerate(seeds):
+        alone = make_env(task, batch_size=(per_seed,), seed=seed, **options).rollout(
+            40, policy, break_when_any_done=False)
+        block = together[k * per_seed:(k + 1) * per_seed]
+        assert (block == alone).all(), seed
+    assert int(together["next", "done"].sum()) > 0
+
+
+# ------------------------------------------------------------------------------------- group runs
+TINY = ["network.hidden=[16,16]", "collector.num_envs=4", "collector.frames_per_batch=16",
+        "collector.init_random_frames=128", "optim.updates_per_batch=1", "buffer.batch_size=32", "eval.every=256",
+        "eval.episodes=4", "checkpoint.every=256", "log.every=128", "log.tensorboard=false"]
+
+
+def tiny_cfg(**kw):
+    return config_lib.resolve({}, TINY, **{"task": "fourrooms/northeast", "frames": 512, "seed": 3, **kw})
+
+
+@pytest.fixture(scope="module")
+def group_run(tmp_path_factory):
+    from drltg.training.seeds import train_seeds
+
+    root = tmp_path_factory.mktemp("group")
+    train_seeds(tiny_cfg(), root, 2, progress=False)
+    return root
+
+
+def test_a_group_writes_one_ordinary_run_directory_per_seed(group_run):
+    import json
+
+    import yaml
+
+    from drltg.training.loop import evaluate, make_envs
+    from drltg.training.rundir import read_eval_csv
+
+    assert sorted(p.name for p in group_run.iterdir()) == ["seed-3", "seed-4"]
+    for seed in (3, 4):
+        run = group_run / f"seed-{seed}"
+        assert yaml.safe_load((run / "config.yaml").read_text()) == tiny_cfg(seed=seed)
+        rows = read_eval_csv(run / "eval.csv")
+        assert [r["frames"] for r in rows] == [0, 256, 512]
+        summary = json.loads((run / "summary.json").read_text())
+        assert summary["seed"] == seed and summary["seed_group"] == {"seeds": [3, 4]}
+        assert summary["final_eval"] == rows[-1]
+        # before any update a seed's evaluation is its run alone's: same networks, same evaluation starts
+        cfg = tiny_cfg(seed=seed)
+        torch.manual_seed(seed)
+        agent = make_agent(build_env(cfg, seed=seed), cfg)
+        alone = evaluate(make_envs(cfg)[1], agent.actor)
+        assert rows[0] == {"frames": 0, **alone}
+
+
+def test_a_group_is_reproduced_by_the_same_group(group_run, tmp_path):
+    from drltg.training.seeds import train_seeds
+
+    train_seeds(tiny_cfg(), tmp_path, 2, progress=False)
+    for seed in (3, 4):
+        name = f"seed-{seed}/eval.csv"
+        assert (tmp_path / name).read_text() == (group_run / name).read_text()
+
+
+def test_a_group_resumes_from_its_seeds_checkpoints(group_run, tmp_path, monkeypatch):
+    import drltg.training.loop as loop
+    from drltg.training.rundir import read_eval_csv
+    from drltg.training.seeds import train_seeds
+
+    real, calls = loop._episode_stats, {"n": 0}
+
+    def crash_after_first_checkpoint(data, stats):
+        calls["n"] += 1
+        if (tmp_path / "seed-4" / "checkpoints" / "last.pt").exists():
+            raise KeyboardInterrupt
+        return real(data, stats)
+
+    monkeypatch.setattr(loop, "_episode_stats", crash_after_first_checkpoint)
+    with pytest.raises(KeyboardInterrupt):
+        train_seeds(tiny_cfg(), tmp_path, 2, progress=False)
+    assert not (tmp_path / "seed-3" / "summary.json").exists()
+    monkeypatch.setattr(loop, "_episode_stats", real)
+    train_seeds(tiny_cfg(), tmp_path, 2, resume=True, progress=False)
+    for seed in (3, 4):
+        rows = read_eval_csv(tmp_path / f"seed-{seed}" / "eval.csv")
+        ref = read_eval_csv(group_run / f"seed-{seed}" / "eval.csv")
+        assert [r["frames"] for r in rows] == [0, 256, 512]
+        assert rows[:2] == ref[:2]  # identical up to the checkpoint at 256 frames
+        assert (tmp_path / f"seed-{seed}" / "summary.json").is_file()
+
+
+def test_a_method_without_a_grouped_form_trains_its_seeds_one_after_another(tmp_path, capsys):
+    from drltg.training.seeds import train_seeds
+
+    cfg = tiny_cfg(frames=64, **{"transfer.method": "reward-shaping"})
+    dirs = train_seeds({**cfg, "eval": {**cfg["eval"], "every": 64}}, tmp_path, 2, progress=False)
+    err = capsys.readouterr().err
+    assert "transfer method reward-shaping has no grouped form; training the 2 seeds one after another" in err
+    assert [d.name for d in dirs] == ["seed-3", "seed-4"] and all((d / "summary.json").is_file() for d in dirs)
+
+
+@pytest.mark.parametrize("args, message", [(["--seeds", "0"], "--seeds must be at least 1, got 0."),
+                                           (["--no-group"], "--no-group applies to --seeds N; add --seeds.")])
+def test_cli_seed_options_bad_input_is_one_sentence(args, message, tmp_path, capsys):
+    from drltg.cli import main
+
+    code = main(["train", "fourrooms/northeast", "--run-dir", str(tmp_path / "runs"), *args])
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "runs").exists()
+
+
+def test_a_seed_of_an_interrupted_group_resumes_alone(group_run, tmp_path, monkeypatch, capsys):
+    import drltg.training.loop as loop
+    from drltg.training.rundir import read_eval_csv
+    from drltg.training.seeds import train_seeds
+
+    real = loop._episode_stats
+
+    def crash_after_first_checkpoint(data, stats):
+        if (tmp_path / "seed-4" / "checkpoints" / "last.pt").exists():
+            raise KeyboardInterrupt
+        return real(data, stats)
+
+    monkeypatch.setattr(loop, "_episode_stats", crash_after_first_checkpoint)
+    with pytest.raises(KeyboardInterrupt):
+        train_seeds(tiny_cfg(), tmp_path, 2, progress=False)
+    monkeypatch.setattr(loop, "_episode_stats", real)
+    loop.train(tiny_cfg(seed=4), tmp_path / "seed-4", resume=True, progress=False)  # its checkpoint is a run's
+    rows = read_eval_csv(tmp_path / "seed-4" / "eval.csv")
+    assert [r["frames"] for r in rows] == [0, 256, 512]
+    assert rows[:2] == read_eval_csv(group_run / "seed-4" / "eval.csv")[:2]
+    train_seeds(tiny_cfg(), tmp_path, 2, resume=True, progress=False)  # the seeds now differ: one by one
+    assert "resuming them one after another" in capsys.readouterr().err
+    assert (tmp_path / "seed-3" / "summary.json").is_file()
+
+
+# ------------------------------------------------------------------------------- experiments
+def test_runs_that_differ_only_in_their_seed_form_one_unit(tmp_path):
+    from drltg.experiments.executor import Run, seed_groups
+
+    def run(name, needs=None, **kw):
+        return Run("baseline", tiny_cfg(**kw), tmp_path / name, tmp_path / f"{name}.log", needs)
+
+    baseline = [run("b0", seed=0), run("b100", seed=100)]
+    source = [run("s50", seed=50, task="fourrooms/southwest"), run("s150", seed=150, task="fourrooms/southwest")]
+    transfer = [run("t0", needs=tmp_path / "s50", seed=0), run("t100", needs=tmp_path / "s150", seed=100)]
+    soc = [run("o0", seed=0, algo="soc"), run("o100", seed=100, algo="soc")]  # grouped too
+    shaped = [run("r0", seed=0, **{"transfer.method": "reward-shaping"}),
+              run("r100", seed=100, **{"transfer.method": "reward-shaping"})]
+    units = seed_groups([baseline[0], source[0], transfer[0], soc[0], shaped[0], baseline[1], source[1], transfer[1],
+                         soc[1], shaped[1]])
+    assert [[r.path.name for r in unit] for unit in units] == [
+        ["b0", "b100"], ["s50", "s150"], ["t0"], ["o0", "o100"], ["r0"], ["t100"], ["r100"]]
+
+
+def test_run_group_trains_an_experiments_seeds_together(tmp_path):
+    import json
+
+    from drltg.experiments.executor import run_group
+
+    cfgs = [tiny_cfg(seed=0, frames=128), tiny_cfg(seed=100, frames=128)]
+    dirs = [tmp_path / "baseline" / "seed-0", tmp_path / "baseline" / "seed-100"]
+    logs = [tmp_path / "logs" / "seed-0.log", tmp_path / "logs" / "seed-100.log"]
+    assert run_group(cfgs, [str(d) for d in dirs], [str(p) for p in logs]) == [("done", ""), ("done", "")]
+    for d in dirs:
+        assert json.loads((d / "summary.json").read_text())["seed_group"] == {"seeds": [0, 100]}
+    assert "output in" in logs[1].read_text()
+
+
+@pytest.mark.parametrize("task, algo", [("gridrooms/northeast", "sac"), ("fourrooms/northeast", "td3"),
+                                       ("fourrooms/northeast", "soc")])
+def test_every_grouped_learner_trains_its_seeds_from_their_runs_alone(task, algo, tmp_path, capsys):
+    from drltg.training.loop import evaluate, make_envs
+    from drltg.training.rundir import read_eval_csv
+    from drltg.training.seeds import train_seeds
+
+    cfg = tiny_cfg(task=task, algo=algo, frames=192, **({"soc.num_options": 2} if algo == "soc" else {}))
+    train_seeds(cfg, tmp_path, 2, progress=False)
+    assert "note:" not in capsys.readouterr().err  # grouped, not one after another
+    for seed in (3, 4):
+        rows = read_eval_csv(tmp_path / f"seed-{seed}" / "eval.csv")
+        assert [r["frames"] for r in rows] == [0, 192]
+        alone_cfg = {**cfg, "seed": seed}
+        torch.manual_seed(seed)
+        agent = make_agent(build_env(alone_cfg, seed=seed), alone_cfg)
+        assert rows[0] == {"frames": 0, **evaluate(make_envs(alone_cfg, agent.env_transforms)[1], agent.actor)}
+
+
+def test_cli_resumes_a_finished_group_from_its_folder_alone(group_run, capsys):
+    from drltg.cli import main
+
+    stamps = {p: p.stat().st_mtime_ns for p in group_run.glob("seed-*/summary.json")}
+    assert main(["train", "--seeds", "2", "--seed", "3", "--resume", "--run-dir", str(group_run), "--no-progress"]) == 0
+    assert f"{group_run}/seed-3, {group_run}/seed-4" in capsys.readouterr().out
+    assert stamps == {p: p.stat().st_mtime_ns for p in stamps}  # complete: nothing trained or written again
