@@ -190,6 +190,25 @@ def as_runs(runs: list[tuple[str, dict, Path]], out: Path) -> list:
             for role, cfg, d in runs]
 
 
+def check_existing(runs: list) -> None:
+    """Refuse, before anything runs, a directory that holds a run with another config."""
+    from drltg.config import config_changes
+
+    for run in runs:
+        saved = rundir.check_directory(run.path, "run directory") / rundir.CONFIG
+        if saved.is_file():
+            try:
+                old = rundir.read_config(run.path)
+            except yaml.YAMLError:
+                raise UsageError(f"'{saved}' is not valid YAML; move the run away or use another --out.") from None
+            keys = config_changes(old if isinstance(old, dict) else {}, run.cfg)
+            if keys:
+                raise UsageError(f"'{run.path}' holds a run with another config (differs in {', '.join(keys)}); "
+                                 "use another --out.")
+        elif rundir.entries(run.path):
+            raise UsageError(f"'{run.path}' exists but holds no config.yaml; move it away or use another --out.")
+
+
 def _settings(args: argparse.Namespace) -> dict:
     """What must match to continue an experiment (the folder itself may be named any way)."""
     return {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()
@@ -212,7 +231,6 @@ def run(args: argparse.Namespace) -> int:
     from drltg.analysis.claims import headline
     from drltg.analysis.report import format_table, parse_threshold, transfer_report
     from drltg.experiments.executor import LocalBackend, execute
-    from drltg.experiments.sweep import check_existing
 
     if args.workers < 1:
         raise UsageError("--workers must be at least 1.")

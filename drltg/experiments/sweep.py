@@ -52,8 +52,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from drltg.errors import UsageError
 from drltg.experiments.executor import LocalBackend, RayBackend, Run, execute
 from drltg.training import rundir
@@ -287,25 +285,6 @@ def plan(spec: Spec, out: Path) -> tuple[list[Run], list[Cell]]:
     return list(runs.values()), cells
 
 
-def check_existing(runs: list[Run]) -> None:
-    """Refuse, before anything runs, a directory that holds a run with another config."""
-    from drltg.config import config_changes
-
-    for run in runs:
-        saved = rundir.check_directory(run.path, "run directory") / rundir.CONFIG
-        if saved.is_file():
-            try:
-                old = rundir.read_config(run.path)
-            except yaml.YAMLError:
-                raise UsageError(f"'{saved}' is not valid YAML; move the run away or use another --out.") from None
-            keys = config_changes(old if isinstance(old, dict) else {}, run.cfg)
-            if keys:
-                raise UsageError(f"'{run.path}' holds a run with another config (differs in {', '.join(keys)}); "
-                                 "use another --out.")
-        elif rundir.entries(run.path):
-            raise UsageError(f"'{run.path}' exists but holds no config.yaml; move it away or use another --out.")
-
-
 # ---------------------------------------------------------------------------------------- reports
 def write_reports(cells: list[Cell], status: dict, threshold) -> list[dict]:
     """One ``drltg report`` per cell whose runs are all complete; a row per cell for the summary."""
@@ -451,7 +430,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from drltg.analysis.report import check_metric
-    from drltg.experiments.experiment import check_runs
+    from drltg.experiments.experiment import check_existing, check_runs
 
     if args.workers is not None and args.workers < 1:
         raise UsageError("--workers must be at least 1.")
@@ -479,6 +458,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _execute_and_report(args, spec: Spec, out: Path, runs: list[Run], cells: list[Cell], resources: dict) -> int:
     from drltg.analysis import tables
+    from drltg.experiments.experiment import check_existing
 
     check_existing(runs)  # another sweep may have written them meanwhile
     if args.backend == "ray":

@@ -15,7 +15,7 @@ from pathlib import Path
 import torch
 
 from drltg.errors import RunFailed
-from drltg.training import manifest, rundir
+from drltg.training import rundir
 
 DIVERGED = "diverged"
 COMPLETE = "complete"
@@ -52,7 +52,7 @@ def write_diverged(run_dir: str | Path, cfg: dict, err: Diverged) -> None:
     summary = {"status": DIVERGED, "reason": str(err), "task": cfg["task"], "algo": cfg["algo"],
                "seed": cfg["seed"]}
     rundir.atomic_write(Path(run_dir) / rundir.SUMMARY, json.dumps(summary, indent=2) + "\n")
-    manifest.finalize(run_dir)
+    rundir.finalize_manifest(run_dir)
 
 
 @contextlib.contextmanager

@@ -6,7 +6,8 @@ tracked file's SHA-256 is recorded in ``manifest.json``. While a run replaces a 
 accepts both the old and the new digest (written before the rename, narrowed after it), so a kill at
 any moment leaves a file the manifest accepts; when the run ends, the manifest is written last and
 covers every file of the run, its logs included. A run without a manifest (written before drltg
-kept one) is read as it is.
+kept one) is read as it is. The writing is :func:`drltg.training.rundir.write_tracked` and
+:func:`~drltg.training.rundir.finalize_manifest`; this module only reads and checks.
 """
 from __future__ import annotations
 
@@ -45,32 +46,9 @@ def read(run_dir: str | Path) -> dict[str, list[str]]:
     return files
 
 
-def _write(run_dir: Path, files: dict[str, list[str]]) -> None:
-    from drltg.training.rundir import atomic_write
-
-    atomic_write(run_dir / MANIFEST, json.dumps({"sha256": files}, indent=1, sort_keys=True) + "\n")
-
-
-def write_tracked(run_dir: str | Path, name: str, data: bytes) -> None:
-    """Write ``run_dir/name`` atomically with its digest in the manifest (both digests accepted meanwhile)."""
-    from drltg.training.rundir import atomic_write
-
-    run_dir = Path(run_dir)
-    files, new = read(run_dir), digest(data)
-    files[name] = [new, *[d for d in files.get(name, [])[:1] if d != new]]
-    _write(run_dir, files)
-    atomic_write(run_dir / name, data)
-    if len(files[name]) > 1:
-        files[name] = [new]
-        _write(run_dir, files)
-
-
-def finalize(run_dir: str | Path) -> None:
-    """Record every file of a finished run (written last: after ``summary.json``)."""
-    run_dir = Path(run_dir)
-    files = {p.relative_to(run_dir).as_posix(): [digest(p)] for p in sorted(run_dir.rglob("*"))
-             if p.is_file() and p.name != MANIFEST and not p.name.startswith(".")}
-    _write(run_dir, files)
+def dumps(files: dict[str, list[str]]) -> str:
+    """The manifest's text for ``{relative path: [accepted digests]}`` (written by :mod:`drltg.training.rundir`)."""
+    return json.dumps({"sha256": files}, indent=1, sort_keys=True) + "\n"
 
 
 def verify(run_dir: str | Path, name: str) -> None:

@@ -142,7 +142,7 @@ def atomic_torch_save(obj, path: str | Path) -> None:
     torch.save(obj, buf)
     path = Path(path)
     if path.as_posix().endswith(CHECKPOINT.as_posix()):
-        manifest.write_tracked(path.parents[1], CHECKPOINT.as_posix(), buf.getvalue())
+        write_tracked(path.parents[1], CHECKPOINT.as_posix(), buf.getvalue())
     else:
         atomic_write(path, buf.getvalue())
 
@@ -151,6 +151,27 @@ def write_files(directory: str | Path, files: dict[str, bytes | str]) -> None:
     """Create ``directory`` and write every file atomically."""
     for name, data in files.items():
         atomic_write(Path(directory) / name, data)
+
+
+def write_tracked(run_dir: str | Path, name: str, data: bytes) -> None:
+    """Write ``run_dir/name`` atomically with its digest in ``manifest.json``: both the old and the new
+    digest are accepted while the file is replaced, so a kill at any moment leaves a file it accepts."""
+    run_dir = Path(run_dir)
+    files, new = manifest.read(run_dir), manifest.digest(data)
+    files[name] = [new, *[d for d in files.get(name, [])[:1] if d != new]]
+    atomic_write(run_dir / manifest.MANIFEST, manifest.dumps(files))
+    atomic_write(run_dir / name, data)
+    if len(files[name]) > 1:
+        files[name] = [new]
+        atomic_write(run_dir / manifest.MANIFEST, manifest.dumps(files))
+
+
+def finalize_manifest(run_dir: str | Path) -> None:
+    """Record every file of a finished run in ``manifest.json`` (written last: after ``summary.json``)."""
+    run_dir = Path(run_dir)
+    files = {p.relative_to(run_dir).as_posix(): [manifest.digest(p)] for p in sorted(run_dir.rglob("*"))
+             if p.is_file() and p.name != manifest.MANIFEST and not p.name.startswith(".")}
+    atomic_write(run_dir / manifest.MANIFEST, manifest.dumps(files))
 
 
 def write_directory(directory: str | Path, files: dict[str, bytes | str]) -> None:
@@ -196,7 +217,7 @@ def write_eval_csv(path: str | Path, rows: list[dict]) -> None:
     writer = csv.DictWriter(out, fieldnames=columns, restval="", extrasaction="ignore", lineterminator="\n")
     writer.writeheader()
     writer.writerows(rows)
-    manifest.write_tracked(Path(path).parent, Path(path).name, out.getvalue().encode())
+    write_tracked(Path(path).parent, Path(path).name, out.getvalue().encode())
 
 
 def read_eval_csv(path: str | Path) -> list[dict]:
@@ -529,7 +550,7 @@ class RunWriter:
             **(extra or {}),
         }
         atomic_write(self.run_dir / SUMMARY, json.dumps(summary, indent=2) + "\n")
-        manifest.finalize(self.run_dir)
+        finalize_manifest(self.run_dir)
 
     def close(self) -> None:
         from torchrl.record.loggers import TensorboardLogger
