@@ -4,7 +4,8 @@ object (machine, versions, rates, ratios, targets) and append it as one line to
 
 Suites: ``env`` (FourRooms vs a NumPy reference), ``robosuite`` (wrapper overhead, ParallelEnv),
 ``sac`` (update throughput vs TorchRL, plain PyTorch, Stable-Baselines3; SOC K=4), ``train`` (whole
-``drltg train`` runs), ``memory`` (1e6-transition replay buffer); all five by default. ``lift``
+``drltg train`` runs), ``memory`` (1e6-transition replay buffer), ``gymnasium`` (FourRooms through
+``gymnasium.make_vec`` against copies and the torch env); all six by default. ``lift``
 (``drltg train lift`` against Stable-Baselines3 SAC on robosuite's Lift, several minutes) and ``demo``
 (``drltg demo``, several minutes) and ``seeds`` (N seeds in one process against N runs one after
 another, many minutes) run only when named.
@@ -26,7 +27,7 @@ import torch
 
 from benchmarks.common import REPO, machine, versions
 
-DEFAULT = ("env", "robosuite", "sac", "train", "memory")
+DEFAULT = ("env", "robosuite", "sac", "train", "memory", "gymnasium")
 NAMED_ONLY = ("lift", "demo", "seeds")
 
 
@@ -41,6 +42,8 @@ def _suite(name: str):
         from benchmarks.e2e import run_train as run
     elif name == "memory":
         from benchmarks.e2e import run_memory as run
+    elif name == "gymnasium":
+        from benchmarks.gymnasium_vec import run
     elif name == "lift":
         from benchmarks.lift_e2e import run
     elif name == "seeds":

@@ -6,6 +6,8 @@ when first used)::
 
     drltg.envs         make_env, get_task, get_pair, register_task, register_pair,
                        FourRoomsEnv, GridFourRoomsEnv                    tasks (FourRoomsEnv() is fourrooms/northeast)
+                       register_gym_task                                 any Gymnasium env as a task
+    drltg.gymnasium_ids  task_id, pair_ids: every task as the Gymnasium env drltg/<task>-v0
     drltg.transforms   PotentialShaping, TimeDependentPotential, SourceValue      reward and value shaping
     drltg.collectors   PolicyReuse, PiReuse, JumpStart, PRQL                     policy reuse, jump-start
                        collect_demonstrations, demonstration_buffer, mixed_batches   demonstrations
@@ -32,7 +34,7 @@ __version__ = "0.1.0"
 
 _SURFACE = {
     "drltg.envs": ["make_env", "get_task", "get_pair", "register_task", "register_pair", "FourRoomsEnv",
-                   "GridFourRoomsEnv"],
+                   "GridFourRoomsEnv", "register_gym_task"],
     "drltg.transforms": ["PotentialShaping", "TimeDependentPotential", "SourceValue"],
     "drltg.collectors": ["PolicyReuse", "PiReuse", "JumpStart", "PRQL", "collect_demonstrations",
                          "demonstration_buffer", "mixed_batches"],
@@ -58,3 +60,8 @@ def __getattr__(name: str):
 
 def __dir__():
     return sorted([*globals(), *_WHERE])
+
+
+from drltg import gymnasium_ids  # noqa: E402  (registers drltg/<task>-v0 with Gymnasium, once it is imported)
+
+gymnasium_ids.install()

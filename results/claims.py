@@ -510,12 +510,18 @@ def _builtin(obj) -> bool:
     return getattr(obj, "__module__", "").startswith("drltg.")
 
 
+def _kind(name: str, task) -> str:
+    if name.startswith(("fourrooms", "gridrooms")):
+        return "rooms"
+    return "gym" if "gym_id" in task.defaults else "robosuite"
+
+
 def tasks_table(kind: str) -> str:
-    """drltg's registered tasks and pairs of one kind (``"rooms"``: FourRooms and its grid; ``"robosuite"``)."""
+    """drltg's registered tasks and pairs of one kind (``"rooms"``: FourRooms and its grid; ``"robosuite"``;
+    ``"gym"``: Gymnasium envs)."""
     from drltg.envs import PAIRS, TASKS
 
-    tasks = {name: t for name, t in TASKS.items() if _builtin(t.factory)
-             and name.startswith(("fourrooms", "gridrooms")) == (kind == "rooms")}
+    tasks = {name: t for name, t in TASKS.items() if _builtin(t.factory) and _kind(name, t) == kind}
     rows = [("task", "description")] + [(f"`{name}`", t.description) for name, t in tasks.items()]
     pairs = [("pair", "source → target", "description")] + [
         (f"`{name}`", f"`{p.source}` → `{p.target}`", p.description) for name, p in PAIRS.items()
@@ -557,7 +563,130 @@ def config_table() -> str:
     return "\n".join(lines) + "\n"
 
 
+
+# ------------------------------------------------------------------------------------- manipulation
+MANIP = RESULTS / "manipulation"
+ROW_SPECS = ROOT / "examples" / "sweeps" / "manipulation-rows"
+RATE_RUNS = RESULTS / "sweep-lift-to-place"
+WORKERS = 2
+
+
+def _queue() -> tuple[list[str], dict[str, tuple[int, int]]]:
+    """The queue's rows in order and its sources as ``{name: (runs, frames each)}``, read from queue.sh."""
+    import re
+
+    text = (MANIP / "queue.sh").read_text()
+    rows = re.search(r'ROWS=\$\{ROWS:-"([^"]*)"\}', text).group(1).split()
+    soc = int(re.search(r"SOC_FRAMES:-(\d+)", text).group(1))
+    sac = int(re.search(r'\[lift-sac\]="--frames (\d+)', text).group(1))
+    seeds = len(re.search(r'SEEDS="([^"]*)"', text).group(1).split())
+    return rows, {"lift-sac": (seeds, sac), "lift-soc4": (seeds, soc)}
+
+
+def run_rate() -> tuple[float, int]:
+    """The median frames/s of the committed Lift+Place runs (two at a time on this machine's 2 cores)."""
+    import statistics
+
+    rates = [load(p)["frames_per_s"] for p in sorted(RATE_RUNS.glob("**/seed-*/summary.json"))]
+    return statistics.median(rates), len(rates)
+
+
+def manipulation_cost() -> str:
+    """README's table of the study's one-command rows: what each adds in the queue's order (a target's
+    baselines are trained by the first row that needs them) and its wall time on 2 cores at the measured rate."""
+    import math
+
+    import yaml
+
+    rows, sources = _queue()
+    fps, n = run_rate()
+    out = [("step", "command", "runs it adds × frames", "wall time on 2 cores")]
+    total_frames = sum(k * f for k, f in sources.values())
+    hours = total_frames / (WORKERS * fps) / 3600
+    out.append(("sources: " + ", ".join(f"`{name}` {k} × {cl.frames(f)}" for name, (k, f) in sources.items()),
+                "`bash results/manipulation/queue.sh` (first step)",
+                " + ".join(f"{k} × {cl.frames(f)}" for k, f in sources.values()), f"{hours:.1f} h"))
+    total = hours
+    seen = set()
+    for row in rows:
+        spec = yaml.safe_load((ROW_SPECS / f"{row}.yaml").read_text())
+        nested = "/reference exec" in (MANIP / f"{row}.sh").read_text()  # runs in RUNS/reference, baselines too
+        group = (nested, spec["pairs"][0], spec["algos"][0])
+        k = spec["seeds"] * (1 if group in seen else 2)
+        seen.add(group)
+        h = math.ceil(k / WORKERS) * spec["frames"] / fps / 3600
+        total += h
+        out.append((f"`{row}`", f"`bash results/manipulation/{row}.sh`", f"{k} × {cl.frames(spec['frames'])}",
+                    f"{h:.1f} h"))
+    return (render(out, "markdown") + f"\nWall time = ⌈runs / {WORKERS}⌉ × frames / rate (sources: all their frames / "
+            f"({WORKERS} × rate)), at {fps:.1f} frames/s per run: the median of the {n} runs of "
+            f"`results/{RATE_RUNS.name}/` (Lift+Place, run two at a time on this machine's 2 cores beside other work, "
+            "evaluated every 2.5k frames on 10 episodes; the rows evaluate every 5k). The soft option-critic's rate on "
+            "these tasks is "
+            f"not measured at this scale and is taken as the same. All steps in the queue: about {total:.0f} h.\n")
+
+
+PLACEMENT = MANIP / "placement-diagnostics"
+
+
+def placement_noise() -> str:
+    s = load(PLACEMENT / "summary.json")
+    out = [("task", *(f"σ = {r['sigma']:g}" for r in s["noise"] if r["task"] == "lift-place"))]
+    for task in ("lift-place", "lift-place-barrier"):
+        cells = [f"lifted {r['lifted']}/{r['episodes']}, placed {r['placed']}/{r['episodes']}, "
+                 f"return {r['return_mean']:.0f}" for r in s["noise"] if r["task"] == task]
+        out.append((task, *cells))
+    return render(out, "markdown")
+
+
+def placement_verdicts() -> str:
+    s = load(PLACEMENT / "summary.json")
+    p, h, phi = s["place_demonstrator"], s["lift_demonstrator_on_lift_place"], s["phi_states"]
+    gain = phi["resting_on_target"] - phi["held_above_target"]
+    release = "does not pay the release" if gain <= 0 else f"pays the release {gain:.2f}"
+    lines = [
+        f"- The sparse reward pays placing and nothing else: on one noise-free episode (seed 0) the place "
+        f"demonstrator grasps at step {p['first_grasped']}, lifts at {p['first_lifted']}, places at "
+        f"{p['first_placed']} and earns {p['return']:.0f} (discounted, γ = {s['gamma']}: "
+        f"{p['discounted_return']:.1f}); the Lift demonstrator on the same task grasps at {h['first_grasped']}, "
+        f"lifts at {h['first_lifted']}, holds the cube up to the end and earns {h['return']:.0f}. A hold is not paid "
+        "like a placement, so the reward does not hold a learner at lifting; it pays nothing until a carry and a "
+        "release, which the Lift source never shows, have been found.",
+        f"- The registered shaping potential {release}: Φ is {phi['held_above_target']:.2f} with the "
+        f"cube held 5 cm above the target's centre and {phi['resting_on_target']:.2f} with it released on the "
+        f"target; along the episode Φ goes from {p['phi_start']:.2f} to {p['phi_end']:.2f} for the place "
+        f"demonstrator and to {h['phi_end']:.2f} for the Lift demonstrator (the cube lifted, away from the target). "
+        "Under `reward-shaping` only the sparse term tells a carry-and-hold from a placement.",
+    ]
+    parts = []
+    for task in ("lift-place", "lift-place-barrier"):
+        cells = [r for r in s["noise"] if r["task"] == task]
+        every = [r["sigma"] for r in cells if r["placed"] == r["episodes"]]
+        none = [r["sigma"] for r in cells if r["placed"] == 0]
+        parts.append(f"on {task} it places in every episode up to σ = {max(every):g}" if every else
+                     f"on {task} it never places in every episode")
+        if none:
+            lifted = sum(r["lifted"] for r in cells if r["sigma"] >= min(none))
+            parts[-1] += f" and in none from σ = {min(none):g} (lifting in {lifted} of those episodes)"
+    lines.append("- With Gaussian action noise (the table above), " + "; ".join(parts) + ".")
+    return "\n".join(lines) + "\n"
+
 # --------------------------------------------------------------------------------------- regions
+def pendulum_heavier() -> str:
+    """The Pendulum study (results/pendulum-heavier/report): its table and its report's sentences."""
+    report = json.loads((RESULTS / "pendulum-heavier" / "report" / "transfer_metrics.json").read_text())
+    m = report["metrics"]
+    rows = [("mean return gain", "jumpstart", "asymptotic (last 10%)", "transfer ratio", "P(T > B)",
+             "final return, B / T")]
+    rows.append((*(estimate(m.get(k), m.get(f"{k}_ci"), "+.0f") for k in ("mean_return_gain", "jumpstart",
+                                                                          "asymptotic_performance")),
+                 estimate(m.get("transfer_ratio"), m.get("transfer_ratio_ci"), "+.2f"),
+                 estimate(m.get("probability_of_improvement"), m.get("probability_of_improvement_ci"), ".2f"),
+                 f"{m['final_performance_baseline']:.0f} / {m['final_performance_transfer']:.0f}"))
+    sentences = cl.report_sentences(report, ("mean_return_gain", "jumpstart", "asymptotic_performance"))
+    return render(rows, "markdown") + "\n" + "\n".join(f"- {s}" for s in sentences) + "\n"
+
+
 REGIONS = {
     "results/README.md": {
         "graded-table": lambda: sweep_table(GRADED),
@@ -584,11 +713,15 @@ REGIONS = {
         "lift-demonstrations-verdicts": lift_demonstrations_verdicts,
         "lift-to-place-table": lift_to_place_table,
         "lift-to-place-verdicts": lift_to_place_verdicts,
+        "pendulum-heavier": pendulum_heavier,
+        "placement-noise": placement_noise,
+        "placement-verdicts": placement_verdicts,
     },
     "README.md": {
         "demo": demo_sentence,
         "tasks": lambda: tasks_table("rooms"),
         "tasks-robosuite": lambda: tasks_table("robosuite"),
+        "tasks-gym": lambda: tasks_table("gym"),
         "methods": methods_table,
         "config": config_table,
         "results-table": results_table,
@@ -596,6 +729,7 @@ REGIONS = {
                                                             "reward-shaping"]),
         "results-others": readme_others,
         "lift-summary": readme_lift,
+        "manipulation-cost": manipulation_cost,
     },
 }
 

@@ -27,18 +27,21 @@ from drltg.training import rundir
 KEPT = ("config.yaml", "eval.csv", "summary.json")
 
 
-def keep_curves(sweep: Path, dest: Path) -> int:
-    """Copy every complete run's defining files from ``sweep`` to ``dest``; returns how many runs."""
+def keep_curves(sweep: Path, dest: Path, only: list[str] = ()) -> int:
+    """Copy every complete run's defining files from ``sweep`` to ``dest`` (only those under one of the
+    folders ``only``, relative to ``sweep``, where given); returns how many runs."""
     count = 0
     for summary in sorted(sweep.rglob("summary.json")):
         run = summary.parent
+        if only and not any(run.relative_to(sweep).is_relative_to(folder) for folder in only):
+            continue
         target = dest / run.relative_to(sweep)
         target.mkdir(parents=True, exist_ok=True)
         for name in KEPT:
             shutil.copyfile(run / name, target / name)
         cfg = yaml.safe_load((target / "config.yaml").read_text())
         source = cfg["transfer"].get("source")
-        if source and Path(source).is_absolute():
+        if source and Path(source).is_absolute() and Path(source).is_relative_to(sweep):
             cfg["transfer"]["source"] = os.path.relpath(dest / Path(source).relative_to(sweep), target)
             rundir.atomic_write(target / "config.yaml", yaml.safe_dump(cfg, sort_keys=False))
         count += 1
@@ -70,10 +73,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("root", type=Path, help="the results folder, e.g. results/sweep-fourrooms-graded")
     parser.add_argument("--from", dest="sweep", type=Path, help="a drltg sweep folder to take the curves from")
+    parser.add_argument("--only", action="append", default=[], metavar="FOLDER",
+                        help="with --from, keep only the runs under FOLDER (relative to the sweep; repeatable)")
     parser.add_argument("--threshold", default="0.5", help="report threshold (default 0.5)")
     args = parser.parse_args()
     if args.sweep is not None:
-        print(f"kept {keep_curves(args.sweep.resolve(), args.root.resolve())} runs from {args.sweep}")
+        print(f"kept {keep_curves(args.sweep.resolve(), args.root.resolve(), args.only)} runs from {args.sweep}")
     rows = rebuild(args.root, float(args.threshold) if not args.threshold.endswith("%") else args.threshold)
     print(f"rebuilt {len(rows)} reports and {args.root / 'summary.md'}")
 

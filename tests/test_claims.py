@@ -133,7 +133,7 @@ def test_the_registry_tables_list_every_builtin_task_method_and_key():
     from drltg.envs import PAIRS, TASKS
     from drltg.transfer.registry import METHODS
 
-    tasks = g.tasks_table("rooms") + g.tasks_table("robosuite")
+    tasks = g.tasks_table("rooms") + g.tasks_table("robosuite") + g.tasks_table("gym")
     methods, keys = g.methods_table(), g.config_table()
     builtin = {n for n, m in METHODS.items() if m.build.__module__.startswith("drltg.")}
     assert {"none", "reward-shaping", "value-shaping", "policy-reuse", "jumpstart", "model-reuse",

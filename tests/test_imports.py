@@ -33,6 +33,7 @@ LAYERS = [
     ["drltg.training.manifest"],
     ["drltg.plugins", "drltg.training.rundir"],
     ["drltg.envs"],
+    ["drltg.gymnasium_ids"],
     ["drltg.transforms", "drltg.collectors", "drltg.losses", "drltg.modules"],
     ["drltg.config"],
     ["drltg.learners"],

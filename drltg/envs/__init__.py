@@ -5,8 +5,10 @@ The registry imports no torch: the environment classes are imported when first u
 """
 import importlib
 
+from drltg.envs.gym import register_gym_task, resolve
 from drltg.envs.registry import (
     PAIRS,
+    RESOLVERS,
     TASKS,
     PairSpec,
     TaskSpec,
@@ -16,6 +18,8 @@ from drltg.envs.registry import (
     register_pair,
     register_task,
 )
+
+RESOLVERS.append(resolve)  # gym/<ID> names every installed Gymnasium id
 
 _LAZY = {
     "FourRoomsEnv": "drltg.envs.fourrooms",
@@ -43,4 +47,5 @@ __all__ = [
     "make_env",
     "register_pair",
     "register_task",
+    "register_gym_task",
 ]

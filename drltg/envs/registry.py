@@ -61,7 +61,29 @@ class PairSpec:
     description: str
 
 
-TASKS: dict[str, TaskSpec] = {}
+RESOLVERS: list[Callable[[str], bool]] = []
+"""``resolve(name)`` registers the task ``name`` if it can make it on first use (``gym/<ID>``: drltg.envs.gym)."""
+ON_REGISTER: list[Callable[[TaskSpec], None]] = []
+"""Called with every task registered from then on (drltg.gymnasium_ids gives it a Gymnasium id)."""
+
+
+class _TaskTable(dict):
+    """Tasks by name; a name nobody registered may still be made on first use by a resolver
+    (``gym/<ID>``, :func:`drltg.envs.gym.resolve`), so every lookup (``in``, ``[]``) sees it."""
+
+    def _resolve(self, name) -> bool:
+        return isinstance(name, str) and any(resolve(name) for resolve in RESOLVERS)
+
+    def __contains__(self, name) -> bool:
+        return dict.__contains__(self, name) or self._resolve(name)
+
+    def __missing__(self, name):
+        if self._resolve(name):
+            return dict.__getitem__(self, name)
+        raise KeyError(name)
+
+
+TASKS: dict[str, TaskSpec] = _TaskTable()
 PAIRS: dict[str, PairSpec] = {}
 
 
@@ -97,12 +119,14 @@ def register_task(
     built); ``defaults`` are keyword arguments of ``factory``, ``train`` config overrides,
     ``potential(env_options)`` builds its reward-shaping potential. ``replace=True`` redefines a
     registered task (a notebook cell run twice)."""
-    if name in TASKS and not replace:
+    if dict.__contains__(TASKS, name) and not replace:
         raise UsageError(f"task {name!r} is already registered; pass replace=True to redefine it.")
     if isinstance(factory, str) and not all(factory.partition(":")[::2]):
         raise UsageError(f"task {name!r}: a factory named by a string is 'module:attr', got {factory!r}.")
     spec = TaskSpec(name, factory, description, dict(defaults), dict(train or {}), potential)
     TASKS[name] = spec
+    for hook in ON_REGISTER:
+        hook(spec)
     return spec
 
 
@@ -354,3 +378,22 @@ register_pair(
 register_pair(
     "lift-dense-to-place-barrier", "lift-dense", "lift-place-barrier", "a dense-reward Lift policy reused over the wall"
 )
+
+
+# Gymnasium's Pendulum with two gravities (drltg.envs.gym.make_gym_env; Gymnasium is imported when one is built).
+# SAC as RL Zoo tunes it for Pendulum (lr 1e-3, one update per frame) with 2x64 nets: single-threaded,
+# small nets are several times faster and Pendulum needs no more.
+PENDULUM_TRAIN = {
+    "network": {"hidden": [64, 64]},
+    "optim": {"lr": 1.0e-3, "updates_per_batch": 32},
+    "collector": {"num_envs": 4, "frames_per_batch": 32, "init_random_frames": 1000},
+    "eval": {"every": 1000, "episodes": 5},
+    "checkpoint": {"every": 5000},
+}
+
+_GYM = "drltg.envs.gym:make_gym_env"  # drltg.envs.gym.register_gym_task's factory
+register_task("pendulum/g10", _GYM, "Gymnasium Pendulum-v1, gravity g = 10 (its default)",
+              gym_id="Pendulum-v1", g=10.0, train=PENDULUM_TRAIN)
+register_task("pendulum/g15", _GYM, "Gymnasium Pendulum-v1, gravity g = 15: a heavier swing-up",
+              gym_id="Pendulum-v1", g=15.0, train=PENDULUM_TRAIN)
+register_pair("pendulum-heavier", "pendulum/g10", "pendulum/g15", "Pendulum's gravity rises from 10 to 15")

@@ -10,7 +10,9 @@ A method without a source (reward shaping) needs only the target task, a pair's 
 its baseline learns from the task's plain reward and its transfer run with the method (both evaluated
 on the task's own reward). A source given in the config (``-o transfer.source=RUN_DIR``, or
 ``-o transfer.source=demonstrator:lift`` for the methods that reuse a policy on the manipulation
-tasks) serves every transfer run, no source runs are trained, and a task alone is a target.
+tasks) serves every transfer run, no source runs are trained, and a task alone is a target; a source
+written with ``{seed}`` (``-o transfer.source=sources/lift/seed-{seed}``) serves transfer run i from the
+kept run of its own seed, ``sources/lift/seed-<seed + 100 i>``.
 Baseline and transfer run i share the seed ``seed + 100 i`` (paired runs); source run i uses
 ``seed + 100 i + 50``, so no source and target run share a seed. A completed run is reused; an
 interrupted one resumes from its checkpoint, so re-running the same command finishes what is missing.
@@ -31,6 +33,8 @@ import yaml
 from drltg import config as config_lib
 from drltg.errors import UsageError
 from drltg.training import rundir
+
+SEED = "{seed}"  # in a given transfer.source: the transfer run's seed
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -140,6 +144,8 @@ def plan_runs(
     out = Path(out).expanduser().resolve()
     shared = out if shared is None else Path(shared).expanduser().resolve()
 
+    per_seed = given_source is not None and SEED in str(given_source)
+
     def cfg(task, seed, frames, **transfer):
         # a source given in the config serves the transfer runs only: source and baseline runs have none
         plain = ["transfer.source=null"] if given_source is not None and not transfer else []
@@ -149,9 +155,13 @@ def plan_runs(
     runs = []
     for i in range(seeds):
         seed_i = seed + 100 * i
-        baseline = ("baseline", cfg(target_task, seed_i, frames), shared / "baseline" / f"seed-{seed_i}")
+        # a per-seed source leaves the baselines without one: every row reusing those sources shares them
+        plain = {"source": "null"} if per_seed else {}
+        baseline = ("baseline", cfg(target_task, seed_i, frames, **plain), shared / "baseline" / f"seed-{seed_i}")
         if not needs_source or given_source is not None:  # no source runs to train
             sources, transfer = [], {"method": method}
+            if per_seed:  # the kept run of this seed, as its saved config reads it back
+                transfer["source"] = str(Path(str(given_source).replace(SEED, str(seed_i))).expanduser().resolve())
         else:
             source = shared / "source" / f"seed-{seed_i + 50}"
             sources = [("source", cfg(source_task, seed_i + 50, source_frames or frames), source)]

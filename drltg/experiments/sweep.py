@@ -10,7 +10,8 @@ The spec is a grid (every list is one axis; a scalar is a one-value axis)::
     frames: 20000                              # target budget; a list sweeps it
     source_frames: 40000                       # source budget (default: frames); a list sweeps it
     overrides: {eval.every: 1000}              # config keys of every run (a transfer.source given
-                                               # here serves every transfer run: no source runs)
+                                               # here serves every transfer run: no source runs;
+                                               # DIR/seed-{seed}: each its own seed's kept run)
     grid: {optim.lr: [3.0e-4, 1.0e-3]}         # config keys swept, each a list
     threshold: 0.5                             # report threshold: a value or "80%"
     primary_metric: mean_return_gain           # the comparison the summary's headline counts, named in

@@ -1,0 +1,101 @@
+"""drltg's tasks as Gymnasium environments: the id of every task and pair, registered on ``import drltg``.
+
+Task ``fourrooms/northeast`` is ``drltg/fourrooms-northeast-v0`` (``/`` becomes ``-``, namespace
+``drltg``, version 0); its entry points are strings (:mod:`drltg.envs.gymnasium_env`), so registering
+imports neither torch nor the env. Gymnasium 1.x loads no plugins itself, so ``import drltg`` registers
+the ids: at once when Gymnasium is already imported (``gymnasium.make("drltg:drltg/...")`` imports
+``drltg`` after it), else when Gymnasium is imported later, so ``import drltg`` alone stays cheap.
+A task registered afterwards (a plugin) gets its id when it is registered.
+
+Examples:
+    >>> import gymnasium, drltg
+    >>> env = gymnasium.make("drltg/fourrooms-northeast-v0")
+    >>> source, target = drltg.gymnasium_ids.pair_ids("fourrooms-near")
+    >>> vec = gymnasium.make_vec(target, num_envs=64)  # one batched torch env, not 64 copies
+"""
+from __future__ import annotations
+
+import importlib.abc
+import importlib.util
+import re
+import sys
+from typing import Iterable
+
+NAMESPACE = "drltg"
+ENTRY_POINT = "drltg.envs.gymnasium_env:DrltgEnv"
+VECTOR_ENTRY_POINT = "drltg.envs.gymnasium_env:DrltgVectorEnv"
+_VALID = re.compile(r"^[\w:.-]+$")
+
+
+def task_id(task: str) -> str:
+    """The Gymnasium id of the drltg task ``task``: ``drltg/<task with / as ->-v0``."""
+    name = task.replace("/", "-")
+    if not _VALID.match(name):
+        raise ValueError(f"task {task!r} has no Gymnasium id: Gymnasium ids allow letters, digits, '_', '-', '.', ':'.")
+    return f"{NAMESPACE}/{name}-v0"
+
+
+def pair_ids(pair: str) -> tuple[str, str]:
+    """The Gymnasium ids ``(source, target)`` of the registered drltg pair ``pair``."""
+    from drltg.envs.registry import get_pair
+
+    spec = get_pair(pair)
+    return task_id(spec.source), task_id(spec.target)
+
+
+def register_ids(tasks: Iterable[str] | None = None) -> list[str]:
+    """Registers the Gymnasium id of each task (default: every registered task, and from then on every
+    task registered) that has none yet; returns the ids registered. A task whose name cannot be an id is
+    left out."""
+    import gymnasium
+
+    if tasks is None:
+        from drltg.envs.registry import ON_REGISTER, TASKS
+
+        if _on_register not in ON_REGISTER:
+            ON_REGISTER.append(_on_register)
+        tasks = list(TASKS)
+    added = []
+    for task in tasks:
+        try:
+            env_id = task_id(task)
+        except ValueError:
+            continue
+        if env_id in gymnasium.registry:
+            continue
+        gymnasium.register(env_id, entry_point=ENTRY_POINT, vector_entry_point=VECTOR_ENTRY_POINT,
+                           kwargs={"task": task}, disable_env_checker=False)
+        added.append(env_id)
+    return added
+
+
+def _on_register(spec) -> None:
+    register_ids([spec.name])
+
+
+class _AfterGymnasiumImport(importlib.abc.MetaPathFinder):
+    """Runs :func:`register_ids` right after ``gymnasium`` finishes importing (once)."""
+
+    def find_spec(self, fullname, path, target=None):
+        if fullname != "gymnasium":
+            return None
+        sys.meta_path.remove(self)
+        spec = importlib.util.find_spec(fullname)
+        if spec is None or spec.loader is None:
+            return spec
+        exec_module = spec.loader.exec_module
+
+        def exec_then_register(module):
+            exec_module(module)
+            register_ids()
+
+        spec.loader.exec_module = exec_then_register
+        return spec
+
+
+def install() -> None:
+    """Registers the ids now if Gymnasium is imported, else when it is (``import drltg`` calls this)."""
+    if "gymnasium" in sys.modules:
+        register_ids()
+    elif not any(isinstance(f, _AfterGymnasiumImport) for f in sys.meta_path):
+        sys.meta_path.insert(0, _AfterGymnasiumImport())

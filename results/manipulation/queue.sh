@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# The manipulation study in one command: bash results/manipulation/queue.sh
+#   (RUNS=runs/manipulation WORKERS=2 DRLTG=drltg PYTHON=python by default; ROWS="..." picks rows)
+# 1. The kept sources, RUNS/sources/NAME/seed-<s> for seeds 0, 100, 200, that every row reuses:
+#    lift-sac   SAC on Lift with 50 episodes of the scripted demonstrator (1/4 of every batch, behaviour
+#               cloning at weight 10), 60k frames;
+#    lift-soc4  the soft option-critic with 4 options on Lift with Lift's potential as reward shaping
+#               (demonstrations work with SAC and TD3 only), SOC_FRAMES frames (default 100k).
+#    A complete run is skipped and an interrupted one resumed; WORKERS at a time; their curves and
+#    configs are kept in results/manipulation/sources/.
+# 2. Every row in ROWS order (results/manipulation/ROW.sh); a row already reported is skipped.
+set -euo pipefail
+RUNS=${RUNS:-runs/manipulation}
+WORKERS=${WORKERS:-2}
+DRLTG=${DRLTG:-drltg}
+SOC_FRAMES=${SOC_FRAMES:-100000}
+ROWS=${ROWS:-"lift-shaping pi-reuse-place pi-reuse-barrier model-reuse-place soc-model-reuse-place
+  demonstrations-place demonstrations-barrier combined-place combined-barrier demonstrations-reference-place
+  demonstrations-reference-barrier"}
+SEEDS="0 100 200"
+EVAL="-o eval.every=5000 -o eval.episodes=10 -o checkpoint.every=5000"
+declare -A SOURCE=(
+  [lift-sac]="--frames 60000 -o transfer.method=demonstrations -o transfer.source=demonstrator:lift"
+  [lift-soc4]="--algo soc --options 4 --frames $SOC_FRAMES -o transfer.method=reward-shaping"
+)
+export OMP_NUM_THREADS=1 MKL_NUM_THREADS=1
+
+for name in "${!SOURCE[@]}"; do
+  for s in $SEEDS; do
+    run=$RUNS/sources/$name/seed-$s
+    [ -f "$run/summary.json" ] && continue
+    mkdir -p "$RUNS/sources/$name"
+    resume=""
+    [ -f "$run/config.yaml" ] && resume=--resume
+    echo "$DRLTG train lift --seed $s --run-dir $run $resume --no-progress ${SOURCE[$name]} $EVAL >> $run.log 2>&1"
+  done
+done | xargs -r -d '\n' -P "$WORKERS" -I{} bash -c '{}'
+
+for name in "${!SOURCE[@]}"; do
+  for s in $SEEDS; do
+    final=$(grep -o '"success_rate": [0-9.]*' "$RUNS/sources/$name/seed-$s/summary.json" | tail -1)
+    echo "source $name seed $s: final ${final:-success_rate unknown}"
+    mkdir -p "results/manipulation/sources/$name/seed-$s"
+    cp "$RUNS/sources/$name/seed-$s/"{config.yaml,eval.csv,summary.json} "results/manipulation/sources/$name/seed-$s/"
+  done
+done
+
+for row in $ROWS; do
+  bash "results/manipulation/$row.sh"
+done

@@ -1,0 +1,171 @@
+"""The manipulation study's scripts plan what they say, without training: one sweep spec per row, each
+transfer run reusing the kept source run of its own seed, >= 3 paired seeds, <= 300k frames, one
+baseline per target shared by every row on it, and a queue that trains the sources it names first."""
+from __future__ import annotations
+
+import re
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from drltg.config import config_changes
+from drltg.experiments.experiment import plan_runs
+from drltg.experiments.sweep import load_spec, plan
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPTS = ROOT / "results" / "manipulation"
+SPECS = ROOT / "examples" / "sweeps" / "manipulation-rows"
+ROWS = sorted(p.stem for p in SCRIPTS.glob("*.sh") if p.stem not in ("row", "queue"))
+SOURCED = re.compile(r"runs/manipulation/sources/([\w-]+)/seed-\{seed\}")
+
+
+def runs_of(row: str) -> Path:
+    """Where a row's runs go: the reference rows, whose method folder another row also uses, in their own."""
+    nested = "/reference exec" in (SCRIPTS / f"{row}.sh").read_text()
+    return ROOT / "runs" / "manipulation" / ("reference" if nested else "")
+
+
+def queue_sources() -> set[str]:
+    return set(re.findall(r"^\s+\[([\w-]+)\]=", (SCRIPTS / "queue.sh").read_text(), re.M))
+
+
+def test_every_script_parses_and_every_row_has_its_spec_and_a_place_in_the_queue():
+    for script in SCRIPTS.glob("*.sh"):
+        subprocess.run(["bash", "-n", str(script)], check=True)
+    assert ROWS == sorted(p.stem for p in SPECS.glob("*.yaml"))
+    for row in ROWS:
+        assert (SCRIPTS / f"{row}.sh").read_text().rstrip().endswith(f'row.sh" {row}')
+    queued = re.search(r'ROWS=\$\{ROWS:-"([^"]*)"\}', (SCRIPTS / "queue.sh").read_text()).group(1).split()
+    assert sorted(queued) == ROWS
+    assert queue_sources() == {"lift-sac", "lift-soc4"}
+
+
+@pytest.mark.parametrize("row", ROWS)
+def test_each_row_reuses_the_kept_source_of_its_own_seed(row, monkeypatch):
+    monkeypatch.chdir(ROOT)  # the scripts run from the repository root
+    spec = load_spec(SPECS / f"{row}.yaml")
+    assert spec.seeds >= 3 and max(spec.frames) <= 300_000 and len(spec.pairs) == len(spec.methods) == 1
+    source = spec.overrides.get("transfer.source")
+    runs, cells = plan(spec, runs_of(row))
+    assert len(cells) == 1 and len(runs) == 2 * spec.seeds  # baselines and transfers, no source trained here
+    transfers = [r for r in runs if r.role == "transfer"]
+    for run in transfers:
+        if source is None or source.startswith("demonstrator:"):  # reward shaping; the scripted reference
+            assert run.cfg["transfer"]["source"] == source
+            continue
+        name = SOURCED.fullmatch(source).group(1)
+        assert name in queue_sources()
+        kept = ROOT / "runs" / "manipulation" / "sources" / name / f"seed-{run.cfg['seed']}"
+        assert run.cfg["transfer"]["source"] == str(kept)
+    assert [r.cfg["seed"] for r in transfers] == [100 * i for i in range(spec.seeds)]
+    if source is None or "{seed}" in source:  # the baselines of every row on the target, whatever its source
+        assert all(r.cfg["transfer"]["source"] is None for r in runs if r.role == "baseline")
+
+
+def test_rows_on_one_target_share_its_baselines():
+    seen: dict[Path, dict] = {}
+    for row in ROWS:
+        runs, _ = plan(load_spec(SPECS / f"{row}.yaml"), runs_of(row))
+        for r in runs:
+            if r.role == "baseline":
+                assert config_changes(seen.setdefault(r.path, r.cfg), r.cfg) == [], r.path
+    groups = {p.parent.relative_to(ROOT / "runs" / "manipulation").as_posix() for p in seen}
+    assert groups == {"lift/sac/baseline", "lift-to-place/sac/baseline", "lift-to-place/soc/baseline",
+                      "lift-to-place-barrier/sac/baseline", "reference/lift-to-place/sac/baseline",
+                      "reference/lift-to-place-barrier/sac/baseline"}
+
+
+def test_a_source_written_with_seed_serves_each_transfer_run_from_its_own_seed(tmp_path):
+    runs = plan_runs("fourrooms/northeast-shifted", "model-reuse", frames=100, out=tmp_path, seeds=3, seed=7,
+                     overrides=["transfer.source=kept/seed-{seed}"])
+    got = [(role, cfg["seed"], cfg["transfer"]["source"]) for role, cfg, _ in runs]
+    kept = Path.cwd() / "kept"
+    assert got == [("baseline", 7, None), ("transfer", 7, str(kept / "seed-7")),
+                   ("baseline", 107, None), ("transfer", 107, str(kept / "seed-107")),
+                   ("baseline", 207, None), ("transfer", 207, str(kept / "seed-207"))]
+    # a source without {seed} still serves every transfer run, and the baselines keep it as before
+    runs = plan_runs("fourrooms/northeast-shifted", "model-reuse", frames=100, out=tmp_path, seeds=2,
+                     overrides=["transfer.source=kept/one"])
+    assert {cfg["transfer"]["source"] for _, cfg, _ in runs} == {"kept/one"}
+
+
+def test_a_soc_lift_learner_hands_every_weight_to_a_soc_lift_place_learner():
+    """The soft option-critic row: SOC-4's weights on lift fit its learner on lift-place entry for entry
+    (the tasks share one observation layout), so model reuse copies them all."""
+    pytest.importorskip("robosuite")
+    import torch
+
+    from drltg.config import resolve
+    from drltg.envs import make_env
+    from drltg.learners import make_agent
+    from drltg.modules import load_weights
+
+    agents = []
+    for seed, task in enumerate(("lift", "lift-place")):
+        torch.manual_seed(seed)
+        env = make_env(task)
+        agents.append(make_agent(env, resolve(task=task, algo="soc", overrides=["soc.num_options=4"])))
+        env.close()
+    source, target = agents
+    report = load_weights(target.loss, source.loss.state_dict())
+    assert not (report.widened or report.narrowed or report.skipped or report.unused)
+    state = target.loss.state_dict()
+    assert state.keys() == source.loss.state_dict().keys()
+    for name, value in source.loss.state_dict().items():
+        assert torch.equal(state[name], value), name
+
+
+def test_the_committed_placement_diagnostics_agree_with_their_episode_and_the_potential():
+    """summary.json's account of the place demonstrator is the sum of episode.csv's steps, and the
+    potential's plateau is the stage formula: lifted and centred over the target, Phi = 0.5 + 0.5 * 1."""
+    import csv
+    import importlib.util
+    import json
+
+    from drltg.envs.robosuite import potential_for
+
+    folder = SCRIPTS / "placement-diagnostics"
+    summary = json.loads((folder / "summary.json").read_text())
+    with open(folder / "episode.csv") as f:
+        steps = list(csv.DictReader(f))
+    place = summary["place_demonstrator"]
+    assert place["return"] == sum(float(r["reward"]) for r in steps)
+    assert place["first_placed"] == next(int(r["step"]) for r in steps if r["placed"] == "1")
+    assert place["first_lifted"] == next(int(r["step"]) for r in steps if r["lifted"] == "1")
+    assert all(float(r["reward"]) == float(r["placed"]) for r in steps)  # the reward is the success flag
+    assert summary["lift_demonstrator_on_lift_place"]["return"] == 0.0
+    assert summary["phi_states"] == {"held_above_target": 1.0, "resting_on_target": 1.0}  # 0.5 + 0.5 (1 - tanh 0)
+    spec = importlib.util.spec_from_file_location("diagnose", folder / "diagnose.py")
+    diagnose = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(diagnose)
+    assert diagnose.held_versus_placed(potential_for("lift-place")) == summary["phi_states"]
+    for row in summary["noise"]:
+        assert 0 <= row["placed"] <= row["lifted"] <= row["episodes"] == 10
+
+
+def test_rebuild_keeps_only_the_rows_runs_and_their_relative_source(tmp_path):
+    """row.sh's `rebuild.py --only`: the row's baselines, transfers and source runs are copied in the runs'
+    layout, another row's are not, and a source path relative to the run still names the kept source."""
+    import importlib.util
+
+    import yaml
+
+    spec = importlib.util.spec_from_file_location("rebuild", ROOT / "results" / "rebuild.py")
+    rebuild = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(rebuild)
+    runs, kept = tmp_path / "runs", tmp_path / "kept"
+    relative = "../../../../../sources/lift-sac/seed-0"
+    for folder, source in (("p/sac/baseline/seed-0", None), ("p/sac/m/transfer/seed-0", relative),
+                           ("p/sac/other/transfer/seed-0", relative), ("sources/lift-sac/seed-0", None),
+                           ("sources/lift-soc4/seed-0", None)):
+        (runs / folder).mkdir(parents=True)
+        (runs / folder / "config.yaml").write_text(yaml.safe_dump({"transfer": {"source": source}}))
+        (runs / folder / "eval.csv").write_text("frames,return_mean\n0,0.0\n")
+        (runs / folder / "summary.json").write_text("{}")
+    assert rebuild.keep_curves(runs, kept, ["p/sac/baseline", "p/sac/m", "sources/lift-sac"]) == 3
+    assert sorted(str(p.parent.relative_to(kept)) for p in kept.rglob("summary.json")) == [
+        "p/sac/baseline/seed-0", "p/sac/m/transfer/seed-0", "sources/lift-sac/seed-0"]
+    transfer = kept / "p/sac/m/transfer/seed-0"
+    assert yaml.safe_load((transfer / "config.yaml").read_text())["transfer"]["source"] == relative
+    assert (transfer / relative / "eval.csv").is_file()
