@@ -331,16 +331,38 @@ def parse_override(text: str) -> tuple[str, Any]:
     return key.strip(), value
 
 
-def load_yaml(path: str | Path) -> dict:
+class UniqueKeyLoader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` that refuses a mapping with a key twice (plain YAML keeps the last silently)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"key {key!r} appears twice (line {key_node.start_mark.line + 1})", key_node.start_mark)
+            seen.add(key)
+        return super().construct_mapping(node, deep)
+
+
+def load_yaml(path: str | Path, what: str = "config file") -> dict:
+    """A YAML mapping from ``path``; a missing file, a duplicate key, bad YAML or a file that is not
+    UTF-8 text is one :class:`UsageError` sentence."""
     path = Path(path)
     if not path.is_file():
-        raise UsageError(f"config file '{path}' does not exist.")
+        raise UsageError(f"{what} '{path}' does not exist.")
     try:
-        data = yaml.safe_load(path.read_text()) or {}
+        data = yaml.load(path.read_text(encoding="utf-8"), Loader=UniqueKeyLoader) or {}
+    except UnicodeDecodeError as err:
+        raise UsageError(f"{what} '{path}' is not UTF-8 text (byte {err.start}).") from None
+    except yaml.constructor.ConstructorError as err:
+        if "appears twice" in str(err.problem):
+            raise UsageError(f"{what} '{path}': {err.problem}; give each key once.") from None
+        raise UsageError(f"{what} '{path}' is not valid YAML ({err.__class__.__name__}).") from None
     except yaml.YAMLError as err:
-        raise UsageError(f"config file '{path}' is not valid YAML ({err.__class__.__name__}).") from None
+        raise UsageError(f"{what} '{path}' is not valid YAML ({err.__class__.__name__}).") from None
     if not isinstance(data, dict):
-        raise UsageError(f"config file '{path}' must hold a mapping of config keys.")
+        raise UsageError(f"{what} '{path}' must hold a mapping of keys.")
     return data
 
 

@@ -3,3 +3,7 @@ class UsageError(ValueError):
 
     A ``ValueError``, so library code catches it like any bad argument; the CLI prints it and exits
     with code 2."""
+
+
+class RunFailed(RuntimeError):
+    """A run that ended without a usable result (its losses diverged): one sentence, exit code 1."""

@@ -4,6 +4,7 @@ The layers, lowest first (a module may import its own package and lower layers o
 layer import nothing from each other)::
 
     errors       drltg.errors
+    manifest     drltg.training.manifest (checksums of run files: read and checked)
     base         drltg.plugins | drltg.training.rundir (the run-directory format)
     envs         drltg.envs
     parts        drltg.transforms | drltg.collectors | drltg.losses | drltg.modules
@@ -29,6 +30,7 @@ PACKAGE = ROOT / "drltg"
 
 LAYERS = [
     ["drltg.errors"],
+    ["drltg.training.manifest"],
     ["drltg.plugins", "drltg.training.rundir"],
     ["drltg.envs"],
     ["drltg.gymnasium_ids"],

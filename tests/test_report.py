@@ -752,7 +752,10 @@ def test_runs_on_different_grids_or_episode_counts_are_named():
               for i in range(3)]
     fine = [Curve((0, 10, 20, 30, 40), [0, 1, 2, 3, 4], f"f{i}", f"f{i}", config={"seed": i, "eval": {"episodes": 16}})
             for i in range(3)]
-    warnings = report.compute(coarse, fine)["settings"]["warnings"]
+    with pytest.raises(UsageError, match=r"change what a curve means: eval.episodes \(8 vs 16\)"):
+        report.compute(coarse, fine)
+    warnings = report.compute(coarse, fine, allow_mismatch=True)["settings"]["warnings"]
+    assert "baseline and transfer settings differ (--allow-mismatch): eval.episodes (8 vs 16)" in warnings
     assert any("different grids" in w and "'f0'" in w and "'c0'" in w and "every 20" in w for w in warnings)
     assert any("different numbers of episodes" in w and "'c0' (c0) 8" in w and "'f0' (f0) 16" in w for w in warnings)
 

@@ -217,6 +217,7 @@ def _config_of(directory: Path) -> dict | None:
     config = Path(directory) / "config.yaml"
     if not config.is_file():
         return None
+    _verify(config)
     import yaml
 
     try:
@@ -241,7 +242,22 @@ def _lines(path: Path) -> list[tuple[int, str]]:
     lines = [(i, line) for i, line in enumerate(text.splitlines(), start=1) if line.strip()]
     if not lines:
         raise UsageError(f"'{path}' is empty.")
+    if not text.endswith(("\n", "\r")):
+        raise UsageError(f"'{path}' line {lines[-1][0]} is torn: the file ends without a newline, as one cut while "
+                         "being written does; let the run finish, or remove that line.")
+    _verify(Path(path))
     return lines
+
+
+def _verify(path: Path) -> None:
+    """Refuse a file of a drltg run whose ``manifest.json`` records another digest for it."""
+    from drltg.training import manifest
+
+    folder = path.resolve().parent
+    for run in [folder, *folder.parents][:6]:  # logs/csv/scalars/<group>/<tag>.csv lies 4 folders down
+        if (run / manifest.MANIFEST).is_file():
+            manifest.verify(run, path.resolve().relative_to(run).as_posix())
+            return
 
 
 def _table(path: Path, comment: str | None = None,
@@ -390,6 +406,8 @@ def read_tensorboard(path: str | Path, tag: str | None = None) -> Curve:
     from tensorboard.backend.event_processing import event_accumulator as ea
 
     path = Path(path)
+    for file in [path] if path.is_file() else sorted(path.rglob("*tfevents*")):
+        _check_records(file)
     acc = ea.EventAccumulator(str(path), size_guidance={ea.SCALARS: 0, ea.TENSORS: 0})
     try:
         acc.Reload()
@@ -414,6 +432,28 @@ def read_tensorboard(path: str | Path, tag: str | None = None) -> Curve:
             f"'{path}' has no scalar tag '{tag}' (tags: {', '.join(sorted(scalar_tags + tensor_tags))})."
         )
     return _checked(path, steps, values, list(range(len(steps))), what="event")
+
+
+def _check_records(file: Path) -> None:
+    """Refuse an event file with a record that fails its CRC (TensorBoard itself would stop reading there
+    without a word, and the curve would end early); a torn last record, as a killed run leaves, is left out
+    as TensorBoard does."""
+    from tensorboard.compat.tensorflow_stub import errors
+    from tensorboard.compat.tensorflow_stub.pywrap_tensorflow import PyRecordReader_New
+
+    _verify(file)
+    reader, record = PyRecordReader_New(str(file), 0, None, None), 0
+    while True:
+        try:
+            reader.GetNext()
+        except errors.OutOfRangeError:
+            return
+        except errors.DataLossError as err:
+            if "truncated" in str(err).lower():
+                return
+            raise UsageError(f"'{file}' is a corrupt TensorBoard event file: record {record} fails its CRC check; "
+                             "restore it or leave the run out.") from None
+        record += 1
 
 
 def read_csvlogger(path: str | Path, tag: str | None = None) -> Curve:

@@ -86,6 +86,7 @@ import pandas as pd
 from drltg.analysis import metrics as M
 from drltg.analysis import tables
 from drltg.analysis.curves import FORMATS, Curve, read_curves
+from drltg.analysis.run_state import partition
 from drltg.analysis.tables import number
 from drltg.errors import UsageError
 from drltg.training import rundir
@@ -119,6 +120,13 @@ class ReportSettings:
                                          help="name of the transfer runs in the plot and table")
     allow_mixed: bool = _option(False, "--allow-mixed", "runs", action="store_true",
                                 help="accept runs of different configs or methods under one side")
+    allow_mismatch: bool = _option(False, "--allow-mismatch", "runs", action="store_true",
+                                   help="compare baseline and transfer runs whose settings differ in what a curve "
+                                   "means (task options, learner, network, evaluation, frames); the differences "
+                                   "are listed in the report")
+    include_unfinished: bool = _option(False, "--include-unfinished", "runs", action="store_true",
+                                       help="count diverged and incomplete drltg runs (listed and left out "
+                                       "by default)")
     threshold: object = _option(None, "--threshold", help="return to reach for time-to-threshold: a "
                                 "number (150) or a percentage of the best baseline mean performance (80%%)")
     crossing: str = _option("sustained", "--crossing", choices=("sustained", "first"),
@@ -192,6 +200,7 @@ class ReportSettings:
              "--sustain applies to a sustained crossing; drop it or --crossing first.")
         need(0.0 < float(self.confidence) < 1.0, f"--confidence must lie in (0, 1), got {self.confidence}.")
         need(int(self.bootstrap) >= 100, f"--bootstrap needs at least 100 resamples, got {self.bootstrap}.")
+        need(0 <= int(self.seed) < 2**32, f"--seed must be an integer in [0, 2**32 - 1], got {self.seed}.")
         need(self.interval in M.INTERVALS,
              f"unknown --interval '{self.interval}'; choose one of {', '.join(M.INTERVALS)}.")
         need(self.format in FORMATS, f"unknown log format '{self.format}'; choose one of {', '.join(FORMATS)}.")
@@ -208,34 +217,49 @@ class ReportSettings:
 SETTINGS_DEFAULTS = {f.name: f.default for f in fields(ReportSettings)}
 
 
+LARGEST = 1e15
+"""The largest magnitude of a threshold, a frame count or a seed's span the report accepts: beyond it a
+number is a typo (and floats lose whole units, plots their ticks)."""
+
+
+def _bounded(value: float, text, option: str, what: str) -> float:
+    if not math.isfinite(value) or abs(value) > LARGEST:
+        raise UsageError(f"{option} '{text}' must be a finite {what} of magnitude at most {LARGEST:.0e}.")
+    return value
+
+
 def parse_threshold(threshold) -> tuple[float | None, float | None]:
-    """``150`` -> (150, None); ``"80%"`` -> (None, 0.8)."""
+    """``150`` -> (150, None); ``"80%"`` -> (None, 0.8); a non-finite or huge value is refused."""
     if threshold is None:
         return None, None
     if isinstance(threshold, str):
         text = threshold.strip()
+        percent = text.endswith("%")
         try:
-            if text.endswith("%"):
-                return None, float(text[:-1]) / 100.0
-            return float(text), None
+            value = float(text[:-1] if percent else text)
         except ValueError:
             raise UsageError(
                 f"--threshold '{threshold}' is neither a number (e.g. 150) nor a percentage of the best "
                 "baseline performance (e.g. 80%)."
             ) from None
-    return float(threshold), None
+        if percent:
+            return None, _bounded(value, threshold, "--threshold", "percentage") / 100.0
+        return _bounded(value, threshold, "--threshold", "number"), None
+    return _bounded(float(threshold), threshold, "--threshold", "number"), None
 
 
 def parse_frames(text, option: str = "--budget") -> float | None:
     """``"1e6"``, ``"500k"``, ``"1.5M"`` -> frames."""
-    if text is None or isinstance(text, (int, float)):
+    if text is None:
         return text
+    if isinstance(text, (int, float)):
+        return _bounded(text, text, option, "number of frames")
     m = re.fullmatch(r"\s*([0-9.eE+-]+)\s*([kKmM]?)\s*", str(text))
     try:
         value = float(m.group(1)) * {"": 1, "k": 1e3, "m": 1e6}[m.group(2).lower()]
     except (AttributeError, ValueError):
         raise UsageError(f"{option} '{text}' is not a number of frames (e.g. 200000, 200k, 1.5M).") from None
-    return value
+    return _bounded(value, text, option, "number of frames")
 
 
 def settings_of(settings: dict) -> ReportSettings:
@@ -357,7 +381,7 @@ def transfer_report(
     st = result["settings"]
     out = Path(out_dir) if out_dir is not None else fresh_dir(
         f"report-{st['transfer_label']}-vs-{st['baseline_label']}")
-    rundir.write_files(out, files)
+    rundir.write_directory(out, files)
     return {"metrics": result["metrics"], "settings": st, "per_seed": result["per_seed"],
             "scores": result["scores"], "out_dir": str(out)}
 
@@ -415,10 +439,17 @@ def check_runs(baseline: Sequence[Curve], transfer: Sequence[Curve], s: ReportSe
     baseline, transfer = list(baseline), list(transfer)
     if not baseline or not transfer:
         raise UsageError("both a baseline and a transfer run set are needed.")
+    baseline, left_b = partition("baseline", baseline, bool(s.include_unfinished), warnings)
+    transfer, left_t = partition("transfer", transfer, bool(s.include_unfinished), warnings)
+    for side, runs, left in (("baseline", baseline, left_b), ("transfer", transfer, left_t)):
+        if not runs:
+            raise UsageError(f"every {side} run is unfinished ({', '.join(left)}); finish them, or pass "
+                             "--include-unfinished.")
     _check_duplicates(baseline, transfer)
     task = _check_tasks(baseline, transfer)
     for side, runs in (("baseline", baseline), ("transfer", transfer)):
         _check_configs(side, runs, bool(s.allow_mixed), warnings)
+    _check_sides(baseline, transfer, bool(s.allow_mismatch), warnings)
     paired, pairing, transfer = _pairing(baseline, transfer, s.paired)
     return Sides(baseline, transfer, task, paired, pairing)
 
@@ -507,6 +538,34 @@ def _check_configs(side: str, curves: Sequence[Curve], allow_mixed: bool, warnin
                         + (f" and {len(keys) - 3} more env settings" if len(keys) > 3 else "")
                         + "; those keys are not compared (their defaults are the task's, which the report "
                         "does not load).")
+
+
+PER_RUN = ("seed", "device", "threads", "log", "checkpoint", "transfer")
+"""Config sections and keys that do not change what a curve means (``transfer`` is what the report compares)."""
+
+
+def _check_sides(baseline: Sequence[Curve], transfer: Sequence[Curve], allow: bool, warnings: list[str]) -> None:
+    """Baseline and transfer runs must share every setting that changes what their curves mean: the task's
+    options, the learner and its network, buffer, collector and optimizer, the evaluation's episodes and
+    interval, and the frames; a mismatch is refused, or with ``--allow-mismatch`` listed in the report."""
+    from drltg.config import config_changes
+
+    configs = [max((c for c in side if c.config), key=lambda c: len(_flat(c.config)), default=None)
+               for side in (baseline, transfer)]
+    if None in configs:
+        return
+    b, t = configs
+    keys = [k for k in config_changes(b.config, t.config, env_defaults=False)
+            if k.split(".")[0] not in PER_RUN]
+    if not keys:
+        return
+    ref, other = _flat(b.config), _flat(t.config)
+    leaves = [x for k in keys for x in sorted({x for x in (*ref, *other) if x == k or x.startswith(f"{k}.")})]
+    text = ", ".join(f"{k} ({ref.get(k, '(unset)')} vs {other.get(k, '(unset)')})" for k in leaves)
+    if not allow:
+        raise UsageError(f"the baseline {_name(b)} and transfer {_name(t)} runs differ in settings that change what "
+                         f"a curve means: {text}; compare like with like, or pass --allow-mismatch.")
+    warnings.append(f"baseline and transfer settings differ (--allow-mismatch): {text}")
 
 
 def _seed(curve: Curve):

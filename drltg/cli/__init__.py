@@ -9,7 +9,7 @@ import signal
 import sys
 
 from drltg import plugins
-from drltg.errors import UsageError
+from drltg.errors import RunFailed, UsageError
 
 SUBCOMMANDS = {
     "tasks": ("drltg.cli.tasks", "list the registered tasks and task pairs"),
@@ -57,6 +57,9 @@ def main(argv: list[str] | None = None) -> int:
     except UsageError as err:
         print(f"drltg {args.command}: error: {err}", file=sys.stderr)
         return 2
+    except RunFailed as err:
+        print(f"drltg {args.command}: {err}.", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f"drltg {args.command}: interrupted", file=sys.stderr)
         return 130

@@ -64,6 +64,7 @@ def run_one(cfg: dict, run_dir: str, log_path: str) -> tuple[str, str]:
     Never raises for a broken run: the traceback goes to the log, the sweep goes on.
     """
     from drltg import plugins
+    from drltg.training.health import DIVERGED, Diverged
     from drltg.training.loop import train
 
     plugins.load()  # a worker process registers the user's tasks too
@@ -78,6 +79,9 @@ def run_one(cfg: dict, run_dir: str, log_path: str) -> tuple[str, str]:
         except UsageError as err:
             print(f"error: {err}", flush=True)
             return "failed", str(err)
+        except Diverged as err:
+            print(f"{err}.", flush=True)
+            return DIVERGED, str(err)
         except Exception as err:
             traceback.print_exc()
             return "failed", f"{type(err).__name__}: {err}"
@@ -89,6 +93,7 @@ def run_group(cfgs: list[dict], run_dirs: list[str], log_paths: list[str]) -> li
     """:func:`run_one` for a seed group: the runs train (or resume) together, their output in the first
     run's log (each other log says where); one ``(status, detail)`` per run."""
     from drltg import plugins
+    from drltg.training.health import DIVERGED, Diverged
     from drltg.training.seeds import train_group
 
     plugins.load()
@@ -107,6 +112,9 @@ def run_group(cfgs: list[dict], run_dirs: list[str], log_paths: list[str]) -> li
         except UsageError as err:
             print(f"error: {err}", flush=True)
             return [("failed", str(err))] * len(dirs)
+        except Diverged as err:
+            print(f"{err}.", flush=True)
+            return [(DIVERGED, str(err))] * len(dirs)
         except Exception as err:
             traceback.print_exc()
             return [("failed", f"{type(err).__name__}: {err}")] * len(dirs)
@@ -144,12 +152,43 @@ def _frames_done(run: Run) -> int:
 
 
 # --------------------------------------------------------------------------------------- backends
-def _worker_init() -> None:
+PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(parent: int) -> None:
+    """Have the kernel send SIGTERM to this worker when the process that started it dies, even by
+    ``kill -9`` (Linux ``prctl(PR_SET_PDEATHSIG)``); a worker whose parent is already gone exits now.
+    Without it an orphaned worker trains on for hours, holding its run's lock."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    if os.getppid() != parent:
+        os.kill(os.getpid(), signal.SIGTERM)
+
+
+def _worker_init(parent: int | None = None) -> None:
     """One torch thread per run; SIGTERM unwinds the run as in ``drltg train`` (lock released, its
-    checkpoint kept), so an interrupted experiment resumes where it stopped."""
+    checkpoint kept), so an interrupted experiment resumes where it stopped; the worker gets SIGTERM when
+    its parent dies."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     os.environ.setdefault("MKL_NUM_THREADS", "1")
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
+    if parent is not None:
+        _die_with_parent(parent)
+
+
+def _run_in_pool(train, *args):
+    """``train(*args)`` (:func:`run_one`, :func:`run_group`) in a pool worker. A SIGTERM (from the parent
+    stopping the pool, or from the kernel when the parent died) unwinds the run, releasing its lock and
+    keeping its checkpoint, and then ends the worker: the pool would catch the ``SystemExit`` and wait for
+    work from a parent that may be gone."""
+    try:
+        return train(*args)
+    except SystemExit as stop:
+        sys.stdout.flush(), sys.stderr.flush()
+        os._exit(stop.code if isinstance(stop.code, int) else 1)
 
 
 class LocalBackend:
@@ -170,18 +209,19 @@ class LocalBackend:
 
         if self.pool is None:
             self.pool = cf.ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"),
-                                               initializer=_worker_init)
+                                               initializer=_worker_init, initargs=(os.getpid(),))
         return self.pool
 
     def submit(self, run: Run):
         pool = self._pool()
-        future = pool.submit(run_one, run.cfg, str(run.path), str(run.log))
+        future = pool.submit(_run_in_pool, run_one, run.cfg, str(run.path), str(run.log))
         self.pool_of[future] = pool
         return future
 
     def submit_group(self, runs: list[Run]):
         pool = self._pool()
-        future = pool.submit(run_group, [r.cfg for r in runs], [str(r.path) for r in runs], [str(r.log) for r in runs])
+        future = pool.submit(_run_in_pool, run_group, [r.cfg for r in runs], [str(r.path) for r in runs],
+                             [str(r.log) for r in runs])
         self.pool_of[future] = pool
         return future
 
@@ -233,6 +273,28 @@ def _loopback_only() -> None:
         ray_constants.ENABLE_RAY_CLUSTER = False
 
 
+CONNECT_TIMEOUT = 15.0
+"""Seconds a Ray cluster's address has to answer before ``drltg sweep`` gives up (Ray itself waits minutes)."""
+
+
+def check_answers(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
+    """Refuse, in one sentence, a ``HOST:PORT`` Ray address whose gRPC server does not answer within
+    ``timeout`` seconds: nothing listening, or a socket that accepts and stays silent. ``auto`` is left to Ray."""
+    target = address.removeprefix("ray://")
+    if target == "auto" or ":" not in target:
+        return
+    import grpc
+
+    channel = grpc.insecure_channel(target)
+    try:
+        grpc.channel_ready_future(channel).result(timeout=timeout)
+    except grpc.FutureTimeoutError:
+        raise UsageError(f"the Ray cluster at '{address}' did not answer within {timeout:g} s; check the address "
+                         "and that `ray start --head` runs there.") from None
+    finally:
+        channel.close()
+
+
 class RayBackend:
     """Ray tasks declaring ``num_cpus``/``num_gpus`` each; Ray places them on the cluster's nodes.
 
@@ -240,7 +302,8 @@ class RayBackend:
     ``address="auto"`` or ``"ip:port"`` joins a running cluster (`ray start --head`).
     """
 
-    def __init__(self, address: str | None, resources: dict, num_cpus: int | None = None):
+    def __init__(self, address: str | None, resources: dict, num_cpus: int | None = None,
+                 connect_timeout: float = CONNECT_TIMEOUT):
         if address is None:
             _loopback_only()
         try:
@@ -254,6 +317,7 @@ class RayBackend:
             print(f"ray: a local instance on {ray.util.get_node_ip_address()} with {num_cpus} CPUs",
                   file=sys.stderr)
         else:
+            check_answers(address, connect_timeout)
             try:
                 ray.init(address=address, configure_logging=False, log_to_driver=False)
             except (ConnectionError, ValueError, RuntimeError) as err:
@@ -291,11 +355,15 @@ class RayBackend:
 def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs",
             group_seeds: bool = True) -> dict[Path, tuple[str, str]]:
     """Run every incomplete run (each after the run it needs) and return ``{path: (status, detail)}``
-    with status ``skipped`` (complete before), ``done`` or ``failed``. With ``group_seeds``, runs that
-    differ only in their seed train as one seed group (:func:`seed_groups`)."""
+    with status ``skipped`` (complete before), ``done``, ``diverged`` or ``failed``. With ``group_seeds``,
+    runs that differ only in their seed train as one seed group (:func:`seed_groups`)."""
     from tqdm.auto import tqdm
 
-    status: dict[Path, tuple[str, str]] = {r.path: ("skipped", "") for r in runs if rundir.is_complete(r.path)}
+    status: dict[Path, tuple[str, str]] = {}
+    for r in runs:
+        finished = rundir.summary_status(r.path)
+        if finished is not None:
+            status[r.path] = ("skipped", "") if finished[0] == "complete" else finished
     todo = [r for r in runs if r.path not in status]
     reached = {r.path: _frames_done(r) for r in todo}
     units = seed_groups(todo) if group_seeds else [[r] for r in todo]
@@ -316,8 +384,8 @@ def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs",
                 state = status.get(run.needs, ("done", ""))[0] if run.needs else "done"
                 if run.needs and run.needs not in status:
                     continue  # its source is not trained yet
-                if state == "failed":
-                    status[run.path] = ("failed", f"not run: the run it needs failed ({run.needs})")
+                if state in ("failed", "diverged"):
+                    status[run.path] = ("failed", f"not run: the run it needs {state} ({run.needs})")
                     units.remove(unit)
                 elif len(running) < backend.capacity:
                     handle = backend.submit(run) if len(unit) == 1 else backend.submit_group(unit)

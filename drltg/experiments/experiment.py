@@ -56,6 +56,33 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--threshold", help="report threshold: a value, or a fraction of the best baseline like 80%%")
 
 
+MAX_SEEDS = 1000
+"""The most runs a side one experiment plans (a larger count is a typo, and planning it would take long)."""
+SEED_MAX = 2**31 - 1
+PLAN_KEYS = {"task": "the PAIR argument", "algo": "--algo", "seed": "--seed", "frames": "--frames or --source-frames",
+             "transfer.method": "--method"}
+"""The config keys an experiment sets per run, and the option that sets them."""
+
+
+def owned_keys(key: str, value) -> list[str]:
+    """The per-run keys (``PLAN_KEYS``) that setting ``key`` to ``value`` would set: the key itself, or the
+    keys of a section given as a mapping (``transfer={method: x}`` sets ``transfer.method``)."""
+    if isinstance(value, dict):
+        return [k for sub, v in value.items() for k in owned_keys(f"{key}.{sub}", v)]
+    return [key] if key in PLAN_KEYS else []
+
+
+def refuse_plan_overrides(overrides, where: str, owner: str, flags: dict[str, str]) -> None:
+    """Refuse, in one sentence, an override (``KEY=VALUE`` or a ``(key, value)`` pair) of a key the
+    plan sets per run: it would give every run, the baseline included, the same value."""
+    for item in overrides:
+        key, value = config_lib.parse_override(item) if isinstance(item, str) else item
+        for owned in owned_keys(str(key), value):
+            given = "" if owned == key else f" (through '{key}')"
+            raise UsageError(f"{where} may not set '{owned}'{given}: the {owner} sets it per run; "
+                             f"use {flags[owned]} instead.")
+
+
 def plan(args: argparse.Namespace) -> list[tuple[str, dict, Path]]:
     """The experiment's runs as (role, config, run directory), sources first."""
     return plan_runs(args.pair, args.method, algo=args.algo, seeds=args.seeds, seed=args.seed,
@@ -86,11 +113,21 @@ def plan_runs(
     from drltg.envs import PAIRS, TASKS
     from drltg.transfer import get_method
 
+    refuse_plan_overrides(overrides, "-o", "experiment", PLAN_KEYS)
     spec = get_method(method)
     if spec.name == "none":
         raise UsageError("--method none has nothing to compare; choose a transfer method (`drltg tasks`).")
     if seeds < 1 or frames < 1:
         raise UsageError("--seeds and --frames must be positive.")
+    if source_frames is not None and source_frames < 1:
+        raise UsageError(f"--source-frames must be positive, got {source_frames}; omit it to give source runs "
+                         "--frames.")
+    if seeds > MAX_SEEDS:
+        raise UsageError(f"--seeds {seeds} is more than the {MAX_SEEDS} runs a side an experiment plans; "
+                         "split it into experiments with different --seed.")
+    if not 0 <= seed <= SEED_MAX - 100 * (seeds - 1) - 50:
+        raise UsageError(f"--seed {seed} with --seeds {seeds} gives run seeds outside [0, {SEED_MAX}] "
+                         f"(run i uses seed + 100 i, its source seed + 100 i + 50).")
     if pair in PAIRS:
         source_task, target_task = PAIRS[pair].source, PAIRS[pair].target
     elif pair in TASKS:  # a task alone: the method needs no source, or the config names one
@@ -110,7 +147,9 @@ def plan_runs(
     per_seed = given_source is not None and SEED in str(given_source)
 
     def cfg(task, seed, frames, **transfer):
-        over = list(overrides) + [f"transfer.{k}={v}" for k, v in transfer.items()]
+        # a source given in the config serves the transfer runs only: source and baseline runs have none
+        plain = ["transfer.source=null"] if given_source is not None and not transfer else []
+        over = list(overrides) + plain + [f"transfer.{k}={v}" for k, v in transfer.items()]
         return config_lib.resolve(base, over, task=task, algo=algo, frames=frames, seed=seed)
 
     runs = []
@@ -161,6 +200,25 @@ def as_runs(runs: list[tuple[str, dict, Path]], out: Path) -> list:
             for role, cfg, d in runs]
 
 
+def check_existing(runs: list) -> None:
+    """Refuse, before anything runs, a directory that holds a run with another config."""
+    from drltg.config import config_changes
+
+    for run in runs:
+        saved = rundir.check_directory(run.path, "run directory") / rundir.CONFIG
+        if saved.is_file():
+            try:
+                old = rundir.read_config(run.path)
+            except yaml.YAMLError:
+                raise UsageError(f"'{saved}' is not valid YAML; move the run away or use another --out.") from None
+            keys = config_changes(old if isinstance(old, dict) else {}, run.cfg)
+            if keys:
+                raise UsageError(f"'{run.path}' holds a run with another config (differs in {', '.join(keys)}); "
+                                 "use another --out.")
+        elif rundir.entries(run.path):
+            raise UsageError(f"'{run.path}' exists but holds no config.yaml; move it away or use another --out.")
+
+
 def _settings(args: argparse.Namespace) -> dict:
     """What must match to continue an experiment (the folder itself may be named any way)."""
     return {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()
@@ -188,10 +246,12 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--workers must be at least 1.")
     parse_threshold(args.threshold)
     out = rundir.check_directory(args.out, "--out")
+    rundir.refuse_run_directory(out, "--out")
     runs = plan(args)
     check_runs(runs)
     settings, saved = _settings(args), out / "experiment.yaml"
     _check_settings(saved, settings)
+    check_existing(as_runs(runs, out))
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
@@ -208,6 +268,9 @@ def run(args: argparse.Namespace) -> int:
         if failures:
             print("failed runs:\n  " + "\n  ".join(failures))
             return 1
+        diverged = [f"{path}: {detail}" for path, (state, detail) in status.items() if state == "diverged"]
+        if diverged:
+            print("diverged runs (left out of the report):\n  " + "\n  ".join(diverged))
         result = transfer_report(
             [d for role, _, d in runs if role == "baseline"],
             [d for role, _, d in runs if role == "transfer"],
@@ -219,4 +282,4 @@ def run(args: argparse.Namespace) -> int:
     print(format_table(result))
     print("\n" + headline(result))
     print(f"\nreport: {out / 'report'}")
-    return 0
+    return 1 if diverged else 0

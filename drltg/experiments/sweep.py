@@ -53,8 +53,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from drltg.errors import UsageError
 from drltg.experiments.executor import LocalBackend, RayBackend, Run, execute
 from drltg.training import rundir
@@ -62,7 +60,9 @@ from drltg.training import rundir
 KEYS = ("pairs", "methods", "algos", "seeds", "seed", "frames", "source_frames", "overrides", "grid",
         "threshold", "primary_metric", "resources")
 RESOURCES = ("num_cpus", "num_gpus")
-SET_BY_SWEEP = ("task", "algo", "seed", "frames", "transfer.method")
+SET_BY_SWEEP = {"task": "'pairs'", "algo": "'algos'", "seed": "'seed' and 'seeds'",
+                "frames": "'frames' or 'source_frames'", "transfer.method": "'methods'"}
+"""The config keys the sweep sets per run, and the spec key that sets them."""
 
 
 # ------------------------------------------------------------------------------------------- spec
@@ -98,15 +98,26 @@ def _axis(data: dict, key: str, kind: type, where: str) -> list:
             continue
         if not isinstance(v, kind) or (kind is int and isinstance(v, bool)):
             raise UsageError(f"{where}: '{key}' must hold {kind.__name__} values, got {v!r}.")
-    return [int(v) if kind is int else v for v in values]
+    values = [int(v) if kind is int else v for v in values]
+    _no_repeats(values, key, where)
+    return values
+
+
+def _no_repeats(values: list, key: str, where: str) -> None:
+    seen = []
+    for v in values:
+        if v in seen:
+            raise UsageError(f"{where}: '{key}' lists {v!r} twice; each value is one point of the sweep.")
+        seen.append(v)
 
 
 def _config_keys(mapping, key: str, where: str) -> dict:
     if not isinstance(mapping, dict):
         raise UsageError(f"{where}: '{key}' must be a mapping of config keys like {{eval.every: 1000}}.")
-    for k in mapping:
-        if k in SET_BY_SWEEP:
-            raise UsageError(f"{where}: '{key}' may not set '{k}'; the sweep sets it from its own keys.")
+    from drltg.experiments.experiment import refuse_plan_overrides
+
+    values = [(k, v) for k, vs in mapping.items() for v in (vs if key == "grid" and isinstance(vs, list) else [vs])]
+    refuse_plan_overrides(values, f"{where}: '{key}'", "sweep", SET_BY_SWEEP)
     return dict(mapping)
 
 
@@ -156,11 +167,14 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
         raise UsageError(f"{where}: 'seeds' and 'frames' must be positive.")
     if data.get("source_frames") is not None:
         spec.source_frames = _axis(data, "source_frames", int, where)
+        if min(spec.source_frames) < 1:
+            raise UsageError(f"{where}: 'source_frames' must be positive; omit it to give source runs 'frames'.")
     spec.overrides = _config_keys(data.get("overrides") or {}, "overrides", where)
     spec.grid = _config_keys(data.get("grid") or {}, "grid", where)
     for key, values in spec.grid.items():
         if not isinstance(values, list) or not values:
             raise UsageError(f"{where}: grid key '{key}' must be a non-empty list of values.")
+        _no_repeats(values, f"grid: {key}", where)
     threshold = data.get("threshold")
     if threshold is not None and (isinstance(threshold, bool) or not isinstance(threshold, (int, float, str))):
         raise UsageError(f"{where}: 'threshold' must be a number or a percentage like \"80%\".")
@@ -194,7 +208,7 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
 def load_spec(path: str | Path) -> Spec:
     from drltg.config import load_yaml
 
-    return parse_spec(load_yaml(path), where=f"sweep spec '{path}'")
+    return parse_spec(load_yaml(path, "sweep spec"), where=f"sweep spec '{path}'")
 
 
 # ------------------------------------------------------------------------------------------- plan
@@ -263,29 +277,13 @@ def plan(spec: Spec, out: Path) -> tuple[list[Run], list[Cell]]:
                 if path in runs and runs[path].cfg != cfg:
                     raise UsageError(f"two runs of the spec would share '{path}'; check the grid values.")
                 log = out / "logs" / path.relative_to(out).with_suffix(".log")
+                if path not in runs:
+                    rundir.check_name_lengths(log, "the run log")
+                    rundir.check_name_lengths(path / "checkpoints" / f".last.pt.{'x' * 8}.tmp", "the run directory")
                 runs.setdefault(path, Run(role, cfg, path, log, needs))
                 sides.get(role, []).append(path)
             cells.append(Cell(pair, algo, variant, method, sides["baseline"], sides["transfer"]))
     return list(runs.values()), cells
-
-
-def check_existing(runs: list[Run]) -> None:
-    """Refuse, before anything runs, a directory that holds a run with another config."""
-    from drltg.config import config_changes
-
-    for run in runs:
-        saved = rundir.check_directory(run.path, "run directory") / rundir.CONFIG
-        if saved.is_file():
-            try:
-                old = rundir.read_config(run.path)
-            except yaml.YAMLError:
-                raise UsageError(f"'{saved}' is not valid YAML; move the run away or use another --out.") from None
-            keys = config_changes(old if isinstance(old, dict) else {}, run.cfg)
-            if keys:
-                raise UsageError(f"'{run.path}' holds a run with another config (differs in {', '.join(keys)}); "
-                                 "use another --out.")
-        elif rundir.entries(run.path):
-            raise UsageError(f"'{run.path}' exists but holds no config.yaml; move it away or use another --out.")
 
 
 # ---------------------------------------------------------------------------------------- reports
@@ -297,14 +295,18 @@ def write_reports(cells: list[Cell], status: dict, threshold) -> list[dict]:
     for c in cells:
         row = {"pair": c.pair, "algo": c.algo, "variant": c.variant, "method": c.method,
                "report": str(c.report), "metrics": None}
-        missing = [p for p in c.baseline + c.transfer if status.get(p, ("",))[0] not in ("done", "skipped")]
+        states = [status.get(p, ("",))[0] for p in c.baseline + c.transfer]
+        missing = sum(state not in ("done", "skipped", "diverged") for state in states)
+        diverged = states.count("diverged")
         if missing:
-            row["note"] = f"{len(missing)} run(s) incomplete"
+            row["note"] = f"{missing} run(s) incomplete"
         else:
             try:
                 result = transfer_report(c.baseline, c.transfer, c.report, threshold=threshold,
                                          baseline_label="no transfer", transfer_label=c.method)
                 row["metrics"] = result["metrics"]
+                if diverged:
+                    row["note"] = f"{diverged} run(s) diverged, left out"
             except UsageError as err:
                 row["note"] = str(err)
         rows.append(row)
@@ -429,7 +431,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from drltg.analysis.report import check_metric
-    from drltg.experiments.experiment import check_runs
+    from drltg.experiments.experiment import check_existing, check_runs
 
     if args.workers is not None and args.workers < 1:
         raise UsageError("--workers must be at least 1.")
@@ -438,6 +440,7 @@ def run(args: argparse.Namespace) -> int:
     resources = {**spec.resources, **{k: v for k, v in (("num_cpus", args.num_cpus),
                                                          ("num_gpus", args.num_gpus)) if v is not None}}
     out = rundir.check_directory(args.out, "--out")
+    rundir.refuse_run_directory(out, "--out")
     runs, cells = plan(spec, out)
     if args.dry_run:
         for r in runs:
@@ -456,6 +459,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _execute_and_report(args, spec: Spec, out: Path, runs: list[Run], cells: list[Cell], resources: dict) -> int:
     from drltg.analysis import tables
+    from drltg.experiments.experiment import check_existing
 
     check_existing(runs)  # another sweep may have written them meanwhile
     if args.backend == "ray":
@@ -482,6 +486,10 @@ def _execute_and_report(args, spec: Spec, out: Path, runs: list[Run], cells: lis
     for r in failed:
         print(f"failed: {r.path.relative_to(out)}: {status[r.path][1]}"
               + (f"\n        log: {r.log}" if r.log.exists() else ""))
-    print(f"{len(runs)} runs: {counts.count('done')} done, {len(failed)} failed, "
+    for r in runs:
+        if status[r.path][0] == "diverged":
+            print(f"diverged: {r.path.relative_to(out)}: {status[r.path][1]}")
+    diverged = f"{counts.count('diverged')} diverged, " if "diverged" in counts else ""
+    print(f"{len(runs)} runs: {counts.count('done')} done, {len(failed)} failed, {diverged}"
           f"{counts.count('skipped')} skipped (complete before); summary: {out / 'summary.md'}")
-    return 1 if failed else 0
+    return 1 if failed or "diverged" in counts else 0

@@ -32,7 +32,7 @@ from drltg.config import config_changes
 from drltg.envs import make_env
 from drltg.errors import UsageError
 from drltg.learners import Agent, UpdateStep, make_agent, sample_batches
-from drltg.training import rundir
+from drltg.training import health, preflight, rundir
 from drltg.training.rundir import CHECKPOINT, CONFIG, EPISODE_FLAGS, EVAL, RunWriter, is_complete, read_eval_csv
 from drltg.transfer import Transfer, get_method
 from drltg.transfer.source import check as check_source
@@ -59,6 +59,7 @@ def make_envs(cfg: dict, agent_transforms=()) -> tuple[EnvBase, EnvBase]:
     seed = cfg["seed"]
     train_env = TransformedEnv(build_env(cfg, batch_size=(cfg["collector"]["num_envs"],), seed=seed))
     eval_env = TransformedEnv(build_env(cfg, batch_size=(cfg["eval"]["episodes"],), seed=seed + 10_000))
+    preflight.check_batch(cfg, train_env, eval_env)
     for t in agent_transforms:
         train_env.append_transform(t.clone())
         eval_env.append_transform(t.clone())
@@ -70,7 +71,10 @@ def check_config(cfg: dict):
     """Build the task's env and the learner of ``cfg`` (writing nothing): the checks a config can
     fail before any run directory is created. Returns the env and the agent."""
     probe = build_env(cfg, seed=cfg["seed"])
-    return probe, make_agent(probe, cfg)
+    preflight.check_network(cfg, probe)
+    agent = make_agent(probe, cfg)
+    preflight.check_buffer(cfg, probe, agent.loss.in_keys)
+    return probe, agent
 
 
 def evaluate(env: EnvBase, actor: Callable, max_steps: int = 100_000) -> dict:
@@ -251,11 +255,11 @@ def train(
                 frames, updates = ckpt["frames"], ckpt["updates"]
             learner = AgentLearner(agent, buffer, eval_env, transfer)
             collector = make_collector(cfg, train_env, learner.policy, frames)
-            with deferred_signals() as stop_if_signalled:
+            with deferred_signals() as stop_if_signalled, health.on_divergence(run_dir, cfg):
                 run_loop(cfg, collector, learner, [writer], frames=frames, updates=updates, progress=progress,
                          stop_if_signalled=stop_if_signalled, extra_summary=transfer.summary)
-        except BaseException:
-            if not resume and not (run_dir / CHECKPOINT).is_file():
+        except BaseException as err:
+            if not resume and not (run_dir / CHECKPOINT).is_file() and not isinstance(err, health.Diverged):
                 _remove_start(run_dir, created)
             raise
     return run_dir
@@ -374,6 +378,7 @@ def run_loop(cfg: dict, collector, learner, writers: list[RunWriter], *, frames:
 
     def save_checkpoint() -> None:
         for writer, state in zip(writers, learner.state()):
+            health.check_state(state["loss"], frames)
             writer.checkpoint(state, frames, updates)
 
     bar = tqdm(total=cfg["frames"], initial=frames, unit="frame", disable=not progress, dynamic_ncols=True)
@@ -396,6 +401,7 @@ def run_loop(cfg: dict, collector, learner, writers: list[RunWriter], *, frames:
             if frames >= init_random:
                 for batch in learner.batches(opt["updates_per_batch"]):
                     losses = learner.update(batch, update_actor=updates % learner.actor_delay == 0)
+                    health.check_losses(losses, frames)
                     updates += 1
                     for k, v in losses.items():
                         if v.numel() == seeds:

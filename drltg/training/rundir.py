@@ -6,8 +6,10 @@
     logs/csv/, logs/tensorboard/   training scalars (TorchRL CSVLogger + TensorboardLogger)
     checkpoints/last.pt  weights, optimizer, replay buffer and RNG state (for --resume and model reuse)
     model_reuse.txt      what model reuse loaded (model-reuse runs)
-    summary.json         written last: the run is complete when it exists
-    .drltg.lock          the pid and host of the process writing the directory, while it runs
+    summary.json         the run is finished when it exists: status complete (or diverged, with the reason)
+    manifest.json        SHA-256 of the checkpoint and eval.csv, and when the run ends (written last) of
+                         every file: a changed or damaged file is refused (drltg.training.manifest)
+    .drltg.lock          pid, host and start time of the process writing the directory, while it runs
 
 Every file is written through a temporary file in the same folder and a rename, so a reader never sees
 half a file and a failed write leaves the previous version. Experiment and sweep folders are owned
@@ -27,6 +29,7 @@ from pathlib import Path
 from typing import Iterator
 
 from drltg.errors import UsageError
+from drltg.training import manifest
 
 CONFIG = "config.yaml"
 EVAL = "eval.csv"
@@ -132,17 +135,79 @@ def atomic_write(path: str | Path, data: str | bytes) -> None:
 
 
 def atomic_torch_save(obj, path: str | Path) -> None:
+    """``torch.save`` atomically; a run's checkpoint with its digest in the run's manifest."""
     import torch
 
     buf = io.BytesIO()
     torch.save(obj, buf)
-    atomic_write(path, buf.getvalue())
+    path = Path(path)
+    if path.as_posix().endswith(CHECKPOINT.as_posix()):
+        write_tracked(path.parents[1], CHECKPOINT.as_posix(), buf.getvalue())
+    else:
+        atomic_write(path, buf.getvalue())
 
 
 def write_files(directory: str | Path, files: dict[str, bytes | str]) -> None:
     """Create ``directory`` and write every file atomically."""
     for name, data in files.items():
         atomic_write(Path(directory) / name, data)
+
+
+def write_tracked(run_dir: str | Path, name: str, data: bytes) -> None:
+    """Write ``run_dir/name`` atomically with its digest in ``manifest.json``: both the old and the new
+    digest are accepted while the file is replaced, so a kill at any moment leaves a file it accepts."""
+    run_dir = Path(run_dir)
+    files, new = manifest.read(run_dir), manifest.digest(data)
+    files[name] = [new, *[d for d in files.get(name, [])[:1] if d != new]]
+    atomic_write(run_dir / manifest.MANIFEST, manifest.dumps(files))
+    atomic_write(run_dir / name, data)
+    if len(files[name]) > 1:
+        files[name] = [new]
+        atomic_write(run_dir / manifest.MANIFEST, manifest.dumps(files))
+
+
+def finalize_manifest(run_dir: str | Path) -> None:
+    """Record every file of a finished run in ``manifest.json`` (written last: after ``summary.json``)."""
+    run_dir = Path(run_dir)
+    files = {p.relative_to(run_dir).as_posix(): [manifest.digest(p)] for p in sorted(run_dir.rglob("*"))
+             if p.is_file() and p.name != manifest.MANIFEST and not p.name.startswith(".")}
+    atomic_write(run_dir / manifest.MANIFEST, manifest.dumps(files))
+
+
+def write_directory(directory: str | Path, files: dict[str, bytes | str]) -> None:
+    """Make ``directory`` hold ``files``, all of them or, on any failure, its previous content whole.
+
+    The files are written into a temporary sibling folder that is then renamed over ``directory``. A
+    folder that holds other files than these (a user's own folder given as ``--out``) is never replaced:
+    its files are then written one by one, each atomically."""
+    import shutil
+
+    directory = Path(directory)
+    if directory.is_dir() and any(p.name not in files for p in directory.iterdir()):
+        write_files(directory, files)
+        return
+    tmp = None
+    try:
+        directory.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(dir=directory.parent, prefix=f".{directory.name}.", suffix=".tmp"))
+        try:
+            write_files(tmp, files)
+        except UsageError as err:  # name the folder the user gave, not the temporary one
+            raise UsageError(str(err).replace(str(tmp), str(directory))) from None
+        os.chmod(tmp, 0o777 & ~_umask())
+        if directory.exists():
+            old = tmp.with_suffix(".old")
+            os.rename(directory, old)
+            os.rename(tmp, directory)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.rename(tmp, directory)
+    except BaseException as err:
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
+        if isinstance(err, OSError):
+            raise UsageError(f"cannot write '{directory}' ({err.strerror or err}).") from None
+        raise
 
 
 # ---------------------------------------------------------------------------------------- eval.csv
@@ -152,7 +217,7 @@ def write_eval_csv(path: str | Path, rows: list[dict]) -> None:
     writer = csv.DictWriter(out, fieldnames=columns, restval="", extrasaction="ignore", lineterminator="\n")
     writer.writeheader()
     writer.writerows(rows)
-    atomic_write(path, out.getvalue())
+    write_tracked(Path(path).parent, Path(path).name, out.getvalue().encode())
 
 
 def read_eval_csv(path: str | Path) -> list[dict]:
@@ -185,7 +250,29 @@ def _cell(column: str, text: str) -> int | float:
 
 
 def is_complete(run_dir: str | Path) -> bool:
+    """Whether the run finished (``summary.json`` is written last), as ``complete`` or ``diverged``."""
     return (Path(run_dir) / SUMMARY).is_file()
+
+
+def summary_status(run_dir: str | Path) -> tuple[str, str] | None:
+    """``(status, reason)`` from a finished run's ``summary.json`` (``complete`` when it names none, as
+    older runs' do); ``None`` for a run that has not finished."""
+    import json
+
+    path = Path(run_dir) / SUMMARY
+    try:
+        summary = json.loads(path.read_text())
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError):
+        return "unreadable", f"'{path}' is not readable JSON"
+    if not isinstance(summary, dict):
+        return "unreadable", f"'{path}' holds no JSON object"
+    try:
+        manifest.verify(run_dir, SUMMARY)
+    except UsageError as err:
+        return "unreadable", str(err)
+    return str(summary.get("status", "complete")), str(summary.get("reason", ""))
 
 
 # ---------------------------------------------------------------------------------------- ownership
@@ -197,7 +284,48 @@ def check_directory(path: str | Path, option: str) -> Path:
     return path
 
 
-def _alive(pid: int, host: str) -> bool:
+def refuse_run_directory(path: Path, option: str) -> None:
+    """Refuse a folder of many runs (``--out`` of an experiment or a sweep) that is itself one run."""
+    if (path / CONFIG).is_file() or (path / SUMMARY).is_file():
+        raise UsageError(f"{option} '{path}' is the run directory of one run (it holds {CONFIG}); choose a new "
+                         f"or an experiment's folder.")
+
+
+def check_name_lengths(path: Path, what: str) -> None:
+    """Refuse a path the file system cannot create: a component longer than its NAME_MAX or a whole path
+    longer than PATH_MAX (e.g. a sweep variant named by many grid values)."""
+    existing = next(p for p in (path, *path.parents) if p.exists())
+    try:
+        name_max, path_max = (os.pathconf(existing, n) for n in ("PC_NAME_MAX", "PC_PATH_MAX"))
+    except (OSError, ValueError):
+        name_max, path_max = 255, 4096
+    for part in path.parts:
+        if len(os.fsencode(part)) > name_max:
+            raise UsageError(f"{what} '{path}' has a name of {len(os.fsencode(part))} bytes, more than the "
+                             f"{name_max} the file system allows: '{part[:40]}...'; use shorter names or values.")
+    if len(os.fsencode(str(path))) >= path_max:
+        raise UsageError(f"{what} '{path}' is {len(os.fsencode(str(path)))} bytes long, more than the {path_max} "
+                         "the file system allows; choose a shorter --out.")
+
+
+def _stat(pid: int) -> list[str]:
+    """The fields of ``/proc/<pid>/stat`` after the command name (state first); empty if unknown."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
+        return []
+
+
+def _started(pid: int) -> str | None:
+    """When process ``pid`` started (clock ticks since boot); ``None`` if unknown."""
+    fields = _stat(pid)
+    return fields[19] if len(fields) > 19 else None
+
+
+def _alive(pid: int, host: str, started: str | None = None) -> bool:
+    """Whether the lock's owner still runs: its pid exists and, where the lock records it, started when
+    the owner did (a pid reused by an unrelated process after a crash does not hold the lock)."""
     if host != socket.gethostname():
         return True  # cannot tell from here
     try:
@@ -205,21 +333,23 @@ def _alive(pid: int, host: str) -> bool:
     except ProcessLookupError:
         return False
     except PermissionError:  # another user's process
-        return True
-    return True
+        pass
+    if _stat(pid)[:1] == ["Z"]:  # exited, not yet reaped (an orphan's zombie where nothing reaps)
+        return False
+    return started is None or _started(pid) in (None, started)
 
 
-def _holder(path: Path) -> tuple[str, int, str] | None:
-    """(text, pid, host) of the lock file, ``None`` if it is gone; pid 0 while it is being written."""
+def _holder(path: Path) -> tuple[str, int, str, str | None] | None:
+    """(text, pid, host, start time) of the lock file, ``None`` if it is gone; pid 0 while it is being written."""
     try:
         text = path.read_text()
     except FileNotFoundError:
         return None
     parts = text.split()
     try:
-        return text, int(parts[0]), parts[1]
+        return text, int(parts[0]), parts[1], parts[3] if len(parts) > 3 else None
     except (IndexError, ValueError):
-        return text, 0, ""
+        return text, 0, "", None
 
 
 def _break_stale(path: Path, seen: str) -> None:
@@ -237,7 +367,7 @@ def _break_stale(path: Path, seen: str) -> None:
 
 def _acquire(directory: Path, what: str) -> str:
     path = directory / LOCK
-    token = f"{os.getpid()} {socket.gethostname()} {uuid.uuid4().hex}\n"
+    token = f"{os.getpid()} {socket.gethostname()} {uuid.uuid4().hex} {_started(os.getpid()) or '-'}\n"
     for _ in range(10):
         try:
             fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
@@ -245,14 +375,14 @@ def _acquire(directory: Path, what: str) -> str:
             held = _holder(path)
             if held is None:
                 continue
-            text, pid, host = held
+            text, pid, host, started = held
             if pid == 0:  # written right now, or left empty by a crash
                 with contextlib.suppress(FileNotFoundError):
                     if time.time() - path.stat().st_mtime > 10:
                         _break_stale(path, text)
                 time.sleep(0.05)
                 continue
-            if _alive(pid, host):
+            if _alive(pid, host, None if started == "-" else started):
                 raise UsageError(
                     f"{what} '{directory}' is in use by process {pid} on {host}; wait for it to end, or "
                     f"delete '{path}' if that process is gone."
@@ -306,6 +436,7 @@ def load_checkpoint(run_dir: str | Path, map_location="cpu", mmap: bool = False)
         ckpt = torch.load(path, map_location=map_location, weights_only=False, mmap=mmap)
     except Exception as err:  # a truncated or foreign file surfaces as one of many library errors
         raise UsageError(f"cannot read checkpoint '{path}' ({type(err).__name__}); is it truncated?") from None
+    manifest.verify(run_dir, CHECKPOINT.as_posix())
     if not isinstance(ckpt, dict) or "loss" not in ckpt:
         raise UsageError(f"checkpoint '{path}' has no 'loss' entry; is it a drltg training checkpoint?")
     return ckpt
@@ -319,6 +450,10 @@ def truncate_logs(run_dir: str | Path, frame: int) -> None:
     steps twice and their curves would run backwards.
     """
     logs = Path(run_dir) / LOGS
+    if frame >= 0 and not logs.is_dir():
+        raise UsageError(f"cannot resume '{run_dir}': its {LOGS}/ folder is missing, so the training scalars up to "
+                         f"the checkpoint at frame {frame} are lost; restore it or start the run again in another "
+                         "--run-dir.")
     for path in sorted((logs / "csv").rglob("*.csv")):
         _truncate_csv(path, frame)
     for path in sorted((logs / "tensorboard").rglob("*tfevents*")):
@@ -403,6 +538,7 @@ class RunWriter:
         import json
 
         summary = {
+            "status": "complete",
             "task": self.cfg["task"],
             "algo": self.cfg["algo"],
             "seed": self.cfg["seed"],
@@ -414,6 +550,7 @@ class RunWriter:
             **(extra or {}),
         }
         atomic_write(self.run_dir / SUMMARY, json.dumps(summary, indent=2) + "\n")
+        finalize_manifest(self.run_dir)
 
     def close(self) -> None:
         from torchrl.record.loggers import TensorboardLogger

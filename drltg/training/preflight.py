@@ -1,0 +1,70 @@
+"""Checks of a run's config against the task and the machine, made before its first frame.
+
+A config can be valid key by key and still fail hours later, or worse, run as something else: a
+replay buffer or networks larger than the machine's memory fail on their first allocation, and a task
+factory that ignores the batch size it is given trains on 1 env and evaluates 1 episode while
+``config.yaml`` says ``collector.num_envs: 8`` and ``eval.episodes: 16``. Each check here is one
+:class:`UsageError` sentence naming the key.
+"""
+from __future__ import annotations
+
+import os
+
+import torch
+from torchrl.envs import EnvBase
+
+from drltg.errors import UsageError
+
+FLOAT_BYTES = 4
+
+
+def device_memory(device: str) -> int | None:
+    """Bytes of memory of ``device`` (a CPU's physical memory, a GPU's own); ``None`` if unknown."""
+    dev = torch.device(device)
+    if dev.type == "cuda":
+        return torch.cuda.get_device_properties(dev.index or 0).total_memory
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (OSError, ValueError):
+        return None
+
+
+def _gib(n: float) -> str:
+    return f"{n / 2**30:,.1f} GiB"
+
+
+def check_network(cfg: dict, env: EnvBase) -> None:
+    """Refuse ``network.hidden`` widths whose weights alone exceed the device's memory.
+
+    The lower bound counted: 3 MLPs (an actor and two critics) of ``obs -> hidden... -> action`` float32
+    weights, ``3 * 4 * sum_i w_i w_{i+1}`` bytes; targets, gradients and Adam's moments come on top."""
+    obs = sum(spec.shape.numel() for spec in env.observation_spec.values(True, True))
+    act = env.action_spec.shape.numel()
+    widths = [max(obs, 1), *cfg["network"]["hidden"], max(act, 1)]
+    need = 3 * FLOAT_BYTES * sum(a * b for a, b in zip(widths, widths[1:]))
+    have = device_memory(cfg["device"])
+    if have is not None and need > have:
+        raise UsageError(f"network.hidden={cfg['network']['hidden']} needs at least {_gib(need)} for its weights, "
+                         f"more than the {_gib(have)} of device '{cfg['device']}'; use smaller widths.")
+
+
+def check_buffer(cfg: dict, env: EnvBase, in_keys) -> None:
+    """Refuse a ``buffer.size`` whose transitions (the keys the loss reads, from the env's specs) exceed
+    the device's memory: the buffer allocates all of them at its first write."""
+    fake = env.fake_tensordict().select(*in_keys, strict=False)
+    per = sum(v.numel() * v.element_size() for v in fake.values(True, True))
+    need = per * cfg["buffer"]["size"]
+    have = device_memory(cfg["device"])
+    if have is not None and need > have:
+        raise UsageError(f"buffer.size={cfg['buffer']['size']} needs {_gib(need)} ({per} bytes a transition), more "
+                         f"than the {_gib(have)} of device '{cfg['device']}'; use a smaller buffer.size.")
+
+
+def check_batch(cfg: dict, train_env: EnvBase, eval_env: EnvBase) -> None:
+    """Refuse a task whose envs do not have the batch size asked for: its factory ignored
+    ``batch_size``, and the run would train on fewer envs and evaluate fewer episodes than its config says."""
+    for env, key, n in ((train_env, "collector.num_envs", cfg["collector"]["num_envs"]),
+                        (eval_env, "eval.episodes", cfg["eval"]["episodes"])):
+        if tuple(env.batch_size) != (n,):
+            raise UsageError(f"task '{cfg['task']}' built an env of batch size {tuple(env.batch_size)} when asked for "
+                             f"({n},) ({key}={n}); its factory must pass batch_size on to the env.")
