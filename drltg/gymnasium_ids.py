@@ -76,17 +76,26 @@ def _on_register(spec) -> None:
 class _AfterGymnasiumImport(importlib.abc.MetaPathFinder):
     """Runs :func:`register_ids` right after ``gymnasium`` finishes importing (once)."""
 
+    searching = False
+
     def find_spec(self, fullname, path, target=None):
-        if fullname != "gymnasium":
+        # A finder that only looks (torchrl's find_spec("gymnasium")) imports nothing: stay in place
+        # until the module is executed.
+        if fullname != "gymnasium" or self.searching:
             return None
-        sys.meta_path.remove(self)
-        spec = importlib.util.find_spec(fullname)
+        self.searching = True
+        try:
+            spec = importlib.util.find_spec(fullname)
+        finally:
+            self.searching = False
         if spec is None or spec.loader is None:
             return spec
         exec_module = spec.loader.exec_module
 
         def exec_then_register(module):
             exec_module(module)
+            if self in sys.meta_path:
+                sys.meta_path.remove(self)
             register_ids()
 
         spec.loader.exec_module = exec_then_register

@@ -278,6 +278,15 @@ def test_import_drltg_is_cheap_and_registers_the_ids_when_gymnasium_is_imported_
     assert out.stdout.strip() == "(2,)"
 
 
+def test_a_library_that_only_looks_for_gymnasium_leaves_the_registration_in_place():
+    code = ("import importlib.util, sys; import drltg; importlib.util.find_spec('gymnasium'); "
+            "assert 'gymnasium' not in sys.modules; import gymnasium; "
+            "print('drltg/fourrooms-northeast-v0' in gymnasium.registry)")  # torchrl's import does this
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "True"
+
+
 def test_gymnasium_make_imports_drltg_in_a_fresh_process():
     code = 'import gymnasium; print(gymnasium.make("drltg:drltg/gridrooms-northeast-v0").reset(seed=0)[0].sum())'
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)

@@ -84,10 +84,11 @@ def test_a_source_written_with_seed_serves_each_transfer_run_from_its_own_seed(t
     assert got == [("baseline", 7, None), ("transfer", 7, str(kept / "seed-7")),
                    ("baseline", 107, None), ("transfer", 107, str(kept / "seed-107")),
                    ("baseline", 207, None), ("transfer", 207, str(kept / "seed-207"))]
-    # a source without {seed} still serves every transfer run, and the baselines keep it as before
+    # a source without {seed} serves every transfer run; the baselines have none either way
     runs = plan_runs("fourrooms/northeast-shifted", "model-reuse", frames=100, out=tmp_path, seeds=2,
                      overrides=["transfer.source=kept/one"])
-    assert {cfg["transfer"]["source"] for _, cfg, _ in runs} == {"kept/one"}
+    assert {(role, cfg["transfer"]["source"]) for role, cfg, _ in runs} == {("baseline", None),
+                                                                             ("transfer", "kept/one")}
 
 
 def test_a_soc_lift_learner_hands_every_weight_to_a_soc_lift_place_learner():
