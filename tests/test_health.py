@@ -1,0 +1,67 @@
+"""A diverged run is finished: its summary says so, per seed in a seed group, and a rerun does not train it again."""
+import json
+
+import pytest
+import torch
+
+from drltg.cli import main
+from drltg.training import health, rundir
+from tests.test_reliability import nan_reward_task, one_sentence, train_args  # noqa: F401  (fixture)
+
+
+def test_group_losses_name_the_seeds_that_diverged():
+    losses = {"loss_actor": torch.tensor([0.5, 1.0, 2.0]), "loss_qvalue": torch.tensor([1.0, float("nan"), 3.0])}
+    with pytest.raises(health.Diverged, match="loss term 'loss_qvalue' became nan at frame 7") as err:
+        health.check_losses(losses, 7, seeds=3)
+    assert err.value.seeds == (1,)
+    with pytest.raises(health.Diverged) as err:
+        health.check_losses({"loss": torch.tensor(float("inf"))}, 7)
+    assert err.value.seeds is None
+
+
+def test_a_diverged_seed_group_writes_each_seed_diverged_and_a_resume_refuses(nan_reward_task, tmp_path, capsys):
+    group = tmp_path / "group"
+    one_sentence(capsys, main(train_args(group, "--seeds", "2", task=nan_reward_task, frames=128)), 1,
+                 "the run diverged: the loss term 'loss_qvalue' became nan at frame 32")
+    summaries = [json.loads((group / f"seed-{k}" / "summary.json").read_text()) for k in (0, 1)]
+    assert [(s["status"], s["seed"]) for s in summaries] == [("diverged", 0), ("diverged", 1)]
+    assert [rundir.summary_status(group / f"seed-{k}")[0] for k in (0, 1)] == ["diverged", "diverged"]
+    before = {p: p.read_bytes() for p in group.rglob("*") if p.is_file()}
+
+    err = one_sentence(capsys, main(train_args(group, "--seeds", "2", "--resume", task=nan_reward_task,
+                                               frames=128)), 1, "status diverged", "train it anew")
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert {p: p.read_bytes() for p in group.rglob("*") if p.is_file()} == before  # nothing trained again
+
+
+def test_resuming_a_diverged_run_exits_non_zero_in_one_sentence(nan_reward_task, tmp_path, capsys):
+    run = tmp_path / "run"
+    assert main(train_args(run, task=nan_reward_task, frames=128)) == 1
+    capsys.readouterr()
+    err = one_sentence(capsys, main(train_args(run, "--resume", task=nan_reward_task, frames=128)), 1,
+                       f"cannot resume '{run}': its summary.json says status diverged (the run diverged: ",
+                       "train it anew into another --run-dir")
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_the_executor_records_a_diverged_group_and_a_rerun_skips_it(nan_reward_task, tmp_path):
+    from drltg.experiments.executor import Run, execute, run_group
+    from tests.test_seed_groups import tiny_cfg
+
+    cfgs = [tiny_cfg(task=nan_reward_task, seed=s, frames=128) for s in (0, 100)]
+    dirs = [tmp_path / "baseline" / f"seed-{c['seed']}" for c in cfgs]
+    logs = [tmp_path / "logs" / f"seed-{c['seed']}.log" for c in cfgs]
+    statuses = run_group(cfgs, [str(d) for d in dirs], [str(p) for p in logs])
+    assert [s for s, _ in statuses] == ["diverged", "diverged"]
+    assert [rundir.summary_status(d) for d in dirs] == statuses
+
+    class NoTraining:  # a rerun must not submit a finished run
+        capacity = 1
+
+        def submit_group(self, runs):
+            raise AssertionError("a diverged run was trained again")
+
+        submit = submit_group
+
+    runs = [Run("baseline", c, d, p) for c, d, p in zip(cfgs, dirs, logs)]
+    assert execute(runs, NoTraining(), poll=0.01) == dict(zip(dirs, statuses))
