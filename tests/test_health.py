@@ -8,6 +8,8 @@ from drltg.cli import main
 from drltg.training import health, rundir
 from tests.test_reliability import nan_reward_task, one_sentence, train_args  # noqa: F401  (fixture)
 
+NAN = "test/nan-reward"  # the task the fixture registers
+
 
 def test_group_losses_name_the_seeds_that_diverged():
     losses = {"loss_actor": torch.tensor([0.5, 1.0, 2.0]), "loss_qvalue": torch.tensor([1.0, float("nan"), 3.0])}
@@ -19,36 +21,39 @@ def test_group_losses_name_the_seeds_that_diverged():
     assert err.value.seeds is None
 
 
-def test_a_diverged_seed_group_writes_each_seed_diverged_and_a_resume_refuses(nan_reward_task, tmp_path, capsys):
+@pytest.mark.usefixtures("nan_reward_task")
+def test_a_diverged_seed_group_writes_each_seed_diverged_and_a_resume_refuses(tmp_path, capsys):
     group = tmp_path / "group"
-    one_sentence(capsys, main(train_args(group, "--seeds", "2", task=nan_reward_task, frames=128)), 1,
+    one_sentence(capsys, main(train_args(group, "--seeds", "2", task=NAN, frames=128)), 1,
                  "the run diverged: the loss term 'loss_qvalue' became nan at frame 32")
     summaries = [json.loads((group / f"seed-{k}" / "summary.json").read_text()) for k in (0, 1)]
     assert [(s["status"], s["seed"]) for s in summaries] == [("diverged", 0), ("diverged", 1)]
     assert [rundir.summary_status(group / f"seed-{k}")[0] for k in (0, 1)] == ["diverged", "diverged"]
     before = {p: p.read_bytes() for p in group.rglob("*") if p.is_file()}
 
-    err = one_sentence(capsys, main(train_args(group, "--seeds", "2", "--resume", task=nan_reward_task,
+    err = one_sentence(capsys, main(train_args(group, "--seeds", "2", "--resume", task=NAN,
                                                frames=128)), 1, "status diverged", "train it anew")
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert {p: p.read_bytes() for p in group.rglob("*") if p.is_file()} == before  # nothing trained again
 
 
-def test_resuming_a_diverged_run_exits_non_zero_in_one_sentence(nan_reward_task, tmp_path, capsys):
+@pytest.mark.usefixtures("nan_reward_task")
+def test_resuming_a_diverged_run_exits_non_zero_in_one_sentence(tmp_path, capsys):
     run = tmp_path / "run"
-    assert main(train_args(run, task=nan_reward_task, frames=128)) == 1
+    assert main(train_args(run, task=NAN, frames=128)) == 1
     capsys.readouterr()
-    err = one_sentence(capsys, main(train_args(run, "--resume", task=nan_reward_task, frames=128)), 1,
+    err = one_sentence(capsys, main(train_args(run, "--resume", task=NAN, frames=128)), 1,
                        f"cannot resume '{run}': its summary.json says status diverged (the run diverged: ",
                        "train it anew into another --run-dir")
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
 
 
-def test_the_executor_records_a_diverged_group_and_a_rerun_skips_it(nan_reward_task, tmp_path):
+@pytest.mark.usefixtures("nan_reward_task")
+def test_the_executor_records_a_diverged_group_and_a_rerun_skips_it(tmp_path):
     from drltg.experiments.executor import Run, execute, run_group
     from tests.test_seed_groups import tiny_cfg
 
-    cfgs = [tiny_cfg(task=nan_reward_task, seed=s, frames=128) for s in (0, 100)]
+    cfgs = [tiny_cfg(task=NAN, seed=s, frames=128) for s in (0, 100)]
     dirs = [tmp_path / "baseline" / f"seed-{c['seed']}" for c in cfgs]
     logs = [tmp_path / "logs" / f"seed-{c['seed']}.log" for c in cfgs]
     statuses = run_group(cfgs, [str(d) for d in dirs], [str(p) for p in logs])
