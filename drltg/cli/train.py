@@ -54,6 +54,7 @@ def run(args: argparse.Namespace) -> int:
     if args.options is not None and (args.algo or base.get("algo")) != "soc":
         raise UsageError("--options sets the number of options of the soft option-critic; add --algo soc.")
     explicit = {"soc.num_options": args.options} if args.options is not None else {}
+    config_lib.refuse_conflicts(args.overrides)
     cfg = config_lib.resolve(
         base, args.overrides, task=args.task, algo=args.algo, frames=args.frames, seed=args.seed, **explicit
     )
