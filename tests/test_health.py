@@ -70,3 +70,13 @@ def test_the_executor_records_a_diverged_group_and_a_rerun_skips_it(tmp_path):
 
     runs = [Run("baseline", c, d, p) for c, d, p in zip(cfgs, dirs, logs)]
     assert execute(runs, NoTraining(), poll=0.01) == dict(zip(dirs, statuses))
+
+
+@pytest.mark.parametrize("seeds", [[], ["--seeds", "2"]])
+def test_a_run_directory_whose_name_is_not_utf8_is_refused_in_one_sentence(seeds, tmp_path, capsys):
+    import os
+
+    run = os.fsdecode(os.fsencode(str(tmp_path)) + b"/bad\xff/run")
+    one_sentence(capsys, main(train_args(run, *seeds)), 2, "is not valid UTF-8; choose a name in UTF-8",
+                 "bad\\xff")
+    assert list(tmp_path.iterdir()) == []
