@@ -80,3 +80,14 @@ def test_a_run_directory_whose_name_is_not_utf8_is_refused_in_one_sentence(seeds
     one_sentence(capsys, main(train_args(run, *seeds)), 2, "is not valid UTF-8; choose a name in UTF-8",
                  "bad\\xff")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_bogus_mujoco_gl_is_refused_in_one_sentence_before_anything_is_imported(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("MUJOCO_GL", "bogus")
+    one_sentence(capsys, main(train_args(tmp_path / "run")), 2, "MUJOCO_GL='bogus' is not a MuJoCo GL backend",
+                 "egl, osmesa")
+    assert not (tmp_path / "run").exists()
+    monkeypatch.setenv("MUJOCO_GL", " EGL ")  # what MuJoCo accepts is accepted
+    from drltg.cli import check_mujoco_gl
+
+    check_mujoco_gl()
