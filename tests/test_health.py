@@ -91,3 +91,33 @@ def test_a_bogus_mujoco_gl_is_refused_in_one_sentence_before_anything_is_importe
     from drltg.cli import check_mujoco_gl
 
     check_mujoco_gl()
+
+
+@pytest.mark.parametrize("interval", ["t", "welch", "studentized", "bca", "percentile"])
+def test_a_report_of_identical_runs_is_strict_json_with_every_number_finite_or_null(interval, tmp_path, capsys):
+    import math
+    import shutil
+
+    from tests.test_reliability import fake_run
+
+    def strict(text):  # NaN or Infinity in the file raise here
+        return json.loads(text, parse_constant=lambda name: pytest.fail(f"{name} in the report's JSON"))
+
+    base = [fake_run(tmp_path / "b" / f"seed-{i}", [0.1 * i + 0.01 * k for k in range(21)], seed=i) for i in range(3)]
+    for run in base:
+        shutil.copytree(run, tmp_path / "t" / run.name)
+    out = tmp_path / "r"
+    assert main(["report", "--baseline", *map(str, base), "--transfer", *(str(tmp_path / "t" / r.name) for r in base),
+                 "--out", str(out), "--interval", interval, "--threshold", "0.15"]) == 0
+    report = strict((out / "transfer_metrics.json").read_text())
+    metrics = report["metrics"]
+
+    def numbers(x):
+        if isinstance(x, (list, tuple)):
+            return [n for v in x for n in numbers(v)]
+        return [x] if isinstance(x, (int, float)) and not isinstance(x, bool) else []
+
+    assert all(math.isfinite(n) for v in metrics.values() for n in numbers(v))
+    assert metrics["mean_return_gain"] == 0 and metrics.get("mean_return_gain_ci") is None
+    assert ("mean_return_gain has no interval: every pair gives the same difference (0), so there is no spread "
+            "to scale.") in json.dumps(report["settings"])
