@@ -408,15 +408,16 @@ def _override_leaves(key: str, value: Any) -> dict[str, Any]:
 
 
 def refuse_conflicts(overrides: Iterable[str]) -> None:
-    """A user's ``-o`` overrides that set one key to two values are refused: what they give never depends
-    on their order (:func:`resolve` itself applies them in order, as the plans' own overrides need)."""
+    """A user's ``-o`` overrides that set one key to two values in two forms (``optim={lr: 1}`` and
+    ``optim.lr=2``) are refused: which one wins would depend on their order. The same ``KEY=`` given twice
+    is plainly a replacement (the last wins), as :func:`resolve` applies overrides in order."""
     seen: dict[str, tuple[str, Any]] = {}
     for key, value in map(parse_override, overrides):
         for leaf, v in _override_leaves(key, value).items():
-            if leaf in seen and seen[leaf][1] != v:
+            if leaf in seen and seen[leaf][0] != key and seen[leaf][1] != v:
                 raise UsageError(f"config key '{leaf}' is set twice by -o, to {_short(seen[leaf][1])} (by "
                                  f"'{seen[leaf][0]}') and to {_short(v)} (by '{key}'); give it once.")
-            seen.setdefault(leaf, (key, v))
+            seen[leaf] = (key, v)
 
 
 def task_env(task: str) -> dict[str, Any]:

@@ -352,8 +352,7 @@ def test_config_changes_without_the_task_registry():
         **old["transfer"], "bc_weight": 1.0}}, env_defaults=False) == ["transfer.bc_weight"]
 
 
-ORDERS = [("optim.lr=0.5", "optim={lr: 0.1}", "optim.lr"), ("optim.lr=0.5", "optim.lr=0.2", "optim.lr"),
-          ("env.horizon=50", "env={horizon: 60}", "env.horizon")]
+ORDERS = [("optim.lr=0.5", "optim={lr: 0.1}", "optim.lr"), ("env.horizon=50", "env={horizon: 60}", "env.horizon")]
 
 
 @pytest.mark.parametrize("first, second, key", ORDERS)
@@ -374,3 +373,8 @@ def test_an_env_mapping_and_an_env_key_give_the_same_config_in_either_order():
     a = config_lib.resolve({}, ["env.horizon=50", "env={step_cost: 0.5}"], task="fourrooms/northeast")
     b = config_lib.resolve({}, ["env={step_cost: 0.5}", "env.horizon=50"], task="fourrooms/northeast")
     assert a == b and (a["env"]["horizon"], a["env"]["step_cost"]) == (50, 0.5)
+
+
+def test_the_same_override_key_given_twice_is_a_replacement():
+    assert config_lib.resolve({}, ["optim.lr=0.5", "optim.lr=0.2"])["optim"]["lr"] == 0.2
+    config_lib.refuse_conflicts(["optim.lr=0.5", "optim.lr=0.2", "optim={gamma: 0.9}"])
