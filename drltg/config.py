@@ -276,8 +276,11 @@ def set_key(cfg: dict, dotted: str, value: Any) -> None:
     if parts[0] == "env":
         if len(parts) > 2:
             raise UsageError(f"config key '{dotted}' is too deep: env options are one level, e.g. env.horizon=200.")
-        if len(parts) == 1:
-            cfg["env"] = value
+        if len(parts) == 1:  # a mapping adds to the env options set so far, as env.KEY=VALUE does
+            if isinstance(value, dict):
+                merge(cfg, {"env": value})
+            else:
+                cfg["env"] = value
             return
         if not isinstance(cfg.get("env"), dict):
             raise UsageError(f"config key 'env' must be {SCHEMA['env'].expected()}, got {_short(cfg.get('env'))}.")
@@ -393,6 +396,28 @@ def resolve(
     validate(cfg)
     cfg["env"] = {**task_env(cfg["task"]), **cfg["env"]}
     return cfg
+
+
+def _override_leaves(key: str, value: Any) -> dict[str, Any]:
+    """The single keys an override sets: ``optim={lr: 1}`` sets ``optim.lr``, ``env={horizon: 5}`` ``env.horizon``."""
+    if isinstance(value, dict) and key == "env":
+        return {f"env.{k}": v for k, v in value.items()}
+    if isinstance(value, dict) and key in _SECTIONS:
+        return _flatten(value, key + ".")
+    return {key: value}
+
+
+def refuse_conflicts(overrides: Iterable[str]) -> None:
+    """A user's ``-o`` overrides that set one key to two values in two forms (``optim={lr: 1}`` and
+    ``optim.lr=2``) are refused: which one wins would depend on their order. The same ``KEY=`` given twice
+    is plainly a replacement (the last wins), as :func:`resolve` applies overrides in order."""
+    seen: dict[str, tuple[str, Any]] = {}
+    for key, value in map(parse_override, overrides):
+        for leaf, v in _override_leaves(key, value).items():
+            if leaf in seen and seen[leaf][0] != key and seen[leaf][1] != v:
+                raise UsageError(f"config key '{leaf}' is set twice by -o, to {_short(seen[leaf][1])} (by "
+                                 f"'{seen[leaf][0]}') and to {_short(v)} (by '{key}'); give it once.")
+            seen[leaf] = (key, v)
 
 
 def task_env(task: str) -> dict[str, Any]:

@@ -350,3 +350,31 @@ def test_config_changes_without_the_task_registry():
     assert config_changes(full, changed, env_defaults=False) == ["env.horizon", "transfer.bc_weight"]
     assert config_changes({**old, "transfer": {**old["transfer"]}}, {**old, "transfer": {
         **old["transfer"], "bc_weight": 1.0}}, env_defaults=False) == ["transfer.bc_weight"]
+
+
+ORDERS = [("optim.lr=0.5", "optim={lr: 0.1}", "optim.lr"), ("env.horizon=50", "env={horizon: 60}", "env.horizon")]
+
+
+@pytest.mark.parametrize("first, second, key", ORDERS)
+@pytest.mark.parametrize("command", ["train", "experiment"])
+def test_overrides_that_set_one_key_twice_are_refused_in_either_order(first, second, key, command, tmp_path,
+                                                                      capsys):
+    for a, b in ((first, second), (second, first)):
+        args = (["train", "fourrooms/northeast", "--run-dir", str(tmp_path / "run")] if command == "train"
+                else ["experiment", "fourrooms-near", "--method", "reward-shaping", "--frames", "64",
+                      "--out", str(tmp_path / "exp")])
+        assert main([*args, "-o", a, "-o", b]) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and f"config key '{key}' is set twice by -o" in err, err
+        assert not (tmp_path / "run").exists() and not (tmp_path / "exp").exists()
+
+
+def test_an_env_mapping_and_an_env_key_give_the_same_config_in_either_order():
+    a = config_lib.resolve({}, ["env.horizon=50", "env={step_cost: 0.5}"], task="fourrooms/northeast")
+    b = config_lib.resolve({}, ["env={step_cost: 0.5}", "env.horizon=50"], task="fourrooms/northeast")
+    assert a == b and (a["env"]["horizon"], a["env"]["step_cost"]) == (50, 0.5)
+
+
+def test_the_same_override_key_given_twice_is_a_replacement():
+    assert config_lib.resolve({}, ["optim.lr=0.5", "optim.lr=0.2"])["optim"]["lr"] == 0.2
+    config_lib.refuse_conflicts(["optim.lr=0.5", "optim.lr=0.2", "optim={gamma: 0.9}"])

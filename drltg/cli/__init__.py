@@ -52,6 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     level = logger.level
     logger.setLevel(logging.INFO)
     try:
+        check_mujoco_gl()
         plugins.load(args.imports)
         return importlib.import_module(args._module).run(args) or 0
     except UsageError as err:
@@ -67,6 +68,22 @@ def main(argv: list[str] | None = None) -> int:
         signal.signal(signal.SIGTERM, previous)
         logger.removeHandler(messages)
         logger.setLevel(level)
+
+
+MUJOCO_GL_VALUES = {"linux": ("egl", "osmesa", "glx"), "win32": ("wgl",), "darwin": ("cgl",)}
+MUJOCO_GL_ANY = ("", "glfw", "enable", "enabled", "on", "true", "1", "disable", "disabled", "off", "false", "0")
+
+
+def check_mujoco_gl() -> None:
+    """Refuse a ``MUJOCO_GL`` that MuJoCo rejects: it reads it when TorchRL's envs are imported, for every
+    command, and fails there with a traceback."""
+    import os
+
+    value = os.environ.get("MUJOCO_GL")
+    allowed = MUJOCO_GL_ANY + MUJOCO_GL_VALUES.get(sys.platform, ())
+    if value is not None and value.lower().strip() not in allowed:
+        raise UsageError(f"MUJOCO_GL={value!r} is not a MuJoCo GL backend; set it to one of "
+                         f"{', '.join(v for v in allowed if v)} or unset it.")
 
 
 def _terminate(signum, frame):

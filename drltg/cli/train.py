@@ -5,7 +5,7 @@ import argparse
 from pathlib import Path
 
 from drltg import config as config_lib
-from drltg.errors import UsageError
+from drltg.errors import RunFailed, UsageError
 from drltg.training.rundir import CONFIG, absolute_source, check_directory
 
 
@@ -54,6 +54,7 @@ def run(args: argparse.Namespace) -> int:
     if args.options is not None and (args.algo or base.get("algo")) != "soc":
         raise UsageError("--options sets the number of options of the soft option-critic; add --algo soc.")
     explicit = {"soc.num_options": args.options} if args.options is not None else {}
+    config_lib.refuse_conflicts(args.overrides)
     cfg = config_lib.resolve(
         base, args.overrides, task=args.task, algo=args.algo, frames=args.frames, seed=args.seed, **explicit
     )
@@ -63,6 +64,7 @@ def run(args: argparse.Namespace) -> int:
         run_dir = args.run_dir or Path("runs") / cfg["task"].replace("/", "-") / f"{cfg['algo']}-seeds"
         dirs = train_seeds(cfg, run_dir, args.seeds, resume=args.resume, progress=not args.no_progress,
                            group=not args.no_group)
+        _refuse_diverged(dirs)
         print(f"run directories: {', '.join(str(d) for d in dirs)}")
         print(f"  curves:  drltg report --baseline {run_dir} --transfer OTHER_RUNS (a folder of seed runs)")
         return 0
@@ -73,6 +75,7 @@ def run(args: argparse.Namespace) -> int:
     from drltg.training.loop import train  # torch: only once the command line is known to be right
 
     run_dir = train(cfg, run_dir, resume=args.resume, progress=not args.no_progress)
+    _refuse_diverged([run_dir])
     print(f"run directory: {run_dir}")
     print(f"  eval curve:  {run_dir / 'eval.csv'}")
     print(f"  tensorboard: tensorboard --logdir {run_dir / 'logs' / 'tensorboard'}")
@@ -83,3 +86,15 @@ def _first_seed(run_dir: Path) -> Path | None:
     """The ``seed-<k>`` run directory with the lowest k under ``run_dir`` that holds a config."""
     seeds = [p.parent for p in run_dir.glob("seed-*/" + CONFIG) if p.parent.name[5:].lstrip("-").isdigit()]
     return min(seeds, key=lambda p: int(p.name[5:]), default=None)
+
+
+def _refuse_diverged(dirs: list[Path]) -> None:
+    """A resumed run that had diverged is finished without a result: say so, exit non-zero."""
+    from drltg.training.rundir import summary_status
+
+    diverged = [d for d in dirs if (summary_status(d) or ("",))[0] == "diverged"]
+    if diverged:
+        names = ", ".join(f"'{d}'" for d in diverged)
+        raise RunFailed(f"cannot resume {names}: its summary.json says status diverged "
+                        f"({summary_status(diverged[0])[1]}), so it is finished without a result; train it anew "
+                        f"into another --run-dir with a changed config (e.g. a lower optim.lr)")

@@ -114,7 +114,9 @@ def run_group(cfgs: list[dict], run_dirs: list[str], log_paths: list[str]) -> li
             return [("failed", str(err))] * len(dirs)
         except Diverged as err:
             print(f"{err}.", flush=True)
-            return [(DIVERGED, str(err))] * len(dirs)
+            which = range(len(dirs)) if err.seeds is None else err.seeds
+            stopped = ("failed", f"stopped with its seed group ({err}); a rerun resumes it")
+            return [(DIVERGED, str(err)) if k in which else stopped for k in range(len(dirs))]
         except Exception as err:
             traceback.print_exc()
             return [("failed", f"{type(err).__name__}: {err}")] * len(dirs)

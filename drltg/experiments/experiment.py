@@ -85,6 +85,7 @@ def refuse_plan_overrides(overrides, where: str, owner: str, flags: dict[str, st
 
 def plan(args: argparse.Namespace) -> list[tuple[str, dict, Path]]:
     """The experiment's runs as (role, config, run directory), sources first."""
+    config_lib.refuse_conflicts(args.overrides)
     return plan_runs(args.pair, args.method, algo=args.algo, seeds=args.seeds, seed=args.seed,
                      frames=args.frames, source_frames=args.source_frames, overrides=args.overrides,
                      out=args.out)

@@ -22,15 +22,25 @@ COMPLETE = "complete"
 
 
 class Diverged(RunFailed):
-    """A loss or a parameter became non-finite."""
+    """A loss or a parameter became non-finite; in a seed group, ``seeds`` holds the positions of the
+    seeds that diverged (``None``: all of them)."""
+
+    def __init__(self, message: str, seeds: tuple[int, ...] | None = None):
+        super().__init__(message)
+        self.seeds = seeds
 
 
-def check_losses(losses: dict, frames: int) -> None:
-    """Raise :class:`Diverged` naming the first loss term that is not finite."""
+def check_losses(losses: dict, frames: int, seeds: int = 1) -> None:
+    """Raise :class:`Diverged` naming the first loss term that is not finite; with ``seeds`` > 1 (a seed
+    group, one loss per seed), it names the seeds whose loss it is."""
     for key, value in losses.items():
         if isinstance(value, torch.Tensor) and value.is_floating_point() and not torch.isfinite(value).all():
             bad = value[~torch.isfinite(value)].flatten()[0].item()
-            raise Diverged(f"the run diverged: the loss term '{key}' became {bad} at frame {frames}")
+            which = None
+            if seeds > 1 and value.numel() % seeds == 0:
+                per_seed = ~torch.isfinite(value.reshape(seeds, -1)).all(-1)
+                which = tuple(per_seed.nonzero().flatten().tolist())
+            raise Diverged(f"the run diverged: the loss term '{key}' became {bad} at frame {frames}", which)
 
 
 def check_parameters(module: torch.nn.Module, frames: int) -> None:
@@ -40,11 +50,12 @@ def check_parameters(module: torch.nn.Module, frames: int) -> None:
             raise Diverged(f"the run diverged: the parameter '{name}' holds non-finite values at frame {frames}")
 
 
-def check_state(state: dict, frames: int) -> None:
-    """:func:`check_parameters` on a module's ``state_dict`` (one seed's, in a seed group)."""
+def check_state(state: dict, frames: int, seed: int | None = None) -> None:
+    """:func:`check_parameters` on a module's ``state_dict`` (the one at position ``seed`` in a seed group)."""
     for name, value in state.items():
         if isinstance(value, torch.Tensor) and value.is_floating_point() and not torch.isfinite(value).all():
-            raise Diverged(f"the run diverged: the parameter '{name}' holds non-finite values at frame {frames}")
+            raise Diverged(f"the run diverged: the parameter '{name}' holds non-finite values at frame {frames}",
+                           None if seed is None else (seed,))
 
 
 def write_diverged(run_dir: str | Path, cfg: dict, err: Diverged) -> None:

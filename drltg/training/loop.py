@@ -377,8 +377,8 @@ def run_loop(cfg: dict, collector, learner, writers: list[RunWriter], *, frames:
         bar.set_postfix(eval_return=f"{writers[0].rows[-1]['return_mean']:.3f}", refresh=False)
 
     def save_checkpoint() -> None:
-        for writer, state in zip(writers, learner.state()):
-            health.check_state(state["loss"], frames)
+        for k, (writer, state) in enumerate(zip(writers, learner.state())):
+            health.check_state(state["loss"], frames, k if seeds > 1 else None)
             writer.checkpoint(state, frames, updates)
 
     bar = tqdm(total=cfg["frames"], initial=frames, unit="frame", disable=not progress, dynamic_ncols=True)
@@ -401,7 +401,7 @@ def run_loop(cfg: dict, collector, learner, writers: list[RunWriter], *, frames:
             if frames >= init_random:
                 for batch in learner.batches(opt["updates_per_batch"]):
                     losses = learner.update(batch, update_actor=updates % learner.actor_delay == 0)
-                    health.check_losses(losses, frames)
+                    health.check_losses(losses, frames, seeds)
                     updates += 1
                     for k, v in losses.items():
                         if v.numel() == seeds:

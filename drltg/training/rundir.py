@@ -277,7 +277,13 @@ def summary_status(run_dir: str | Path) -> tuple[str, str] | None:
 
 # ---------------------------------------------------------------------------------------- ownership
 def check_directory(path: str | Path, option: str) -> Path:
-    """``path`` resolved; refuse one that exists but is not a directory."""
+    """``path`` resolved; refuse one that exists but is not a directory, or whose name is not UTF-8
+    (the logs, TensorBoard's included, write it as UTF-8 text)."""
+    try:
+        str(path).encode("utf-8")
+    except UnicodeEncodeError:
+        shown = os.fsencode(str(path)).decode("utf-8", "backslashreplace")
+        raise UsageError(f"{option} '{shown}' is not valid UTF-8; choose a name in UTF-8.") from None
     path = Path(path).expanduser().resolve()
     if path.exists() and not path.is_dir():
         raise UsageError(f"{option} '{path}' is a file, not a directory; choose another {option}.")

@@ -34,7 +34,7 @@ from drltg.learners import sample_batches
 from drltg.losses import SoftOptionCriticLoss
 from drltg.modules import make_option_policy
 from drltg.seed_group import GroupPolicy, SeedGroup, SeedLoopPolicy
-from drltg.training import rundir
+from drltg.training import health, rundir
 from drltg.training.loop import (
     _check_saved_config,
     _refuse_existing,
@@ -225,10 +225,15 @@ def train_group(cfgs: list[dict], dirs: list[Path], *, resume: bool = False, pro
             collector = make_collector(cfg, train_env, learner.policy, frames, seeds=count)
             summary = {"seed_group": {"seeds": seeds}}
             with deferred_signals() as stop_if_signalled:
-                run_loop(cfg, collector, learner, writers, frames=frames, updates=updates, progress=progress,
-                         stop_if_signalled=stop_if_signalled, extra_summary=summary)
-        except BaseException:
-            if not resume:
+                try:
+                    run_loop(cfg, collector, learner, writers, frames=frames, updates=updates, progress=progress,
+                             stop_if_signalled=stop_if_signalled, extra_summary=summary)
+                except health.Diverged as err:  # a diverged seed is finished; the others resume from their checkpoints
+                    for k in range(count) if err.seeds is None else err.seeds:
+                        health.write_diverged(dirs[k], cfgs[k], err)
+                    raise
+        except BaseException as err:
+            if not resume and not isinstance(err, health.Diverged):
                 for d, new in zip(dirs, created):
                     if not (d / CHECKPOINT).is_file():
                         _remove_start(d, new)
