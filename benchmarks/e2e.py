@@ -55,7 +55,7 @@ def run_train(device: str = "cpu", quick: bool = False) -> dict:
     out = {
         "fourrooms": {
             "command": f"drltg train --task fourrooms/northeast --frames {frames} --seed 0",
-            "frames": cfg["frames"],
+            "frames": cfg.frames,
             "runs": runs,
             "median_wall_s": {k: sorted(r["wall_s"] for r in v)[len(v) // 2] for k, v in runs.items()},
         }

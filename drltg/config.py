@@ -1,81 +1,266 @@
-"""Run configuration: one nested dict, resolved in a fixed order and saved with the run.
+"""Run configuration: typed sections (pydantic models), resolved in a fixed order and saved with the run.
 
-    defaults (below) <- the task's own overrides (registry) <- a YAML file (--config) <- KEY=VALUE overrides
+    defaults (the models below) <- the task's own overrides (registry) <- a YAML file (--config) <- KEY=VALUE overrides
 
-The resolved dict, the task's env settings included, is written to ``<run_dir>/config.yaml``;
-``drltg train --config <run_dir>/config.yaml`` reproduces the run. Every key has a declared type and range in
-``SCHEMA`` (``describe()`` lists them);
-``resolve()`` checks them all before anything is built or written, so a typo or a value out of range is
-one sentence naming the key, not a silent no-op or a failure deep inside a run.
+:func:`resolve` returns a :class:`RunConfig` (``cfg.optim.lr``, ``cfg.transfer.method``); the resolved
+config, the task's env settings included, is written to ``<run_dir>/config.yaml`` (:func:`dump`) and
+``drltg train --config <run_dir>/config.yaml`` reproduces the run. Every key has a declared type and
+range in its section's model (``describe()`` lists them); a typo or a value out of range is one
+:class:`~drltg.errors.UsageError` sentence naming the key (pydantic's errors are translated), before
+anything is built or written.
+
+Two parts are open-ended: the ``transfer`` section holds, besides ``method``, ``source`` and
+``allow_incomplete``, the options of every registered transfer method (each method's options are a
+model of their own, built when it is registered, :func:`add_method`), and ``env`` is a mapping of the
+task's keyword arguments, checked against the keywords its factory declares (:func:`validate`).
 """
 from __future__ import annotations
 
+import ast
 import copy
 import difflib
+import functools
+import importlib.util
 import inspect
 import math
 import re
-from dataclasses import dataclass
+import types
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Annotated, Any, Iterable, Literal, Optional, Union, get_args, get_origin
 
 import yaml
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    Strict,
+    ValidationError,
+    create_model,
+    field_validator,
+    model_validator,
+)
+from pydantic.fields import FieldInfo
 
 from drltg.errors import UsageError
 
-DEFAULTS: dict[str, Any] = {
-    "task": "fourrooms/northeast",
-    "algo": "sac",
-    "seed": 0,
-    "frames": 50_000,
-    "device": "cpu",
-    "threads": 1,  # small nets are overhead-bound: one thread per run is fastest here
-    "env": {},  # keyword overrides passed to drltg.envs.make_env
-    "collector": {
-        "num_envs": 8,
-        "frames_per_batch": 32,
-        "init_random_frames": 1024,
-    },
-    "buffer": {"size": 100_000, "batch_size": 256},
-    "optim": {
-        "lr": 3.0e-4,
-        "updates_per_batch": 8,  # gradient steps per collected batch (UTD = this / frames_per_batch)
-        "gamma": 0.99,
-        "tau": 0.005,
-    },
-    "network": {"hidden": [256, 256], "layer_norm": "none"},
-    "sac": {"alpha_init": 1.0, "fixed_alpha": False, "target_entropy": "auto"},
-    "td3": {"exploration_noise": 0.1, "policy_noise": 0.2, "noise_clip": 0.5, "policy_delay": 2},
-    # soft option-critic (drltg.losses.soc); the action temperature comes from "sac"
-    "soc": {
-        "num_options": 4,
-        "option_policy": "soft",  # soft (softmax of Q_Omega / alpha_Omega) | egreedy
-        "option_alpha_init": None,  # None: sac.alpha_init
-        "fixed_option_alpha": False,
-        "option_target_entropy": "auto",  # 0.5 * log(num_options)
-        "option_epsilon": 0.1,  # egreedy only
-        "deliberation_cost": 0.01,  # xi > 0 keeps options running
-        "option_entropy_bonus": False,  # soft policy: the option choice's entropy enters V_Omega
-    },
-    "eval": {"every": 5_000, "episodes": 16},
-    "checkpoint": {"every": 10_000},
-    "log": {"tensorboard": True, "every": 1_000},
-    # How this run transfers knowledge: a method of drltg.transfer (none: the baseline); each method adds
-    # its own transfer.* keys to this section when it is registered
-    "transfer": {
-        "method": "none",
-        "source": None,  # source run directory, or demonstrator:TASK (methods with a source)
-        "allow_incomplete": False,  # reuse a source run that did not finish (no summary.json)
-    },
-}
-TRANSFER_KEYS = tuple(DEFAULTS["transfer"])
-"""The ``transfer.*`` keys of every method; the others belong to one method (``TransferMethod.options``)."""
+__all__ = ["RunConfig", "resolve", "build", "validate", "updated", "describe", "dump", "keys", "defaults",
+           "config_changes", "refuse_conflicts", "parse_override", "load_yaml", "task_env", "env_defaults",
+           "Int", "Float", "Bool", "Str", "Section"]
+
+
+# ----------------------------------------------------------------------------------------- value types
+def _finite_number(value: Any) -> Any:
+    # pydantic would also read "1", true and inf as numbers; a config key takes finite numbers only
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError("not a finite number")
+    return value
+
+
+def _integral(value: Any) -> Any:
+    value = _finite_number(value)
+    return int(value) if isinstance(value, float) and value.is_integer() else value  # 1e3 from -o is 1000
+
+
+Int = Annotated[int, BeforeValidator(_integral), Strict()]
+"""An integer; an integral float (``-o frames=1e4``) becomes ``int``; strings and booleans are refused."""
+Float = Annotated[float, BeforeValidator(_finite_number)]
+"""A finite number (an integer is read as a float); strings and booleans are refused."""
+Bool = Annotated[bool, Strict()]
+"""``true`` or ``false`` only (not ``1``, ``"yes"``)."""
+Str = Annotated[str, Strict()]
+Number = Annotated[Union[int, float], BeforeValidator(_finite_number)]
+"""An integer or a float, kept as given (an env keyword whose default is a list of numbers)."""
+
+Probability = Annotated[float, BeforeValidator(_finite_number), Field(ge=0.0, le=1.0)]
+
+
+def _what(text: str = "", noun: str = "") -> dict:
+    """``what`` replaces the generated description of the accepted values; ``noun`` names a choice in
+    the error message ("unknown algorithm 'ppo'")."""
+    return {k: v for k, v in (("what", text), ("noun", noun)) if v}
+
+
+class Section(BaseModel):
+    """A config section: unknown keys are refused, assignments are checked."""
+
+    model_config = ConfigDict(extra="forbid", validate_assignment=True)
+
+
+# ----------------------------------------------------------------------------------------- the sections
+class CollectorConfig(Section):
+    num_envs: Int = Field(8, ge=1, description="training envs stepped as one batch")
+    frames_per_batch: Int = Field(32, ge=1, description="frames per collector batch, a multiple of num_envs")
+    init_random_frames: Int = Field(1024, ge=0, description="random-action warm-up frames")
+
+
+class BufferConfig(Section):
+    size: Int = Field(100_000, ge=1, description="replay capacity (transitions)")
+    batch_size: Int = Field(256, ge=1, description="minibatch size")
+
+
+class OptimConfig(Section):
+    lr: Float = Field(3.0e-4, gt=0, description="Adam learning rate")
+    updates_per_batch: Int = Field(8, ge=1, description="gradient steps per collected batch")
+    # (UTD = updates_per_batch / collector.frames_per_batch)
+    gamma: Float = Field(0.99, gt=0, le=1, description="discount")
+    tau: Float = Field(0.005, gt=0, le=1, description="target-network smoothing")
+
+
+class NetworkConfig(Section):
+    hidden: list[Annotated[Int, Field(ge=1)]] = Field(
+        [256, 256], min_length=1, description="MLP widths of actor and critics",
+        json_schema_extra=_what("a non-empty list of positive integers (e.g. [64, 64])"))
+    layer_norm: Literal["none", "critics", "all"] = Field(
+        "none", description="LayerNorm after every hidden layer of the critics, of every network, or none")
+
+
+class SACConfig(Section):
+    alpha_init: Float = Field(1.0, gt=0, description="initial entropy temperature")
+    fixed_alpha: Bool = Field(False, description="keep the temperature at alpha_init")
+    target_entropy: Union[Literal["auto"], Float] = Field("auto", description="entropy the temperature is tuned to")
+
+
+class TD3Config(Section):
+    exploration_noise: Float = Field(0.1, ge=0, description="std of the exploration noise")
+    policy_noise: Float = Field(0.2, ge=0, description="std of the target policy smoothing noise")
+    noise_clip: Float = Field(0.5, ge=0, description="clip of the target policy noise")
+    policy_delay: Int = Field(2, ge=1, description="critic updates per actor update")
+
+
+OPTION_POLICIES = ("soft", "egreedy")
+
+
+class SOCConfig(Section):
+    """The soft option-critic (drltg.losses.soc); its action temperature comes from the ``sac`` section."""
+
+    num_options: Int = Field(4, ge=1, description="options of the soft option-critic (--options)")
+    option_policy: Literal[OPTION_POLICIES] = Field(
+        "soft", description="policy over options", json_schema_extra=_what(noun="option policy"))
+    option_alpha_init: Optional[Annotated[Float, Field(gt=0)]] = Field(
+        None, description="initial option temperature; null: sac.alpha_init")
+    fixed_option_alpha: Bool = Field(False, description="keep the option temperature fixed")
+    option_target_entropy: Union[Literal["auto"], Float] = Field(
+        "auto", description="entropy over options; auto: 0.5 log(num_options)")
+    option_epsilon: Probability = Field(0.1, description="exploration of the egreedy option policy")
+    deliberation_cost: Float = Field(0.01, ge=0, description="xi, added to the termination advantage")
+    option_entropy_bonus: Bool = Field(False, description="the option choice's entropy enters V_Omega")
+
+
+class EvalConfig(Section):
+    every: Int = Field(5_000, ge=1, description="frames between evaluations")
+    episodes: Int = Field(16, ge=1, description="evaluation episodes")
+
+
+class CheckpointConfig(Section):
+    every: Int = Field(10_000, ge=1, description="frames between checkpoints")
+
+
+class LogConfig(Section):
+    tensorboard: Bool = Field(True, description="also log to TensorBoard")
+    every: Int = Field(1_000, ge=1, description="frames between logged training scalars")
+
+
+class TransferConfig(Section):
+    """How a run transfers knowledge: a method of drltg.transfer (``none``: the baseline). The options of
+    every registered method follow these three keys (the section :func:`transfer_model` builds)."""
+
+    method: Str = Field("none", description="transfer method (`drltg tasks` lists them)",
+                        json_schema_extra={"noun": "transfer method", "choices": "registered"})
+    source: Optional[Str] = Field(None, description="source run directory, or demonstrator:TASK",
+                                  json_schema_extra=_what("a source run directory, demonstrator:TASK"))
+    allow_incomplete: Bool = Field(False, description="reuse a source run that did not finish (no summary.json)")
+
+    @field_validator("method")
+    @classmethod
+    def _registered(cls, value: str) -> str:
+        names = method_names()
+        for part in value.split("+"):
+            if part not in names:
+                raise UsageError(f"unknown transfer method {part!r}: config key 'transfer.method' must be one of "
+                                f"{', '.join(names)}.")
+        return value
+
+    def __reduce__(self):  # a section of methods registered in this process: rebuilt from its values
+        return _restore_transfer, (self.model_dump(),)
+
+
+ALGOS = ("sac", "td3", "soc")
+ENV_HELP = "keyword arguments of the task's env factory, checked against its declared defaults"
+
+
+class RunConfig(Section):
+    """One run's configuration. Build it with :func:`resolve` (defaults, task, file, overrides) or
+    :func:`build` (a mapping, e.g. a saved ``config.yaml``); :func:`validate` adds the checks that need
+    this machine or the task's env (``device``, ``env``, the transfer method's own rules)."""
+
+    task: Str = Field("fourrooms/northeast", description="registered task name (`drltg tasks`)",
+                      json_schema_extra=_what("a registered task name"))
+    algo: Literal[ALGOS] = Field("sac", description="learner; sac is discrete SAC on discrete tasks",
+                                               json_schema_extra=_what(noun="algorithm"))
+    seed: Int = Field(0, ge=0, le=2**31 - 1, description="seed of envs, networks and sampling")
+    frames: Int = Field(50_000, ge=1, description="environment frames, rounded up to whole collector batches")
+    device: Str = Field("cpu", description="torch device",
+                        json_schema_extra=_what("a torch device such as cpu, cuda or cuda:0"))
+    threads: Int = Field(1, ge=1, description="CPU threads per run")  # small nets are overhead-bound
+    env: dict[Str, Any] = Field(default_factory=dict, description=ENV_HELP,
+                                json_schema_extra=_what("a mapping of the task's keyword arguments (e.g. "
+                                                        "env.horizon=200)"))
+    collector: CollectorConfig = Field(default_factory=CollectorConfig)
+    buffer: BufferConfig = Field(default_factory=BufferConfig)
+    optim: OptimConfig = Field(default_factory=OptimConfig)
+    network: NetworkConfig = Field(default_factory=NetworkConfig)
+    sac: SACConfig = Field(default_factory=SACConfig)
+    td3: TD3Config = Field(default_factory=TD3Config)
+    soc: SOCConfig = Field(default_factory=SOCConfig)
+    eval: EvalConfig = Field(default_factory=EvalConfig)
+    checkpoint: CheckpointConfig = Field(default_factory=CheckpointConfig)
+    log: LogConfig = Field(default_factory=LogConfig)
+    transfer: TransferConfig = Field(default_factory=TransferConfig)
+
+    @field_validator("task")
+    @classmethod
+    def _known_task(cls, value: str) -> str:
+        _task_spec(value)
+        return value
+
+    @model_validator(mode="after")
+    def _rules(self) -> RunConfig:
+        """The rules that tie keys of two sections together."""
+        fpb, n = self.collector.frames_per_batch, self.collector.num_envs
+        if fpb % n:
+            raise UsageError(f"collector.frames_per_batch ({fpb}) must be a multiple of collector.num_envs ({n}).")
+        if self.algo == "soc" and self.network.layer_norm != "none":
+            raise UsageError("network.layer_norm applies to sac and td3; the soft option-critic's networks have none.")
+        return self
+
+    def __reduce__(self):  # pickled as its values: the methods' options are those registered where it is read
+        return _restore, (self.model_dump(),)
+
+
+def _restore(data: dict) -> RunConfig:
+    import drltg.transfer  # noqa: F401  (the built-in methods' options, in a process that unpickles a config)
+
+    return build(data)
+
+
+def _restore_transfer(data: dict) -> TransferConfig:
+    import drltg.transfer  # noqa: F401
+
+    return _model().model_fields["transfer"].annotation.model_validate(data)
+
+
+# ----------------------------------------------------------------------------------------- transfer methods
 METHOD_RULES: dict[str, Any] = {}
 """``transfer.method`` -> the check its configs must pass (``"+"``: the check of every combination
-``a+b``), filled with the method's keys (``DEFAULTS``, ``SCHEMA``) by :func:`drltg.transfer.register_method`:
-import :mod:`drltg.transfer` (the commands do) before resolving a config that uses a transfer method."""
+``a+b``), filled by :func:`drltg.transfer.register_method` (through :func:`add_method`): import
+:mod:`drltg.transfer` (the commands do) before resolving a config that uses a transfer method."""
 METHOD_OPTIONS: dict[str, str] = {}
-"""``transfer.<key>`` -> the one method whose option it is (filled by ``register_method`` too)."""
+"""``transfer.<key>`` -> the one method whose option it is (filled by :func:`add_method` too)."""
+METHOD_MODELS: dict[str, type[Section]] = {}
+"""``transfer.method`` -> the model of its options (``transfer.<key>``)."""
+TRANSFER_KEYS = tuple(TransferConfig.model_fields)
+"""The ``transfer.*`` keys of every method; the others belong to one method (``TransferMethod.options``)."""
 BUILTIN_METHOD_OPTIONS: dict[str, dict[str, Any]] = {
     "policy-reuse": {"psi": 1.0, "upsilon": 0.95, "psi_end": None, "annealing_frames": 0},
     "jumpstart": {"guide_steps": 100, "guide_stages": 10, "guide_frames": 20_000},
@@ -89,160 +274,268 @@ register them from here, and :func:`config_changes` reads them without importing
 so the analysis of saved runs knows what a key an older config lacks stood for."""
 
 
+def method_names() -> tuple[str, ...]:
+    """The values ``transfer.method`` takes (a combination ``a+b`` joins two of them)."""
+    return ("none", *(m for m in METHOD_RULES if m not in ("none", "+")))
+
+
 def builtin_options(method: str, fields: dict[str, Any]) -> dict[str, tuple[Any, Any]]:
-    """``key -> (default, Field)`` of a built-in method, the defaults taken from ``BUILTIN_METHOD_OPTIONS``."""
+    """``key -> (type, default)`` of a built-in method (the ``options`` of its ``TransferMethod``): the
+    types (``Annotated[float, Field(ge=0, description=...)]``) given here, the defaults taken from
+    ``BUILTIN_METHOD_OPTIONS``."""
     defaults = BUILTIN_METHOD_OPTIONS[method]
     if set(fields) != set(defaults):
         raise ValueError(f"{method}: options {sorted(fields)} but defaults for {sorted(defaults)}")
-    return {key: (copy.deepcopy(defaults[key]), field) for key, field in fields.items()}
+    return {key: (annotation, copy.deepcopy(defaults[key])) for key, annotation in fields.items()}
 
 
-@dataclass(frozen=True)
-class Field:
-    """The type and range of one config key.
+def options_model(method: str, options: dict[str, Any]) -> type[Section]:
+    """The model of a method's ``transfer.*`` options, from ``key -> (type, default or Field(...))`` (the
+    form of :func:`pydantic.create_model`); its defaults must pass its own checks."""
+    name = "".join(part.capitalize() for part in re.split(r"[^0-9A-Za-z]+", method) if part) + "Options"
+    try:
+        model = create_model(name, __base__=Section, **options)
+    except (TypeError, ValueError) as err:  # pydantic's schema errors are TypeErrors, its usage errors too
+        raise UsageError(f"transfer method {method!r}: its options cannot be declared ({err}).") from None
+    defaults = {k: f.get_default(call_default_factory=True) for k, f in model.model_fields.items()}
+    try:
+        model.model_validate(defaults)
+    except ValidationError as err:
+        raise UsageError(f"transfer method {method!r} declares a default its option refuses: "
+                         + _sentence(err, defaults, model, "transfer.")) from None
+    return model
 
-    ``type`` is ``int``, ``float`` (any finite number), ``bool``, ``str``, ``list`` (of ``item``),
-    ``"device"`` (a torch device string usable on this machine) or ``dict`` (``env``, whose keys are
-    checked against the keywords the task's factory declares). Bounds are inclusive unless
-    ``open_low``; ``nullable`` also accepts null, ``auto`` also accepts the string ``"auto"``.
-    ``what`` replaces the generated description of the expected value; ``noun`` names a choice in the
-    error message ("unknown algorithm 'ppo'").
-    """
 
-    type: Any
-    help: str = ""
-    low: float | None = None
-    high: float | None = None
-    open_low: bool = False
-    choices: tuple = ()
-    item: Any = None
-    nonempty: bool = False
-    nullable: bool = False
-    auto: bool = False
-    what: str = ""
-    noun: str = ""
+def add_method(name: str, options: type[Section] | None, rule) -> None:
+    """Make ``name`` a value of ``transfer.method``, its options ``transfer.<key>`` keys (replacing those of
+    a method of the same name) and ``rule(cfg)`` the check its configs pass."""
+    remove_method(name)
+    METHOD_RULES[name] = rule
+    if options is not None:
+        METHOD_MODELS[name] = options
+        for key in options.model_fields:
+            METHOD_OPTIONS[key] = name
+    _model.cache_clear()
 
-    def expected(self) -> str:
-        """The accepted values, as the end of "must be ..."."""
-        if self.what:
-            text = self.what
-        elif self.type is bool:
-            text = "true or false"
-        elif self.choices:
-            text = "one of " + ", ".join(self.choices)
-        elif self.type in (int, float):
-            text = "an integer" if self.type is int else "a number"
-            lo, hi = _number_text(self.low), _number_text(self.high)
-            if lo is not None and hi is not None:
-                text += f" in {'(' if self.open_low else '['}{lo}, {hi}]"
-            elif lo is not None:
-                text += f" {'>' if self.open_low else '>='} {lo}"
-            elif hi is not None:
-                text += f" <= {hi}"
+
+def remove_method(name: str) -> None:
+    METHOD_RULES.pop(name, None)
+    METHOD_MODELS.pop(name, None)
+    for key in [k for k, owner in METHOD_OPTIONS.items() if owner == name]:
+        del METHOD_OPTIONS[key]
+    _model.cache_clear()
+
+
+@functools.lru_cache(maxsize=1)
+def _model() -> type[RunConfig]:
+    """:class:`RunConfig` whose ``transfer`` section holds the options of every registered method."""
+    fields = {key: (info.annotation, info) for options in METHOD_MODELS.values()
+              for key, info in options.model_fields.items()}
+    if not fields:
+        return RunConfig
+    transfer = create_model("TransferConfig", __base__=TransferConfig, __module__=__name__, **fields)
+    return create_model("RunConfig", __base__=RunConfig, __module__=__name__,
+                        transfer=(transfer, Field(default_factory=transfer)))
+
+
+def transfer_model() -> type[TransferConfig]:
+    """The ``transfer`` section with the options of the methods registered now."""
+    return _model().model_fields["transfer"].annotation
+
+
+# ----------------------------------------------------------------------------------------- keys
+def _section_models(model: type[BaseModel] | None = None) -> dict[str, type[BaseModel]]:
+    model = model or _model()
+    return {name: info.annotation for name, info in model.model_fields.items()
+            if isinstance(info.annotation, type) and issubclass(info.annotation, BaseModel)}
+
+
+def _fields() -> dict[str, FieldInfo]:
+    """Every key (dotted) with its field, in the order of the models."""
+    model = _model()
+    sections = _section_models(model)
+    out = {}
+    for name, info in model.model_fields.items():
+        if name in sections:
+            out.update({f"{name}.{k}": f for k, f in sections[name].model_fields.items()})
         else:
-            text = "a string"
-        if self.auto:
-            text = f"'auto' or {text}"
-        if self.nullable:
-            text += " or null"
-        return text
+            out[name] = info
+    return out
 
-    def check(self, key: str, value: Any) -> Any:
-        """``value`` if it fits (integral floats of an integer key made ``int``); a UsageError otherwise."""
-        if (value is None and self.nullable) or (self.auto and value == "auto"):
-            return value
-        if self.type == "device":
-            return _check_device(key, value, self)
-        ok, value = self._fit(value)
-        if ok:
-            return value
-        if self.choices and isinstance(value, str):
-            raise UsageError(
-                f"unknown {self.noun or 'value'} {value!r}: config key '{key}' must be {self.expected()}."
-            )
-        raise UsageError(f"config key '{key}' must be {self.expected()}, got {_short(value)}.")
 
-    def _fit(self, value: Any) -> tuple[bool, Any]:
-        if self.type is bool or self.type is str:
-            return isinstance(value, self.type) and (not self.choices or value in self.choices), value
-        if self.type is list:
-            if not isinstance(value, (list, tuple)) or (self.nonempty and not value):
-                return False, value
-            items = [self.item._fit(v) for v in value]
-            return all(ok for ok, _ in items), [v for _, v in items]
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            return False, value
-        if self.type is int:
-            if isinstance(value, float) and not value.is_integer():
-                return False, value
-            value = int(value)
-        if self.low is not None and (value <= self.low if self.open_low else value < self.low):
-            return False, value
-        return self.high is None or value <= self.high, value
+def keys() -> list[str]:
+    """Every config key (dotted), in the order ``describe`` and ``dump`` list them."""
+    return list(_fields())
+
+
+def defaults() -> dict[str, Any]:
+    """The config of no task at its defaults, as plain data (the layout of ``config.yaml``)."""
+    return _model().model_construct().model_dump()
+
+
+# ----------------------------------------------------------------------------------------- error sentences
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _number_text(x: float | None) -> str | None:
     return None if x is None else str(int(x)) if float(x).is_integer() else f"{x:g}"
 
 
-ALGOS = ("sac", "td3", "soc")
-OPTION_POLICIES = ("soft", "egreedy")
-_PROB = dict(low=0.0, high=1.0)
-_POSITIVE = dict(low=0.0, open_low=True)
+def _unwrap(annotation: Any) -> tuple[Any, list, bool, bool]:
+    """``(type, constraints, nullable, auto)`` of a field's annotation: ``Optional[...]`` is nullable, a
+    ``Literal["auto"]`` alternative is auto, ``Annotated`` metadata are the constraints."""
+    nullable = auto = False
+    if get_origin(annotation) in (Union, types.UnionType):
+        rest = []
+        for arg in get_args(annotation):
+            if arg is type(None):
+                nullable = True
+            elif get_origin(arg) is Literal and get_args(arg) == ("auto",):
+                auto = True
+            else:
+                rest.append(arg)
+        annotation = rest[0] if len(rest) == 1 else Union[tuple(rest)]
+    metadata: list = []
+    while get_origin(annotation) is Annotated:
+        annotation, *more = get_args(annotation)
+        metadata = more + metadata
+    for m in list(metadata):  # Field(...) inside Annotated
+        if isinstance(m, FieldInfo):
+            metadata += m.metadata
+    return annotation, metadata, nullable, auto
 
-SCHEMA: dict[str, Field] = {
-    "task": Field(str, "registered task name (`drltg tasks`)", what="a registered task name"),
-    "algo": Field(str, "learner; sac is discrete SAC on discrete tasks", choices=ALGOS, noun="algorithm"),
-    "seed": Field(int, "seed of envs, networks and sampling", low=0, high=2**31 - 1),
-    "frames": Field(int, "environment frames, rounded up to whole collector batches", low=1),
-    "device": Field("device", "torch device", what="a torch device such as cpu, cuda or cuda:0"),
-    "threads": Field(int, "CPU threads per run", low=1),
-    "env": Field(dict, "keyword arguments of the task's env factory, checked against its declared defaults",
-                 what="a mapping of the task's keyword arguments (e.g. env.horizon=200)"),
-    "collector.num_envs": Field(int, "training envs stepped as one batch", low=1),
-    "collector.frames_per_batch": Field(int, "frames per collector batch, a multiple of num_envs", low=1),
-    "collector.init_random_frames": Field(int, "random-action warm-up frames", low=0),
-    "buffer.size": Field(int, "replay capacity (transitions)", low=1),
-    "buffer.batch_size": Field(int, "minibatch size", low=1),
-    "optim.lr": Field(float, "Adam learning rate", **_POSITIVE),
-    "optim.updates_per_batch": Field(int, "gradient steps per collected batch", low=1),
-    "optim.gamma": Field(float, "discount", **_PROB, open_low=True),
-    "optim.tau": Field(float, "target-network smoothing", **_PROB, open_low=True),
-    "network.hidden": Field(list, "MLP widths of actor and critics", item=Field(int, low=1), nonempty=True,
-                            what="a non-empty list of positive integers (e.g. [64, 64])"),
-    "network.layer_norm": Field(str, "LayerNorm after every hidden layer of the critics, of every network, or none",
-                                choices=("none", "critics", "all")),
-    "sac.alpha_init": Field(float, "initial entropy temperature", **_POSITIVE),
-    "sac.fixed_alpha": Field(bool, "keep the temperature at alpha_init"),
-    "sac.target_entropy": Field(float, "entropy the temperature is tuned to", auto=True),
-    "td3.exploration_noise": Field(float, "std of the exploration noise", low=0.0),
-    "td3.policy_noise": Field(float, "std of the target policy smoothing noise", low=0.0),
-    "td3.noise_clip": Field(float, "clip of the target policy noise", low=0.0),
-    "td3.policy_delay": Field(int, "critic updates per actor update", low=1),
-    "soc.num_options": Field(int, "options of the soft option-critic (--options)", low=1),
-    "soc.option_policy": Field(str, "policy over options", choices=OPTION_POLICIES, noun="option policy"),
-    "soc.option_alpha_init": Field(float, "initial option temperature; null: sac.alpha_init", **_POSITIVE,
-                                   nullable=True),
-    "soc.fixed_option_alpha": Field(bool, "keep the option temperature fixed"),
-    "soc.option_target_entropy": Field(float, "entropy over options; auto: 0.5 log(num_options)", auto=True),
-    "soc.option_epsilon": Field(float, "exploration of the egreedy option policy", **_PROB),
-    "soc.deliberation_cost": Field(float, "xi, added to the termination advantage", low=0.0),
-    "soc.option_entropy_bonus": Field(bool, "the option choice's entropy enters V_Omega"),
-    "eval.every": Field(int, "frames between evaluations", low=1),
-    "eval.episodes": Field(int, "evaluation episodes", low=1),
-    "checkpoint.every": Field(int, "frames between checkpoints", low=1),
-    "log.tensorboard": Field(bool, "also log to TensorBoard"),
-    "log.every": Field(int, "frames between logged training scalars", low=1),
-    "transfer.method": Field(str, "transfer method (`drltg tasks` lists them)", choices=("none",),
-                             noun="transfer method"),
-    "transfer.source": Field(str, "source run directory, or demonstrator:TASK", nullable=True,
-                             what="a source run directory, demonstrator:TASK"),
-    "transfer.allow_incomplete": Field(bool, "reuse a source run that did not finish (no summary.json)"),
-}
-"""Every config key (dotted) with its type and range; ``validate`` checks a config against it. The
-registered transfer methods add their ``transfer.*`` keys (:func:`drltg.transfer.register_method`)."""
 
-_SECTIONS = {k for k, v in DEFAULTS.items() if isinstance(v, dict) and v}
+def _bound(metadata: list, name: str) -> float | None:
+    return next((getattr(m, name) for m in metadata if getattr(m, name, None) is not None), None)
+
+
+def _expected(info: FieldInfo) -> str:
+    """The accepted values of a field, as the end of "must be ..."."""
+    extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
+    annotation, metadata, nullable, auto = _unwrap(info.annotation)
+    metadata = list(info.metadata) + metadata
+    if "what" in extra:
+        text = extra["what"]
+    elif extra.get("choices") == "registered":
+        text = "one of " + ", ".join(method_names())
+    elif get_origin(annotation) is Literal:
+        text = "one of " + ", ".join(map(str, get_args(annotation)))
+    elif annotation is bool:
+        text = "true or false"
+    elif annotation in (int, float):
+        text = "an integer" if annotation is int else "a number"
+        gt, ge = _bound(metadata, "gt"), _bound(metadata, "ge")
+        lo, hi = _number_text(gt if gt is not None else ge), _number_text(_bound(metadata, "le"))
+        open_low = gt is not None
+        if lo is not None and hi is not None:
+            text += f" in {'(' if open_low else '['}{lo}, {hi}]"
+        elif lo is not None:
+            text += f" {'>' if open_low else '>='} {lo}"
+        elif hi is not None:
+            text += f" <= {hi}"
+    elif annotation is str:
+        text = "a string"
+    elif get_origin(annotation) is list:
+        text = "a list"
+    elif isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        text = "a mapping"
+    else:
+        text = "a value of type " + getattr(annotation, "__name__", str(annotation))
+    if auto:
+        text = f"'auto' or {text}"
+    if nullable:
+        text += " or null"
+    return text
+
+
+def _choices(info: FieldInfo) -> tuple | None:
+    annotation = _unwrap(info.annotation)[0]
+    return get_args(annotation) if get_origin(annotation) is Literal else None
+
+
+def _lookup(cfg: Any, dotted: str):
+    node = cfg
+    for part in dotted.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return KeyError
+        node = node[part]
+    return node
+
+
+def _suggest(key: str, known: Iterable[str]) -> str:
+    hint = difflib.get_close_matches(key, list(known), n=1)
+    return f"; did you mean '{hint[0]}'?" if hint else "."
+
+
+def _sentence(err: ValidationError, data: Any, model: type[BaseModel], prefix: str = "") -> str:
+    """One sentence for the first error pydantic found in ``data`` (validated by ``model``), naming the key."""
+    sections = _section_models(model)
+    error = err.errors()[0]
+    loc = [str(p) for p in error["loc"]]
+    if error["type"] == "value_error" and isinstance(error.get("ctx", {}).get("error"), UsageError):
+        return str(error["ctx"]["error"])
+    if loc and loc[0] in sections and len(loc) > 1:
+        key, info = f"{loc[0]}.{loc[1]}", sections[loc[0]].model_fields.get(loc[1])
+    elif loc:
+        key, info = loc[0], model.model_fields.get(loc[0])
+    else:  # a rule of the whole model
+        return f"the config {error['msg'][0].lower()}{error['msg'][1:]}."
+    dotted = prefix + key
+    if error["type"] == "extra_forbidden" or info is None:
+        known = [prefix + k for k in (_flat_keys(model, sections))]
+        return f"unknown config key '{dotted}'" + _suggest(dotted, known)
+    value = _lookup(data, key)
+    if isinstance(info.annotation, type) and issubclass(info.annotation, BaseModel):
+        names = ", ".join(f"{dotted}.{k}" for k in info.annotation.model_fields)
+        return f"config key '{dotted}' must be a mapping of {names}, got {_short(value)}."
+    extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
+    if _choices(info) and isinstance(value, str):
+        return f"unknown {extra.get('noun', 'value')} {value!r}: config key '{dotted}' must be {_expected(info)}."
+    return f"config key '{dotted}' must be {_expected(info)}, got {_short(value)}."
+
+
+def _flat_keys(model: type[BaseModel], sections: dict) -> list[str]:
+    """The keys of ``model`` and the names of its sections (what a misspelt key may have meant)."""
+    out = []
+    for name in model.model_fields:
+        out += [name, *(f"{name}.{k}" for k in sections[name].model_fields)] if name in sections else [name]
+    return out
+
+
+def build(data: dict | RunConfig) -> RunConfig:
+    """A :class:`RunConfig` from a mapping of its keys (missing keys at their defaults), its types and
+    ranges checked: a wrong one is one :class:`UsageError` sentence naming the key."""
+    if isinstance(data, BaseModel):
+        data = data.model_dump()
+    if not isinstance(data, dict):
+        raise UsageError(f"a config must be a mapping of config keys, got {_short(data)}.")
+    model = _model()
+    try:
+        return model.model_validate(data)
+    except ValidationError as err:
+        raise UsageError(_sentence(err, data, model)) from None
+
+
+def updated(cfg: RunConfig, changes: dict[str, Any]) -> RunConfig:
+    """A copy of ``cfg`` with the dotted keys of ``changes`` set (``{"transfer.source": path}``), each value
+    checked like the key's own."""
+    new = cfg.model_copy(deep=True)
+    for dotted, value in changes.items():
+        *path, last = dotted.split(".")
+        node = new
+        for part in path:
+            node = getattr(node, part)
+        try:
+            setattr(node, last, value)
+        except ValidationError as err:
+            model = type(node)
+            raise UsageError(_sentence(err, {last: value}, model, "".join(p + "." for p in path))) from None
+    return new
+
+
+# ----------------------------------------------------------------------------------------- overrides
 _ENV_RESERVED = {"batch_size": "collector.num_envs and eval.episodes", "device": "device", "seed": "seed"}
 # How a batch of envs is stepped (worker processes or this one), not what it steps: the same trajectories
 # either way (tests/test_robosuite.py), so two configs that differ only there are the same run.
@@ -260,18 +553,13 @@ def _flatten(d: dict, prefix: str = "") -> dict[str, Any]:
     return out
 
 
-def _valid_keys() -> list[str]:
-    return sorted(_flatten(DEFAULTS)) + ["env"]
-
-
-def _short(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
+def _env_expected() -> str:
+    return _expected(RunConfig.model_fields["env"])
 
 
 def set_key(cfg: dict, dotted: str, value: Any) -> None:
-    """Set ``cfg[a][b] = value`` for ``dotted = "a.b"``; a mapping given for a section (``optim``)
-    is merged into it; keys under ``env.`` are the task's own keyword arguments."""
+    """Set ``cfg[a][b] = value`` in a mapping of config values for ``dotted = "a.b"``; a mapping given for
+    a section (``optim``) is merged into it; keys under ``env.`` are the task's own keyword arguments."""
     parts = dotted.split(".")
     if parts[0] == "env":
         if len(parts) > 2:
@@ -282,21 +570,19 @@ def set_key(cfg: dict, dotted: str, value: Any) -> None:
             else:
                 cfg["env"] = value
             return
-        if not isinstance(cfg.get("env"), dict):
-            raise UsageError(f"config key 'env' must be {SCHEMA['env'].expected()}, got {_short(cfg.get('env'))}.")
+        if not isinstance(cfg.setdefault("env", {}), dict):
+            raise UsageError(f"config key 'env' must be {_env_expected()}, got {_short(cfg.get('env'))}.")
         cfg["env"][parts[1]] = value
         return
-    if dotted in _SECTIONS:
+    sections = _section_models()
+    if dotted in sections:
         if not isinstance(value, dict):
-            keys = ", ".join(f"{dotted}.{k}" for k in DEFAULTS[dotted])
-            raise UsageError(f"config key '{dotted}' must be a mapping of {keys}, got {_short(value)}.")
+            names = ", ".join(f"{dotted}.{k}" for k in sections[dotted].model_fields)
+            raise UsageError(f"config key '{dotted}' must be a mapping of {names}, got {_short(value)}.")
         merge(cfg, value, dotted + ".")
         return
-    if dotted not in _flatten(DEFAULTS):
-        hint = difflib.get_close_matches(dotted, _valid_keys(), n=1)
-        raise UsageError(
-            f"unknown config key '{dotted}'" + (f"; did you mean '{hint[0]}'?" if hint else ".")
-        )
+    if dotted not in keys():
+        raise UsageError(f"unknown config key '{dotted}'" + _suggest(dotted, _flat_keys(_model(), sections)))
     node = cfg
     for p in parts[:-1]:
         node = node.setdefault(p, {})
@@ -304,12 +590,12 @@ def set_key(cfg: dict, dotted: str, value: Any) -> None:
 
 
 def merge(cfg: dict, overrides: dict, prefix: str = "") -> None:
-    """Merge a nested dict of overrides into ``cfg``, validating every key."""
+    """Merge a nested mapping of overrides into the mapping ``cfg``, checking every key's name."""
     for k, v in overrides.items():
         key = f"{prefix}{k}"
         if key == "env":
             if not isinstance(v, dict):
-                raise UsageError(f"config key 'env' must be {SCHEMA['env'].expected()}, got {_short(v)}.")
+                raise UsageError(f"config key 'env' must be {_env_expected()}, got {_short(v)}.")
             if not isinstance(cfg.get("env"), dict):
                 cfg["env"] = {}
             cfg["env"].update(v)
@@ -370,31 +656,35 @@ def load_yaml(path: str | Path, what: str = "config file") -> dict:
 
 
 def resolve(
-    base: dict | None = None,
+    base: dict | RunConfig | None = None,
     overrides: Iterable[str] = (),
     **explicit: Any,
-) -> dict:
+) -> RunConfig:
     """Build a full config: defaults <- task overrides <- ``base`` (e.g. a YAML file) <- ``explicit``
-    keyword values (e.g. ``--seed``) <- ``KEY=VALUE`` ``overrides``; then ``validate`` it, so that
-    nothing is built or written from a config with a wrong key, type or range."""
+    keyword values (e.g. ``seed=3``, ``**{"soc.num_options": 2}``) <- ``KEY=VALUE`` ``overrides``; then
+    check it (:func:`build`, :func:`validate`), so that nothing is built or written from a config with a
+    wrong key, type or range. The ``env`` section ends up holding every env setting of the task."""
+    if isinstance(base, BaseModel):
+        base = base.model_dump()
     if base is not None and not isinstance(base, dict):
         raise UsageError(f"a config must be a mapping of config keys, got {_short(base)}.")
     base = dict(base or {})
     parsed = [parse_override(text) for text in overrides]
-    cfg = copy.deepcopy(DEFAULTS)
-    task = cfg["task"]
+    task = RunConfig.model_fields["task"].default
     for given in (base.get("task"), explicit.get("task"), *(v for k, v in parsed if k == "task")):
         if given is not None:
             task = given
-    merge(cfg, copy.deepcopy(_task_spec(task).train))
-    merge(cfg, base)
+    raw: dict[str, Any] = {}
+    merge(raw, copy.deepcopy(_task_spec(task).train))
+    merge(raw, base)
     for key, value in explicit.items():
         if value is not None:
-            set_key(cfg, key, value)
+            set_key(raw, key, value)
     for key, value in parsed:
-        set_key(cfg, key, value)
+        set_key(raw, key, value)
+    cfg = build(raw)
     validate(cfg)
-    cfg["env"] = {**task_env(cfg["task"]), **cfg["env"]}
+    cfg.env = {**task_env(cfg.task), **cfg.env}
     return cfg
 
 
@@ -402,136 +692,38 @@ def _override_leaves(key: str, value: Any) -> dict[str, Any]:
     """The single keys an override sets: ``optim={lr: 1}`` sets ``optim.lr``, ``env={horizon: 5}`` ``env.horizon``."""
     if isinstance(value, dict) and key == "env":
         return {f"env.{k}": v for k, v in value.items()}
-    if isinstance(value, dict) and key in _SECTIONS:
+    if isinstance(value, dict) and key in _section_models():
         return _flatten(value, key + ".")
     return {key: value}
 
 
 def refuse_conflicts(overrides: Iterable[str]) -> None:
-    """A user's ``-o`` overrides that set one key to two values in two forms (``optim={lr: 1}`` and
-    ``optim.lr=2``) are refused: which one wins would depend on their order. The same ``KEY=`` given twice
-    is plainly a replacement (the last wins), as :func:`resolve` applies overrides in order."""
-    seen: dict[str, tuple[str, Any]] = {}
-    for key, value in map(parse_override, overrides):
-        for leaf, v in _override_leaves(key, value).items():
-            if leaf in seen and seen[leaf][0] != key and seen[leaf][1] != v:
-                raise UsageError(f"config key '{leaf}' is set twice by -o, to {_short(seen[leaf][1])} (by "
-                                 f"'{seen[leaf][0]}') and to {_short(v)} (by '{key}'); give it once.")
-            seen[leaf] = (key, v)
+    """A user's ``-o`` overrides that set one key twice are refused, in any form (``optim.lr=1`` twice, or
+    ``optim={lr: 1}`` and ``optim.lr=2``): which one was meant would depend on their order."""
+    seen: dict[str, str] = {}
+    for text in overrides:
+        key, value = parse_override(text)
+        for leaf in _override_leaves(key, value):
+            if leaf in seen:
+                raise UsageError(f"config key '{leaf}' is set twice by -o ('{seen[leaf]}', then '{text.strip()}'); "
+                                 "give it once.")
+            seen[leaf] = text.strip()
 
 
-def task_env(task: str) -> dict[str, Any]:
-    """Every env setting of ``task`` at its default (the factory's declared keywords, the task's
-    registered values over them), as plain YAML values: ``resolve`` writes them all into the config,
-    so a run's ``config.yaml`` says exactly which env it trained on and a changed default is a
-    changed config."""
-    declared, _ = env_defaults(task)
-    return {k: _plain(v) for k, v in declared.items() if k not in _ENV_RESERVED}
-
-
-def config_changes(saved: dict, cfg: dict, *, env_defaults: bool = True) -> list[str]:
-    """The keys in which two configs of one task differ (``cfg`` gives the task). A key one of them
-    lacks counts only when the other sets it to something else than its default, for ``env.*`` the
-    task's: runs saved before the key existed, or before env settings were saved in full, stay the
-    same run (resumable, and comparable in one report). Options of a transfer method that neither
-    config uses do not count (a baseline is the same run whatever another method's defaults are), nor
-    do ``ENV_EXECUTION_KEYS``.
-
-    ``env_defaults=False`` leaves the task registry (and torch with it) unimported: an ``env.*`` key
-    only one config sets is then not compared, its default being unknown (:func:`env_keys_set_once`
-    names them)."""
-    env = {}
-    if env_defaults:
-        try:
-            env = task_env(cfg["task"])
-        except (KeyError, UsageError):  # a task this process does not know: no env defaults to fill in
-            pass
-    builtin = {k: v for options in BUILTIN_METHOD_OPTIONS.values() for k, v in options.items()}
-    defaults = {**DEFAULTS, "env": env, "transfer": {**builtin, **DEFAULTS["transfer"]}}
-    owners = {**{k: m for m, options in BUILTIN_METHOD_OPTIONS.items() for k in options}, **METHOD_OPTIONS}
-    methods = {part for c in (saved, cfg) if isinstance(m := _lookup(c, "transfer.method"), str)
-               for part in m.split("+")}
-    unknown = set() if env_defaults else set(env_keys_set_once(saved, cfg))
-    if not env_defaults and (_lookup(saved, "env") is KeyError) != (_lookup(cfg, "env") is KeyError):
-        unknown.add("env")
-
-    def missing_as_default(a, b, key):
-        return _lookup(a, key) is KeyError and _lookup(b, key) == _lookup(defaults, key)
-
-    def unused(key):  # an option of a method neither run uses changes nothing they do
-        owner = owners.get(key.removeprefix("transfer.")) if key.startswith("transfer.") else None
-        return owner is not None and owner not in methods
-
-    return sorted(key for key in _diff_keys(saved, cfg)
-                  if not (missing_as_default(saved, cfg, key) or missing_as_default(cfg, saved, key) or unused(key)
-                          or key in ENV_EXECUTION_KEYS or key in unknown))
-
-
-def env_keys_set_once(a: dict, b: dict) -> list[str]:
-    """The ``env.*`` keys exactly one of two configs sets (one saved before env settings were saved in full)."""
-    ea, eb = (c.get("env") if isinstance(c.get("env"), dict) else {} for c in (a, b))
-    return sorted(f"env.{k}" for k in set(ea) ^ set(eb))
-
-
-def _lookup(cfg: dict, dotted: str):
-    node = cfg
-    for part in dotted.split("."):
-        if not isinstance(node, dict) or part not in node:
-            return KeyError
-        node = node[part]
-    return node
-
-
-def _diff_keys(a, b, prefix=""):
-    if isinstance(a, dict) and isinstance(b, dict):
-        for k in set(a) | set(b):
-            yield from _diff_keys(a.get(k, KeyError), b.get(k, KeyError), f"{prefix}{k}.")
-    elif a != b:
-        yield prefix.rstrip(".")
-
-
-def _plain(value: Any) -> Any:
-    return [_plain(v) for v in value] if isinstance(value, (list, tuple)) else value
-
-
-def validate(cfg: dict) -> None:
-    """Check every key of a full config against ``SCHEMA`` and the rules that tie keys together;
-    integral floats of integer keys become ``int`` and ``frames`` is rounded up to whole batches. The keys
-    whose check imports torch or the task's module (``device``, ``env``) come last, so that any other
-    mistake is reported at once."""
-    for key, field in sorted(SCHEMA.items(), key=lambda item: item[0] in ("device", "env")):
-        try:
-            value = _get(cfg, key)
-        except (KeyError, TypeError):
-            raise UsageError(f"the config has no key '{key}'; resolve() fills in every key.") from None
-        if key == "env":
-            _check_env(cfg["task"], value)
-        elif key == "transfer.method" and isinstance(value, str) and "+" in value:
-            for part in value.split("+"):
-                field.check(key, part)
-        else:
-            checked = field.check(key, value)
-            if checked is not value:
-                set_key(cfg, key, checked)
-    fpb, n = cfg["collector"]["frames_per_batch"], cfg["collector"]["num_envs"]
-    if fpb % n:
-        raise UsageError(
-            f"collector.frames_per_batch ({fpb}) must be a multiple of collector.num_envs ({n})."
-        )
-    if cfg["algo"] == "soc" and cfg["network"]["layer_norm"] != "none":
-        raise UsageError("network.layer_norm applies to sac and td3; the soft option-critic's networks have none.")
-    method = cfg["transfer"]["method"]
+# ----------------------------------------------------------------------------------------- checks beyond types
+def validate(cfg: RunConfig) -> None:
+    """The checks of a built config that need this machine, the task's env or the transfer method:
+    ``device`` must be usable here, ``env`` keys must be keywords of the task's factory (their values
+    are read with the type of the declared default), the method's own rules must hold; and ``frames``
+    is rounded up to whole collector batches, so that the budget is exact."""
+    _check_device("device", cfg.device)
+    cfg.env = _check_env(cfg.task, cfg.env)
+    method = cfg.transfer.method
     rule = METHOD_RULES.get(method) or (METHOD_RULES.get("+") if "+" in method else None)
     if rule is not None:
         rule(cfg)
-    cfg["frames"] = -(-cfg["frames"] // fpb) * fpb  # whole collector batches: the budget is exact
-
-
-def _get(cfg: dict, dotted: str) -> Any:
-    node = cfg
-    for p in dotted.split("."):
-        node = node[p]
-    return node
+    fpb = cfg.collector.frames_per_batch
+    cfg.frames = -(-cfg.frames // fpb) * fpb
 
 
 def _task_spec(task: Any):
@@ -547,15 +739,18 @@ def _task_spec(task: Any):
     return TASKS[task]
 
 
-def _check_device(key: str, value: Any, field: Field) -> str:
+_DEVICE = _expected(RunConfig.model_fields["device"])
+
+
+def _check_device(key: str, value: str) -> str:
+    if value == "cpu":  # always there: no need to import torch to know it
+        return value
     import torch
 
     try:
-        if not isinstance(value, str):
-            raise TypeError(value)
         device = torch.device(value)
     except (RuntimeError, TypeError, ValueError):
-        raise UsageError(f"config key '{key}' must be {field.expected()}, got {_short(value)}.") from None
+        raise UsageError(f"config key '{key}' must be {_DEVICE}, got {_short(value)}.") from None
     backend = getattr(torch, device.type, None)
     available = getattr(backend, "is_available", None)
     if available is None:
@@ -574,75 +769,193 @@ def _check_device(key: str, value: Any, field: Field) -> str:
     return value
 
 
+# ----------------------------------------------------------------------------------------- env options
 def env_defaults(task: str) -> tuple[dict[str, Any], bool]:
     """The keyword arguments task ``task``'s factory declares with a default (its registered defaults
-    win), and whether it also takes other keywords (``**kwargs``)."""
+    win), and whether it also takes other keywords (``**kwargs``). A factory named ``"module:attr"`` is
+    read from its source where its defaults are literals, so no env module (and no torch) is imported."""
     spec = _task_spec(task)
-    factory = spec.factory
-    params = inspect.signature(factory.__init__ if inspect.isclass(factory) else factory).parameters
-    declared = {
-        name: p.default
-        for name, p in params.items()
-        if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY) and name != "self"
-    }
-    declared.update(spec.defaults)
-    return declared, any(p.kind is p.VAR_KEYWORD for p in params.values())
+    declared = None
+    if isinstance(spec.entry, str):
+        declared = _source_signature(spec.entry)
+    if declared is None:
+        factory = spec.factory
+        params = inspect.signature(factory.__init__ if inspect.isclass(factory) else factory).parameters
+        declared = (
+            {name: p.default for name, p in params.items()
+             if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY) and name != "self"},
+            any(p.kind is p.VAR_KEYWORD for p in params.values()),
+        )
+    names, open_ended = declared
+    return {**names, **spec.defaults}, open_ended
 
 
-def _check_env(task: str, env: Any) -> None:
-    if not isinstance(env, dict):
-        raise UsageError(f"config key 'env' must be {SCHEMA['env'].expected()}, got {_short(env)}.")
-    declared, open_ended = env_defaults(task)
-    for name, value in list(env.items()):
-        key = f"env.{name}"
-        if name in _ENV_RESERVED:
-            raise UsageError(f"config key '{key}' cannot be set: the run sets it from {_ENV_RESERVED[name]}.")
-        if name not in declared:
-            if open_ended:
-                continue
-            known = ", ".join(sorted(set(declared) - set(_ENV_RESERVED)))
-            raise UsageError(f"config key '{key}' is not an option of task '{task}'; its options are: {known}.")
-        ref = declared[name]
-        field = _field_like(ref)
-        if field is None:
-            continue
-        try:
-            env[name] = field.check(key, value)
-        except UsageError:
-            raise UsageError(
-                f"config key '{key}' must be {field.expected()} (task '{task}' declares {name}={ref!r}), "
-                f"got {_short(value)}."
-            ) from None
+@functools.lru_cache(maxsize=None)
+def _source_signature(entry: str) -> tuple[dict[str, Any], bool] | None:
+    """``(keyword -> default, takes **kwargs)`` of the function or class ``"module:attr"`` read from the
+    module's source: its own ``def`` (a class's ``__init__``), every default a literal, no
+    ``__signature__`` set; ``None`` when any of that does not hold (the caller imports it instead)."""
+    module, _, attr = entry.partition(":")
+    try:
+        spec = importlib.util.find_spec(module)
+        text = Path(spec.origin).read_text(encoding="utf-8")
+        tree = ast.parse(text)
+    except (ImportError, AttributeError, OSError, SyntaxError, TypeError, ValueError):
+        return None
+    if f"{attr}.__signature__" in text:
+        return None
+    node = next((n for n in tree.body if isinstance(n, (ast.ClassDef, ast.FunctionDef)) and n.name == attr), None)
+    if isinstance(node, ast.ClassDef):
+        if node.decorator_list:
+            return None
+        node = next((n for n in node.body if isinstance(n, ast.FunctionDef) and n.name == "__init__"), None)
+    if node is None or node.decorator_list:
+        return None
+    args = node.args
+    positional = args.posonlyargs + args.args
+    pairs = list(zip(positional[len(positional) - len(args.defaults):], args.defaults))
+    pairs += [(a, d) for a, d in zip(args.kwonlyargs, args.kw_defaults) if d is not None]
+    declared = {}
+    try:
+        for arg, default in pairs:
+            if arg not in args.posonlyargs:
+                declared[arg.arg] = ast.literal_eval(default)
+    except ValueError:  # a default that is not a literal: the imported signature says what it is
+        return None
+    required = [a.arg for a in positional[: len(positional) - len(args.defaults)] if a.arg not in ("self", "cls")]
+    required += [a.arg for a, d in zip(args.kwonlyargs, args.kw_defaults) if d is None]
+    declared.update(dict.fromkeys(required, inspect.Parameter.empty))
+    return declared, args.kwarg is not None
 
 
-def _field_like(ref: Any) -> Field | None:
-    """The field an env keyword's declared default implies: its type, no range (the env checks that)."""
+def task_env(task: str) -> dict[str, Any]:
+    """Every env setting of ``task`` at its default (the factory's declared keywords, the task's
+    registered values over them), as plain YAML values: ``resolve`` writes them all into the config,
+    so a run's ``config.yaml`` says exactly which env it trained on and a changed default is a
+    changed config."""
+    declared, _ = env_defaults(task)
+    return {k: _plain(v) for k, v in declared.items() if k not in _ENV_RESERVED}
+
+
+def _plain(value: Any) -> Any:
+    return [_plain(v) for v in value] if isinstance(value, (list, tuple)) else value
+
+
+def _env_type(ref: Any) -> Any:
+    """The type an env keyword's declared default implies (no range: the env checks that); ``None``: any."""
     if isinstance(ref, bool):
-        return Field(bool)
+        return Bool
     if isinstance(ref, int):
-        return Field(int)
+        return Int
     if isinstance(ref, float):
-        return Field(float)
+        return Float
     if isinstance(ref, str):
-        return Field(str)
+        return Str
     if isinstance(ref, (list, tuple)) and ref:
         if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in ref):
-            return Field(list, item=Field(float), nonempty=True, what="a list of numbers")
+            return Annotated[list[Number], Field(min_length=1, json_schema_extra=_what("a list of numbers"))]
         if all(isinstance(v, str) for v in ref):
-            return Field(list, item=Field(str), what="a list of strings")
+            return Annotated[list[Str], Field(json_schema_extra=_what("a list of strings"))]
     return None
+
+
+def env_model(task: str) -> type[BaseModel]:
+    """The model of task ``task``'s ``env`` section: one optional field per keyword its factory declares,
+    typed by the declared default; other keys are refused unless the factory takes ``**kwargs``."""
+    declared, open_ended = env_defaults(task)
+    fields = {}
+    for name, ref in declared.items():
+        kind = _env_type(ref)
+        fields[name] = (Any if kind is None else kind, None)
+    return create_model("EnvOptions", __config__=ConfigDict(extra="allow" if open_ended else "forbid"), **fields)
+
+
+def _check_env(task: str, env: dict) -> dict:
+    """``env`` with its values read as the types of the task's declared defaults; an unknown or reserved
+    key, or a value of another type, is one sentence naming the key."""
+    declared, open_ended = env_defaults(task)
+    for name in env:
+        if name in _ENV_RESERVED:
+            raise UsageError(f"config key 'env.{name}' cannot be set: the run sets it from {_ENV_RESERVED[name]}.")
+        if name not in declared and not open_ended:
+            known = ", ".join(sorted(set(declared) - set(_ENV_RESERVED)))
+            raise UsageError(f"config key 'env.{name}' is not an option of task '{task}'; its options are: {known}.")
+    model = env_model(task)
+    try:
+        checked = model.model_validate(env)
+    except ValidationError as err:
+        name = str(err.errors()[0]["loc"][0])
+        raise UsageError(f"config key 'env.{name}' must be {_expected(model.model_fields[name])} (task '{task}' "
+                         f"declares {name}={declared[name]!r}), got {_short(env[name])}.") from None
+    values = checked.model_dump(exclude_unset=True)
+    return {name: values.get(name, env[name]) for name in env}
+
+
+# ----------------------------------------------------------------------------------------- comparing, printing
+def config_changes(saved: dict | RunConfig, cfg: dict | RunConfig, *, env_defaults: bool = True) -> list[str]:
+    """The keys in which two configs of one task differ (``cfg`` gives the task). A key one of them
+    lacks counts only when the other sets it to something else than its default, for ``env.*`` the
+    task's: runs saved before the key existed, or before env settings were saved in full, stay the
+    same run (resumable, and comparable in one report). Options of a transfer method that neither
+    config uses do not count (a baseline is the same run whatever another method's defaults are), nor
+    do ``ENV_EXECUTION_KEYS``.
+
+    ``env_defaults=False`` leaves the task registry (and torch with it) unimported: an ``env.*`` key
+    only one config sets is then not compared, its default being unknown (:func:`env_keys_set_once`
+    names them)."""
+    saved, cfg = (c.model_dump() if isinstance(c, BaseModel) else c for c in (saved, cfg))
+    env = {}
+    if env_defaults:
+        try:
+            env = task_env(cfg["task"])
+        except (KeyError, UsageError, ValueError):  # a task this process does not know: no env defaults to fill in
+            pass
+    builtin = {k: v for options in BUILTIN_METHOD_OPTIONS.values() for k, v in options.items()}
+    plain = defaults()
+    base = {**plain, "env": env, "transfer": {**builtin, **plain["transfer"]}}
+    owners = {**{k: m for m, options in BUILTIN_METHOD_OPTIONS.items() for k in options}, **METHOD_OPTIONS}
+    methods = {part for c in (saved, cfg) if isinstance(m := _lookup(c, "transfer.method"), str)
+               for part in m.split("+")}
+    unknown = set() if env_defaults else set(env_keys_set_once(saved, cfg))
+    if not env_defaults and (_lookup(saved, "env") is KeyError) != (_lookup(cfg, "env") is KeyError):
+        unknown.add("env")
+
+    def missing_as_default(a, b, key):
+        return _lookup(a, key) is KeyError and _lookup(b, key) == _lookup(base, key)
+
+    def unused(key):  # an option of a method neither run uses changes nothing they do
+        owner = owners.get(key.removeprefix("transfer.")) if key.startswith("transfer.") else None
+        return owner is not None and owner not in methods
+
+    return sorted(key for key in _diff_keys(saved, cfg)
+                  if not (missing_as_default(saved, cfg, key) or missing_as_default(cfg, saved, key) or unused(key)
+                          or key in ENV_EXECUTION_KEYS or key in unknown))
+
+
+def env_keys_set_once(a: dict, b: dict) -> list[str]:
+    """The ``env.*`` keys exactly one of two configs sets (one saved before env settings were saved in full)."""
+    ea, eb = (c.get("env") if isinstance(c.get("env"), dict) else {} for c in (a, b))
+    return sorted(f"env.{k}" for k in set(ea) ^ set(eb))
+
+
+def _diff_keys(a, b, prefix=""):
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in set(a) | set(b):
+            yield from _diff_keys(a.get(k, KeyError), b.get(k, KeyError), f"{prefix}{k}.")
+    elif a != b:
+        yield prefix.rstrip(".")
 
 
 def describe() -> str:
     """Every config key with its default, accepted values and meaning, as a Markdown table."""
-    flat = _flatten(DEFAULTS)
+    flat = _flatten(defaults())
     rows = ["| key | default | accepted values | meaning |", "|---|---|---|---|"]
-    for key, field in SCHEMA.items():
+    for key, info in _fields().items():
         default = yaml.safe_dump(flat[key], default_flow_style=True).strip().removesuffix("...").strip()
-        rows.append(f"| `{key}` | {default} | {field.expected()} | {field.help} |")
+        rows.append(f"| `{key}` | {default} | {_expected(info)} | {info.description or ''} |")
     return "\n".join(rows)
 
 
-def dump(cfg: dict) -> str:
-    return yaml.safe_dump(cfg, sort_keys=False)
-
+def dump(cfg: RunConfig | dict) -> str:
+    """``cfg`` as the YAML of ``config.yaml``: its sections in order, plain values."""
+    return yaml.safe_dump(cfg.model_dump() if isinstance(cfg, BaseModel) else cfg, sort_keys=False)

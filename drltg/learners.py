@@ -32,10 +32,10 @@ from torchrl.modules import (
 )
 from torchrl.objectives import DiscreteSACLoss, LossModule, SACLoss, SoftUpdate, TD3Loss
 
-from drltg.config import DEFAULTS
+from drltg import config
+from drltg.config import RunConfig
 from drltg.errors import UsageError
 from drltg.losses import SoftOptionCriticLoss
-from drltg.losses.soc import OPTION_POLICIES
 from drltg.modules import make_option_actor, make_option_policy, make_option_qvalue, make_termination, option_transforms
 
 DEACTIVATE_VMAP = True
@@ -62,11 +62,11 @@ class Agent:
     env_transforms: list[Transform] = field(default_factory=list)
 
 
-def _mlp(out_features: int, cfg: dict, *, critic: bool = False) -> MLP:
+def _mlp(out_features: int, cfg: RunConfig, *, critic: bool = False) -> MLP:
     """A ReLU MLP; with ``network.layer_norm`` (``critics`` or ``all``) each hidden layer is Linear ->
     LayerNorm -> ReLU, which keeps critics from over-estimating on out-of-distribution actions when
     offline data share the batches (Ball et al. 2023)."""
-    hidden, norm = list(cfg["network"]["hidden"]), cfg["network"].get("layer_norm", "none")
+    hidden, norm = list(cfg.network.hidden), cfg.network.layer_norm
     kwargs = {}
     if norm == "all" or (norm == "critics" and critic):
         kwargs = {"norm_class": nn.LayerNorm, "norm_kwargs": [{"normalized_shape": w} for w in hidden]}
@@ -88,15 +88,15 @@ def _init_lazy(env: EnvBase, *modules: nn.Module, option: bool = False) -> None:
             module(td)
 
 
-def _agent(loss: LossModule, policy: TensorDictModule, cfg: dict, *, actor=None, **fields) -> Agent:
+def _agent(loss: LossModule, policy: TensorDictModule, cfg: RunConfig, *, actor=None, **fields) -> Agent:
     """The loss with its value estimator, target updater and optimiser: the same for every learner."""
-    loss.make_value_estimator(gamma=cfg["optim"]["gamma"])
-    optimizer = torch.optim.Adam(loss.parameters(), lr=cfg["optim"]["lr"], foreach=True)  # = for-loop Adam, bit for bit
+    loss.make_value_estimator(gamma=cfg.optim.gamma)
+    optimizer = torch.optim.Adam(loss.parameters(), lr=cfg.optim.lr, foreach=True)  # = for-loop Adam, bit for bit
     actor = policy if actor is None else actor
-    return Agent(actor, policy, loss, SoftUpdate(loss, tau=cfg["optim"]["tau"]), optimizer, **fields)
+    return Agent(actor, policy, loss, SoftUpdate(loss, tau=cfg.optim.tau), optimizer, **fields)
 
 
-def make_sac_agent(env: EnvBase, cfg: dict) -> Agent:
+def make_sac_agent(env: EnvBase, cfg: RunConfig) -> Agent:
     """SAC (Haarnoja et al. 2018): tanh-Gaussian actor, twin Q critics, learned temperature.
     On a discrete (one-hot) action space it builds discrete SAC (Christodoulou 2019)."""
     spec = _action_spec(env)
@@ -121,16 +121,16 @@ def make_sac_agent(env: EnvBase, cfg: dict) -> Agent:
         qvalue,
         num_qvalue_nets=2,
         loss_function="l2",
-        alpha_init=cfg["sac"]["alpha_init"],
-        fixed_alpha=cfg["sac"]["fixed_alpha"],
-        target_entropy=cfg["sac"]["target_entropy"],
+        alpha_init=cfg.sac.alpha_init,
+        fixed_alpha=cfg.sac.fixed_alpha,
+        target_entropy=cfg.sac.target_entropy,
         action_spec=spec,
         deactivate_vmap=DEACTIVATE_VMAP,
     )
     return _agent(loss, actor, cfg)
 
 
-def make_discrete_sac_agent(env: EnvBase, cfg: dict) -> Agent:
+def make_discrete_sac_agent(env: EnvBase, cfg: RunConfig) -> Agent:
     """Discrete SAC: a categorical actor over one-hot actions; exact soft expectations over actions."""
     spec = _action_spec(env)
     n = spec.space.n
@@ -150,65 +150,53 @@ def make_discrete_sac_agent(env: EnvBase, cfg: dict) -> Agent:
         num_actions=n,
         num_qvalue_nets=2,
         loss_function="l2",
-        alpha_init=cfg["sac"]["alpha_init"],
-        fixed_alpha=cfg["sac"]["fixed_alpha"],
-        target_entropy=cfg["sac"]["target_entropy"],
+        alpha_init=cfg.sac.alpha_init,
+        fixed_alpha=cfg.sac.fixed_alpha,
+        target_entropy=cfg.sac.target_entropy,
         deactivate_vmap=DEACTIVATE_VMAP,
     )
     return _agent(loss, actor, cfg)
 
 
-def make_td3_agent(env: EnvBase, cfg: dict) -> Agent:
+def make_td3_agent(env: EnvBase, cfg: RunConfig) -> Agent:
     """TD3 (Fujimoto et al. 2018): deterministic actor, twin critics, target smoothing, policy delay;
     the collector explores with additive Gaussian noise, clipped to the action box."""
     spec = _action_spec(env)
     if isinstance(spec, OneHot):
-        raise UsageError(f"TD3 needs continuous actions; task '{cfg['task']}' has discrete actions (use --algo sac).")
+        raise UsageError(f"TD3 needs continuous actions; task '{cfg.task}' has discrete actions (use --algo sac).")
     actor = TensorDictSequential(
         TensorDictModule(_mlp(spec.shape[-1], cfg), in_keys=["observation"], out_keys=["param"]),
         TanhModule(in_keys=["param"], out_keys=["action"], spec=spec),
     )
     qvalue = ValueOperator(_mlp(1, cfg, critic=True), in_keys=["observation", "action"])
     _init_lazy(env, actor, qvalue)
-    td3 = cfg["td3"]
-    sigma = td3["exploration_noise"]
+    td3 = cfg.td3
+    sigma = td3.exploration_noise
     noise = AdditiveGaussianModule(spec=spec, sigma_init=sigma, sigma_end=sigma, annealing_num_steps=1)
     loss = TD3Loss(
         actor,
         qvalue,
         action_spec=spec,
         num_qvalue_nets=2,
-        policy_noise=td3["policy_noise"],
-        noise_clip=td3["noise_clip"],
+        policy_noise=td3.policy_noise,
+        noise_clip=td3.noise_clip,
         loss_function="l2",
         deactivate_vmap=DEACTIVATE_VMAP,
     )
-    return _agent(loss, TensorDictSequential(actor, noise), cfg, actor=actor, actor_delay=td3["policy_delay"])
+    return _agent(loss, TensorDictSequential(actor, noise), cfg, actor=actor, actor_delay=td3.policy_delay)
 
 
-SOC_DEFAULTS = DEFAULTS["soc"]
-"""Options of :func:`make_soc_agent` under ``cfg["soc"]``; the action temperature comes from ``cfg["sac"]``."""
-
-
-def make_soc_agent(env: EnvBase, cfg: dict) -> Agent:
-    """Soft option-critic (``cfg["soc"]``, see :data:`SOC_DEFAULTS`) with SAC's networks, temperature and
+def make_soc_agent(env: EnvBase, cfg: RunConfig) -> Agent:
+    """Soft option-critic (``cfg.soc``, :class:`drltg.config.SOCConfig`) with SAC's networks, temperature and
     optimiser settings, so ``num_options=1`` is the SAC agent. The option-carrying policy both explores
     and evaluates (greedy options, mean actions under ``ExplorationType.DETERMINISTIC``)."""
     spec = _action_spec(env)
     if isinstance(spec, OneHot):
         raise UsageError(
-            f"soft option-critic needs continuous actions; task '{cfg['task']}' has discrete actions (use --algo sac)."
+            f"soft option-critic needs continuous actions; task '{cfg.task}' has discrete actions (use --algo sac)."
         )
-    unknown = set(cfg.get("soc", {})) - set(SOC_DEFAULTS)
-    if unknown:
-        raise UsageError(f"unknown soc option(s) {', '.join(sorted(unknown))}; known: {', '.join(SOC_DEFAULTS)}.")
-    soc = {**SOC_DEFAULTS, **cfg.get("soc", {})}
-    if soc["option_policy"] not in OPTION_POLICIES:
-        choices = ", ".join(OPTION_POLICIES)
-        raise UsageError(f"soc.option_policy must be one of {choices}, got {soc['option_policy']!r}.")
-    if int(soc["num_options"]) < 1:
-        raise UsageError(f"soc.num_options must be at least 1, got {soc['num_options']}.")
-    num_options, hidden = int(soc["num_options"]), list(cfg["network"]["hidden"])
+    soc = cfg.soc
+    num_options, hidden = soc.num_options, list(cfg.network.hidden)
     actor = make_option_actor(spec, num_options, hidden)
     qvalue = make_option_qvalue(num_options, hidden)
     termination = make_termination(num_options, hidden)
@@ -219,34 +207,35 @@ def make_soc_agent(env: EnvBase, cfg: dict) -> Agent:
         termination,
         num_options=num_options,
         loss_function="l2",
-        alpha_init=cfg["sac"]["alpha_init"],
-        fixed_alpha=cfg["sac"]["fixed_alpha"],
-        target_entropy=cfg["sac"]["target_entropy"],
+        alpha_init=cfg.sac.alpha_init,
+        fixed_alpha=cfg.sac.fixed_alpha,
+        target_entropy=cfg.sac.target_entropy,
         action_spec=spec,
-        option_policy=soc["option_policy"],
-        option_alpha_init=soc["option_alpha_init"] or cfg["sac"]["alpha_init"],
-        fixed_option_alpha=soc["fixed_option_alpha"],
-        option_target_entropy=soc["option_target_entropy"],
-        option_epsilon=soc["option_epsilon"],
-        deliberation_cost=soc["deliberation_cost"],
-        option_entropy_bonus=soc["option_entropy_bonus"],
+        option_policy=soc.option_policy,
+        option_alpha_init=soc.option_alpha_init or cfg.sac.alpha_init,
+        fixed_option_alpha=soc.fixed_option_alpha,
+        option_target_entropy=soc.option_target_entropy,
+        option_epsilon=soc.option_epsilon,
+        deliberation_cost=soc.deliberation_cost,
+        option_entropy_bonus=soc.option_entropy_bonus,
         deactivate_vmap=DEACTIVATE_VMAP,
     )
     return _agent(loss, make_option_policy(loss), cfg, env_transforms=option_transforms(num_options))
 
 
-ALGOS: dict[str, Callable[[EnvBase, dict], Agent]] = {
+ALGOS: dict[str, Callable[[EnvBase, RunConfig], Agent]] = {
     "sac": make_sac_agent,
     "td3": make_td3_agent,
     "soc": make_soc_agent,
 }
 
 
-def make_agent(env: EnvBase, cfg: dict) -> Agent:
-    algo = cfg["algo"]
-    if algo not in ALGOS:
-        raise UsageError(f"unknown algorithm '{algo}'; choose one of: {', '.join(sorted(ALGOS))}.")
-    return ALGOS[algo](env, cfg)
+def make_agent(env: EnvBase, cfg: RunConfig | dict) -> Agent:
+    """The learner ``cfg.algo`` for ``env``; a mapping of config keys is read as :func:`drltg.config.build` reads it
+    (missing keys at their defaults)."""
+    if not isinstance(cfg, RunConfig):
+        cfg = config.build(cfg)
+    return ALGOS[cfg.algo](env, cfg)
 
 
 # ----------------------------------------------------------------------------- the update step

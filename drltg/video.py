@@ -38,8 +38,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def _policy_and_env(args):
     """The acting policy, the env to step (with the agent's transforms), the env that renders, the
     policy's name and the task."""
-    import yaml
-
     from drltg.envs import make_env
 
     if args.source == "demonstrator":
@@ -61,16 +59,17 @@ def _policy_and_env(args):
         raise UsageError(f"'{run}' is not a run directory with {rundir.CONFIG} and {rundir.CHECKPOINT.as_posix()}.")
     from torchrl.envs import TransformedEnv
 
+    from drltg import config as config_lib
     from drltg.learners import make_agent
     from drltg.training.loop import build_env
     from drltg.transfer.source import check_same_spaces
 
-    cfg = yaml.safe_load(config.read_text())
-    task = args.task or cfg["task"]
-    env_settings = cfg["env"] if task == cfg["task"] else {}  # another task: its own settings
-    base = build_env({**cfg, "task": task, "env": env_settings, "device": "cpu"}, seed=args.seed)
-    if task != cfg["task"]:
-        check_same_spaces(build_env({**cfg, "device": "cpu"}), base, f"run '{run.name}' ({cfg['task']})",
+    cfg = config_lib.updated(config_lib.build(config_lib.load_yaml(config)), {"device": "cpu"})
+    task = args.task or cfg.task
+    env_settings = cfg.env if task == cfg.task else {}  # another task: its own settings
+    base = build_env(config_lib.updated(cfg, {"task": task, "env": env_settings}), seed=args.seed)
+    if task != cfg.task:
+        check_same_spaces(build_env(cfg), base, f"run '{run.name}' ({cfg.task})",
                           f"task '{task}'")
     agent = make_agent(base, cfg)
     agent.loss.load_state_dict(rundir.load_checkpoint(run)["loss"])

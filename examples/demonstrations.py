@@ -50,12 +50,12 @@ env = make_env(pair.target, batch_size=(8,), seed=1)
 eval_env = make_env(pair.target, batch_size=(16,), seed=10_001)
 agent = make_agent(env, cfg)
 demo_buffer = demonstration_buffer(demos, agent.loss.in_keys)
-buffer = ReplayBuffer(storage=LazyTensorStorage(cfg["frames"]), batch_size=cfg["buffer"]["batch_size"])
+buffer = ReplayBuffer(storage=LazyTensorStorage(cfg.frames), batch_size=cfg.buffer.batch_size)
 k = round(ratio * buffer.batch_size)
 update = UpdateStep(agent, loss_terms=behaviour_cloning(agent.loss, k, weight=10.0))
-fpb = cfg["collector"]["frames_per_batch"]
-warmup = min(cfg["collector"]["init_random_frames"], cfg["frames"] // 4 // fpb * fpb)
-collector = Collector(env, agent.policy, frames_per_batch=fpb, total_frames=cfg["frames"], init_random_frames=warmup,
+fpb = cfg.collector.frames_per_batch
+warmup = min(cfg.collector.init_random_frames, cfg.frames // 4 // fpb * fpb)
+collector = Collector(env, agent.policy, frames_per_batch=fpb, total_frames=cfg.frames, init_random_frames=warmup,
                       auto_register_policy_transforms=False)
 
 # 3. The loop: every batch is k demonstrated transitions, then the learner's own (the keys the loss reads).
@@ -64,7 +64,7 @@ for batch in collector:
     buffer.extend(batch.reshape(-1).select(*agent.loss.in_keys))
     frames += batch.numel()
     if frames > warmup:
-        for sample in mixed_batches(buffer, demo_buffer, cfg["optim"]["updates_per_batch"], ratio):
+        for sample in mixed_batches(buffer, demo_buffer, cfg.optim.updates_per_batch, ratio):
             update(sample)
         if demo_rows is None:  # how many rows of a mixed batch are demonstrated transitions
             found = (sample["observation"][:, None] == demos["observation"][None]).all(-1).any(-1)

@@ -57,18 +57,18 @@ print("start", json.dumps({"action_gap_to_source": (mine - theirs).abs().max().i
                            **evaluate(eval_env, agent.actor)}))
 
 # 3. Collector, buffer, loss and the loop: fine-tuning from the loaded weights.
-fpb = cfg["collector"]["frames_per_batch"]
-warmup = min(cfg["collector"]["init_random_frames"], cfg["frames"] // 4 // fpb * fpb)
-collector = Collector(env, agent.policy, frames_per_batch=fpb, total_frames=cfg["frames"], init_random_frames=warmup,
+fpb = cfg.collector.frames_per_batch
+warmup = min(cfg.collector.init_random_frames, cfg.frames // 4 // fpb * fpb)
+collector = Collector(env, agent.policy, frames_per_batch=fpb, total_frames=cfg.frames, init_random_frames=warmup,
                       auto_register_policy_transforms=False)
-buffer = ReplayBuffer(storage=LazyTensorStorage(cfg["frames"]), batch_size=cfg["buffer"]["batch_size"])
+buffer = ReplayBuffer(storage=LazyTensorStorage(cfg.frames), batch_size=cfg.buffer.batch_size)
 update = UpdateStep(agent)
 frames = 0
 for batch in collector:
     buffer.extend(batch.reshape(-1))
     frames += batch.numel()
     if frames > warmup:
-        for sample in sample_batches(buffer, cfg["optim"]["updates_per_batch"]):
+        for sample in sample_batches(buffer, cfg.optim.updates_per_batch):
             update(sample)
 collector.shutdown()
 print("result", json.dumps({"frames": frames, **evaluate(eval_env, agent.actor)}))

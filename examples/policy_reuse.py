@@ -51,11 +51,11 @@ cfg = resolve(task=pair.target, frames=args.frames, seed=1)
 env = make_env(pair.target, batch_size=(8,), seed=1).append_transform(reuse.primer())
 eval_env = make_env(pair.target, batch_size=(16,), seed=10_001)
 agent = make_agent(env, cfg)
-fpb = cfg["collector"]["frames_per_batch"]
-warmup = min(cfg["collector"]["init_random_frames"], cfg["frames"] // 4 // fpb * fpb)
-collector = Collector(env, TensorDictSequential(agent.policy, reuse), frames_per_batch=fpb, total_frames=cfg["frames"],
+fpb = cfg.collector.frames_per_batch
+warmup = min(cfg.collector.init_random_frames, cfg.frames // 4 // fpb * fpb)
+collector = Collector(env, TensorDictSequential(agent.policy, reuse), frames_per_batch=fpb, total_frames=cfg.frames,
                       init_random_frames=warmup, auto_register_policy_transforms=False)
-buffer = ReplayBuffer(storage=LazyTensorStorage(cfg["frames"]), batch_size=cfg["buffer"]["batch_size"])
+buffer = ReplayBuffer(storage=LazyTensorStorage(cfg.frames), batch_size=cfg.buffer.batch_size)
 update = UpdateStep(agent)
 
 # 3. The loop. After the random warm-up, check the mixer: where "reused", the action is the source's.
@@ -70,7 +70,7 @@ for batch in collector:
         reused.append(batch["reused"].float().mean().item())
     frames += batch.numel()
     if frames > warmup:
-        for sample in sample_batches(buffer, cfg["optim"]["updates_per_batch"]):
+        for sample in sample_batches(buffer, cfg.optim.updates_per_batch):
             update(sample)
 collector.shutdown()
 print("result", json.dumps({"frames": frames, "reused_fraction": sum(reused) / len(reused), "source_action_gap": gap,

@@ -25,8 +25,8 @@ torch.set_num_threads(1)
 # 1. make_env: the task (+1 at the goal, -0.01 a step) with shaping on the training env only.
 task = "fourrooms/northeast"
 cfg = resolve(task=task, frames=args.frames)
-potential = get_task(task).potential(cfg["env"])
-env = TransformedEnv(make_env(task, batch_size=(8,), seed=0), PotentialShaping(potential, gamma=cfg["optim"]["gamma"]))
+potential = get_task(task).potential(cfg.env)
+env = TransformedEnv(make_env(task, batch_size=(8,), seed=0), PotentialShaping(potential, gamma=cfg.optim.gamma))
 eval_env = make_env(task, batch_size=(16,), seed=10_000)
 
 # 2. What the transform writes: Phi(s) in "potential", Phi(s') and the task's reward in "next".
@@ -38,11 +38,11 @@ for t in range(3):
 
 # 3. make_agent, collector, buffer and loss: SAC as `drltg train` builds it.
 agent = make_agent(env, cfg)
-fpb = cfg["collector"]["frames_per_batch"]
-warmup = min(cfg["collector"]["init_random_frames"], cfg["frames"] // 4 // fpb * fpb)
-collector = Collector(env, agent.policy, frames_per_batch=fpb, total_frames=cfg["frames"], init_random_frames=warmup,
+fpb = cfg.collector.frames_per_batch
+warmup = min(cfg.collector.init_random_frames, cfg.frames // 4 // fpb * fpb)
+collector = Collector(env, agent.policy, frames_per_batch=fpb, total_frames=cfg.frames, init_random_frames=warmup,
                       auto_register_policy_transforms=False)
-buffer = ReplayBuffer(storage=LazyTensorStorage(cfg["frames"]), batch_size=cfg["buffer"]["batch_size"])
+buffer = ReplayBuffer(storage=LazyTensorStorage(cfg.frames), batch_size=cfg.buffer.batch_size)
 update = UpdateStep(agent)
 
 # 4. The loop: the learner sees the shaped reward, the evaluation the task's.
@@ -51,7 +51,7 @@ for batch in collector:
     buffer.extend(batch.reshape(-1))
     frames += batch.numel()
     if frames > warmup:
-        for sample in sample_batches(buffer, cfg["optim"]["updates_per_batch"]):
+        for sample in sample_batches(buffer, cfg.optim.updates_per_batch):
             update(sample)
 collector.shutdown()
 print("result", json.dumps({"frames": frames, **evaluate(eval_env, agent.actor)}))

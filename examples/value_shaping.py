@@ -44,7 +44,7 @@ value = load_critic(source_dir)
 
 # 2. make_env: the target task, shaped by the source's value (training env only).
 cfg = resolve(task=pair.target, frames=args.frames, seed=1)
-shaping = PotentialShaping(value, gamma=cfg["optim"]["gamma"])
+shaping = PotentialShaping(value, gamma=cfg.optim.gamma)
 env = TransformedEnv(make_env(pair.target, batch_size=(8,), seed=1), shaping)
 eval_env = make_env(pair.target, batch_size=(16,), seed=10_001)
 steps = env.rollout(3, lambda td: td.set("action", torch.ones(8, 2)))
@@ -57,11 +57,11 @@ print("potential", json.dumps({"phi_minus_source_value": gap, "phi": steps["pote
 
 # 3. make_agent, collector, buffer, loss.
 agent = make_agent(env, cfg)
-fpb = cfg["collector"]["frames_per_batch"]
-warmup = min(cfg["collector"]["init_random_frames"], cfg["frames"] // 4 // fpb * fpb)
-collector = Collector(env, agent.policy, frames_per_batch=fpb, total_frames=cfg["frames"], init_random_frames=warmup,
+fpb = cfg.collector.frames_per_batch
+warmup = min(cfg.collector.init_random_frames, cfg.frames // 4 // fpb * fpb)
+collector = Collector(env, agent.policy, frames_per_batch=fpb, total_frames=cfg.frames, init_random_frames=warmup,
                       auto_register_policy_transforms=False)
-buffer = ReplayBuffer(storage=LazyTensorStorage(cfg["frames"]), batch_size=cfg["buffer"]["batch_size"])
+buffer = ReplayBuffer(storage=LazyTensorStorage(cfg.frames), batch_size=cfg.buffer.batch_size)
 update = UpdateStep(agent)
 
 # 4. The loop.
@@ -70,7 +70,7 @@ for batch in collector:
     buffer.extend(batch.reshape(-1))
     frames += batch.numel()
     if frames > warmup:
-        for sample in sample_batches(buffer, cfg["optim"]["updates_per_batch"]):
+        for sample in sample_batches(buffer, cfg.optim.updates_per_batch):
             update(sample)
 collector.shutdown()
 print("result", json.dumps({"frames": frames, **evaluate(eval_env, agent.actor)}))

@@ -29,7 +29,7 @@ def source_run(tmp_path):
             p.fill_(0.25)
     (tmp_path / "src" / "checkpoints").mkdir(parents=True)
     torch.save({"loss": agent.loss.state_dict(), "frames": 0}, tmp_path / "src" / "checkpoints" / "last.pt")
-    (tmp_path / "src" / "config.yaml").write_text(yaml.safe_dump(_cfg()))
+    (tmp_path / "src" / "config.yaml").write_text(config_lib.dump(_cfg()))
     (tmp_path / "src" / "summary.json").write_text("{}")
     return tmp_path / "src"
 

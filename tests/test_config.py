@@ -1,10 +1,12 @@
 """The config schema: every key has a type and range, and every wrong value is one sentence naming
 the key, raised by ``resolve()`` before anything is built or written."""
 import dataclasses
+import pickle
 
 import pytest
 import torch
 import yaml
+from pydantic import Field
 
 import drltg.transfer  # noqa: F401  (registers the transfer methods and their config keys)
 from drltg import config as config_lib
@@ -125,24 +127,40 @@ def test_a_methods_own_rules_hold_when_it_is_chosen(overrides, key, expected):
     assert config_lib.resolve(overrides=overrides[1:])  # another method does not read them
 
 
-def test_a_registered_method_brings_its_keys(monkeypatch):
-    import copy
+@pytest.fixture
+def registries():
+    """The method registries as they are, restored after the test (which registers methods of its own)."""
+    from drltg.transfer import registry
 
-    from drltg.transfer import Transfer, TransferMethod, register_method, registry
+    tables = (registry.METHODS, config_lib.METHOD_RULES, config_lib.METHOD_OPTIONS, config_lib.METHOD_MODELS)
+    saved = [dict(table) for table in tables]
+    yield
+    for table, before in zip(tables, saved):
+        table.clear()
+        table.update(before)
+    config_lib._model.cache_clear()
 
-    monkeypatch.setattr(registry, "METHODS", dict(registry.METHODS))
-    monkeypatch.setattr(config_lib, "DEFAULTS", copy.deepcopy(config_lib.DEFAULTS))
-    monkeypatch.setattr(config_lib, "SCHEMA", dict(config_lib.SCHEMA))
+
+def test_a_registered_method_brings_its_keys(registries):
+    from drltg.transfer import Transfer, TransferMethod, register_method
+
     method = TransferMethod("test-scale", "scales nothing", lambda *a, **k: Transfer(),
-                            options={"scale": (2.0, config_lib.Field(float, "how much", low=0.0))})
+                            options={"scale": (float, Field(2.0, ge=0.0, description="how much"))})
     register_method(method)
-    assert config_lib.resolve(overrides=["transfer.method=test-scale"])["transfer"]["scale"] == 2.0
+    cfg = config_lib.resolve(overrides=["transfer.method=test-scale"])
+    assert cfg.transfer.scale == 2.0 and list(cfg.model_dump()["transfer"])[-1] == "scale"
     assert "must be a number >= 0" in _refused("transfer.scale", "transfer.scale=-1")
-    assert "| `transfer.scale` | 2.0 |" in config_lib.describe()
+    assert "| `transfer.scale` | 2.0 | a number >= 0 | how much |" in config_lib.describe()
     with pytest.raises(UsageError, match="already registered; pass replace=True"):
         register_method(method)
     with pytest.raises(UsageError, match="'transfer.psi' already belongs to policy-reuse"):
-        register_method(TransferMethod("test-psi", "", method.build, options={"psi": (1.0, config_lib.Field(float))}))
+        register_method(TransferMethod("test-psi", "", method.build, options={"psi": (float, 1.0)}))
+    with pytest.raises(UsageError, match="test-bad.*config key 'transfer.level' must be an integer >= 1, got 0"):
+        register_method(TransferMethod("test-bad", "", method.build, options={"level": (int, Field(0, ge=1))}))
+    register_method(TransferMethod("test-scale", "", method.build, options={"gain": (int, 3)}), replace=True)
+    assert "scale" not in config_lib.keys() and config_lib.resolve().transfer.gain == 3
+    with pytest.raises(UsageError, match="unknown config key 'transfer.scale'"):
+        _resolve("transfer.scale=1")
 
 
 @pytest.mark.parametrize(
@@ -183,7 +201,7 @@ def test_cuda_index_beyond_the_devices_is_one_sentence(monkeypatch):
     monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
     monkeypatch.setattr(torch.cuda, "device_count", lambda: 1)
     assert "has 1 CUDA device(s)" in _refused("device", "device=cuda:3")
-    assert _resolve("device=cuda:0")["device"] == "cuda:0"
+    assert _resolve("device=cuda:0").device == "cuda:0"
 
 
 def test_valid_edge_values_pass():
@@ -194,39 +212,39 @@ def test_valid_edge_values_pass():
         "transfer.freeze=[actor_network_params]", "transfer.source=runs/src", "buffer.size=1",
         "transfer.partial=true", "transfer.allow_incomplete=true", seed=0,
     )
-    assert cfg["optim"] == {"lr": 3e-4, "updates_per_batch": 1, "gamma": 1, "tau": 1}
-    assert cfg["network"]["hidden"] == [8]
-    assert cfg["sac"]["target_entropy"] == -2
-    assert cfg["transfer"]["partial"] is True and cfg["transfer"]["allow_incomplete"] is True
+    assert cfg.optim.model_dump() == {"lr": 3e-4, "updates_per_batch": 1, "gamma": 1, "tau": 1}
+    assert cfg.network.hidden == [8]
+    assert cfg.sac.target_entropy == -2
+    assert cfg.transfer.partial is True and cfg.transfer.allow_incomplete is True
 
 
 def test_override_parsing_is_unchanged_for_valid_values():
     cfg = _resolve("optim.lr=1e-3", "frames=1e4", "env.horizon=1e3", "env.goal=[8, 7]", "eval.every=2000.0")
-    assert cfg["optim"]["lr"] == 0.001
-    assert cfg["frames"] == 10_016 and isinstance(cfg["frames"], int)  # rounded up to whole batches
-    assert cfg["env"] == {**config_lib.task_env("fourrooms/northeast"), "horizon": 1000, "goal": [8, 7]}
-    assert isinstance(cfg["env"]["horizon"], int)
-    assert cfg["eval"]["every"] == 2000 and isinstance(cfg["eval"]["every"], int)
+    assert cfg.optim.lr == 0.001
+    assert cfg.frames == 10_016 and isinstance(cfg.frames, int)  # rounded up to whole batches
+    assert cfg.env == {**config_lib.task_env("fourrooms/northeast"), "horizon": 1000, "goal": [8, 7]}
+    assert isinstance(cfg.env["horizon"], int)
+    assert cfg.eval.every == 2000 and isinstance(cfg.eval.every, int)
     assert config_lib.parse_override("transfer.source=runs/a=b") == ("transfer.source", "runs/a=b")
     assert config_lib.parse_override("sac.target_entropy=auto") == ("sac.target_entropy", "auto")
 
 
 def test_a_mapping_for_a_section_is_merged():
     cfg = _resolve("optim={lr: 0.1}")
-    assert cfg["optim"]["lr"] == 0.1 and cfg["optim"]["gamma"] == 0.99
+    assert cfg.optim.lr == 0.1 and cfg.optim.gamma == 0.99
 
 
 def test_task_given_as_override_brings_its_own_settings():
     cfg = config_lib.resolve({}, ["task=gridrooms/northeast"])
-    assert cfg["task"] == "gridrooms/northeast" and cfg["sac"]["fixed_alpha"] is True
+    assert cfg.task == "gridrooms/northeast" and cfg.sac.fixed_alpha is True
 
 
 def test_every_default_key_has_a_field_and_every_default_fits():
-    assert set(config_lib.SCHEMA) == set(_leaves(config_lib.DEFAULTS)) | {"env"}
+    assert config_lib.keys() == list(_leaves(config_lib.defaults()))
     for task in TASKS:
         config_lib.resolve({}, [], task=task)
     table = config_lib.describe()
-    assert all(f"`{key}`" in table for key in config_lib.SCHEMA)
+    assert [line.split("`")[1] for line in table.splitlines()[2:]] == config_lib.keys()
 
 
 def test_choices_match_the_implementations():
@@ -235,7 +253,7 @@ def test_choices_match_the_implementations():
     from drltg.transfer import METHODS
 
     assert set(config_lib.ALGOS) == set(ALGOS)
-    assert set(config_lib.SCHEMA["transfer.method"].choices) == set(METHODS)
+    assert set(config_lib.method_names()) == set(METHODS)
     assert set(config_lib.OPTION_POLICIES) == set(OPTION_POLICIES)
 
 
@@ -245,13 +263,72 @@ def test_env_keys_of_an_open_factory_are_checked_where_declared(monkeypatch):
 
     spec = register_task("test/open-factory", factory, "a factory taking any keyword")
     monkeypatch.setitem(TASKS, spec.name, TASKS.pop(spec.name))
-    assert _resolve("env.anything=[1, 2]", "env.size=4", task=spec.name)["env"] == {"anything": [1, 2], "size": 4}
+    assert _resolve("env.anything=[1, 2]", "env.size=4", task=spec.name).env == {"anything": [1, 2], "size": 4}
     assert "declares size=3" in _refused("env.size", "env.size=abc", task=spec.name)
 
 
-def test_validate_refuses_a_partial_config():
-    with pytest.raises(UsageError, match="has no key 'algo'"):
-        config_lib.validate({"task": "fourrooms/northeast"})
+def test_build_fills_defaults_and_checks_types_like_resolve():
+    cfg = config_lib.build({"optim": {"lr": 1}, "frames": 1e3, "soc": {"option_alpha_init": None}})
+    assert isinstance(cfg, config_lib.RunConfig)
+    assert (cfg.optim.lr, type(cfg.optim.lr), cfg.frames, type(cfg.frames)) == (1.0, float, 1000, int)
+    assert cfg.soc.option_alpha_init is None and cfg.optim.gamma == 0.99 and cfg.transfer.psi == 1.0
+    for data, message in [
+        ({"frames": 2.5}, "config key 'frames' must be an integer >= 1, got 2.5."),
+        ({"frames": "7"}, "config key 'frames' must be an integer >= 1, got '7'."),
+        ({"optim": {"lr": True}}, "config key 'optim.lr' must be a number > 0, got True."),
+        ({"optim": {"gamma": 1.5}}, "config key 'optim.gamma' must be a number in (0, 1], got 1.5."),
+        ({"log": {"tensorboard": "yes"}}, "config key 'log.tensorboard' must be true or false, got 'yes'."),
+        ({"optim": {"lrr": 1}}, "unknown config key 'optim.lrr'; did you mean 'optim.lr'?"),
+        ({"optimm": {}}, "unknown config key 'optimm'; did you mean 'optim'?"),
+        ({"transfer": {"psy": 0.5}}, "unknown config key 'transfer.psy'; did you mean 'transfer.psi'?"),
+        ({"collector": {"num_envs": 3}},
+         "collector.frames_per_batch (32) must be a multiple of collector.num_envs (3)."),
+        ({"algo": "ppo"}, "unknown algorithm 'ppo': config key 'algo' must be one of sac, td3, soc."),
+        ({"buffer": 3}, "config key 'buffer' must be a mapping of buffer.size, buffer.batch_size, got 3."),
+    ]:
+        with pytest.raises(UsageError) as err:
+            config_lib.build(data)
+        assert str(err.value) == message
+
+
+def test_overrides_are_coerced_as_before():
+    cfg = _resolve("seed=7.0", "optim.lr=1", "soc.option_alpha_init=null", "network.hidden=[32, 16.0]",
+                   "sac.target_entropy=-1", "transfer.freeze=[a, b]", "transfer.psi_end=0")
+    assert (cfg.seed, type(cfg.seed)) == (7, int)
+    assert (cfg.optim.lr, type(cfg.optim.lr)) == (1.0, float)
+    assert cfg.soc.option_alpha_init is None and cfg.sac.target_entropy == -1.0
+    assert cfg.network.hidden == [32, 16] and all(type(w) is int for w in cfg.network.hidden)
+    assert cfg.transfer.freeze == ["a", "b"] and cfg.transfer.psi_end == 0.0
+
+
+def test_a_config_is_checked_on_assignment_and_by_updated():
+    cfg = _resolve()
+    cfg.optim.lr = 0.5
+    assert cfg.optim.lr == 0.5
+    with pytest.raises(ValueError):
+        cfg.optim.lr = -1
+    other = config_lib.updated(cfg, {"seed": 3, "transfer.source": "runs/a"})
+    assert (other.seed, other.transfer.source, cfg.seed, cfg.transfer.source) == (3, "runs/a", 0, None)
+    with pytest.raises(UsageError, match=r"^config key 'optim.gamma' must be a number in \(0, 1\], got 0.$"):
+        config_lib.updated(cfg, {"optim.gamma": 0})
+
+
+def test_dump_then_load_gives_the_same_config(tmp_path):
+    cfg = _resolve("transfer.method=policy-reuse", "transfer.source=runs/src", "env.horizon=60", "optim.lr=1e-3")
+    path = tmp_path / "config.yaml"
+    path.write_text(config_lib.dump(cfg))
+    again = config_lib.resolve(config_lib.load_yaml(path))
+    assert again == cfg and config_lib.dump(again) == config_lib.dump(cfg)
+    assert config_lib.build(yaml.safe_load(config_lib.dump(cfg))) == cfg
+    assert list(yaml.safe_load(config_lib.dump(cfg))) == ["task", "algo", "seed", "frames", "device", "threads", "env",
+                                                          "collector", "buffer", "optim", "network", "sac", "td3",
+                                                          "soc", "eval", "checkpoint", "log", "transfer"]
+    assert pickle.loads(pickle.dumps(cfg)) == cfg  # a config goes to worker processes as its values
+
+
+def test_a_config_file_that_is_not_a_mapping_is_one_sentence():
+    with pytest.raises(UsageError, match=r"^a config must be a mapping of config keys, got \[1\]\.$"):
+        config_lib.resolve([1])
 
 
 @pytest.mark.parametrize(
@@ -286,16 +363,16 @@ def test_cli_refuses_a_config_file_with_a_scalar_hidden(tmp_path, capsys):
 def test_manipulation_env_keys_are_checked_against_robosuite_env_defaults():
     with pytest.raises(UsageError, match=r"config key 'env.horizon' must be an integer .*horizon=500"):
         config_lib.resolve(task="lift", overrides=["env.horizon=abc"])
-    assert config_lib.resolve(task="lift", overrides=["env.horizon=100"])["env"]["horizon"] == 100
-    dense = config_lib.resolve(task="lift-dense")["env"]
+    assert config_lib.resolve(task="lift", overrides=["env.horizon=100"]).env["horizon"] == 100
+    dense = config_lib.resolve(task="lift-dense").env
     assert dense["task"] == "lift" and dense["reward_shaping"] is True and dense["horizon"] == 500
 
 
 def test_the_config_holds_every_env_setting_of_its_task(monkeypatch):
     cfg = _resolve("env.horizon=50")
-    assert cfg["env"] == {"goal": [8.0, 8.0], "goal_radius": 0.5, "max_step": 0.5, "step_cost": 0.01, "horizon": 50,
+    assert cfg.env == {"goal": [8.0, 8.0], "goal_radius": 0.5, "max_step": 0.5, "step_cost": 0.01, "horizon": 50,
                           "start_room": None, "observe_goal": False, "render_size": 200}
-    assert yaml.safe_load(config_lib.dump(cfg)) == cfg  # plain YAML, no tuples
+    assert yaml.safe_load(config_lib.dump(cfg)) == cfg.model_dump()  # plain YAML, no tuples
 
 
 def test_an_option_of_a_method_the_run_does_not_use_is_not_a_change():
@@ -309,7 +386,7 @@ def test_an_option_of_a_method_the_run_does_not_use_is_not_a_change():
     a = config_lib.resolve(None, demos, task="fourrooms/northeast", algo="sac")
     b = config_lib.resolve(None, [*demos, "transfer.demo_episodes=3"], task="fourrooms/northeast", algo="sac")
     assert config_changes(a, b) == ["transfer.demo_episodes"]
-    parallel = {**b, "env": {**b["env"], "parallel": True}}  # how envs are stepped, not what they step
+    parallel = {**b.model_dump(), "env": {**b.env, "parallel": True}}  # how envs are stepped, not what they step
     assert config_changes(b, parallel) == []
 
 
@@ -318,7 +395,7 @@ def test_a_changed_env_default_is_a_changed_run(monkeypatch):
     from drltg.envs import registry
 
     saved = _resolve()
-    old_style = {**saved, "env": {}}  # saved before env settings were written in full
+    old_style = {**saved.model_dump(), "env": {}}  # saved before env settings were written in full
     assert config_changes(old_style, _resolve()) == [] and config_changes(saved, _resolve()) == []
     spec = registry.TASKS["fourrooms/northeast"]
     monkeypatch.setitem(registry.TASKS, spec.name, dataclasses.replace(spec, defaults={**spec.defaults, "horizon": 60}))
@@ -329,7 +406,8 @@ def test_the_builtin_methods_register_their_options_from_the_plain_defaults():
     from drltg.transfer import METHODS
 
     for name, options in config_lib.BUILTIN_METHOD_OPTIONS.items():
-        assert {k: default for k, (default, _) in METHODS[name].options.items()} == options
+        assert config_lib.METHOD_MODELS[name]().model_dump() == options == {
+            k: default for k, (_, default) in METHODS[name].options.items()}
     owned = {k for m in METHODS.values() for k in m.options}
     assert owned == {k for options in config_lib.BUILTIN_METHOD_OPTIONS.values() for k in options}
 
@@ -340,7 +418,7 @@ def test_config_changes_without_the_task_registry():
     from drltg.config import config_changes, env_keys_set_once
 
     demos = ["transfer.method=demonstrations", "transfer.source=demonstrator:x"]
-    full = config_lib.resolve(None, demos, task="fourrooms/northeast", algo="sac")
+    full = config_lib.resolve(None, demos, task="fourrooms/northeast", algo="sac").model_dump()
     old = {**full, "env": {}, "transfer": {k: v for k, v in full["transfer"].items() if k != "bc_weight"}}
     assert config_changes(old, full, env_defaults=False) == []
     assert env_keys_set_once(old, full) == sorted(f"env.{k}" for k in full["env"])
@@ -372,9 +450,28 @@ def test_overrides_that_set_one_key_twice_are_refused_in_either_order(first, sec
 def test_an_env_mapping_and_an_env_key_give_the_same_config_in_either_order():
     a = config_lib.resolve({}, ["env.horizon=50", "env={step_cost: 0.5}"], task="fourrooms/northeast")
     b = config_lib.resolve({}, ["env={step_cost: 0.5}", "env.horizon=50"], task="fourrooms/northeast")
-    assert a == b and (a["env"]["horizon"], a["env"]["step_cost"]) == (50, 0.5)
+    assert a == b and (a.env["horizon"], a.env["step_cost"]) == (50, 0.5)
 
 
-def test_the_same_override_key_given_twice_is_a_replacement():
-    assert config_lib.resolve({}, ["optim.lr=0.5", "optim.lr=0.2"])["optim"]["lr"] == 0.2
-    config_lib.refuse_conflicts(["optim.lr=0.5", "optim.lr=0.2", "optim={gamma: 0.9}"])
+@pytest.mark.parametrize("overrides, key", [
+    (["optim.lr=1e-3", "optim.lr=3e-4"], "optim.lr"),
+    (["optim.lr=1e-3", "optim.lr=1e-3"], "optim.lr"),
+    (["env.horizon=50", "seed=1", "env.horizon=60"], "env.horizon"),
+    (["optim={gamma: 0.9}", "optim.gamma=0.9"], "optim.gamma"),
+])
+def test_the_same_override_key_given_twice_is_refused(overrides, key):
+    with pytest.raises(UsageError) as err:
+        config_lib.refuse_conflicts(overrides)
+    first, second = overrides[0], overrides[-1]
+    assert str(err.value) == f"config key '{key}' is set twice by -o ('{first}', then '{second}'); give it once."
+    config_lib.refuse_conflicts(["optim.lr=0.5", "optim={gamma: 0.9}", "env.horizon=5", "env={step_cost: 0}"])
+
+
+def test_cli_refuses_the_same_override_twice_with_exit_2(tmp_path, capsys):
+    run_dir = tmp_path / "run"
+    assert main(["train", "fourrooms/northeast", "--run-dir", str(run_dir), "-o", "optim.lr=1e-3",
+                 "-o", "optim.lr=3e-4"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("config key 'optim.lr' is set twice by -o ('optim.lr=1e-3', then 'optim.lr=3e-4'); give it "
+                        "once.") and len(err.splitlines()) == 1
+    assert not run_dir.exists()

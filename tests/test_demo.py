@@ -9,21 +9,21 @@ def test_the_demo_reuses_one_source_over_paired_seeds(tmp_path):
     d = demo.DEMO
 
     def budget(cfg, frames):  # rounded up to whole collector batches
-        per_batch = cfg["collector"]["frames_per_batch"]
+        per_batch = cfg.collector.frames_per_batch
         return math.ceil(frames / per_batch) * per_batch
 
     runs = demo.plan(tmp_path)
     roles = [role for role, _, _ in runs]
     assert roles == ["source"] + ["baseline", "transfer"] * d["seeds"]
     (_, source_cfg, source_dir), pairs = runs[0], runs[1:]
-    assert source_cfg["task"] == "fourrooms/northeast"
-    assert source_cfg["frames"] == budget(source_cfg, d["source_frames"])
+    assert source_cfg.task == "fourrooms/northeast"
+    assert source_cfg.frames == budget(source_cfg, d["source_frames"])
     assert source_dir == tmp_path / "source" / f"seed-{d['source_seed']}"
     for (_, b, b_dir), (_, t, t_dir) in zip(pairs[::2], pairs[1::2]):
-        assert b["seed"] == t["seed"] and b_dir.name == t_dir.name == f"seed-{b['seed']}"  # paired by seed
-        assert b["task"] == t["task"] == "fourrooms/northeast-shifted"
-        assert b["frames"] == t["frames"] == budget(b, d["frames"])
-        assert b["transfer"]["method"] == "none"
-        assert t["transfer"]["method"] == "model-reuse" and Path(t["transfer"]["source"]) == source_dir
-    assert len({b["seed"] for _, b, _ in pairs}) == d["seeds"]
-    assert source_cfg["seed"] not in {b["seed"] for _, b, _ in pairs}  # the source shares no seed with a target run
+        assert b.seed == t.seed and b_dir.name == t_dir.name == f"seed-{b.seed}"  # paired by seed
+        assert b.task == t.task == "fourrooms/northeast-shifted"
+        assert b.frames == t.frames == budget(b, d["frames"])
+        assert b.transfer.method == "none"
+        assert t.transfer.method == "model-reuse" and Path(t.transfer.source) == source_dir
+    assert len({b.seed for _, b, _ in pairs}) == d["seeds"]
+    assert source_cfg.seed not in {b.seed for _, b, _ in pairs}  # the source shares no seed with a target run

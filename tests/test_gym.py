@@ -75,7 +75,7 @@ def test_registered_variant_passes_its_keywords_to_gymnasium_make(task, g):
 
 def test_env_settings_override_gymnasium_keywords():
     cfg = config_lib.resolve({}, ["env.g=12.5"], task="pendulum/g15")
-    assert cfg["env"]["g"] == 12.5 and cfg["env"]["gym_id"] == "Pendulum-v1"
+    assert cfg.env["g"] == 12.5 and cfg.env["gym_id"] == "Pendulum-v1"
     assert make_env("pendulum/g15", g=12.5)._env.unwrapped.g == 12.5
 
 
@@ -137,7 +137,7 @@ def test_gym_pair_plans_like_a_drltg_pair_and_a_method_that_cannot_apply_says_so
     from drltg.experiments.experiment import plan_runs
 
     runs = plan_runs("pendulum-heavier", "model-reuse", frames=100, seeds=2, out=Path("/tmp/unused"))
-    assert [(role, cfg["task"], cfg["env"]["g"]) for role, cfg, _ in runs] == [
+    assert [(role, cfg.task, cfg.env["g"]) for role, cfg, _ in runs] == [
         ("source", "pendulum/g10", 10.0), ("baseline", "pendulum/g15", 15.0), ("transfer", "pendulum/g15", 15.0)
     ] * 2
     with pytest.raises(UsageError, match="^task 'pendulum/g15' has no shaping potential registered.$"):

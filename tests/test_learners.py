@@ -44,7 +44,7 @@ def agent_for(algo="sac", task=TASK, hidden=(32, 32), seed=0, vmap=False, **expl
     deactivate = learners.DEACTIVATE_VMAP
     learners.DEACTIVATE_VMAP = not vmap
     try:
-        return make_agent(make_env(task, seed=0, **cfg["env"]), cfg)
+        return make_agent(make_env(task, seed=0, **cfg.env), cfg)
     finally:
         learners.DEACTIVATE_VMAP = deactivate
 

@@ -52,15 +52,15 @@ def test_each_row_reuses_the_kept_source_of_its_own_seed(row, monkeypatch):
     transfers = [r for r in runs if r.role == "transfer"]
     for run in transfers:
         if source is None or source.startswith("demonstrator:"):  # reward shaping; the scripted reference
-            assert run.cfg["transfer"]["source"] == source
+            assert run.cfg.transfer.source == source
             continue
         name = SOURCED.fullmatch(source).group(1)
         assert name in queue_sources()
-        kept = ROOT / "runs" / "manipulation" / "sources" / name / f"seed-{run.cfg['seed']}"
-        assert run.cfg["transfer"]["source"] == str(kept)
-    assert [r.cfg["seed"] for r in transfers] == [100 * i for i in range(spec.seeds)]
+        kept = ROOT / "runs" / "manipulation" / "sources" / name / f"seed-{run.cfg.seed}"
+        assert run.cfg.transfer.source == str(kept)
+    assert [r.cfg.seed for r in transfers] == [100 * i for i in range(spec.seeds)]
     if source is None or "{seed}" in source:  # the baselines of every row on the target, whatever its source
-        assert all(r.cfg["transfer"]["source"] is None for r in runs if r.role == "baseline")
+        assert all(r.cfg.transfer.source is None for r in runs if r.role == "baseline")
 
 
 def test_rows_on_one_target_share_its_baselines():
@@ -79,7 +79,7 @@ def test_rows_on_one_target_share_its_baselines():
 def test_a_source_written_with_seed_serves_each_transfer_run_from_its_own_seed(tmp_path):
     runs = plan_runs("fourrooms/northeast-shifted", "model-reuse", frames=100, out=tmp_path, seeds=3, seed=7,
                      overrides=["transfer.source=kept/seed-{seed}"])
-    got = [(role, cfg["seed"], cfg["transfer"]["source"]) for role, cfg, _ in runs]
+    got = [(role, cfg.seed, cfg.transfer.source) for role, cfg, _ in runs]
     kept = Path.cwd() / "kept"
     assert got == [("baseline", 7, None), ("transfer", 7, str(kept / "seed-7")),
                    ("baseline", 107, None), ("transfer", 107, str(kept / "seed-107")),
@@ -87,7 +87,7 @@ def test_a_source_written_with_seed_serves_each_transfer_run_from_its_own_seed(t
     # a source without {seed} serves every transfer run; the baselines have none either way
     runs = plan_runs("fourrooms/northeast-shifted", "model-reuse", frames=100, out=tmp_path, seeds=2,
                      overrides=["transfer.source=kept/one"])
-    assert {(role, cfg["transfer"]["source"]) for role, cfg, _ in runs} == {("baseline", None),
+    assert {(role, cfg.transfer.source) for role, cfg, _ in runs} == {("baseline", None),
                                                                              ("transfer", "kept/one")}
 
 

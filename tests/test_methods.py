@@ -26,7 +26,7 @@ def _source_run(path, task="fourrooms/northeast", algo="sac"):
     agent = make_agent(make_env(task), cfg)
     (path / "checkpoints").mkdir(parents=True)
     torch.save({"loss": agent.loss.state_dict(), "frames": 0}, path / "checkpoints" / "last.pt")
-    (path / "config.yaml").write_text(yaml.safe_dump(cfg))
+    (path / "config.yaml").write_text(config_lib.dump(cfg))
     (path / "summary.json").write_text("{}")
     return path, agent
 

@@ -442,7 +442,7 @@ def test_a_source_given_in_the_config_serves_the_transfer_runs_only(source, tmp_
 
     runs = plan_runs("fourrooms/northeast", "policy-reuse", frames=64, seeds=2, out=tmp_path,
                      overrides=[f"transfer.source={source}"])
-    assert [(role, c["transfer"]["method"], c["transfer"]["source"]) for role, c, _ in runs] == [
+    assert [(role, c.transfer.method, c.transfer.source) for role, c, _ in runs] == [
         ("baseline", "none", None), ("transfer", "policy-reuse", str(source))] * 2
 
 

@@ -518,7 +518,7 @@ def test_a_config_saved_before_its_keys_existed_is_the_same_configuration(tmp_pa
 
     from drltg import config
 
-    full = config.resolve(None, ["transfer.source=demonstrator:x"], task="fourrooms/northeast", algo="sac")
+    full = config.resolve(None, ["transfer.source=demonstrator:x"], task="fourrooms/northeast", algo="sac").model_dump()
     old = {**full, "env": {}, "transfer": {k: v for k, v in full["transfer"].items() if k != "bc_weight"}}
     changed = {**full, "env": {**full["env"], "horizon": 60}}
     for name, cfg in [("seed-0", old), ("seed-1", full), ("seed-2", full)]:

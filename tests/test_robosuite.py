@@ -441,7 +441,7 @@ def test_lift_sparse_vs_shaped_uses_the_lift_potential_on_the_sparse_task():
 
     cfg = _config("lift", "transfer.method=reward-shaping")
     (shaping,) = get_method("reward-shaping").build(cfg, None, None, resuming=False).train_transforms
-    assert isinstance(shaping.potential, LiftPotential) and shaping.gamma == cfg["optim"]["gamma"]
+    assert isinstance(shaping.potential, LiftPotential) and shaping.gamma == cfg.optim.gamma
     assert get_task("lift").defaults == {"task": "lift"}  # the baseline learns from Lift's sparse reward
 
 
@@ -449,20 +449,20 @@ def test_lift_to_place_experiment_plans_sources_or_reuses_the_demonstrator(tmp_p
     from drltg.experiments.experiment import plan_runs
 
     trained = plan_runs("lift-to-place", "policy-reuse", frames=100, seeds=2, out=tmp_path)
-    assert [(role, cfg["task"]) for role, cfg, _ in trained] == [
+    assert [(role, cfg.task) for role, cfg, _ in trained] == [
         ("source", "lift"), ("baseline", "lift-place"), ("transfer", "lift-place")] * 2
-    assert trained[2][1]["transfer"]["source"] == str(trained[0][2])
+    assert trained[2][1].transfer.source == str(trained[0][2])
 
     given = plan_runs("lift-to-place", "policy-reuse", frames=100, seeds=2, out=tmp_path,
                       overrides=["transfer.source=demonstrator:lift"])
-    assert [(role, cfg["task"], cfg["seed"]) for role, cfg, _ in given] == [
+    assert [(role, cfg.task, cfg.seed) for role, cfg, _ in given] == [
         ("baseline", "lift-place", 0), ("transfer", "lift-place", 0),
         ("baseline", "lift-place", 100), ("transfer", "lift-place", 100)]
-    assert [cfg["transfer"]["source"] for _, cfg, _ in given] == [None, "demonstrator:lift"] * 2  # transfer runs only
-    assert [cfg["transfer"]["method"] for _, cfg, _ in given] == ["none", "policy-reuse"] * 2
+    assert [cfg.transfer.source for _, cfg, _ in given] == [None, "demonstrator:lift"] * 2  # transfer runs only
+    assert [cfg.transfer.method for _, cfg, _ in given] == ["none", "policy-reuse"] * 2
 
     shaping = plan_runs("lift", "reward-shaping", frames=100, seeds=1, out=tmp_path)
-    assert [(role, cfg["task"], cfg["transfer"]["method"]) for role, cfg, _ in shaping] == [
+    assert [(role, cfg.task, cfg.transfer.method) for role, cfg, _ in shaping] == [
         ("baseline", "lift", "none"), ("transfer", "lift", "reward-shaping")]
 
 
@@ -472,7 +472,7 @@ def test_an_experiment_on_a_task_alone_needs_a_given_source(tmp_path):
 
     demos = plan_runs("lift", "demonstrations", frames=100, seeds=2, out=tmp_path,
                       overrides=["transfer.source=demonstrator:lift"])
-    assert [(role, cfg["task"], cfg["transfer"]["method"]) for role, cfg, _ in demos] == [
+    assert [(role, cfg.task, cfg.transfer.method) for role, cfg, _ in demos] == [
         ("baseline", "lift", "none"), ("transfer", "lift", "demonstrations")] * 2
     with pytest.raises(UsageError, match="'lift' is a task, not a pair: policy-reuse on it needs"):
         plan_runs("lift", "policy-reuse", frames=100, seeds=1, out=tmp_path)

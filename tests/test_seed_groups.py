@@ -181,7 +181,7 @@ def test_a_method_without_a_grouped_form_trains_its_seeds_one_after_another(tmp_
     from drltg.training.seeds import train_seeds
 
     cfg = tiny_cfg(frames=64, **{"transfer.method": "reward-shaping"})
-    dirs = train_seeds({**cfg, "eval": {**cfg["eval"], "every": 64}}, tmp_path, 2, progress=False)
+    dirs = train_seeds(config_lib.updated(cfg, {"eval.every": 64}), tmp_path, 2, progress=False)
     err = capsys.readouterr().err
     assert "transfer method reward-shaping has no grouped form; training the 2 seeds one after another" in err
     assert [d.name for d in dirs] == ["seed-3", "seed-4"] and all((d / "summary.json").is_file() for d in dirs)
@@ -269,7 +269,7 @@ def test_every_grouped_learner_trains_its_seeds_from_their_runs_alone(task, algo
     for seed in (3, 4):
         rows = read_eval_csv(tmp_path / f"seed-{seed}" / "eval.csv")
         assert [r["frames"] for r in rows] == [0, 192]
-        alone_cfg = {**cfg, "seed": seed}
+        alone_cfg = config_lib.updated(cfg, {"seed": seed})
         torch.manual_seed(seed)
         agent = make_agent(build_env(alone_cfg, seed=seed), alone_cfg)
         assert rows[0] == {"frames": 0, **evaluate(make_envs(alone_cfg, agent.env_transforms)[1], agent.actor)}

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from drltg import config as config_lib
 from drltg.cli import main
 from drltg.experiments import sweep
 from drltg.training import rundir
@@ -35,19 +36,19 @@ def test_expansion_shares_runs_and_spaces_seeds(tmp_path):
     runs, cells = sweep.plan(spec, tmp_path)
     by_role = {role: [r for r in runs if r.role == role] for role in ("source", "baseline", "transfer")}
     # both pairs start from fourrooms/northeast: one source per seed serves every pair and method
-    assert [r.cfg["seed"] for r in by_role["source"]] == [50, 150]
-    assert {r.cfg["frames"] for r in by_role["source"]} == {2048}
+    assert [r.cfg.seed for r in by_role["source"]] == [50, 150]
+    assert {r.cfg.frames for r in by_role["source"]} == {2048}
     assert len(by_role["baseline"]) == 2 * 2 and len(by_role["transfer"]) == 2 * 3 * 2
     assert len({r.path for r in runs}) == len({sweep._key(r.cfg) for r in runs}) == len(runs) == 18
-    assert {r.cfg["seed"] for r in by_role["baseline"]} == {0, 100}
-    assert not {r.cfg["seed"] for r in by_role["source"]} & {r.cfg["seed"] for r in by_role["baseline"]}
+    assert {r.cfg.seed for r in by_role["baseline"]} == {0, 100}
+    assert not {r.cfg.seed for r in by_role["source"]} & {r.cfg.seed for r in by_role["baseline"]}
     order = [r.path for r in runs]
     for r in by_role["transfer"]:
-        if r.cfg["transfer"]["method"] == "reward-shaping":
+        if r.cfg.transfer.method == "reward-shaping":
             assert r.needs is None
         else:  # trained from the source run with the spaced seed, which comes earlier in the plan
-            assert r.cfg["transfer"]["source"] == str(r.needs) == str(tmp_path / "fourrooms-near" / "sac"
-                                                                       / "source" / f"seed-{r.cfg['seed'] + 50}")
+            assert r.cfg.transfer.source == str(r.needs) == str(tmp_path / "fourrooms-near" / "sac"
+                                                                       / "source" / f"seed-{r.cfg.seed + 50}")
             assert order.index(r.needs) < order.index(r.path)
     assert len(cells) == 6
     near = [c for c in cells if c.pair == "fourrooms-near"]
@@ -59,7 +60,7 @@ def test_a_task_alone_is_a_target_when_the_source_is_given(tmp_path):
     spec = sweep.parse_spec({"pairs": ["fourrooms/southwest"], "methods": ["reward-shaping", "policy-reuse"],
                              "seeds": 2, "frames": 1024, "overrides": {"transfer.source": "runs/source"}})
     runs, cells = sweep.plan(spec, tmp_path)
-    assert sorted((r.role, r.cfg["task"]) for r in runs) == [("baseline", "fourrooms/southwest")] * 2 + [
+    assert sorted((r.role, r.cfg.task) for r in runs) == [("baseline", "fourrooms/southwest")] * 2 + [
         ("transfer", "fourrooms/southwest")] * 4
     assert all(r.needs is None for r in runs) and len(cells) == 2
     alone = sweep.parse_spec({"pairs": ["fourrooms/southwest"], "methods": ["model-reuse"], "frames": 1024})
@@ -75,7 +76,7 @@ def test_runs_are_those_of_drltg_experiment(tmp_path):
     runs, _ = sweep.plan(spec, tmp_path / "sweep")
 
     def key(cfg, role):
-        return role, sweep._key({**cfg, "transfer": {**cfg["transfer"], "source": None}})
+        return role, sweep._key(config_lib.updated(cfg, {"transfer.source": None}))
 
     planned = {key(r.cfg, r.role) for r in runs}
     overrides = [f"{k}={json.dumps(v)}" for k, v in TINY.items()]
@@ -94,7 +95,7 @@ def test_swept_axes_name_the_variant_directories(tmp_path):
                                           "frames=2000,optim.lr=0.001", "frames=2000,optim.lr=0.01"]
     # the source does not depend on the target budget: 2 sources (one per lr), 4 baselines, 4 transfers
     assert sorted(r.role for r in runs).count("source") == 2 and len(runs) == 10
-    lrs = {r.path.relative_to(tmp_path).parts[2]: r.cfg["optim"]["lr"] for r in runs}
+    lrs = {r.path.relative_to(tmp_path).parts[2]: r.cfg.optim.lr for r in runs}
     assert all(lr == float(name.rsplit("=", 1)[1]) for name, lr in lrs.items())
 
 
@@ -175,7 +176,7 @@ def rerun(local, tmp_path_factory):
     killed = out / "fourrooms-far/sac/baseline/seed-0"
     cfg = yaml.safe_load((killed / "config.yaml").read_text())
     half = tmp_path_factory.mktemp("half") / "run"
-    train({**cfg, "frames": 128}, half, progress=False)  # the state a kill after frame 128 leaves
+    train(config_lib.build({**cfg, "frames": 128}), half, progress=False)  # the state a kill after frame 128 leaves
     (half / "summary.json").unlink()
     shutil.rmtree(killed)
     shutil.copytree(half, killed)

@@ -35,7 +35,7 @@ def tiny_run(tmp_path_factory):
 
 def test_run_directory_contract(tiny_run):
     cfg = yaml.safe_load((tiny_run / "config.yaml").read_text())
-    assert cfg == tiny_cfg()
+    assert cfg == tiny_cfg().model_dump()
     with open(tiny_run / "eval.csv") as f:
         header = next(csv.reader(f))
     assert header == ["frames", "return_mean", "return_std", "episodes", "success_rate"]

@@ -61,14 +61,14 @@ def run(args: argparse.Namespace) -> int:
     if args.seeds is not None:
         from drltg.training.seeds import train_seeds
 
-        run_dir = args.run_dir or Path("runs") / cfg["task"].replace("/", "-") / f"{cfg['algo']}-seeds"
+        run_dir = args.run_dir or Path("runs") / cfg.task.replace("/", "-") / f"{cfg.algo}-seeds"
         dirs = train_seeds(cfg, run_dir, args.seeds, resume=args.resume, progress=not args.no_progress,
                            group=not args.no_group)
         _refuse_diverged(dirs)
         print(f"run directories: {', '.join(str(d) for d in dirs)}")
         print(f"  curves:  drltg report --baseline {run_dir} --transfer OTHER_RUNS (a folder of seed runs)")
         return 0
-    run_dir = args.run_dir or Path("runs") / cfg["task"].replace("/", "-") / f"{cfg['algo']}-seed{cfg['seed']}"
+    run_dir = args.run_dir or Path("runs") / cfg.task.replace("/", "-") / f"{cfg.algo}-seed{cfg.seed}"
     from drltg.transfer.source import check as check_source
 
     check_source(cfg)

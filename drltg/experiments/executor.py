@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from drltg.config import RunConfig
 from drltg.errors import UsageError
 from drltg.training import rundir
 
@@ -33,14 +34,14 @@ class Run:
     """One training run: its resolved config, its directory, its log and the run it needs first."""
 
     role: str  # source | baseline | transfer
-    cfg: dict
+    cfg: RunConfig
     path: Path
     log: Path
     needs: Path | None = None
 
     @property
     def frames(self) -> int:
-        return self.cfg["frames"]
+        return self.cfg.frames
 
 
 # --------------------------------------------------------------------------------------- one run
@@ -58,7 +59,7 @@ def _output_to(log):
         os.close(saved[0]), os.close(saved[1])
 
 
-def run_one(cfg: dict, run_dir: str, log_path: str) -> tuple[str, str]:
+def run_one(cfg: RunConfig, run_dir: str, log_path: str) -> tuple[str, str]:
     """Train (or resume) one run with its output in ``log_path``; ``("done" | "failed", detail)``.
 
     Never raises for a broken run: the traceback goes to the log, the sweep goes on.
@@ -89,7 +90,7 @@ def run_one(cfg: dict, run_dir: str, log_path: str) -> tuple[str, str]:
     return "done", ""
 
 
-def run_group(cfgs: list[dict], run_dirs: list[str], log_paths: list[str]) -> list[tuple[str, str]]:
+def run_group(cfgs: list[RunConfig], run_dirs: list[str], log_paths: list[str]) -> list[tuple[str, str]]:
     """:func:`run_one` for a seed group: the runs train (or resume) together, their output in the first
     run's log (each other log says where); one ``(status, detail)`` per run."""
     from drltg import plugins

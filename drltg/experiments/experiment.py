@@ -31,6 +31,7 @@ from pathlib import Path
 import yaml
 
 from drltg import config as config_lib
+from drltg.config import RunConfig
 from drltg.errors import UsageError
 from drltg.training import rundir
 
@@ -83,7 +84,7 @@ def refuse_plan_overrides(overrides, where: str, owner: str, flags: dict[str, st
                              f"use {flags[owned]} instead.")
 
 
-def plan(args: argparse.Namespace) -> list[tuple[str, dict, Path]]:
+def plan(args: argparse.Namespace) -> list[tuple[str, RunConfig, Path]]:
     """The experiment's runs as (role, config, run directory), sources first."""
     config_lib.refuse_conflicts(args.overrides)
     return plan_runs(args.pair, args.method, algo=args.algo, seeds=args.seeds, seed=args.seed,
@@ -104,7 +105,7 @@ def plan_runs(
     source_frames: int | None = None,
     base: dict | None = None,
     overrides: list[str] = (),
-) -> list[tuple[str, dict, Path]]:
+) -> list[tuple[str, RunConfig, Path]]:
     """One experiment's runs as (role, config, run directory), sources first.
 
     Transfer runs go to ``out/transfer``, source and baseline runs to ``shared/{source,baseline}``
@@ -137,7 +138,7 @@ def plan_runs(
         from drltg.envs import get_pair
 
         get_pair(pair)  # raises the "unknown pair" sentence
-    given_source = config_lib.resolve(base, overrides, task=target_task, algo=algo)["transfer"]["source"]
+    given_source = config_lib.resolve(base, overrides, task=target_task, algo=algo).transfer.source
     needs_source = spec.source is not None
     if source_task is None and needs_source and given_source is None:
         raise UsageError(f"'{pair}' is a task, not a pair: {method} on it needs -o transfer.source=RUN_DIR "
@@ -172,7 +173,7 @@ def plan_runs(
     return runs
 
 
-def check_runs(runs: list[tuple[str, dict, Path]]) -> None:
+def check_runs(runs: list[tuple[str, RunConfig, Path]]) -> None:
     """Build the task env and the learner of every distinct run config, and check the transfer section
     of those whose source is not one of ``runs``: a mistake fails here, before anything is written."""
     from drltg.training.loop import check_config
@@ -181,23 +182,23 @@ def check_runs(runs: list[tuple[str, dict, Path]]) -> None:
     planned = {str(d) for _, _, d in runs}
     seen = set()
     for _, cfg, _ in runs:
-        source = cfg["transfer"]["source"]
+        source = cfg.transfer.source
         if source is None or str(source) not in planned:
             check_source(cfg)
-        key = json.dumps({**cfg, "seed": 0, "frames": 0, "transfer": None}, sort_keys=True, default=str)
+        key = json.dumps({**cfg.model_dump(), "seed": 0, "frames": 0, "transfer": None}, sort_keys=True, default=str)
         if key not in seen:
             seen.add(key)
             check_config(cfg)
 
 
-def as_runs(runs: list[tuple[str, dict, Path]], out: Path) -> list:
+def as_runs(runs: list[tuple[str, RunConfig, Path]], out: Path) -> list:
     """The plan as :class:`drltg.experiments.executor.Run` s: logs under ``out/logs/<role>/``, each transfer run
     after the source run it reads."""
     from drltg.experiments.executor import Run
 
     planned = {str(d) for _, _, d in runs}
     return [Run(role, cfg, d, out / "logs" / role / f"{d.name}.log",
-                needs=Path(cfg["transfer"]["source"]) if str(cfg["transfer"]["source"]) in planned else None)
+                needs=Path(cfg.transfer.source) if str(cfg.transfer.source) in planned else None)
             for role, cfg, d in runs]
 
 

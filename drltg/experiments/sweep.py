@@ -53,6 +53,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from drltg.config import RunConfig
 from drltg.errors import UsageError
 from drltg.experiments.executor import LocalBackend, RayBackend, Run, execute
 from drltg.training import rundir
@@ -246,8 +247,8 @@ def _variants(spec: Spec) -> list[tuple[str, int, int | None, dict]]:
     return out
 
 
-def _key(cfg: dict) -> str:
-    return json.dumps(cfg, sort_keys=True, default=str)
+def _key(cfg: RunConfig) -> str:
+    return json.dumps(cfg.model_dump(), sort_keys=True, default=str)
 
 
 def plan(spec: Spec, out: Path) -> tuple[list[Run], list[Cell]]:
@@ -269,12 +270,12 @@ def plan(spec: Spec, out: Path) -> tuple[list[Run], list[Cell]]:
                                 out=group / method, shared=group)
             sides: dict[str, list[Path]] = {"baseline": [], "transfer": []}
             for role, cfg, path in planned:
-                needs = moved.get(Path(str(cfg["transfer"]["source"])))  # None: no source, or one given
+                needs = moved.get(Path(str(cfg.transfer.source)))  # None: no source, or one given
                 if needs is not None:
-                    cfg["transfer"]["source"] = str(needs)
+                    cfg.transfer.source = str(needs)
                 moved[path] = home.setdefault(_key(cfg), path)
                 path = moved[path]
-                if path in runs and runs[path].cfg != cfg:
+                if path in runs and _key(runs[path].cfg) != _key(cfg):
                     raise UsageError(f"two runs of the spec would share '{path}'; check the grid values.")
                 log = out / "logs" / path.relative_to(out).with_suffix(".log")
                 if path not in runs:

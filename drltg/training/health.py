@@ -14,6 +14,7 @@ from pathlib import Path
 
 import torch
 
+from drltg.config import RunConfig
 from drltg.errors import RunFailed
 from drltg.training import rundir
 
@@ -58,16 +59,16 @@ def check_state(state: dict, frames: int, seed: int | None = None) -> None:
                            None if seed is None else (seed,))
 
 
-def write_diverged(run_dir: str | Path, cfg: dict, err: Diverged) -> None:
+def write_diverged(run_dir: str | Path, cfg: RunConfig, err: Diverged) -> None:
     """``summary.json`` of a diverged run: its status and why; the run is finished, not resumable."""
-    summary = {"status": DIVERGED, "reason": str(err), "task": cfg["task"], "algo": cfg["algo"],
-               "seed": cfg["seed"]}
+    summary = {"status": DIVERGED, "reason": str(err), "task": cfg.task, "algo": cfg.algo,
+               "seed": cfg.seed}
     rundir.atomic_write(Path(run_dir) / rundir.SUMMARY, json.dumps(summary, indent=2) + "\n")
     rundir.finalize_manifest(run_dir)
 
 
 @contextlib.contextmanager
-def on_divergence(run_dir: str | Path, cfg: dict):
+def on_divergence(run_dir: str | Path, cfg: RunConfig):
     """Write the diverged summary when the block raises :class:`Diverged` (which goes on up)."""
     try:
         yield

@@ -28,7 +28,7 @@ from torchrl.data import LazyTensorStorage, ReplayBuffer
 from torchrl.envs import EnvBase, ExplorationType, RewardSum, TransformedEnv, set_exploration_type
 from tqdm.auto import tqdm
 
-from drltg.config import config_changes
+from drltg.config import RunConfig, config_changes
 from drltg.envs import make_env
 from drltg.errors import UsageError
 from drltg.learners import Agent, UpdateStep, make_agent, sample_batches
@@ -42,23 +42,23 @@ __all__ = ["train", "run_loop", "AgentLearner", "make_collector", "evaluate", "e
 
 
 # ----------------------------------------------------------------------------- envs
-def build_env(cfg: dict, **kwargs) -> EnvBase:
+def build_env(cfg: RunConfig, **kwargs) -> EnvBase:
     """``make_env`` of the config's task with its ``env`` settings; a setting the task cannot take
     (``env.horizon=abc``) is one :class:`UsageError` sentence."""
     try:
-        return make_env(cfg["task"], device=cfg["device"], **{**cfg["env"], **kwargs})
+        return make_env(cfg.task, device=cfg.device, **{**cfg.env, **kwargs})
     except UsageError:
         raise
     except (TypeError, ValueError) as err:
-        raise UsageError(f"task '{cfg['task']}' cannot be built with env settings {cfg['env']} ({err}).") from None
+        raise UsageError(f"task '{cfg.task}' cannot be built with env settings {cfg.env} ({err}).") from None
 
 
-def make_envs(cfg: dict, agent_transforms=()) -> tuple[EnvBase, EnvBase]:
+def make_envs(cfg: RunConfig, agent_transforms=()) -> tuple[EnvBase, EnvBase]:
     """Training env (``num_envs`` batched, episode-return tracking) and a separate evaluation env
     (``eval.episodes`` batched, seeded apart from the training env)."""
-    seed = cfg["seed"]
-    train_env = TransformedEnv(build_env(cfg, batch_size=(cfg["collector"]["num_envs"],), seed=seed))
-    eval_env = TransformedEnv(build_env(cfg, batch_size=(cfg["eval"]["episodes"],), seed=seed + 10_000))
+    seed = cfg.seed
+    train_env = TransformedEnv(build_env(cfg, batch_size=(cfg.collector.num_envs,), seed=seed))
+    eval_env = TransformedEnv(build_env(cfg, batch_size=(cfg.eval.episodes,), seed=seed + 10_000))
     preflight.check_batch(cfg, train_env, eval_env)
     for t in agent_transforms:
         train_env.append_transform(t.clone())
@@ -67,10 +67,10 @@ def make_envs(cfg: dict, agent_transforms=()) -> tuple[EnvBase, EnvBase]:
     return train_env, eval_env
 
 
-def check_config(cfg: dict):
+def check_config(cfg: RunConfig):
     """Build the task's env and the learner of ``cfg`` (writing nothing): the checks a config can
     fail before any run directory is created. Returns the env and the agent."""
-    probe = build_env(cfg, seed=cfg["seed"])
+    probe = build_env(cfg, seed=cfg.seed)
     preflight.check_network(cfg, probe)
     agent = make_agent(probe, cfg)
     preflight.check_buffer(cfg, probe, agent.loss.in_keys)
@@ -130,7 +130,7 @@ def _refuse_existing(run_dir: Path) -> None:
         )
 
 
-def _check_saved_config(cfg: dict, run_dir: Path) -> None:
+def _check_saved_config(cfg: RunConfig, run_dir: Path) -> None:
     try:
         saved = rundir.read_config(run_dir)
     except yaml.YAMLError:
@@ -140,11 +140,11 @@ def _check_saved_config(cfg: dict, run_dir: Path) -> None:
         raise UsageError(f"cannot resume '{run_dir}': the config differs from the saved one in {', '.join(changed)}.")
 
 
-def _resume_state(cfg: dict, run_dir: Path) -> tuple[dict | None, list[dict]]:
+def _resume_state(cfg: RunConfig, run_dir: Path) -> tuple[dict | None, list[dict]]:
     """The checkpoint to continue from (``None``: start over) and the evaluations up to it."""
     if not (run_dir / CHECKPOINT).is_file():
         return None, []
-    ckpt = rundir.load_checkpoint(run_dir, map_location=cfg["device"])
+    ckpt = rundir.load_checkpoint(run_dir, map_location=cfg.device)
     if not {"frames", "updates", "optimizer", "buffer", "rng"} <= set(ckpt):
         raise UsageError(f"cannot resume '{run_dir}': its checkpoint is not a training checkpoint of drltg train.")
     frames = ckpt["frames"]
@@ -183,14 +183,14 @@ def _remove_start(run_dir: Path, created: bool) -> None:
 
 # ----------------------------------------------------------------------------- loop
 def train(
-    cfg: dict,
+    cfg: RunConfig,
     run_dir: str | Path,
     *,
     resume: bool = False,
     progress: bool = True,
 ) -> Path:
-    """Train ``cfg["algo"]`` on ``cfg["task"]`` for ``cfg["frames"]`` frames, with the transfer method
-    of ``cfg["transfer"]``; return the run directory.
+    """Train ``cfg.algo`` on ``cfg.task`` for ``cfg.frames`` frames, with the transfer method
+    of ``cfg.transfer``; return the run directory.
 
     The directory is locked while the run writes it (a second process is refused). Everything the
     config can fail on is built before a new directory is created; if a new run fails before its first
@@ -212,18 +212,18 @@ def train(
             _refuse_existing(run_dir)
             ckpt, rows = None, []
 
-        torch.set_num_threads(cfg["threads"])
-        torch.manual_seed(cfg["seed"])
+        torch.set_num_threads(cfg.threads)
+        torch.manual_seed(cfg.seed)
         # Build everything before writing anything: a bad config fails with nothing on disk.
         check_source(cfg)
         probe, agent = check_config(cfg)
         train_env, eval_env = make_envs(cfg, agent.env_transforms)
-        transfer = get_method(cfg["transfer"]["method"]).build(cfg, agent, probe, resuming=ckpt is not None)
+        transfer = get_method(cfg.transfer.method).build(cfg, agent, probe, resuming=ckpt is not None)
         for t in transfer.train_transforms:  # after RewardSum: train/episode_return stays the task's return
             train_env.append_transform(t)
         buffer = ReplayBuffer(
-            storage=LazyTensorStorage(cfg["buffer"]["size"], device=cfg["device"]),
-            batch_size=cfg["buffer"]["batch_size"],
+            storage=LazyTensorStorage(cfg.buffer.size, device=cfg.device),
+            batch_size=cfg.buffer.batch_size,
         )
         if ckpt is not None:
             try:
@@ -265,19 +265,18 @@ def train(
     return run_dir
 
 
-def make_collector(cfg: dict, env: EnvBase, policy, frames: int = 0, seeds: int = 1) -> Collector:
+def make_collector(cfg: RunConfig, env: EnvBase, policy, frames: int = 0, seeds: int = 1) -> Collector:
     """TorchRL's single-process collector for the frames left after ``frames`` (per seed), random
     actions until ``collector.init_random_frames``; ``seeds`` runs in step share one batched env."""
-    col = cfg["collector"]
-    fpb = col["frames_per_batch"]
-    init_random = math.ceil(col["init_random_frames"] / fpb) * fpb
+    fpb = cfg.collector.frames_per_batch
+    init_random = math.ceil(cfg.collector.init_random_frames / fpb) * fpb
     return Collector(
         env,
         policy,
         frames_per_batch=fpb * seeds,
-        total_frames=(cfg["frames"] - frames) * seeds,
+        total_frames=(cfg.frames - frames) * seeds,
         init_random_frames=max(init_random - frames, 0) * seeds,
-        device=cfg["device"],
+        device=cfg.device,
         auto_register_policy_transforms=False,
     )
 
@@ -358,18 +357,18 @@ class AgentLearner:
         }]
 
 
-def run_loop(cfg: dict, collector, learner, writers: list[RunWriter], *, frames: int = 0, updates: int = 0,
+def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, frames: int = 0, updates: int = 0,
              progress: bool = True, stop_if_signalled: Callable[[], None] = lambda: None,
              extra_summary: dict | None = None) -> None:
-    """Collect, store, update, evaluate and checkpoint until ``cfg["frames"]`` frames per seed.
+    """Collect, store, update, evaluate and checkpoint until ``cfg.frames`` frames per seed.
 
     ``learner`` trains one or several seeds in step (see :class:`AgentLearner`); ``writers`` gets one
     :class:`~drltg.training.rundir.RunWriter` per seed and receives every evaluation, logged scalar,
     checkpoint and the summary: the loop itself writes no file. ``frames`` counts one seed's frames.
     """
-    col, opt = cfg["collector"], cfg["optim"]
+    col, opt = cfg.collector, cfg.optim
     seeds = learner.seeds
-    init_random = math.ceil(col["init_random_frames"] / col["frames_per_batch"]) * col["frames_per_batch"]
+    init_random = math.ceil(col.init_random_frames / col.frames_per_batch) * col.frames_per_batch
 
     def run_eval() -> None:
         for writer, row in zip(writers, learner.evaluate()):
@@ -381,13 +380,13 @@ def run_loop(cfg: dict, collector, learner, writers: list[RunWriter], *, frames:
             health.check_state(state["loss"], frames, k if seeds > 1 else None)
             writer.checkpoint(state, frames, updates)
 
-    bar = tqdm(total=cfg["frames"], initial=frames, unit="frame", disable=not progress, dynamic_ncols=True)
+    bar = tqdm(total=cfg.frames, initial=frames, unit="frame", disable=not progress, dynamic_ncols=True)
     try:
         if not writers[0].rows:
             run_eval()
-        next_eval = (frames // cfg["eval"]["every"] + 1) * cfg["eval"]["every"]
-        next_ckpt = (frames // cfg["checkpoint"]["every"] + 1) * cfg["checkpoint"]["every"]
-        next_log = frames + cfg["log"]["every"]
+        next_eval = (frames // cfg.eval.every + 1) * cfg.eval.every
+        next_ckpt = (frames // cfg.checkpoint.every + 1) * cfg.checkpoint.every
+        next_log = frames + cfg.log.every
         stats: list[dict[str, list[float]]] = [defaultdict(list) for _ in range(seeds)]
         start, start_frames = time.perf_counter(), frames
 
@@ -399,7 +398,7 @@ def run_loop(cfg: dict, collector, learner, writers: list[RunWriter], *, frames:
             for piece, seed_stats in zip(pieces, stats):
                 _episode_stats(piece, seed_stats)
             if frames >= init_random:
-                for batch in learner.batches(opt["updates_per_batch"]):
+                for batch in learner.batches(opt.updates_per_batch):
                     losses = learner.update(batch, update_actor=updates % learner.actor_delay == 0)
                     health.check_losses(losses, frames, seeds)
                     updates += 1
@@ -413,13 +412,13 @@ def run_loop(cfg: dict, collector, learner, writers: list[RunWriter], *, frames:
                 for writer, seed_stats in zip(writers, stats):
                     writer.log({k: sum(v) / len(v) for k, v in seed_stats.items() if v} | {"train/fps": fps}, frames)
                     seed_stats.clear()
-                next_log = frames + cfg["log"]["every"]
-            if frames >= next_eval or frames >= cfg["frames"]:
+                next_log = frames + cfg.log.every
+            if frames >= next_eval or frames >= cfg.frames:
                 run_eval()
-                next_eval = (frames // cfg["eval"]["every"] + 1) * cfg["eval"]["every"]
-            if frames >= next_ckpt or frames >= cfg["frames"]:
+                next_eval = (frames // cfg.eval.every + 1) * cfg.eval.every
+            if frames >= next_ckpt or frames >= cfg.frames:
                 save_checkpoint()
-                next_ckpt = (frames // cfg["checkpoint"]["every"] + 1) * cfg["checkpoint"]["every"]
+                next_ckpt = (frames // cfg.checkpoint.every + 1) * cfg.checkpoint.every
     finally:
         collector.shutdown()
         bar.close()

@@ -13,6 +13,7 @@ import os
 import torch
 from torchrl.envs import EnvBase
 
+from drltg.config import RunConfig
 from drltg.errors import UsageError
 
 FLOAT_BYTES = 4
@@ -33,38 +34,38 @@ def _gib(n: float) -> str:
     return f"{n / 2**30:,.1f} GiB"
 
 
-def check_network(cfg: dict, env: EnvBase) -> None:
+def check_network(cfg: RunConfig, env: EnvBase) -> None:
     """Refuse ``network.hidden`` widths whose weights alone exceed the device's memory.
 
     The lower bound counted: 3 MLPs (an actor and two critics) of ``obs -> hidden... -> action`` float32
     weights, ``3 * 4 * sum_i w_i w_{i+1}`` bytes; targets, gradients and Adam's moments come on top."""
     obs = sum(spec.shape.numel() for spec in env.observation_spec.values(True, True))
     act = env.action_spec.shape.numel()
-    widths = [max(obs, 1), *cfg["network"]["hidden"], max(act, 1)]
+    widths = [max(obs, 1), *cfg.network.hidden, max(act, 1)]
     need = 3 * FLOAT_BYTES * sum(a * b for a, b in zip(widths, widths[1:]))
-    have = device_memory(cfg["device"])
+    have = device_memory(cfg.device)
     if have is not None and need > have:
-        raise UsageError(f"network.hidden={cfg['network']['hidden']} needs at least {_gib(need)} for its weights, "
-                         f"more than the {_gib(have)} of device '{cfg['device']}'; use smaller widths.")
+        raise UsageError(f"network.hidden={cfg.network.hidden} needs at least {_gib(need)} for its weights, "
+                         f"more than the {_gib(have)} of device '{cfg.device}'; use smaller widths.")
 
 
-def check_buffer(cfg: dict, env: EnvBase, in_keys) -> None:
+def check_buffer(cfg: RunConfig, env: EnvBase, in_keys) -> None:
     """Refuse a ``buffer.size`` whose transitions (the keys the loss reads, from the env's specs) exceed
     the device's memory: the buffer allocates all of them at its first write."""
     fake = env.fake_tensordict().select(*in_keys, strict=False)
     per = sum(v.numel() * v.element_size() for v in fake.values(True, True))
-    need = per * cfg["buffer"]["size"]
-    have = device_memory(cfg["device"])
+    need = per * cfg.buffer.size
+    have = device_memory(cfg.device)
     if have is not None and need > have:
-        raise UsageError(f"buffer.size={cfg['buffer']['size']} needs {_gib(need)} ({per} bytes a transition), more "
-                         f"than the {_gib(have)} of device '{cfg['device']}'; use a smaller buffer.size.")
+        raise UsageError(f"buffer.size={cfg.buffer.size} needs {_gib(need)} ({per} bytes a transition), more "
+                         f"than the {_gib(have)} of device '{cfg.device}'; use a smaller buffer.size.")
 
 
-def check_batch(cfg: dict, train_env: EnvBase, eval_env: EnvBase) -> None:
+def check_batch(cfg: RunConfig, train_env: EnvBase, eval_env: EnvBase) -> None:
     """Refuse a task whose envs do not have the batch size asked for: its factory ignored
     ``batch_size``, and the run would train on fewer envs and evaluate fewer episodes than its config says."""
-    for env, key, n in ((train_env, "collector.num_envs", cfg["collector"]["num_envs"]),
-                        (eval_env, "eval.episodes", cfg["eval"]["episodes"])):
+    for env, key, n in ((train_env, "collector.num_envs", cfg.collector.num_envs),
+                        (eval_env, "eval.episodes", cfg.eval.episodes)):
         if tuple(env.batch_size) != (n,):
-            raise UsageError(f"task '{cfg['task']}' built an env of batch size {tuple(env.batch_size)} when asked for "
+            raise UsageError(f"task '{cfg.task}' built an env of batch size {tuple(env.batch_size)} when asked for "
                              f"({n},) ({key}={n}); its factory must pass batch_size on to the env.")

@@ -26,10 +26,13 @@ import tempfile
 import time
 import uuid
 from pathlib import Path
-from typing import Iterator
+from typing import TYPE_CHECKING, Iterator
 
 from drltg.errors import UsageError
 from drltg.training import manifest
+
+if TYPE_CHECKING:
+    from drltg.config import RunConfig
 
 CONFIG = "config.yaml"
 EVAL = "eval.csv"
@@ -48,13 +51,24 @@ __all__ = ["atomic_write", "atomic_torch_save", "atomic_path", "write_files", "r
 
 
 # ------------------------------------------------------------------------------------------ config
-def absolute_source(cfg: dict, base: Path) -> dict:
-    """``cfg`` with a relative ``transfer.source`` read as relative to ``base`` (a run directory, or the
-    folder of a config file); a demonstrator or an absolute path stays as it is."""
-    source = (cfg.get("transfer") or {}).get("source") if isinstance(cfg, dict) else None
+def absolute_source(cfg: dict | RunConfig, base: Path) -> dict | RunConfig:
+    """``cfg`` (a config, or the mapping a config file holds) with a relative ``transfer.source`` read as
+    relative to ``base`` (a run directory, or the folder of a config file); a demonstrator or an absolute
+    path stays as it is."""
+    typed = hasattr(cfg, "model_dump")  # a RunConfig, not a mapping read from YAML
+    if typed:
+        source = cfg.transfer.source
+    else:
+        section = cfg.get("transfer") if isinstance(cfg, dict) else None
+        source = section.get("source") if isinstance(section, dict) else None
     if not isinstance(source, str) or source.startswith("demonstrator:") or Path(source).expanduser().is_absolute():
         return cfg
-    return {**cfg, "transfer": {**cfg["transfer"], "source": os.path.normpath(Path(base).resolve() / source)}}
+    path = os.path.normpath(Path(base).resolve() / source)
+    if typed:
+        from drltg import config  # pydantic: not for the analysis of run directories
+
+        return config.updated(cfg, {"transfer.source": path})
+    return {**cfg, "transfer": {**cfg["transfer"], "source": path}}
 
 
 def read_config(run_dir: str | Path):
@@ -65,17 +79,17 @@ def read_config(run_dir: str | Path):
     return absolute_source(yaml.safe_load((run_dir / CONFIG).read_text()), run_dir)
 
 
-def write_config(run_dir: str | Path, cfg: dict) -> None:
+def write_config(run_dir: str | Path, cfg: RunConfig) -> None:
     """Write ``config.yaml`` atomically, with ``transfer.source`` relative to the run directory: a folder
     holding runs and their sources (an experiment, a sweep) can be moved and resumed."""
-    import yaml
+    from drltg import config
 
     run_dir = Path(run_dir)
-    source = cfg["transfer"]["source"]
+    source = cfg.transfer.source
     if isinstance(source, str) and not source.startswith("demonstrator:"):
         relative = os.path.relpath(Path(source).expanduser().resolve(), run_dir.resolve())
-        cfg = {**cfg, "transfer": {**cfg["transfer"], "source": relative}}
-    atomic_write(run_dir / CONFIG, yaml.safe_dump(cfg, sort_keys=False))
+        cfg = config.updated(cfg, {"transfer.source": relative})
+    atomic_write(run_dir / CONFIG, config.dump(cfg))
 
 
 # ------------------------------------------------------------------------------------- atomic files
@@ -505,7 +519,7 @@ class RunWriter:
         rows: the evaluations kept from before a resumed checkpoint (``[]`` for a new run).
     """
 
-    def __init__(self, run_dir: str | Path, cfg: dict, rows: list[dict] | None = None):
+    def __init__(self, run_dir: str | Path, cfg: RunConfig, rows: list[dict] | None = None):
         self.run_dir = Path(run_dir)
         self.cfg = cfg
         self.rows = list(rows or [])
@@ -518,7 +532,7 @@ class RunWriter:
         write_files(self.run_dir, files or {})
         write_config(self.run_dir, self.cfg)
         self.loggers = [CSVLogger("csv", log_dir=str(self.run_dir / LOGS))]
-        if self.cfg["log"]["tensorboard"]:
+        if self.cfg.log.tensorboard:
             self.loggers.append(TensorboardLogger("tensorboard", log_dir=str(self.run_dir / LOGS)))
 
     def log(self, metrics: dict, step: int) -> None:
@@ -545,9 +559,9 @@ class RunWriter:
 
         summary = {
             "status": "complete",
-            "task": self.cfg["task"],
-            "algo": self.cfg["algo"],
-            "seed": self.cfg["seed"],
+            "task": self.cfg.task,
+            "algo": self.cfg.algo,
+            "seed": self.cfg.seed,
             "frames": frames,
             "updates": updates,
             "wall_time_s": round(wall, 2),

@@ -28,6 +28,8 @@ from tensordict import TensorDictBase
 from torchrl.data import LazyTensorStorage, ReplayBuffer
 from torchrl.envs import RewardSum, TransformedEnv
 
+from drltg import config
+from drltg.config import RunConfig
 from drltg.envs.seeding import set_block_seeds
 from drltg.errors import UsageError
 from drltg.learners import sample_batches
@@ -60,35 +62,35 @@ def seed_dirs(run_dir: Path, first: int, count: int) -> list[Path]:
     return [Path(run_dir) / f"seed-{first + k}" for k in range(count)]
 
 
-def same_but_seed(a: dict, b: dict) -> bool:
+def same_but_seed(a: RunConfig, b: RunConfig) -> bool:
     """Whether two configs differ in their seed at most: their runs can share a seed group."""
-    return {**a, "seed": 0} == {**b, "seed": 0}
+    return {**a.model_dump(), "seed": 0} == {**b.model_dump(), "seed": 0}
 
 
-def group_support(cfg: dict) -> str | None:
+def group_support(cfg: RunConfig) -> str | None:
     """``None`` if the seeds of ``cfg`` can train as one group, else why not (one clause)."""
-    if cfg["algo"] not in GROUPED_ALGOS:
-        return f"--algo {cfg['algo']} has no grouped update"
-    if cfg["transfer"]["method"] != "none":
-        return f"transfer method {cfg['transfer']['method']} has no grouped form"
+    if cfg.algo not in GROUPED_ALGOS:
+        return f"--algo {cfg.algo} has no grouped update"
+    if cfg.transfer.method != "none":
+        return f"transfer method {cfg.transfer.method} has no grouped form"
     from drltg.envs import get_task
 
-    factory = get_task(cfg["task"]).factory
+    factory = get_task(cfg.task).factory
     if not hasattr(factory, "set_block_seeds"):
-        return f"task {cfg['task']} has no per-seed random streams"
+        return f"task {cfg.task} has no per-seed random streams"
     return None
 
 
-def train_seeds(cfg: dict, run_dir: str | Path, seeds: int, *, resume: bool = False, progress: bool = True,
+def train_seeds(cfg: RunConfig, run_dir: str | Path, seeds: int, *, resume: bool = False, progress: bool = True,
                 group: bool = True) -> list[Path]:
-    """Train seeds ``cfg["seed"]`` … ``cfg["seed"] + seeds - 1`` of ``cfg`` into ``run_dir/seed-<k>/``;
+    """Train seeds ``cfg.seed`` … ``cfg.seed + seeds - 1`` of ``cfg`` into ``run_dir/seed-<k>/``;
     as one group where :func:`group_support` allows and ``group`` is true, else one after another (with
     a note on stderr saying why). Returns the run directories."""
     if seeds < 1:
         raise UsageError(f"--seeds must be at least 1, got {seeds}.")
     run_dir = rundir.check_directory(run_dir, "--run-dir")
-    cfgs = [{**cfg, "seed": cfg["seed"] + k} for k in range(seeds)]
-    dirs = seed_dirs(run_dir, cfg["seed"], seeds)
+    cfgs = [config.updated(cfg, {"seed": cfg.seed + k}) for k in range(seeds)]
+    dirs = seed_dirs(run_dir, cfg.seed, seeds)
     reason = group_support(cfg) if group else "grouping is turned off"
     if reason is not None or seeds == 1:
         if reason is not None and seeds > 1:
@@ -141,7 +143,7 @@ class GroupLearner:
         ]
 
 
-def _group_env(cfg: dict, seeds: list[int], per_seed: int, seed_offset: int, transforms=()):
+def _group_env(cfg: RunConfig, seeds: list[int], per_seed: int, seed_offset: int, transforms=()):
     env = TransformedEnv(build_env(cfg, batch_size=(len(seeds) * per_seed,), seed=seeds[0] + seed_offset))
     set_block_seeds(env, [s + seed_offset for s in seeds])
     for t in transforms:
@@ -149,7 +151,7 @@ def _group_env(cfg: dict, seeds: list[int], per_seed: int, seed_offset: int, tra
     return env
 
 
-def train_group(cfgs: list[dict], dirs: list[Path], *, resume: bool = False, progress: bool = True) -> list[Path]:
+def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False, progress: bool = True) -> list[Path]:
     """Train ``cfgs`` (configs equal but for their seeds, :func:`group_support` true) as one seed group
     into ``dirs``, one run directory each; ``resume`` continues them from their checkpoints."""
     cfg, count = cfgs[0], len(cfgs)
@@ -175,14 +177,14 @@ def train_group(cfgs: list[dict], dirs: list[Path], *, resume: bool = False, pro
                 _refuse_existing(d)
             states = [(None, []) for _ in dirs]
 
-        torch.set_num_threads(cfg["threads"])
+        torch.set_num_threads(cfg.threads)
         agents = []
         for c in cfgs:  # each seed's networks as its run alone builds them
-            torch.manual_seed(c["seed"])
+            torch.manual_seed(c.seed)
             agents.append(check_config(c)[1])
-        torch.manual_seed(cfg["seed"])
-        buffers = [ReplayBuffer(storage=LazyTensorStorage(cfg["buffer"]["size"], device=cfg["device"]),
-                                batch_size=cfg["buffer"]["batch_size"]) for _ in cfgs]
+        torch.manual_seed(cfg.seed)
+        buffers = [ReplayBuffer(storage=LazyTensorStorage(cfg.buffer.size, device=cfg.device),
+                                batch_size=cfg.buffer.batch_size) for _ in cfgs]
         ckpts = [ckpt for ckpt, _ in states]
         if ckpts[0] is not None:
             for agent, buffer, ckpt, d in zip(agents, buffers, ckpts, dirs):
@@ -195,11 +197,11 @@ def train_group(cfgs: list[dict], dirs: list[Path], *, resume: bool = False, pro
                         f"checkpoint '{d / CHECKPOINT}' does not fit the run's config ({type(err).__name__})."
                     ) from None
         group = SeedGroup(agents)
-        seeds = [c["seed"] for c in cfgs]
+        seeds = [c.seed for c in cfgs]
         transforms = agents[0].env_transforms  # what the policy needs the env to carry (SOC's option)
-        train_env = _group_env(cfg, seeds, cfg["collector"]["num_envs"], 0, transforms)
+        train_env = _group_env(cfg, seeds, cfg.collector.num_envs, 0, transforms)
         train_env.append_transform(RewardSum())
-        eval_env = _group_env(cfg, seeds, cfg["eval"]["episodes"], 10_000, transforms)
+        eval_env = _group_env(cfg, seeds, cfg.eval.episodes, 10_000, transforms)
         learner = GroupLearner(group, buffers, eval_env)
 
         created = [not d.exists() for d in dirs]

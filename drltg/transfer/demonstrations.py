@@ -1,12 +1,16 @@
 """The demonstrations method: source episodes in their own buffer, a share of every batch, behaviour cloning."""
 from __future__ import annotations
 
-from drltg.config import Field, builtin_options
+from typing import Annotated
+
+from pydantic import Field
+
+from drltg.config import Bool, Float, Int, Probability, RunConfig, builtin_options
 from drltg.errors import UsageError
 from drltg.transfer.registry import Transfer, TransferMethod, register_method
 
 
-def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
+def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     """``transfer.demo_episodes`` episodes of the source policy on the training task, from an env
     seeded apart from the training and evaluation envs, kept in a buffer of their own; a resumed run
     collects the same episodes again."""
@@ -18,32 +22,32 @@ def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
     from drltg.losses import behaviour_cloning
     from drltg.transfer.source import source_actor
 
-    t = cfg["transfer"]
-    if t["bc_weight"] > 0 and isinstance(env.full_action_spec_unbatched["action"], OneHot):
+    t = cfg.transfer
+    if t.bc_weight > 0 and isinstance(env.full_action_spec_unbatched["action"], OneHot):
         raise UsageError(
-            f"transfer.bc_weight clones continuous actions; task '{cfg['task']}' has discrete actions "
+            f"transfer.bc_weight clones continuous actions; task '{cfg.task}' has discrete actions "
             f"(set -o transfer.bc_weight=0)."
         )
     policy = source_actor(cfg, env)
-    demo_env = TransformedEnv(make_env(cfg["task"], batch_size=(cfg["collector"]["num_envs"],), device=cfg["device"],
-                                       seed=cfg["seed"] + 20_000, **cfg["env"]))
+    demo_env = TransformedEnv(make_env(cfg.task, batch_size=(cfg.collector.num_envs,), device=cfg.device,
+                                       seed=cfg.seed + 20_000, **cfg.env))
     for transform in agent.env_transforms:
         demo_env.append_transform(transform.clone())
     try:
-        data = collect_demonstrations(demo_env, policy, t["demo_episodes"])
+        data = collect_demonstrations(demo_env, policy, t.demo_episodes)
     finally:
         demo_env.close()
     demos = demonstration_buffer(data, agent.loss.in_keys)
-    count = round(t["demo_ratio"] * cfg["buffer"]["batch_size"])
-    weight = [t["bc_weight"]]
+    count = round(t.demo_ratio * cfg.buffer.batch_size)
+    weight = [t.bc_weight]
 
     def anneal(frames: int) -> None:  # w_f = w * max(0, 1 - f / bc_anneal_frames)
-        weight[0] = t["bc_weight"] * max(0.0, 1.0 - frames / t["bc_anneal_frames"])
+        weight[0] = t.bc_weight * max(0.0, 1.0 - frames / t.bc_anneal_frames)
 
-    bc = behaviour_cloning(agent.loss, count, lambda: weight[0], q_filter=t["bc_q_filter"])
-    return Transfer(batches=lambda own, n: mixed_batches(own, demos, n, t["demo_ratio"]),
-                    loss_terms=bc if t["bc_weight"] > 0 and count > 0 else None,
-                    on_frames=anneal if t["bc_anneal_frames"] > 0 else None,
+    bc = behaviour_cloning(agent.loss, count, lambda: weight[0], q_filter=t.bc_q_filter)
+    return Transfer(batches=lambda own, n: mixed_batches(own, demos, n, t.demo_ratio),
+                    loss_terms=bc if t.bc_weight > 0 and count > 0 else None,
+                    on_frames=anneal if t.bc_anneal_frames > 0 else None,
                     summary={"demonstration_frames": data.numel()})
 
 
@@ -55,11 +59,14 @@ DEMONSTRATIONS = register_method(TransferMethod(
     takes=("batches",),
     algos=("sac", "td3"),
     options=builtin_options("demonstrations", {
-        "demo_episodes": Field(int, "demonstrations: episodes of the source policy collected", low=1),
-        "demo_ratio": Field(float, "demonstrations: share of every batch drawn from them", low=0.0, high=1.0),
-        "bc_weight": Field(float, "demonstrations: weight of the behaviour-cloning term (0: none)", low=0.0),
-        "bc_q_filter": Field(bool, "demonstrations: clone only where Q(s, a_demo) > Q(s, mu(s))"),
-        "bc_anneal_frames": Field(int, "demonstrations: frames over which bc_weight falls linearly to 0 (0: constant)",
-                                  low=0),
+        "demo_episodes": Annotated[Int, Field(ge=1, description="demonstrations: episodes of the source policy "
+                                                                "collected")],
+        "demo_ratio": Annotated[Probability, Field(description="demonstrations: share of every batch drawn from them")],
+        "bc_weight": Annotated[Float, Field(ge=0, description="demonstrations: weight of the behaviour-cloning term "
+                                                              "(0: none)")],
+        "bc_q_filter": Annotated[Bool, Field(description="demonstrations: clone only where Q(s, a_demo) > "
+                                                         "Q(s, mu(s))")],
+        "bc_anneal_frames": Annotated[Int, Field(ge=0, description="demonstrations: frames over which bc_weight falls "
+                                                                   "linearly to 0 (0: constant)")],
     }),
 ))

@@ -3,9 +3,11 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Annotated
 
-from drltg.config import Field, builtin_options
+from pydantic import Field
+
+from drltg.config import Bool, RunConfig, Str, builtin_options
 from drltg.training.rundir import MODEL_REUSE, load_checkpoint
 from drltg.transfer.registry import Transfer, TransferMethod, register_method
 
@@ -26,16 +28,16 @@ def load_from_run(loss_module: nn.Module, run_dir: str | Path, **kwargs) -> Load
     return load_weights(loss_module, checkpoint["loss"], **kwargs)
 
 
-def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
+def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     """Every network of the learner (actor, critics, targets) starts from the source run; a resumed
     run has its weights already, and only its frozen parameters are frozen again."""
     from drltg.modules.weights import freeze_parameters
 
-    t = cfg["transfer"]
+    t = cfg.transfer
     if resuming:
-        freeze_parameters(agent.loss, t["freeze"])
+        freeze_parameters(agent.loss, t.freeze)
         return Transfer()
-    report = load_from_run(agent.loss, t["source"], freeze=t["freeze"], partial=t["partial"])
+    report = load_from_run(agent.loss, t.source, freeze=t.freeze, partial=t.partial)
     logging.getLogger(__name__).info(report.summary())
     return Transfer(files={MODEL_REUSE: f"{report}\n"})
 
@@ -47,8 +49,10 @@ MODEL_REUSE_METHOD = register_method(TransferMethod(
     source="run",
     takes=("weights",),
     options=builtin_options("model-reuse", {
-        "freeze": Field(list, "model reuse: parameter-name patterns to keep fixed", item=Field(str),
-                             what="a list of parameter-name patterns (e.g. [actor_network_params])"),
-        "partial": Field(bool, "model reuse: accept a source whose core networks cannot all be loaded"),
+        "freeze": Annotated[list[Str], Field(description="model reuse: parameter-name patterns to keep fixed",
+                                             json_schema_extra={"what": "a list of parameter-name patterns (e.g. "
+                                                                        "[actor_network_params])"})],
+        "partial": Annotated[Bool, Field(description="model reuse: accept a source whose core networks cannot all "
+                                                     "be loaded")],
     }),
 ))

@@ -11,24 +11,25 @@ pipeline it changes::
 whether it trains source runs first, its ``transfer.*`` config keys and their ranges, and the rules
 its config must follow. A new method is one module and one :func:`register_method` call::
 
+    from pydantic import Field
+
     from drltg.transfer import Transfer, TransferMethod, register_method
 
     def build(cfg, agent, env, *, resuming):
-        return Transfer(train_transforms=[MyTransform(scale=cfg["transfer"]["my_scale"])])
+        return Transfer(train_transforms=[MyTransform(scale=cfg.transfer.my_scale)])
 
     register_method(TransferMethod(
         "my-method", "what it transfers, in one line", build,
-        options={"my_scale": (1.0, Field(float, "how strongly", low=0.0))},
+        options={"my_scale": (float, Field(1.0, ge=0.0, description="how strongly"))},
     ))
 """
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
 
 from drltg import config
-from drltg.config import Field
+from drltg.config import RunConfig
 from drltg.errors import UsageError
 
 __all__ = ["Transfer", "TransferMethod", "METHODS", "register_method", "get_method", "combine"]
@@ -75,7 +76,8 @@ class TransferMethod:
         source: ``None`` (no source), ``"run"`` (a source run's weights) or ``"policy"`` (a source run's
             actor, or ``demonstrator:TASK`` on the manipulation tasks). ``drltg experiment`` trains
             source runs on the pair's source task for methods that have one.
-        options: the method's ``transfer.<key>`` config keys as ``key -> (default, Field)``.
+        options: the method's ``transfer.<key>`` config keys as ``key -> (type, default or Field(default, ...))``,
+            the fields of a pydantic model (:func:`pydantic.create_model`) built when it is registered.
         check: ``check(cfg)`` raises one :class:`UsageError` sentence on a config the method cannot
             run (rules that tie keys together); called by ``drltg.config.validate``.
         algos: the learners it works with (``None``: every learner).
@@ -88,16 +90,16 @@ class TransferMethod:
     help: str
     build: Callable[..., Transfer]
     source: str | None = None
-    options: dict[str, tuple[Any, Field]] = field(default_factory=dict)
-    check: Callable[[dict], None] | None = None
+    options: dict[str, tuple[Any, Any]] = field(default_factory=dict)
+    check: Callable[[RunConfig], None] | None = None
     algos: tuple[str, ...] | None = None
     takes: tuple[str, ...] = ()
 
-    def validate(self, cfg: dict) -> None:
-        if self.algos is not None and cfg["algo"] not in self.algos:
+    def validate(self, cfg: RunConfig) -> None:
+        if self.algos is not None and cfg.algo not in self.algos:
             raise UsageError(
                 f"config key 'transfer.method' is {self.name}, which works with algo {' or '.join(self.algos)}, "
-                f"not '{cfg['algo']}'."
+                f"not '{cfg.algo}'."
             )
         if self.check is not None:
             self.check(cfg)
@@ -105,7 +107,7 @@ class TransferMethod:
 
 METHODS: dict[str, TransferMethod] = {}
 """Every registered method by name; ``none`` is plain learning (the baseline)."""
-config.METHOD_RULES["+"] = lambda cfg: get_method(cfg["transfer"]["method"]).validate(cfg)
+config.METHOD_RULES["+"] = lambda cfg: get_method(cfg.transfer.method).validate(cfg)
 
 _SOURCES = (None, "run", "policy")
 
@@ -120,26 +122,15 @@ def register_method(method: TransferMethod, *, replace: bool = False) -> Transfe
             f"transfer method {method.name!r}: source must be None, 'run' or 'policy', got {method.source!r}."
         )
     owners = {key: m.name for m in METHODS.values() if m.name != method.name for key in m.options}
-    for key, (default, spec) in method.options.items():
+    for key in method.options:
         if key in owners or key in config.TRANSFER_KEYS:
             raise UsageError(
                 f"transfer method {method.name!r}: config key 'transfer.{key}' already belongs to "
                 f"{owners.get(key, 'every method')}; choose another name."
             )
-        spec.check(f"transfer.{key}", default)
-    previous = METHODS.get(method.name)
-    if previous is not None:
-        for key in previous.options:
-            config.DEFAULTS["transfer"].pop(key, None)
-            config.SCHEMA.pop(f"transfer.{key}", None)
-            config.METHOD_OPTIONS.pop(key, None)
+    model = config.options_model(method.name, method.options) if method.options else None
     METHODS[method.name] = method
-    config.METHOD_RULES[method.name] = method.validate
-    for key, (default, spec) in method.options.items():
-        config.DEFAULTS["transfer"][key] = default
-        config.SCHEMA[f"transfer.{key}"] = spec
-        config.METHOD_OPTIONS[key] = method.name
-    config.SCHEMA["transfer.method"] = dataclasses.replace(config.SCHEMA["transfer.method"], choices=tuple(METHODS))
+    config.add_method(method.name, model, method.validate)
     return method
 
 

@@ -1,25 +1,26 @@
 """The reward-shaping method: ``PotentialShaping`` with the task's registered potential and the learner's gamma."""
 from __future__ import annotations
 
+from drltg.config import RunConfig
 from drltg.errors import UsageError
 from drltg.transfer.registry import Transfer, TransferMethod, register_method
 
 
-def _check(cfg: dict) -> None:
+def _check(cfg: RunConfig) -> None:
     from drltg.envs import get_task
 
-    if get_task(cfg["task"]).potential is None:
-        raise UsageError(f"task '{cfg['task']}' has no shaping potential registered.")
+    if get_task(cfg.task).potential is None:
+        raise UsageError(f"task '{cfg.task}' has no shaping potential registered.")
 
 
-def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
+def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     """The task's own potential (registered with the task), the learner's gamma."""
     from drltg.envs import get_task
     from drltg.transforms import PotentialShaping
 
-    spec = get_task(cfg["task"])
-    potential = spec.potential({**spec.defaults, **cfg["env"]})
-    return Transfer(train_transforms=[PotentialShaping(potential, gamma=cfg["optim"]["gamma"])])
+    spec = get_task(cfg.task)
+    potential = spec.potential({**spec.defaults, **cfg.env})
+    return Transfer(train_transforms=[PotentialShaping(potential, gamma=cfg.optim.gamma)])
 
 
 REWARD_SHAPING = register_method(TransferMethod(

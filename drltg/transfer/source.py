@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING
 
 import yaml
 
+from drltg import config
+from drltg.config import RunConfig, TransferConfig
 from drltg.envs import make_env
 from drltg.envs.robosuite.layout import TASKS as MANIPULATION
 from drltg.errors import UsageError
@@ -27,35 +29,35 @@ if TYPE_CHECKING:
 DEMONSTRATOR = "demonstrator:"
 
 
-def check(cfg: dict) -> None:
+def check(cfg: RunConfig) -> None:
     """Fail early, before anything is trained or written, on a source the method cannot use."""
-    method, t = get_method(cfg["transfer"]["method"]), cfg["transfer"]
+    method, t = get_method(cfg.transfer.method), cfg.transfer
     if method.source is None:
         return
-    if not t["source"]:
+    if not t.source:
         raise UsageError(f"transfer.method={method.name} needs transfer.source, the source run directory.")
-    demonstrated = demonstrator_task(t["source"])
+    demonstrated = demonstrator_task(t.source)
     if demonstrated is None:
-        _check_source_run(Path(t["source"]).expanduser(), t)
+        _check_source_run(Path(t.source).expanduser(), t)
     elif method.source != "policy":
         raise UsageError(f"a demonstrator has no weights to reuse; {method.name} needs a source run directory.")
-    elif demonstrated not in MANIPULATION or cfg["task"] not in MANIPULATION:
+    elif demonstrated not in MANIPULATION or cfg.task not in MANIPULATION:
         raise UsageError(
-            f"transfer.source=demonstrator:{demonstrated} on task '{cfg['task']}': the demonstrator reads the "
+            f"transfer.source=demonstrator:{demonstrated} on task '{cfg.task}': the demonstrator reads the "
             f"manipulation observation and solves {', '.join(MANIPULATION)} only."
         )
 
 
-def _check_source_run(run: Path, t: dict) -> None:
+def _check_source_run(run: Path, t: TransferConfig) -> None:
     if not (run / CHECKPOINT).is_file():
-        raise UsageError(f"transfer.source '{t['source']}' holds no {CHECKPOINT.as_posix()}; train the source first.")
+        raise UsageError(f"transfer.source '{t.source}' holds no {CHECKPOINT.as_posix()}; train the source first.")
     if not (run / CONFIG).is_file():
-        raise UsageError(f"transfer.source '{t['source']}' holds no {CONFIG}; is it a drltg run directory?")
-    if not is_complete(run) and not t.get("allow_incomplete"):
+        raise UsageError(f"transfer.source '{t.source}' holds no {CONFIG}; is it a drltg run directory?")
+    if not is_complete(run) and not t.allow_incomplete:
         frames = load_checkpoint(run, mmap=True).get("frames", "?")
         raise UsageError(
-            f"transfer.source '{t['source']}' did not finish (no {SUMMARY}; its checkpoint is at frame {frames}); "
-            f"finish it with `drltg train --resume --run-dir {t['source']}`, or reuse it as it is with "
+            f"transfer.source '{t.source}' did not finish (no {SUMMARY}; its checkpoint is at frame {frames}); "
+            f"finish it with `drltg train --resume --run-dir {t.source}`, or reuse it as it is with "
             "transfer.allow_incomplete=true."
         )
 
@@ -93,11 +95,12 @@ def _rebuild(run_dir, device: str = "cpu"):
     for name in (CONFIG, CHECKPOINT):
         if not (run / name).is_file():
             raise UsageError(f"'{run_dir}' is not a drltg run directory: it holds no {Path(name).as_posix()}.")
-    cfg = yaml.safe_load((run / CONFIG).read_text())
-    if not isinstance(cfg, dict) or not {"task", "algo", "env"} <= set(cfg):
+    data = yaml.safe_load((run / CONFIG).read_text())
+    if not isinstance(data, dict) or not {"task", "algo", "env"} <= set(data):
         raise UsageError(f"'{run / CONFIG}' is not a drltg run config (it lacks task, algo or env).")
     try:
-        env = make_env(cfg["task"], device=device, **cfg["env"])
+        cfg = config.build(data)
+        env = make_env(cfg.task, device=device, **cfg.env)
     except UsageError as err:
         raise UsageError(f"run '{run_dir}' cannot be rebuilt: {err}") from None
     agent = make_agent(env, cfg)
@@ -105,7 +108,7 @@ def _rebuild(run_dir, device: str = "cpu"):
     mismatch = _first_mismatch(agent.loss.state_dict(), saved)
     if mismatch:
         raise UsageError(
-            f"the checkpoint of run '{run_dir}' does not fit the {cfg['algo']} learner its {CONFIG} describes "
+            f"the checkpoint of run '{run_dir}' does not fit the {cfg.algo} learner its {CONFIG} describes "
             f"({mismatch})."
         )
     agent.loss.load_state_dict(saved)
@@ -148,20 +151,20 @@ def load_critic(run_dir, *, device: str = "cpu", scale: float = 1.0):
     return SourceValue(agent.loss, discrete=discrete, scale=scale)
 
 
-def source_agent(cfg: dict, target_env: EnvBase | None = None):
+def source_agent(cfg: RunConfig, target_env: EnvBase | None = None):
     """The learner of ``transfer.source`` (:func:`load_agent`). With ``target_env``, a source that
     observes or acts differently is refused here rather than failing inside the first rollout."""
-    agent, env, src_cfg = _rebuild(cfg["transfer"]["source"], cfg["device"])
+    agent, env, src_cfg = _rebuild(cfg.transfer.source, cfg.device)
     if target_env is not None:
-        check_same_spaces(env, target_env, f"transfer.source '{cfg['transfer']['source']}' ({src_cfg['task']})",
-                          f"task '{cfg['task']}'")
+        check_same_spaces(env, target_env, f"transfer.source '{cfg.transfer.source}' ({src_cfg.task})",
+                          f"task '{cfg.task}'")
     return agent
 
 
-def source_actor(cfg: dict, target_env: EnvBase | None = None) -> TensorDictModuleBase:
+def source_actor(cfg: RunConfig, target_env: EnvBase | None = None) -> TensorDictModuleBase:
     """The past policy: the source run's trained actor (:func:`source_agent`), or the scripted
     demonstrator of ``demonstrator:TASK``."""
-    task = demonstrator_task(cfg["transfer"]["source"])
+    task = demonstrator_task(cfg.transfer.source)
     if task is not None:
         from drltg.envs.robosuite.demonstrator import demonstrator_for
 

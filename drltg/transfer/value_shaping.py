@@ -1,11 +1,15 @@
 """The value-shaping method: ``PotentialShaping`` with Phi = the source run's value (``SourceValue``)."""
 from __future__ import annotations
 
-from drltg.config import Field, builtin_options
+from typing import Annotated
+
+from pydantic import Field
+
+from drltg.config import Float, RunConfig, builtin_options
 from drltg.transfer.registry import Transfer, TransferMethod, register_method
 
 
-def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
+def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     from torchrl.data import OneHot
 
     from drltg.transfer.source import source_agent
@@ -13,8 +17,8 @@ def _build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
 
     source = source_agent(cfg, env)
     discrete = isinstance(env.full_action_spec_unbatched["action"], OneHot)
-    potential = SourceValue(source.loss, discrete=discrete, scale=cfg["transfer"]["value_scale"])
-    return Transfer(train_transforms=[PotentialShaping(potential, gamma=cfg["optim"]["gamma"])])
+    potential = SourceValue(source.loss, discrete=discrete, scale=cfg.transfer.value_scale)
+    return Transfer(train_transforms=[PotentialShaping(potential, gamma=cfg.optim.gamma)])
 
 
 VALUE_SHAPING = register_method(TransferMethod(
@@ -24,6 +28,6 @@ VALUE_SHAPING = register_method(TransferMethod(
     source="run",
     algos=("sac", "td3"),
     options=builtin_options("value-shaping", {
-        "value_scale": Field(float, "value shaping: Phi = value_scale * V_source(s)", low=0.0),
+        "value_scale": Annotated[Float, Field(ge=0, description="value shaping: Phi = value_scale * V_source(s)")],
     }),
 ))

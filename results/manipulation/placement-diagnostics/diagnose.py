@@ -34,7 +34,7 @@ ROOT = Path(__file__).resolve().parents[3]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from drltg.config import DEFAULTS  # noqa: E402
+from drltg.config import OptimConfig  # noqa: E402
 from drltg.envs import make_env  # noqa: E402
 from drltg.envs.robosuite import LAYOUT, demonstrator_for, potential_for  # noqa: E402
 from drltg.training.rundir import atomic_write  # noqa: E402
@@ -42,7 +42,7 @@ from drltg.training.rundir import atomic_write  # noqa: E402
 HERE = Path(__file__).resolve().parent
 SIGMAS = (0.0, 0.1, 0.3, 0.5)
 TASKS = ("lift-place", "lift-place-barrier")
-GAMMA = DEFAULTS["optim"]["gamma"]
+GAMMA = OptimConfig().gamma
 
 
 class Noisy(TensorDictModuleBase):
