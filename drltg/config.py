@@ -239,14 +239,16 @@ class RunConfig(Section):
 
 
 def _restore(data: dict) -> RunConfig:
-    import drltg.transfer  # noqa: F401  (the built-in methods' options, in a process that unpickles a config)
+    """A config from its pickled values, read with the transfer methods of this process: those of
+    :mod:`drltg.transfer` (imported by the process, as the workers of drltg.experiments do) and the user's
+    plugins (loaded here)."""
+    from drltg import plugins
 
+    plugins.load()
     return build(data)
 
 
 def _restore_transfer(data: dict) -> TransferConfig:
-    import drltg.transfer  # noqa: F401
-
     return _model().model_fields["transfer"].annotation.model_validate(data)
 
 

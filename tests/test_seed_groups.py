@@ -127,7 +127,7 @@ def test_a_group_writes_one_ordinary_run_directory_per_seed(group_run):
     assert sorted(p.name for p in group_run.iterdir()) == ["seed-3", "seed-4"]
     for seed in (3, 4):
         run = group_run / f"seed-{seed}"
-        assert yaml.safe_load((run / "config.yaml").read_text()) == tiny_cfg(seed=seed)
+        assert yaml.safe_load((run / "config.yaml").read_text()) == tiny_cfg(seed=seed).model_dump()
         rows = read_eval_csv(run / "eval.csv")
         assert [r["frames"] for r in rows] == [0, 256, 512]
         summary = json.loads((run / "summary.json").read_text())

@@ -135,7 +135,8 @@ def _check_saved_config(cfg: RunConfig, run_dir: Path) -> None:
         saved = rundir.read_config(run_dir)
     except yaml.YAMLError:
         raise UsageError(f"cannot resume: '{run_dir / CONFIG}' is not valid YAML.") from None
-    changed = config_changes(saved if isinstance(saved, dict) else {}, rundir.absolute_source(cfg, Path.cwd()))
+    changed = config_changes(saved if isinstance(saved, dict) else {},
+                             rundir.absolute_source(cfg.model_dump(), Path.cwd()))
     if changed:
         raise UsageError(f"cannot resume '{run_dir}': the config differs from the saved one in {', '.join(changed)}.")
 

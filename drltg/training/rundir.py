@@ -26,13 +26,10 @@ import tempfile
 import time
 import uuid
 from pathlib import Path
-from typing import TYPE_CHECKING, Iterator
+from typing import Any, Iterator
 
 from drltg.errors import UsageError
 from drltg.training import manifest
-
-if TYPE_CHECKING:
-    from drltg.config import RunConfig
 
 CONFIG = "config.yaml"
 EVAL = "eval.csv"
@@ -51,24 +48,15 @@ __all__ = ["atomic_write", "atomic_torch_save", "atomic_path", "write_files", "r
 
 
 # ------------------------------------------------------------------------------------------ config
-def absolute_source(cfg: dict | RunConfig, base: Path) -> dict | RunConfig:
-    """``cfg`` (a config, or the mapping a config file holds) with a relative ``transfer.source`` read as
-    relative to ``base`` (a run directory, or the folder of a config file); a demonstrator or an absolute
-    path stays as it is."""
-    typed = hasattr(cfg, "model_dump")  # a RunConfig, not a mapping read from YAML
-    if typed:
-        source = cfg.transfer.source
-    else:
-        section = cfg.get("transfer") if isinstance(cfg, dict) else None
-        source = section.get("source") if isinstance(section, dict) else None
+def absolute_source(cfg: dict, base: Path) -> dict:
+    """``cfg`` (the mapping a config file holds) with a relative ``transfer.source`` read as relative to
+    ``base`` (a run directory, or the folder of a config file); a demonstrator or an absolute path stays as
+    it is."""
+    section = cfg.get("transfer") if isinstance(cfg, dict) else None
+    source = section.get("source") if isinstance(section, dict) else None
     if not isinstance(source, str) or source.startswith("demonstrator:") or Path(source).expanduser().is_absolute():
         return cfg
-    path = os.path.normpath(Path(base).resolve() / source)
-    if typed:
-        from drltg import config  # pydantic: not for the analysis of run directories
-
-        return config.updated(cfg, {"transfer.source": path})
-    return {**cfg, "transfer": {**cfg["transfer"], "source": path}}
+    return {**cfg, "transfer": {**section, "source": os.path.normpath(Path(base).resolve() / source)}}
 
 
 def read_config(run_dir: str | Path):
@@ -79,17 +67,18 @@ def read_config(run_dir: str | Path):
     return absolute_source(yaml.safe_load((run_dir / CONFIG).read_text()), run_dir)
 
 
-def write_config(run_dir: str | Path, cfg: RunConfig) -> None:
-    """Write ``config.yaml`` atomically, with ``transfer.source`` relative to the run directory: a folder
-    holding runs and their sources (an experiment, a sweep) can be moved and resumed."""
-    from drltg import config
+def write_config(run_dir: str | Path, cfg: Any) -> None:
+    """Write ``config.yaml`` (a :class:`drltg.config.RunConfig`'s values, in its order) atomically, with
+    ``transfer.source`` relative to the run directory: a folder holding runs and their sources (an
+    experiment, a sweep) can be moved and resumed."""
+    import yaml
 
     run_dir = Path(run_dir)
-    source = cfg.transfer.source
+    data = cfg.model_dump()
+    source = data["transfer"]["source"]
     if isinstance(source, str) and not source.startswith("demonstrator:"):
-        relative = os.path.relpath(Path(source).expanduser().resolve(), run_dir.resolve())
-        cfg = config.updated(cfg, {"transfer.source": relative})
-    atomic_write(run_dir / CONFIG, config.dump(cfg))
+        data["transfer"]["source"] = os.path.relpath(Path(source).expanduser().resolve(), run_dir.resolve())
+    atomic_write(run_dir / CONFIG, yaml.safe_dump(data, sort_keys=False))
 
 
 # ------------------------------------------------------------------------------------- atomic files
@@ -515,11 +504,12 @@ class RunWriter:
 
     Args:
         run_dir: the run directory (created and locked by the caller).
-        cfg: the resolved config, written as config.yaml and summarised in summary.json.
+        cfg: the resolved config (:class:`drltg.config.RunConfig`), written as config.yaml and summarised in
+            summary.json.
         rows: the evaluations kept from before a resumed checkpoint (``[]`` for a new run).
     """
 
-    def __init__(self, run_dir: str | Path, cfg: RunConfig, rows: list[dict] | None = None):
+    def __init__(self, run_dir: str | Path, cfg: Any, rows: list[dict] | None = None):
         self.run_dir = Path(run_dir)
         self.cfg = cfg
         self.rows = list(rows or [])
