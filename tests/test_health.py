@@ -54,8 +54,8 @@ def test_the_executor_records_a_diverged_group_and_a_rerun_skips_it(tmp_path):
     from tests.test_seed_groups import tiny_cfg
 
     cfgs = [tiny_cfg(task=NAN, seed=s, frames=128) for s in (0, 100)]
-    dirs = [tmp_path / "baseline" / f"seed-{c['seed']}" for c in cfgs]
-    logs = [tmp_path / "logs" / f"seed-{c['seed']}.log" for c in cfgs]
+    dirs = [tmp_path / "baseline" / f"seed-{c.seed}" for c in cfgs]
+    logs = [tmp_path / "logs" / f"seed-{c.seed}.log" for c in cfgs]
     statuses = run_group(cfgs, [str(d) for d in dirs], [str(p) for p in logs])
     assert [s for s, _ in statuses] == ["diverged", "diverged"]
     assert [rundir.summary_status(d) for d in dirs] == statuses
