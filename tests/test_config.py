@@ -475,3 +475,33 @@ def test_cli_refuses_the_same_override_twice_with_exit_2(tmp_path, capsys):
     assert err.endswith("config key 'optim.lr' is set twice by -o ('optim.lr=1e-3', then 'optim.lr=3e-4'); give it "
                         "once.") and len(err.splitlines()) == 1
     assert not run_dir.exists()
+
+
+def test_env_options_read_from_source_are_those_of_the_imported_signature():
+    import inspect
+
+    read = {}
+    for spec in list(TASKS.values()):
+        if isinstance(spec.entry, str) and spec.entry not in read:
+            read[spec.entry] = config_lib._source_signature(spec.entry)
+            if read[spec.entry] is not None:
+                factory = spec.factory
+                params = inspect.signature(factory.__init__ if inspect.isclass(factory) else factory).parameters
+                declared = {n: p.default for n, p in params.items()
+                            if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY) and n != "self"}
+                assert read[spec.entry] == (declared, any(p.kind is p.VAR_KEYWORD for p in params.values()))
+    assert read["drltg.envs.fourrooms:FourRoomsEnv"] is not None and read["drltg.envs.gridrooms:GridFourRoomsEnv"]
+    assert read["drltg.envs.robosuite.env:robosuite_task"] is None  # its __signature__ is built: imported instead
+
+
+def test_a_config_of_a_rooms_task_is_checked_without_torch():
+    import subprocess
+    import sys
+
+    code = ("import sys, drltg.transfer\nfrom drltg import config\nfrom drltg.errors import UsageError\n"
+            "config.resolve(task='gridrooms/northeast', overrides=['env.slip=0.1'])\n"
+            "try:\n    config.resolve(task='fourrooms/northeast', overrides=['env.horizon=abc'])\n"
+            "except UsageError as err:\n    print(err)\nprint('torch' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.splitlines() == ["config key 'env.horizon' must be an integer (task 'fourrooms/northeast' declares "
+                                "horizon=100), got 'abc'.", "False"]
