@@ -13,7 +13,7 @@ when first used)::
                        collect_demonstrations, demonstration_buffer, mixed_batches   demonstrations
     drltg.losses       SoftOptionCriticLoss, behaviour_cloning
     drltg.modules      load_weights (model reuse onto any module), option_transforms, make_option_policy
-    drltg.config       resolve: a full, checked run config (task defaults, ``KEY=VALUE`` overrides)
+    drltg.config       resolve: a full, checked, typed run config (``cfg.optim.lr``; task defaults, ``KEY=VALUE``)
     drltg.learners     make_agent(env, cfg): actor, exploration policy, loss, target updater, optimiser;
                        UpdateStep: one gradient step of any learner; sample_batches(buffer, n)
     drltg.seed_group   SeedGroup: N seeds' agents stacked, one vmapped update for all of them
