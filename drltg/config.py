@@ -16,12 +16,9 @@ task's keyword arguments, checked against the keywords its factory declares (:fu
 """
 from __future__ import annotations
 
-import ast
 import copy
 import difflib
 import functools
-import importlib.util
-import inspect
 import math
 import re
 import types
@@ -774,60 +771,11 @@ def _check_device(key: str, value: str) -> str:
 # ----------------------------------------------------------------------------------------- env options
 def env_defaults(task: str) -> tuple[dict[str, Any], bool]:
     """The keyword arguments task ``task``'s factory declares with a default (its registered defaults
-    win), and whether it also takes other keywords (``**kwargs``). A factory named ``"module:attr"`` is
-    read from its source where its defaults are literals, so no env module (and no torch) is imported."""
+    win), and whether it also takes other keywords (``**kwargs``); read without importing the env where
+    the registry can (:meth:`drltg.envs.TaskSpec.keywords`)."""
     spec = _task_spec(task)
-    declared = None
-    if isinstance(spec.entry, str):
-        declared = _source_signature(spec.entry)
-    if declared is None:
-        factory = spec.factory
-        params = inspect.signature(factory.__init__ if inspect.isclass(factory) else factory).parameters
-        declared = (
-            {name: p.default for name, p in params.items()
-             if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY) and name != "self"},
-            any(p.kind is p.VAR_KEYWORD for p in params.values()),
-        )
-    names, open_ended = declared
-    return {**names, **spec.defaults}, open_ended
-
-
-@functools.lru_cache(maxsize=None)
-def _source_signature(entry: str) -> tuple[dict[str, Any], bool] | None:
-    """``(keyword -> default, takes **kwargs)`` of the function or class ``"module:attr"`` read from the
-    module's source: its own ``def`` (a class's ``__init__``), every default a literal, no
-    ``__signature__`` set; ``None`` when any of that does not hold (the caller imports it instead)."""
-    module, _, attr = entry.partition(":")
-    try:
-        spec = importlib.util.find_spec(module)
-        text = Path(spec.origin).read_text(encoding="utf-8")
-        tree = ast.parse(text)
-    except (ImportError, AttributeError, OSError, SyntaxError, TypeError, ValueError):
-        return None
-    if f"{attr}.__signature__" in text:
-        return None
-    node = next((n for n in tree.body if isinstance(n, (ast.ClassDef, ast.FunctionDef)) and n.name == attr), None)
-    if isinstance(node, ast.ClassDef):
-        if node.decorator_list:
-            return None
-        node = next((n for n in node.body if isinstance(n, ast.FunctionDef) and n.name == "__init__"), None)
-    if node is None or node.decorator_list:
-        return None
-    args = node.args
-    positional = args.posonlyargs + args.args
-    pairs = list(zip(positional[len(positional) - len(args.defaults):], args.defaults))
-    pairs += [(a, d) for a, d in zip(args.kwonlyargs, args.kw_defaults) if d is not None]
-    declared = {}
-    try:
-        for arg, default in pairs:
-            if arg not in args.posonlyargs:
-                declared[arg.arg] = ast.literal_eval(default)
-    except ValueError:  # a default that is not a literal: the imported signature says what it is
-        return None
-    required = [a.arg for a in positional[: len(positional) - len(args.defaults)] if a.arg not in ("self", "cls")]
-    required += [a.arg for a, d in zip(args.kwonlyargs, args.kw_defaults) if d is None]
-    declared.update(dict.fromkeys(required, inspect.Parameter.empty))
-    return declared, args.kwarg is not None
+    declared, open_ended = spec.keywords()
+    return {**declared, **spec.defaults}, open_ended
 
 
 def task_env(task: str) -> dict[str, Any]:

@@ -480,10 +480,12 @@ def test_cli_refuses_the_same_override_twice_with_exit_2(tmp_path, capsys):
 def test_env_options_read_from_source_are_those_of_the_imported_signature():
     import inspect
 
+    from drltg.envs import registry
+
     read = {}
     for spec in list(TASKS.values()):
         if isinstance(spec.entry, str) and spec.entry not in read:
-            read[spec.entry] = config_lib._source_signature(spec.entry)
+            read[spec.entry] = registry._read_keywords(spec.entry)
             if read[spec.entry] is not None:
                 factory = spec.factory
                 params = inspect.signature(factory.__init__ if inspect.isclass(factory) else factory).parameters

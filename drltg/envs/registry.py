@@ -14,10 +14,14 @@ Examples:
 """
 from __future__ import annotations
 
+import ast
 import difflib
+import functools
 import importlib
+import importlib.util
 import inspect
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 from drltg.errors import UsageError
@@ -49,6 +53,52 @@ class TaskSpec:
             return getattr(importlib.import_module(module), attr)
         except (ImportError, AttributeError) as err:
             raise UsageError(f"task {self.name!r}: its factory {self.entry!r} cannot be imported ({err}).") from None
+
+    def keywords(self) -> tuple[dict[str, Any], bool]:
+        """The keyword arguments the factory declares (name -> default; ``inspect.Parameter.empty``: none)
+        and whether it also takes other keywords (``**kwargs``). A factory named ``"module:attr"`` is read
+        from its module's source where that suffices (:func:`_read_keywords`), so that checking a config
+        imports neither the env nor torch."""
+        read = _read_keywords(self.entry) if isinstance(self.entry, str) else None
+        if read is not None:
+            return read
+        factory = self.factory
+        params = inspect.signature(factory.__init__ if inspect.isclass(factory) else factory).parameters
+        declared = {name: p.default for name, p in params.items()
+                    if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY) and name != "self"}
+        return declared, any(p.kind is p.VAR_KEYWORD for p in params.values())
+
+
+@functools.lru_cache(maxsize=None)
+def _read_keywords(entry: str) -> tuple[dict[str, Any], bool] | None:
+    """What :meth:`TaskSpec.keywords` says of the function or class ``"module:attr"``, read from the
+    module's source: its own ``def`` (a class's ``__init__``), undecorated, every default a literal, no
+    ``__signature__`` assigned; ``None`` when any of that does not hold (the factory is imported instead)."""
+    module, _, attr = entry.partition(":")
+    try:
+        text = Path(importlib.util.find_spec(module).origin).read_text(encoding="utf-8")
+        tree = ast.parse(text)
+    except (ImportError, AttributeError, OSError, SyntaxError, TypeError, ValueError):
+        return None
+    if f"{attr}.__signature__" in text:
+        return None
+    node = next((n for n in tree.body if isinstance(n, (ast.ClassDef, ast.FunctionDef)) and n.name == attr), None)
+    if isinstance(node, ast.ClassDef) and not node.decorator_list:
+        node = next((n for n in node.body if isinstance(n, ast.FunctionDef) and n.name == "__init__"), None)
+    if not isinstance(node, ast.FunctionDef) or node.decorator_list:
+        return None
+    args = node.args
+    positional = args.posonlyargs + args.args
+    defaults = [None] * (len(positional) - len(args.defaults)) + list(args.defaults)
+    declared = {}
+    try:
+        for arg, default in [*zip(positional, defaults), *zip(args.kwonlyargs, args.kw_defaults)]:
+            if arg in args.posonlyargs or arg.arg in ("self", "cls"):
+                continue
+            declared[arg.arg] = inspect.Parameter.empty if default is None else ast.literal_eval(default)
+    except ValueError:  # a default that is not a literal: the imported signature says what it is
+        return None
+    return declared, args.kwarg is not None
 
 
 @dataclass(frozen=True)
