@@ -41,7 +41,7 @@ from pydantic.fields import FieldInfo
 
 from drltg.errors import UsageError
 
-__all__ = ["RunConfig", "resolve", "build", "validate", "updated", "describe", "dump", "keys", "defaults",
+__all__ = ["RunConfig", "resolve", "build", "validate", "as_config", "updated", "describe", "dump", "keys", "defaults",
            "config_changes", "refuse_conflicts", "parse_override", "load_yaml", "task_env", "env_defaults",
            "Int", "Float", "Bool", "Str", "Section"]
 
@@ -515,6 +515,12 @@ def build(data: dict | RunConfig) -> RunConfig:
         return model.model_validate(data)
     except ValidationError as err:
         raise UsageError(_sentence(err, data, model)) from None
+
+
+def as_config(cfg: RunConfig | dict) -> RunConfig:
+    """``cfg`` itself, or a mapping of config keys resolved as a ``--config`` file is (:func:`resolve`): the
+    entry points that take a config (``train``, ``make_agent``) take either."""
+    return cfg if isinstance(cfg, RunConfig) else resolve(cfg)
 
 
 def updated(cfg: RunConfig, changes: dict[str, Any]) -> RunConfig:

@@ -231,10 +231,9 @@ ALGOS: dict[str, Callable[[EnvBase, RunConfig], Agent]] = {
 
 
 def make_agent(env: EnvBase, cfg: RunConfig | dict) -> Agent:
-    """The learner ``cfg.algo`` for ``env``; a mapping of config keys is read as :func:`drltg.config.build` reads it
-    (missing keys at their defaults)."""
-    if not isinstance(cfg, RunConfig):
-        cfg = config.build(cfg)
+    """The learner ``cfg.algo`` for ``env``; a mapping of config keys is resolved first
+    (:func:`drltg.config.as_config`)."""
+    cfg = config.as_config(cfg)
     return ALGOS[cfg.algo](env, cfg)
 
 

@@ -507,3 +507,14 @@ def test_a_config_of_a_rooms_task_is_checked_without_torch():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.splitlines() == ["config key 'env.horizon' must be an integer (task 'fourrooms/northeast' declares "
                                 "horizon=100), got 'abc'.", "False"]
+
+
+def test_the_entry_points_take_a_mapping_resolved_as_a_config_file():
+    from drltg.envs import make_env
+    from drltg.learners import make_agent
+
+    agent = make_agent(make_env("fourrooms/northeast"), {"task": "fourrooms/northeast", "network": {"hidden": [8]}})
+    assert [m.out_features for m in agent.actor.modules() if isinstance(m, torch.nn.Linear)] == [8, 4]
+    assert config_lib.as_config({"algo": "td3"}) == config_lib.resolve(None, ["algo=td3"])
+    with pytest.raises(UsageError, match=r"^config key 'network.hidden' must be a non-empty list"):
+        make_agent(make_env("fourrooms/northeast"), {"network": {"hidden": []}})

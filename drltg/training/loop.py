@@ -28,6 +28,7 @@ from torchrl.data import LazyTensorStorage, ReplayBuffer
 from torchrl.envs import EnvBase, ExplorationType, RewardSum, TransformedEnv, set_exploration_type
 from tqdm.auto import tqdm
 
+from drltg import config
 from drltg.config import RunConfig, config_changes
 from drltg.envs import make_env
 from drltg.errors import UsageError
@@ -184,19 +185,21 @@ def _remove_start(run_dir: Path, created: bool) -> None:
 
 # ----------------------------------------------------------------------------- loop
 def train(
-    cfg: RunConfig,
+    cfg: RunConfig | dict,
     run_dir: str | Path,
     *,
     resume: bool = False,
     progress: bool = True,
 ) -> Path:
     """Train ``cfg.algo`` on ``cfg.task`` for ``cfg.frames`` frames, with the transfer method
-    of ``cfg.transfer``; return the run directory.
+    of ``cfg.transfer``; return the run directory. ``cfg`` is a :class:`~drltg.config.RunConfig`, or a mapping
+    of config keys resolved as a ``--config`` file is.
 
     The directory is locked while the run writes it (a second process is refused). Everything the
     config can fail on is built before a new directory is created; if a new run fails before its first
     checkpoint, what it wrote is removed, and after it the directory can be resumed.
     """
+    cfg = config.as_config(cfg)
     run_dir = rundir.check_directory(run_dir, "--run-dir")
     with contextlib.ExitStack() as owned:
         if resume:

@@ -88,7 +88,7 @@ def train_seeds(cfg: RunConfig, run_dir: str | Path, seeds: int, *, resume: bool
     a note on stderr saying why). Returns the run directories."""
     if seeds < 1:
         raise UsageError(f"--seeds must be at least 1, got {seeds}.")
-    run_dir = rundir.check_directory(run_dir, "--run-dir")
+    cfg, run_dir = config.as_config(cfg), rundir.check_directory(run_dir, "--run-dir")
     cfgs = [config.updated(cfg, {"seed": cfg.seed + k}) for k in range(seeds)]
     dirs = seed_dirs(run_dir, cfg.seed, seeds)
     reason = group_support(cfg) if group else "grouping is turned off"
