@@ -468,6 +468,10 @@ def _suggest(key: str, known: Iterable[str]) -> str:
     return f"; did you mean '{hint[0]}'?" if hint else "."
 
 
+def _unknown(dotted: str) -> str:
+    return f"unknown config key '{dotted}'" + _suggest(dotted, _flat_keys(_model(), _section_models()))
+
+
 def _sentence(err: ValidationError, data: Any, model: type[BaseModel], prefix: str = "") -> str:
     """One sentence for the first error pydantic found in ``data`` (validated by ``model``), naming the key."""
     sections = _section_models(model)
@@ -529,14 +533,15 @@ def updated(cfg: RunConfig, changes: dict[str, Any]) -> RunConfig:
     new = cfg.model_copy(deep=True)
     for dotted, value in changes.items():
         *path, last = dotted.split(".")
+        if dotted not in keys() and dotted not in _section_models():
+            raise UsageError(_unknown(dotted))
         node = new
         for part in path:
             node = getattr(node, part)
         try:
             setattr(node, last, value)
         except ValidationError as err:
-            model = type(node)
-            raise UsageError(_sentence(err, {last: value}, model, "".join(p + "." for p in path))) from None
+            raise UsageError(_sentence(err, {last: value}, type(node), "".join(p + "." for p in path))) from None
     return new
 
 
@@ -587,7 +592,7 @@ def set_key(cfg: dict, dotted: str, value: Any) -> None:
         merge(cfg, value, dotted + ".")
         return
     if dotted not in keys():
-        raise UsageError(f"unknown config key '{dotted}'" + _suggest(dotted, _flat_keys(_model(), sections)))
+        raise UsageError(_unknown(dotted))
     node = cfg
     for p in parts[:-1]:
         node = node.setdefault(p, {})

@@ -311,6 +311,8 @@ def test_a_config_is_checked_on_assignment_and_by_updated():
     assert (other.seed, other.transfer.source, cfg.seed, cfg.transfer.source) == (3, "runs/a", 0, None)
     with pytest.raises(UsageError, match=r"^config key 'optim.gamma' must be a number in \(0, 1\], got 0.$"):
         config_lib.updated(cfg, {"optim.gamma": 0})
+    with pytest.raises(UsageError, match=r"^unknown config key .optim.lrr.; did you mean .optim.lr.\?$"):
+        config_lib.updated(cfg, {"optim.lrr": 1})
 
 
 def test_dump_then_load_gives_the_same_config(tmp_path):
