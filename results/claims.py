@@ -494,10 +494,15 @@ def demo_sentence() -> str:
     source = _seeds(DEMO / "source")[0]
     success = load(source / "summary.json")["final_eval"]["success_rate"]
     lo, hi = r["metrics"][f"{PRIMARY}_ci"]
+    install = ""
+    if "install_s" in machine:
+        total = (machine["install_s"] + machine["wall_s"]) / 60
+        install = (f" Before it, {machine['install']} took {machine['install_s'] / 60:.1f} minutes: "
+                   f"{total:.1f} minutes from a fresh clone to the report.")
     return (f"{cl.headline(r)} It ran on {machine['machine']} in {machine['wall_s'] / 60:.1f} minutes of wall time "
-            f"with the load average at {machine['load']} from other work, and {machine['cpu_s'] / 60:.1f} "
+            f"with the load average at {machine['load']}, and {machine['cpu_s'] / 60:.1f} "
             f"CPU-minutes (about {machine['cpu_s'] / 60 / machine['cores']:.1f} minutes on {machine['cores']} free "
-            "cores). "
+            f"cores).{install} "
             f"Its one source run ends at a success rate of {success:.2f} on the source task. Another machine "
             f"follows another floating-point stream and trains another source: the interval (half-width "
             f"{(hi - lo) / 2:.2f}) covers the spread of target training from this source only, so a rerun's gain may "
