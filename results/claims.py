@@ -631,6 +631,31 @@ def manipulation_cost() -> str:
             f"not measured at this scale and is taken as the same. All steps in the queue: about {total:.0f} h.\n")
 
 
+SOURCE_THRESHOLD = 0.8
+
+
+def manipulation_sources() -> str:
+    """The kept sources' success rate over training, and per source how many seeds hold 0.8 to the end."""
+    rows, lines = [], []
+    for source in sorted(p for p in (MANIP / "sources").iterdir() if p.is_dir()):
+        seeds = _seeds(source)
+        rows += [(f"`{source.name}` seed {p.name.split('-')[1]}", [p]) for p in seeds]
+        held = []
+        for p in seeds:
+            ev = _evals(p, "success_rate")
+            frames, values = list(ev), list(ev.values())
+            since = mx.sustained_time_to_threshold(frames, values, SOURCE_THRESHOLD)
+            late = [v for f, v in ev.items() if f >= frames[-1] / 2]
+            held.append(f"seed {p.name.split('-')[1]} " + (f"from {cl.frames(since)}" if since is not None else
+                        f"does not, lowest {min(late):.1f} over the second half"))
+        n = sum("from" in h for h in held)
+        verb = "holds" if n == 1 else "hold"
+        lines.append(f"- `{source.name}`: {n} of {len(seeds)} seeds {verb} a success rate ≥ {SOURCE_THRESHOLD} "
+                     f"to the end of {cl.frames(frames[-1])} frames ({'; '.join(held)}).")
+    frames = sorted({f for _, (p,) in rows for f in _evals(p, "success_rate")})
+    return curve_table(rows, "success_rate", frames, fmt=".1f") + "\n" + "\n".join(lines) + "\n"
+
+
 PLACEMENT = MANIP / "placement-diagnostics"
 
 
@@ -735,6 +760,7 @@ REGIONS = {
         "results-others": readme_others,
         "lift-summary": readme_lift,
         "manipulation-cost": manipulation_cost,
+        "manipulation-sources": manipulation_sources,
     },
 }
 

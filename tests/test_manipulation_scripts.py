@@ -198,7 +198,7 @@ def test_keep_source_keeps_the_weights_and_refuses_an_unfinished_run(tmp_path):
     assert (tmp_path / "kept" / "config.yaml").read_text() == "config.yaml"
 
 
-@pytest.mark.parametrize("seed", [0, 100])
+@pytest.mark.parametrize("seed", [0, 100, 200])
 def test_kept_lift_sources_are_weights_only_and_load_as_actors(seed):
     import torch
 
