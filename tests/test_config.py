@@ -520,3 +520,15 @@ def test_the_entry_points_take_a_mapping_resolved_as_a_config_file():
     assert config_lib.as_config({"algo": "td3"}) == config_lib.resolve(None, ["algo=td3"])
     with pytest.raises(UsageError, match=r"^config key 'network.hidden' must be a non-empty list"):
         make_agent(make_env("fourrooms/northeast"), {"network": {"hidden": []}})
+
+
+def test_every_committed_run_config_loads_as_it_was_written():
+    """The config.yaml of every run kept in the repository reads as a typed config with the same values."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    paths = [p for folder in ("results", "tests/data") for p in sorted((root / folder).rglob("config.yaml"))]
+    assert len(paths) > 100
+    for path in paths:
+        saved = config_lib.load_yaml(path)
+        assert config_lib.config_changes(saved, config_lib.build(saved), env_defaults=False) == [], path
