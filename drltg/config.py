@@ -469,6 +469,11 @@ def _suggest(key: str, known: Iterable[str]) -> str:
 
 
 def _unknown(dotted: str) -> str:
+    owners = {f"transfer.{k}": m for m, options in BUILTIN_METHOD_OPTIONS.items() for k in options}
+    owner = owners.get(dotted)
+    if owner is not None and owner not in METHOD_RULES:  # a built-in method, not imported yet
+        return (f"config key '{dotted}' is an option of the transfer method {owner}, which this process has not "
+                "registered; import drltg.transfer first.")
     return f"unknown config key '{dotted}'" + _suggest(dotted, _flat_keys(_model(), _section_models()))
 
 
@@ -486,9 +491,10 @@ def _sentence(err: ValidationError, data: Any, model: type[BaseModel], prefix: s
     else:  # a rule of the whole model
         return f"the config {error['msg'][0].lower()}{error['msg'][1:]}."
     dotted = prefix + key
+    if (error["type"] == "extra_forbidden" or info is None) and not prefix:
+        return _unknown(dotted)
     if error["type"] == "extra_forbidden" or info is None:
-        known = [prefix + k for k in (_flat_keys(model, sections))]
-        return f"unknown config key '{dotted}'" + _suggest(dotted, known)
+        return f"unknown config key '{dotted}'" + _suggest(dotted, [prefix + k for k in _flat_keys(model, sections)])
     value = _lookup(data, key)
     if isinstance(info.annotation, type) and issubclass(info.annotation, BaseModel):
         names = ", ".join(f"{dotted}.{k}" for k in info.annotation.model_fields)

@@ -532,3 +532,15 @@ def test_every_committed_run_config_loads_as_it_was_written():
     for path in paths:
         saved = config_lib.load_yaml(path)
         assert config_lib.config_changes(saved, config_lib.build(saved), env_defaults=False) == [], path
+
+
+def test_an_option_of_a_method_not_yet_registered_says_so(registries):
+    for name in ("policy-reuse", "jumpstart"):
+        config_lib.remove_method(name)
+    with pytest.raises(UsageError) as err:
+        config_lib.build({"transfer": {"psi": 0.5}})
+    assert str(err.value) == ("config key 'transfer.psi' is an option of the transfer method policy-reuse, which this "
+                              "process has not registered; import drltg.transfer first.")
+    with pytest.raises(UsageError, match="^config key 'transfer.guide_steps' is an option of the transfer method "
+                                         "jumpstart, which"):
+        _resolve("transfer.guide_steps=3")
