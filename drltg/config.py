@@ -288,12 +288,34 @@ def builtin_options(method: str, fields: dict[str, Any]) -> dict[str, tuple[Any,
     return {key: (annotation, copy.deepcopy(defaults[key])) for key, annotation in fields.items()}
 
 
+_STRICT = {int: Int, float: Float, bool: Bool, str: Str}
+
+
+def _strict(annotation: Any) -> Any:
+    """``annotation`` with plain ``int``, ``float``, ``bool`` and ``str`` (also inside ``Optional``, ``list``,
+    ``Annotated``) read as the built-in keys read them: :data:`Int`, :data:`Float`, :data:`Bool`, :data:`Str`."""
+    if isinstance(annotation, type) and annotation in _STRICT:
+        return _STRICT[annotation]
+    origin, args = get_origin(annotation), get_args(annotation)
+    if origin is Annotated:  # one of the types above, or a plain type with constraints
+        if any(isinstance(m, (BeforeValidator, Strict)) for m in args[1:]):
+            return annotation
+        return Annotated[(_strict(args[0]), *args[1:])]
+    if origin in (Union, types.UnionType):
+        return Union[tuple(_strict(a) for a in args)]
+    if origin is list and len(args) == 1:
+        return list[_strict(args[0])]
+    return annotation
+
+
 def options_model(method: str, options: dict[str, Any]) -> type[Section]:
     """The model of a method's ``transfer.*`` options, from ``key -> (type, default or Field(...))`` (the
-    form of :func:`pydantic.create_model`); its defaults must pass its own checks."""
+    form of :func:`pydantic.create_model`; plain ``int``, ``float``, ``bool`` and ``str`` are read as the
+    built-in keys are, :func:`_strict`); its defaults must pass its own checks."""
     name = "".join(part.capitalize() for part in re.split(r"[^0-9A-Za-z]+", method) if part) + "Options"
+    fields = {k: (_strict(v[0]), v[1]) if isinstance(v, tuple) and len(v) == 2 else v for k, v in options.items()}
     try:
-        model = create_model(name, __base__=Section, **options)
+        model = create_model(name, __base__=Section, **fields)
     except (TypeError, ValueError) as err:  # pydantic's schema errors are TypeErrors, its usage errors too
         raise UsageError(f"transfer method {method!r}: its options cannot be declared ({err}).") from None
     defaults = {k: f.get_default(call_default_factory=True) for k, f in model.model_fields.items()}

@@ -544,3 +544,26 @@ def test_an_option_of_a_method_not_yet_registered_says_so(registries):
     with pytest.raises(UsageError, match="^config key 'transfer.guide_steps' is an option of the transfer method "
                                          "jumpstart, which"):
         _resolve("transfer.guide_steps=3")
+
+
+def test_a_methods_plain_types_read_values_as_the_builtin_keys(registries):
+    from typing import Optional
+
+    from drltg.transfer import Transfer, TransferMethod, register_method
+
+    register_method(TransferMethod("test-plain", "", lambda *a, **k: Transfer(), options={
+        "count": (int, Field(2, ge=0)), "gain": (Optional[float], None), "names": (list[str], []),
+        "on": (bool, False)}))
+    cfg = _resolve("transfer.count=1e1", "transfer.gain=1", "transfer.names=[a]", "transfer.on=true")
+    assert (cfg.transfer.count, cfg.transfer.gain, cfg.transfer.names, cfg.transfer.on) == (10, 1.0, ["a"], True)
+    assert (type(cfg.transfer.count), type(cfg.transfer.gain)) == (int, float)
+    for override, message in [
+        ("transfer.count=three", "config key 'transfer.count' must be an integer >= 0, got 'three'."),
+        ("transfer.count=true", "config key 'transfer.count' must be an integer >= 0, got True."),
+        ("transfer.gain=x", "config key 'transfer.gain' must be a number or null, got 'x'."),
+        ("transfer.on=1", "config key 'transfer.on' must be true or false, got 1."),
+        ("transfer.names=[1]", "config key 'transfer.names' must be a list, got [1]."),
+    ]:
+        with pytest.raises(UsageError) as err:
+            _resolve(override)
+        assert str(err.value) == message
