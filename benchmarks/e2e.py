@@ -23,7 +23,7 @@ from pathlib import Path
 from benchmarks.common import REPO
 
 
-def _train_once(cfg: dict, run_dir: Path, reference: bool) -> dict:
+def _train_once(cfg, run_dir: Path, reference: bool) -> dict:
     import drltg.training.loop as train_mod
     from drltg import learners
 

@@ -94,7 +94,7 @@ def _buffer(data: TensorDict, device: str) -> ReplayBuffer:
     return buffer
 
 
-def _config(**extra) -> dict:
+def _config(**extra) -> config_lib.RunConfig:
     return config_lib.resolve({}, [f"network.hidden=[{HIDDEN},{HIDDEN}]"], **extra)
 
 
@@ -112,7 +112,7 @@ def drltg_case(device: str, chunk: int, cudagraphs: bool = False):
     return run
 
 
-def _vmap_agent(env: EnvBase, cfg: dict) -> learners.Agent:
+def _vmap_agent(env: EnvBase, cfg: config_lib.RunConfig) -> learners.Agent:
     """The agent ``make_agent`` builds, its loss with TorchRL's default ``torch.vmap`` critics."""
     shipped, learners.DEACTIVATE_VMAP = learners.DEACTIVATE_VMAP, False
     try:
@@ -244,7 +244,7 @@ def learner_case(learner: str, device: str, chunk: int, *, vmap: bool = False):
     """The training loop's ``UpdateStep`` on the agent of ``learner`` (TD3 with its policy delay)."""
     algo, discrete = LEARNERS[learner]
     torch.manual_seed(0)
-    cfg = _config(algo=algo, device=device) | ({"soc": {"num_options": 4}} if algo == "soc" else {})
+    cfg = _config(algo=algo, device=device, **({"soc.num_options": 4} if algo == "soc" else {}))
     agent = (_vmap_agent if vmap else make_agent)(SpecEnv(device, discrete), cfg)
     step = UpdateStep(agent)
     buffer = _buffer(transitions(options=4 if algo == "soc" else 0, discrete=discrete), device)
