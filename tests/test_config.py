@@ -498,19 +498,6 @@ def test_env_options_read_from_source_are_those_of_the_imported_signature():
     assert read["drltg.envs.robosuite.env:robosuite_task"] is None  # its __signature__ is built: imported instead
 
 
-def test_a_config_of_a_rooms_task_is_checked_without_torch():
-    import subprocess
-    import sys
-
-    code = ("import sys, drltg.transfer\nfrom drltg import config\nfrom drltg.errors import UsageError\n"
-            "config.resolve(task='gridrooms/northeast', overrides=['env.slip=0.1'])\n"
-            "try:\n    config.resolve(task='fourrooms/northeast', overrides=['env.horizon=abc'])\n"
-            "except UsageError as err:\n    print(err)\nprint('torch' in sys.modules)\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert out.splitlines() == ["config key 'env.horizon' must be an integer (task 'fourrooms/northeast' declares "
-                                "horizon=100), got 'abc'.", "False"]
-
-
 def test_the_entry_points_take_a_mapping_resolved_as_a_config_file():
     from drltg.envs import make_env
     from drltg.learners import make_agent

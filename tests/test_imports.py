@@ -168,6 +168,9 @@ NO_TORCH = "import sys; assert not [m for m in sys.modules if m.split('.')[0] in
         (["train", "fourrooms/northeastt"], 2, "stderr", "did you mean 'fourrooms/northeast'?"),
         (["train", "fourrooms/northeast", "-o", "optim.lrr=1"], 2, "stderr", "optim.lrr"),
         (["train", "fourrooms/northeast", "-o", "optim.lr=-1"], 2, "stderr", "optim.lr"),
+        (["train", "fourrooms/northeast", "-o", "env.horizon=abc"], 2, "stderr", "env.horizon"),  # the env unimported
+        (["train", "gridrooms/northeast", "-o", "transfer.method=model-reuse"], 2, "stderr", "needs transfer.source"),
+        (["train", "fourrooms/northeast", "-o", "seed=1", "-o", "seed=2"], 2, "stderr", "'seed' is set twice"),
     ],
 )
 def test_cli_answers_without_importing_torch(argv, rc, stream, text):
