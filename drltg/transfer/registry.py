@@ -179,11 +179,11 @@ def combine(*methods: TransferMethod) -> TransferMethod:
     sources = {m.source for m in methods} - {None}
     source = "run" if "run" in sources else next(iter(sources), None)
 
-    def check(cfg: dict) -> None:
+    def check(cfg: RunConfig) -> None:
         for m in methods:
             m.validate(cfg)
 
-    def build(cfg: dict, agent, env, *, resuming: bool) -> Transfer:
+    def build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
         return _join([m.build(cfg, agent, env, resuming=resuming) for m in methods])
 
     options = {k: v for m in methods for k, v in m.options.items()}
