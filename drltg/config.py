@@ -246,7 +246,7 @@ def _restore(data: dict) -> RunConfig:
 
 
 def _restore_transfer(data: dict) -> TransferConfig:
-    return _model().model_fields["transfer"].annotation.model_validate(data)
+    return transfer_model().model_validate(data)
 
 
 # ----------------------------------------------------------------------------------------- transfer methods
