@@ -344,8 +344,10 @@ class RayBackend:
             check_answers(address, connect_timeout)
             try:
                 ray.init(address=address, configure_logging=False, log_to_driver=False)
-            except (ConnectionError, ValueError, RuntimeError) as err:
-                raise UsageError(f"cannot join the Ray cluster at '{address}' ({err}).") from None
+            except (ConnectionError, ValueError, RuntimeError, ray.exceptions.RayError) as err:
+                token = "" if os.environ.get("RAY_AUTH_MODE") == "token" else (
+                    "; if the cluster requires a token, set RAY_AUTH_MODE=token and RAY_AUTH_TOKEN to its token")
+                raise UsageError(f"cannot join the Ray cluster at '{address}' ({err}){token}.") from None
         if signal.getsignal(signal.SIGTERM) is not sigterm and sigterm is not None:
             signal.signal(signal.SIGTERM, sigterm)
         imports = os.environ.get("DRLTG_IMPORT")  # workers on other nodes import the same plugins
