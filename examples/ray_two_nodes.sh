@@ -30,7 +30,8 @@ export RAY_AUTH_TOKEN
 echo "ray: two nodes on 127.0.0.1:$PORT, their files in $TMP"
 
 ray_start() {  # NODE ARGS...: `ray start ARGS` in a new session, keeping a loopback node address
-  if "$PYTHON" - "$TMP/$1.sid" start "${@:2}" >"$TMP/$1.log" 2>&1 <<'PY'
+  # (Ray refuses a second node when RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER is 0, as drltg sets it for a local instance)
+  if RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=1 "$PYTHON" - "$TMP/$1.sid" start "${@:2}" >"$TMP/$1.log" 2>&1 <<'PY'
 import os
 import sys
 

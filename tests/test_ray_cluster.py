@@ -89,7 +89,7 @@ def test_a_stopped_sweep_cancels_its_ray_tasks_and_their_runs_unwind(tmp_path, c
         backend.close(grace=60)
     assert reached >= 2 and "ray: cancelled 1 task(s) of this sweep\n" in capsys.readouterr().err  # none killed
     assert starts(run.log)[0][0] == "start"
-    assert run.log.read_text().splitlines()[-1].endswith("] interrupted; a rerun resumes it")
+    assert run.log.read_text().splitlines()[-1].endswith("] interrupted; a rerun continues it")
     assert not (run.path / rundir.LOCK).exists()
     assert not rundir.entries(run.path)  # stopped before its first checkpoint: what it wrote is gone, a rerun starts it
 

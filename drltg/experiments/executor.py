@@ -83,7 +83,7 @@ def run_one(cfg: dict, run_dir: str, log_path: str) -> tuple[str, str]:
             print(f"{err}.", flush=True)
             return DIVERGED, str(err)
         except KeyboardInterrupt:  # Ctrl-C, or a cancelled Ray task
-            print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] interrupted; a rerun resumes it", flush=True)
+            print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] interrupted; a rerun continues it", flush=True)
             raise
         except Exception as err:
             traceback.print_exc()
@@ -121,7 +121,7 @@ def run_group(cfgs: list[dict], run_dirs: list[str], log_paths: list[str]) -> li
             stopped = ("failed", f"stopped with its seed group ({err}); a rerun resumes it")
             return [(DIVERGED, str(err)) if k in which else stopped for k in range(len(dirs))]
         except KeyboardInterrupt:
-            print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] interrupted; a rerun resumes it", flush=True)
+            print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] interrupted; a rerun continues it", flush=True)
             raise
         except Exception as err:
             traceback.print_exc()
@@ -312,7 +312,8 @@ def _cancellable(train, *args):
     """``train(*args)`` (:func:`run_one`, :func:`run_group`) as a Ray task. Ray cancels a running task by
     calling its SIGINT handler, which Ray's workers ignore; with Python's, the run unwinds at its next
     batch as after Ctrl-C (lock released, checkpoint kept) and the task ends cancelled."""
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+    with contextlib.suppress(ValueError):  # not in the main thread: a cancelled task is killed after the grace
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     return train(*args)
 
 
