@@ -23,6 +23,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from drltg.cli import _terminate
 from drltg.experiments import sweep
 from drltg.experiments.executor import RayBackend, run_group, run_one, seed_groups
 from drltg.training import rundir
@@ -78,7 +79,12 @@ def test_a_stopped_sweep_cancels_its_ray_tasks_and_their_runs_unwind(tmp_path, c
     running task is cancelled and its run stops at its next batch, its lock released, resumable."""
     spec = sweep.parse_spec({**SPEC, "frames": 100_000})
     run = sweep.plan(spec, tmp_path / "out")[0][0]
-    backend = RayBackend(None, {"num_cpus": 1}, num_cpus=1)
+    unwind = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        backend = RayBackend(None, {"num_cpus": 1}, num_cpus=1)
+        assert signal.getsignal(signal.SIGTERM) is _terminate  # ray.init's own handler is undone: SIGTERM unwinds
+    finally:
+        signal.signal(signal.SIGTERM, unwind)
     try:
         backend.submit(run)
         deadline = time.monotonic() + 120
