@@ -14,8 +14,9 @@
 # and the node's servers then listen on every interface; `ray start` is run here through a few lines of
 # Python that keep 127.0.0.1, so every server of the cluster listens on 127.0.0.1 only. The cluster
 # requires a token (Ray's token authentication) made afresh for it: any local user could otherwise use it.
-# Environment: RAY_PORT (the head's port, 6390; Ray's client server takes the next), PYTHON (python3, with Ray), DRLTG (the command, drltg),
-# RAY_TMP (a fresh /tmp/drltg-ray.*; short, since Ray's socket paths must stay under 108 bytes).
+# Environment: RAY_PORT (the head's port, 6390; Ray's client server takes the next one), PYTHON (python3,
+# with Ray), DRLTG (the command, drltg), RAY_TMP (default: a fresh /tmp/drltg-ray.*, removed after a
+# successful sweep; short, since Ray's socket paths must stay under 108 bytes).
 set -euo pipefail
 SPEC=${1:-examples/sweeps/ray-two-nodes.yaml}
 OUT=${2:-runs/ray-two-nodes}
@@ -23,14 +24,15 @@ shift $(($# < 2 ? $# : 2))
 PORT=${RAY_PORT:-6390}
 PYTHON=${PYTHON:-python3}
 DRLTG=${DRLTG:-drltg}
-TMP=${RAY_TMP:-$(mktemp -d /tmp/drltg-ray.XXXXXX)}
+TMP=${RAY_TMP:-}
+[ -z "$TMP" ] && TMP=$(mktemp -d /tmp/drltg-ray.XXXXXX) && made_tmp=1
 export RAY_AUTH_MODE=token
 RAY_AUTH_TOKEN=$(od -An -tx1 -N32 /dev/urandom | tr -d ' \n')
 export RAY_AUTH_TOKEN
 echo "ray: two nodes on 127.0.0.1:$PORT, their files in $TMP"
 
 ray_start() {  # NODE ARGS...: `ray start ARGS` in a new session, keeping a loopback node address
-  # (Ray refuses a second node when RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER is 0, as drltg sets it for a local instance)
+  # (Ray refuses a second node where RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0, as drltg sets for a local instance)
   if RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=1 "$PYTHON" - "$TMP/$1.sid" start "${@:2}" >"$TMP/$1.log" 2>&1 <<'PY'
 import os
 import sys
@@ -53,12 +55,13 @@ PY
 }
 
 node_pids() {  # the running processes of a node's session
-  [ -f "$TMP/$1.sid" ] && ps -eo pid=,sid=,stat= | awk -v sid="$(cat "$TMP/$1.sid")" '$2 == sid && $3 !~ /^Z/ {print $1}'
+  [ -f "$TMP/$1.sid" ] &&
+    ps -eo pid=,sid=,stat= | awk -v sid="$(cat "$TMP/$1.sid")" '$2 == sid && $3 !~ /^Z/ {print $1}'
   return 0
 }
 
 stop_nodes() {
-  local node pids left
+  local status=$? node pids left
   for node in worker head; do
     pids=$(node_pids "$node")
     [ -n "$pids" ] && kill -TERM $pids 2>/dev/null || true
@@ -70,6 +73,7 @@ stop_nodes() {
   left=$(node_pids worker; node_pids head)
   [ -n "$left" ] && kill -KILL $left 2>/dev/null || true
   echo "ray: both nodes stopped"
+  if [ "$status" = 0 ] && [ -n "${made_tmp:-}" ]; then rm -rf "$TMP"; else echo "ray: the nodes' logs are in $TMP"; fi
 }
 
 sweep=
@@ -83,8 +87,8 @@ trap 'stop_sweep 143' TERM
 
 common=(--node-ip-address=127.0.0.1 --num-cpus=1 --object-store-memory=100000000 --disable-usage-stats
         --dashboard-agent-listen-port=0)
-ray_start head --head --port="$PORT" --include-dashboard=false --ray-client-server-port="$((PORT + 1))" --temp-dir="$TMP/head" \
-  "${common[@]}"
+ray_start head --head --port="$PORT" --ray-client-server-port="$((PORT + 1))" --include-dashboard=false \
+  --temp-dir="$TMP/head" "${common[@]}"
 ray_start worker --address="127.0.0.1:$PORT" --temp-dir="$TMP/worker" "${common[@]}"
 echo "ray: head and worker node started"
 $DRLTG sweep "$SPEC" --out "$OUT" --backend ray --address "127.0.0.1:$PORT" "$@" &
