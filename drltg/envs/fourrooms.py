@@ -122,14 +122,16 @@ def in_free_space(pos: torch.Tensor) -> torch.Tensor:
 def _slide(coord, across, delta, walls, axis):
     """Moves ``coord`` by ``delta`` along ``axis``, stopping at the first wall face on the way.
 
-    Only walls whose extent along the other axis strictly contains ``across`` are in the way.
+    Only walls whose extent along the other axis strictly contains ``across`` are in the way. The
+    comparisons are laid out ``[walls, *batch]`` so that every elementwise kernel runs along the batch
+    (contiguous, vectorised) rather than along the six walls.
     """
-    lo, hi = walls[:, axis], walls[:, axis + 2]
-    olo, ohi = walls[:, 1 - axis], walls[:, 3 - axis]
-    c, o = coord.unsqueeze(-1), across.unsqueeze(-1)
-    in_the_way = (olo < o) & (o < ohi)
-    upper = torch.where(in_the_way & (lo >= c), lo, ARENA_SIZE).amin(-1)
-    lower = torch.where(in_the_way & (hi <= c), hi, 0.0).amax(-1)
+    shape = (-1,) + (1,) * coord.dim()
+    lo, hi = walls[:, axis].reshape(shape), walls[:, axis + 2].reshape(shape)
+    olo, ohi = walls[:, 1 - axis].reshape(shape), walls[:, 3 - axis].reshape(shape)
+    in_the_way = (olo < across) & (across < ohi)
+    upper = torch.where(in_the_way & (lo >= coord), lo, ARENA_SIZE).amin(0)
+    lower = torch.where(in_the_way & (hi <= coord), hi, 0.0).amax(0)
     return torch.minimum(torch.maximum(coord + delta, lower), upper)
 
 
