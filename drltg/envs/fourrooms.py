@@ -203,7 +203,9 @@ class FourRoomsEnv(EnvBase):
         regions = [ROOMS[start_room]] if start_room else list(ROOMS.values()) + list(DOOR_PASSAGES)
         self.register_buffer("goal", goal_t.to(self.device))
         self.register_buffer("_walls", torch.tensor(WALLS, device=self.device))
-        self._regions = torch.tensor(regions)
+        regions = torch.tensor(regions)
+        self._region_low, self._region_size = regions[:, :2], regions[:, 2:] - regions[:, :2]
+        self._region_areas = self._region_size.prod(-1)
         self._make_spec()
         if seed is None:
             seed = torch.empty((), dtype=torch.int64).random_().item()
@@ -255,14 +257,12 @@ class FourRoomsEnv(EnvBase):
         Draws on the CPU generator, so a seed gives the same starts on every device.
         """
         rng = self.rng if rng is None else rng
-        regions = self._regions
-        areas = (regions[:, 2] - regions[:, 0]) * (regions[:, 3] - regions[:, 1])
         goal = self.goal.cpu()
         pos = torch.empty(n, 2)
         todo = torch.arange(n)
         while todo.numel():
-            box = regions[torch.multinomial(areas, todo.numel(), replacement=True, generator=rng)]
-            pos[todo] = box[:, :2] + torch.rand(todo.numel(), 2, generator=rng) * (box[:, 2:] - box[:, :2])
+            box = torch.multinomial(self._region_areas, todo.numel(), replacement=True, generator=rng)
+            pos[todo] = self._region_low[box] + torch.rand(todo.numel(), 2, generator=rng) * self._region_size[box]
             todo = todo[(pos[todo] - goal).norm(dim=-1) <= self.goal_radius]
         return pos.to(self.device)
 
