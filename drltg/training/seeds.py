@@ -161,14 +161,16 @@ class StreamedRandomActions(TransformedEnv):
     def __init__(self, env, streams: SeedStreams):
         super().__init__(env)
         self.__dict__["_streams"] = streams
+        self.__dict__["_one_seed_spec"] = None
 
     def rand_action(self, tensordict: TensorDictBase | None = None) -> TensorDictBase:
         seeds = len(self._streams.states)
-        one_seed = self.full_action_spec[: self.batch_size[0] // seeds]
+        if self._one_seed_spec is None:  # the action spec of one seed's env alone
+            self.__dict__["_one_seed_spec"] = self.full_action_spec[: self.batch_size[0] // seeds]
         parts = []
         for k in range(seeds):
             with self._streams.use(k):
-                parts.append(one_seed.rand())
+                parts.append(self._one_seed_spec.rand())
         actions = torch.cat(parts)
         if tensordict is None:
             return actions
