@@ -102,7 +102,7 @@ def _streamed(fn, streams: SeedStreams, shapes: dict, key, params: TensorDictBas
         with _normal_draws(record):
             torch.vmap(fn, (0, 0, None), randomness="error")(params, data, record)
         shapes[key] = record.shapes
-    draws = streams.normal(shapes[key])
+    draws = streams.normal(shapes[key]) if shapes[key] else []
 
     def run(p, d, seed_draws):
         return fn(p, d, _Replay(seed_draws))
