@@ -16,7 +16,7 @@ With :class:`SeedStreams` every seed draws from its own random stream: the state
 generator would hold in the seed's run alone, swapped in for the seed's own draws. The vmapped calls
 then take no random draw of their own (``randomness="error"``): each seed's standard normal draws are
 made beforehand from its stream, in the order and shapes its run alone draws them, and handed to
-``Normal.rsample`` inside the vmapped call, so a seed's run in a group is its run alone.
+``Normal.rsample`` inside the vmapped call: a seed in a group draws the random numbers of its run alone.
 """
 from __future__ import annotations
 

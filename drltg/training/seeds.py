@@ -14,14 +14,16 @@ a run alone builds them), its env's starts and noise, training and evaluation (a
 the rest is the seed's too: each seed draws from its own :class:`~drltg.seed_group.SeedStreams` stream,
 the state torch's global generator holds in its run alone once that run has built its networks and envs,
 in the same order and shapes (the warm-up's random actions, the policy's exploration draws, the replay
-buffer's sampling, the losses' draws), so a seed's run in a group is its run alone, to float rounding
-(``tests/test_seed_groups.py``), and its checkpoint holds its own stream. For TD3, discrete SAC and soft
-option-critic (draws other than ``Normal.rsample``'s: TD3's loss draws its smoothing noise with
-``randn_like``, discrete SAC samples categorically, the option policy draws Bernoulli terminations and
-categorical options) those draws come from the process's one generator, seeded with the group's first
-seed, so past frame 0 a seed's curve in a group is not its curve alone. A group is reproduced exactly by
-the same group (same ``--seeds`` and ``--seed``); each seed's summary.json records its group
-(``seed_group.seeds``, the group's seeds in order).
+buffer's sampling, the losses' draws), so a seed in a group draws exactly the random numbers of its run
+alone and its checkpoint holds its own stream; its parameters match its run alone to float rounding
+(``tests/test_seed_groups.py``), which training amplifies over thousands of updates (batched products
+round differently from single ones). For TD3, discrete SAC and soft option-critic (draws other than
+``Normal.rsample``'s: TD3's loss draws its smoothing noise with ``randn_like``, discrete SAC samples
+categorically, the option policy draws Bernoulli terminations and categorical options) those draws come
+from the process's one generator, seeded with the group's first seed, so past frame 0 a seed's curve in
+a group is not its curve alone. A group is reproduced exactly by the same group (same ``--seeds`` and
+``--seed``); each seed's summary.json records its group (``seed_group.seeds``, the group's seeds in
+order).
 """
 from __future__ import annotations
 
