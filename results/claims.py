@@ -494,10 +494,15 @@ def demo_sentence() -> str:
     source = _seeds(DEMO / "source")[0]
     success = load(source / "summary.json")["final_eval"]["success_rate"]
     lo, hi = r["metrics"][f"{PRIMARY}_ci"]
+    install = ""
+    if "install_s" in machine:
+        total = (machine["install_s"] + machine["wall_s"]) / 60
+        install = (f" Before it, {machine['install']} took {machine['install_s'] / 60:.1f} minutes: "
+                   f"{total:.1f} minutes from a fresh clone to the report.")
     return (f"{cl.headline(r)} It ran on {machine['machine']} in {machine['wall_s'] / 60:.1f} minutes of wall time "
-            f"with the load average at {machine['load']} from other work, and {machine['cpu_s'] / 60:.1f} "
+            f"with the load average at {machine['load']}, and {machine['cpu_s'] / 60:.1f} "
             f"CPU-minutes (about {machine['cpu_s'] / 60 / machine['cores']:.1f} minutes on {machine['cores']} free "
-            "cores). "
+            f"cores).{install} "
             f"Its one source run ends at a success rate of {success:.2f} on the source task. Another machine "
             f"follows another floating-point stream and trains another source: the interval (half-width "
             f"{(hi - lo) / 2:.2f}) covers the spread of target training from this source only, so a rerun's gain may "
@@ -626,6 +631,31 @@ def manipulation_cost() -> str:
             f"not measured at this scale and is taken as the same. All steps in the queue: about {total:.0f} h.\n")
 
 
+SOURCE_THRESHOLD = 0.8
+
+
+def manipulation_sources() -> str:
+    """The kept sources' success rate over training, and per source how many seeds hold 0.8 to the end."""
+    rows, lines = [], []
+    for source in sorted(p for p in (MANIP / "sources").iterdir() if p.is_dir()):
+        seeds = _seeds(source)
+        rows += [(f"`{source.name}` seed {p.name.split('-')[1]}", [p]) for p in seeds]
+        held = []
+        for p in seeds:
+            ev = _evals(p, "success_rate")
+            frames, values = list(ev), list(ev.values())
+            since = mx.sustained_time_to_threshold(frames, values, SOURCE_THRESHOLD)
+            late = [v for f, v in ev.items() if f >= frames[-1] / 2]
+            held.append(f"seed {p.name.split('-')[1]} " + (f"from {cl.frames(since)}" if since is not None else
+                        f"does not, lowest {min(late):.1f} over the second half"))
+        n = sum("from" in h for h in held)
+        verb = "holds" if n == 1 else "hold"
+        lines.append(f"- `{source.name}`: {n} of {len(seeds)} seeds {verb} a success rate ≥ {SOURCE_THRESHOLD} "
+                     f"to the end of {cl.frames(frames[-1])} frames ({'; '.join(held)}).")
+    frames = sorted({f for _, (p,) in rows for f in _evals(p, "success_rate")})
+    return curve_table(rows, "success_rate", frames, fmt=".1f") + "\n" + "\n".join(lines) + "\n"
+
+
 PLACEMENT = MANIP / "placement-diagnostics"
 
 
@@ -730,6 +760,7 @@ REGIONS = {
         "results-others": readme_others,
         "lift-summary": readme_lift,
         "manipulation-cost": manipulation_cost,
+        "manipulation-sources": manipulation_sources,
     },
 }
 

@@ -2,6 +2,8 @@
 # `drltg demo`, timed, kept in results/demo/: every run's config, curve and summary, the report, and the
 # machine it ran on (results/demo/machine.json), which README quotes through results/claims.py.
 #   bash results/demo.sh "a shared 2-core AMD EPYC virtual machine (CPU only, torch 2.13.0)"
+# From a fresh clone, time the install first and pass its wall seconds on, so the README quotes both:
+#   /usr/bin/time -f %e -o install.txt make install && INSTALL_S=$(cat install.txt) bash results/demo.sh "..."
 set -euo pipefail
 cd "$(dirname "$0")/.."
 machine=${1:?describe the machine in a few words}
@@ -10,7 +12,7 @@ load_before=$(cut -d' ' -f1 /proc/loadavg)
 /usr/bin/time -f '%e %U %S' -o runs/demo-time.txt drltg demo --out runs/demo
 load_after=$(cut -d' ' -f1 /proc/loadavg)
 rm -rf results/demo
-python - "$machine" "$load_before" "$load_after" <<'PY'
+python - "$machine" "$load_before" "$load_after" "${INSTALL_S:-}" <<'PY'
 import json, os, sys
 from pathlib import Path
 sys.path.insert(0, "results")
@@ -19,7 +21,7 @@ from drltg.analysis.report import transfer_report
 from drltg.cli.demo import DEMO
 from drltg.training import rundir
 
-machine, before, after = sys.argv[1:]
+machine, before, after, install = sys.argv[1:]
 dest = Path("results/demo")
 keep_curves(Path("runs/demo").resolve(), dest.resolve())
 rundir.atomic_write(dest / "demo.yaml", Path("runs/demo/demo.yaml").read_text())
@@ -30,6 +32,8 @@ wall, user, system = map(float, Path("runs/demo-time.txt").read_text().split()[-
 low, high = sorted([float(before), float(after)])
 rundir.atomic_write(dest / "machine.json", json.dumps({
     "machine": machine, "cores": os.cpu_count(), "command": "time drltg demo --out runs/demo (venv installed)",
-    "wall_s": wall, "cpu_s": user + system, "load": f"{low:.1f} to {high:.1f}"}, indent=2) + "\n")
+    "wall_s": wall, "cpu_s": user + system, "load": f"{low:.1f} to {high:.1f}",
+    **({"install_s": float(install), "install": "make install from a fresh clone"} if install else {})},
+    indent=2) + "\n")
 PY
 python results/claims.py

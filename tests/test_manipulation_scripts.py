@@ -170,3 +170,40 @@ def test_rebuild_keeps_only_the_rows_runs_and_their_relative_source(tmp_path):
     transfer = kept / "p/sac/m/transfer/seed-0"
     assert yaml.safe_load((transfer / "config.yaml").read_text())["transfer"]["source"] == relative
     assert (transfer / relative / "eval.csv").is_file()
+
+
+def test_keep_source_keeps_the_weights_and_refuses_an_unfinished_run(tmp_path):
+    import sys
+
+    import torch
+
+    from drltg.errors import UsageError
+    sys.path.insert(0, str(SCRIPTS))
+    from keep_source import keep_source
+
+    run = tmp_path / "run"
+    (run / "checkpoints").mkdir(parents=True)
+    for name in ("config.yaml", "eval.csv"):
+        (run / name).write_text(name)
+    weights = {"actor.weight": torch.arange(6.0).reshape(2, 3)}
+    torch.save({"loss": weights, "frames": 60000, "buffer": torch.zeros(1000), "optimizer": {}},
+               run / "checkpoints" / "last.pt")
+    with pytest.raises(UsageError, match="no summary.json"):
+        keep_source(run, tmp_path / "kept")
+    (run / "summary.json").write_text("{}")
+    keep_source(run, tmp_path / "kept")
+    kept = torch.load(tmp_path / "kept" / "checkpoints" / "last.pt", weights_only=False)
+    assert set(kept) == {"loss", "frames"} and kept["frames"] == 60000
+    assert torch.equal(kept["loss"]["actor.weight"], weights["actor.weight"])
+    assert (tmp_path / "kept" / "config.yaml").read_text() == "config.yaml"
+
+
+@pytest.mark.parametrize("seed", [0, 100, 200])
+def test_kept_lift_sources_are_weights_only_and_load_as_actors(seed):
+    import torch
+
+    from drltg.transfer import load_actor
+    source = SCRIPTS / "sources" / "lift-sac" / f"seed-{seed}"
+    assert set(torch.load(source / "checkpoints" / "last.pt", weights_only=False)) == {"loss", "frames"}
+    actor = load_actor(source)
+    assert sum(p.numel() for p in actor.parameters()) > 0

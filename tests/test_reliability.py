@@ -640,12 +640,34 @@ def test_report_lists_unfinished_runs_apart_and_counts_them_only_when_asked(tmp_
     assert result["metrics"]["jumpstart"] == pytest.approx((0.2 * 3 + 0.0 * 2) / 5 - 0.1)
 
 
-def test_report_names_a_config_less_run(tmp_path, capsys):
+def test_report_leaves_a_config_less_run_out_and_says_why(tmp_path, capsys):
     base = [fake_run(tmp_path / "b" / f"seed-{i}", [0.1, 0.2, 0.3], seed=i) for i in range(3)]
-    transfer = [fake_run(tmp_path / "t" / f"seed-{i}", [0.2, 0.3, 0.4], seed=i, config=i != 2) for i in range(3)]
-    assert main(["report", "--baseline", *map(str, base), "--transfer", *map(str, transfer),
-                 "--out", str(tmp_path / "r")]) == 0
-    assert f"1 transfer run(s) without config.yaml, counted: {transfer[2]}" in capsys.readouterr().err
+    transfer = [fake_run(tmp_path / "t" / f"seed-{i}", [0.2, 0.3, 0.4], seed=i) for i in range(3)]
+    torn = fake_run(tmp_path / "t" / "seed-3", [5.0, 5.0, 5.0], seed=3, config=False)  # eval.csv, no config.yaml
+    args = ["report", "--baseline", *map(str, base), "--transfer", *map(str, transfer + [torn])]
+    assert main(args + ["--out", str(tmp_path / "r1")]) == 0
+    assert (f"1 transfer run(s) without config.yaml, left out of the metrics (nothing records the settings they "
+            f"were trained with, so they cannot be checked against the other runs) (--include-unfinished counts "
+            f"them): {torn}") in capsys.readouterr().err
+    metrics = json.loads((tmp_path / "r1" / "transfer_metrics.json").read_text())["metrics"]
+    assert metrics["n_seeds_transfer"] == 3 and metrics["jumpstart"] == pytest.approx(0.1)  # 0.2 - 0.1
+    assert main(args + ["--out", str(tmp_path / "r2"), "--include-unfinished"]) == 0
+    assert f"1 transfer run(s) without config.yaml, counted: {torn}" in capsys.readouterr().err
+    metrics = json.loads((tmp_path / "r2" / "transfer_metrics.json").read_text())["metrics"]
+    assert metrics["n_seeds_transfer"] == 4 and metrics["jumpstart"] == pytest.approx((0.2 * 3 + 5.0) / 4 - 0.1)
+
+
+def test_report_refuses_when_no_run_of_a_side_can_be_counted(tmp_path, capsys):
+    base = [fake_run(tmp_path / "b" / f"seed-{i}", [0.1, 0.2, 0.3], seed=i) for i in range(3)]
+    torn = fake_run(tmp_path / "t" / "seed-0", [0.2, 0.3, 0.4], seed=0, config=False)
+    stopped = fake_run(tmp_path / "t" / "seed-1", [0.2, 0.3, 0.4], seed=1, status=None)
+    out = tmp_path / "r"
+    assert main(["report", "--baseline", *map(str, base), "--transfer", str(torn), str(stopped),
+                 "--out", str(out)]) == 2
+    assert capsys.readouterr().err.endswith(
+        f"error: no transfer run can be counted, each is without config.yaml or incomplete ({torn}, {stopped}); "
+        "finish them, or pass --include-unfinished.\n")
+    assert not out.exists()
 
 
 # ----------------------------------------------------------------------------------- 16: integrity

@@ -206,6 +206,7 @@ def test_the_plot_names_the_tag_it_compares(tmp_path):
             run = tmp_path / side / f"seed_{seed}"
             run.mkdir(parents=True)
             (run / "eval.csv").write_text("frames,return_mean,success_rate\n" + f"0,0.0,0.0\n10,1.0,{rate}\n")
+            (run / "config.yaml").write_text("task: fourrooms/northeast\n")  # no seed: unpaired
     report.transfer_report(tmp_path / "baseline", tmp_path / "transfer", tmp_path / "o", tag="success_rate")
     svg = (tmp_path / "o" / "transfer_plot.svg").read_text()
     assert "mean success_rate gain +0.25" in svg and "return gain" not in svg
@@ -522,9 +523,9 @@ def test_a_config_saved_before_its_keys_existed_is_the_same_configuration(tmp_pa
     old = {**full, "env": {}, "transfer": {k: v for k, v in full["transfer"].items() if k != "bc_weight"}}
     changed = {**full, "env": {**full["env"], "horizon": 60}}
     for name, cfg in [("seed-0", old), ("seed-1", full), ("seed-2", full)]:
-        run = write_run(tmp_path / "b" / name, [0, 10, 20], [0, 1, 2])
-        (run / "config.yaml").write_text(yaml.safe_dump({**cfg, "seed": int(name[-1])}))
-        write_run(tmp_path / "t" / name, [0, 10, 20], [1, 2, 3])
+        for side, values in (("b", [0, 1, 2]), ("t", [1, 2, 3])):
+            run = write_run(tmp_path / side / name, [0, 10, 20], values)
+            (run / "config.yaml").write_text(yaml.safe_dump({**cfg, "seed": int(name[-1])}))
     assert report.compute(_read(tmp_path / "b"), _read(tmp_path / "t"))["metrics"]["n_seeds_baseline"] == 3
     (tmp_path / "b" / "seed-2" / "config.yaml").write_text(yaml.safe_dump({**changed, "seed": 2}))
     assert "env.horizon" in _bad_report(tmp_path, tmp_path / "b", tmp_path / "t")
@@ -721,6 +722,7 @@ def test_a_success_rate_s_intervals_stay_in_their_range(tmp_path):
             run.mkdir(parents=True)
             rows = "".join(f"{x},0.0,0.0,8,{r if x > 0 else 0.0}\n" for x in f)
             (run / "eval.csv").write_text("frames,return_mean,return_std,episodes,success_rate\n" + rows)
+            (run / "config.yaml").write_text("task: fourrooms/northeast\n")  # no seed: unpaired
     res = report.transfer_report(tmp_path / "b", tmp_path / "t", tmp_path / "out", tag="success_rate")
     m = res["metrics"]
     assert res["settings"]["value_range"] == [0, 1]

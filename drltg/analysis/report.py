@@ -125,8 +125,8 @@ class ReportSettings:
                                    "means (task options, learner, network, evaluation, frames); the differences "
                                    "are listed in the report")
     include_unfinished: bool = _option(False, "--include-unfinished", "runs", action="store_true",
-                                       help="count diverged and incomplete drltg runs (listed and left out "
-                                       "by default)")
+                                       help="count diverged and incomplete drltg runs and eval.csv files without "
+                                       "config.yaml (listed and left out by default)")
     threshold: object = _option(None, "--threshold", help="return to reach for time-to-threshold: a "
                                 "number (150) or a percentage of the best baseline mean performance (80%%)")
     crossing: str = _option("sustained", "--crossing", choices=("sustained", "first"),
@@ -443,7 +443,8 @@ def check_runs(baseline: Sequence[Curve], transfer: Sequence[Curve], s: ReportSe
     transfer, left_t = partition("transfer", transfer, bool(s.include_unfinished), warnings)
     for side, runs, left in (("baseline", baseline, left_b), ("transfer", transfer, left_t)):
         if not runs:
-            raise UsageError(f"every {side} run is unfinished ({', '.join(left)}); finish them, or pass "
+            raise UsageError(f"no {side} run can be counted, each is {' or '.join(left)} "
+                             f"({', '.join(r for runs in left.values() for r in runs)}); finish them, or pass "
                              "--include-unfinished.")
     _check_duplicates(baseline, transfer)
     task = _check_tasks(baseline, transfer)

@@ -3,9 +3,10 @@
 A drltg run directory says what became of it: ``summary.json`` (written last) holds ``status:
 diverged`` for a run whose losses or weights became non-finite, and a run with its ``config.yaml`` and
 ``logs/`` or ``checkpoints/`` but no ``summary.json`` was stopped before its end. Both are listed apart
-and left out of the metrics unless asked for (``--include-unfinished``). An ``eval.csv`` without a
-``config.yaml`` is listed too: nothing says which settings it was trained with. Foreign logs (SB3,
-TensorBoard, CSVLogger of other tools) carry no such record and are taken as they are.
+and left out of the metrics unless asked for (``--include-unfinished``). So is an ``eval.csv`` without a
+``config.yaml`` (a torn or copied run directory): nothing says which settings it was trained with, so
+the report cannot check it against the other runs. Foreign logs (SB3, TensorBoard, CSVLogger of other
+tools) carry no such record and are taken as they are.
 """
 from __future__ import annotations
 
@@ -15,9 +16,11 @@ from typing import Sequence
 from drltg.analysis.curves import Curve
 from drltg.training import rundir
 
-UNFINISHED = ("diverged", "incomplete")
-"""States left out of the metrics unless asked for."""
 CONFIG_LESS = "without config.yaml"
+LEFT_OUT = ("diverged", "incomplete", CONFIG_LESS)
+"""States left out of the metrics unless asked for."""
+WHY = {CONFIG_LESS: "nothing records the settings they were trained with, so they cannot be checked against "
+                    "the other runs"}
 
 
 def run_directory(curve: Curve) -> Path | None:
@@ -53,10 +56,11 @@ def partition(side: str, curves: Sequence[Curve], include_unfinished: bool,
         state = run_state(c)
         if state is not None:
             flagged.setdefault(state, []).append(str(run_directory(c)))
-        if state not in UNFINISHED or include_unfinished:
+        if state not in LEFT_OUT or include_unfinished:
             kept.append(c)
     for state, runs in flagged.items():
-        counted = state not in UNFINISHED or include_unfinished
+        counted = state not in LEFT_OUT or include_unfinished
+        why = f" ({WHY[state]})" if state in WHY and not counted else ""
         warnings.append(f"{len(runs)} {side} run(s) {state}, {'counted' if counted else 'left out of the metrics'}"
-                        f"{' (--include-unfinished counts them)' if not counted else ''}: {', '.join(runs)}")
+                        f"{why}{' (--include-unfinished counts them)' if not counted else ''}: {', '.join(runs)}")
     return kept, flagged

@@ -82,6 +82,9 @@ def run_one(cfg: dict, run_dir: str, log_path: str) -> tuple[str, str]:
         except Diverged as err:
             print(f"{err}.", flush=True)
             return DIVERGED, str(err)
+        except KeyboardInterrupt:  # Ctrl-C, or a cancelled Ray task
+            print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] interrupted; a rerun continues it", flush=True)
+            raise
         except Exception as err:
             traceback.print_exc()
             return "failed", f"{type(err).__name__}: {err}"
@@ -117,6 +120,9 @@ def run_group(cfgs: list[dict], run_dirs: list[str], log_paths: list[str]) -> li
             which = range(len(dirs)) if err.seeds is None else err.seeds
             stopped = ("failed", f"stopped with its seed group ({err}); a rerun resumes it")
             return [(DIVERGED, str(err)) if k in which else stopped for k in range(len(dirs))]
+        except KeyboardInterrupt:
+            print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] interrupted; a rerun continues it", flush=True)
+            raise
         except Exception as err:
             traceback.print_exc()
             return [("failed", f"{type(err).__name__}: {err}")] * len(dirs)
@@ -275,6 +281,11 @@ def _loopback_only() -> None:
         ray_constants.ENABLE_RAY_CLUSTER = False
 
 
+RAY_RETRIES = 3
+"""Times Ray starts a task again after its worker process or node died; a run's own error is not retried
+(:func:`run_one` returns it). The rerun resumes the run from its checkpoint, or starts it over before the first."""
+CANCEL_GRACE = 60.0
+"""Seconds a cancelled Ray task has to unwind its run (lock released, checkpoint kept) before it is killed."""
 CONNECT_TIMEOUT = 15.0
 """Seconds a Ray cluster's address has to answer before ``drltg sweep`` gives up (Ray itself waits minutes)."""
 
@@ -297,22 +308,34 @@ def check_answers(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
         channel.close()
 
 
+def _cancellable(train, *args):
+    """``train(*args)`` (:func:`run_one`, :func:`run_group`) as a Ray task. Ray cancels a running task by
+    calling its SIGINT handler, which Ray's workers ignore; with Python's, the run unwinds at its next
+    batch as after Ctrl-C (lock released, checkpoint kept) and the task ends cancelled."""
+    with contextlib.suppress(ValueError):  # not in the main thread: a cancelled task is killed after the grace
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    return train(*args)
+
+
 class RayBackend:
     """Ray tasks declaring ``num_cpus``/``num_gpus`` each; Ray places them on the cluster's nodes.
 
     ``address=None`` starts a private local instance (``num_cpus`` CPUs, loopback only);
-    ``address="auto"`` or ``"ip:port"`` joins a running cluster (`ray start --head`).
+    ``address="auto"`` or ``"ip:port"`` joins a running cluster (`ray start --head`). A task whose
+    worker or node dies runs again (:data:`RAY_RETRIES`); :meth:`close` cancels the tasks still running.
     """
 
     def __init__(self, address: str | None, resources: dict, num_cpus: int | None = None,
                  connect_timeout: float = CONNECT_TIMEOUT):
-        if address is None:
-            _loopback_only()
+        if address is None or address.removeprefix("ray://").rsplit(":", 1)[0] in ("127.0.0.1", "localhost"):
+            _loopback_only()  # a cluster on this machine's loopback address: the driver stays there too
         try:
             import ray
         except ImportError:
             raise UsageError("--backend ray needs Ray: pip install 'drltg[ray]'.") from None
         self.ray = ray
+        self.pending: set = set()
+        sigterm = signal.getsignal(signal.SIGTERM)  # ray.init sets its own; the caller's unwinds the sweep
         if address is None:
             ray.init(address="local", num_cpus=num_cpus, include_dashboard=False,
                      _node_ip_address="127.0.0.1", configure_logging=False, log_to_driver=False)
@@ -322,20 +345,30 @@ class RayBackend:
             check_answers(address, connect_timeout)
             try:
                 ray.init(address=address, configure_logging=False, log_to_driver=False)
-            except (ConnectionError, ValueError, RuntimeError) as err:
-                raise UsageError(f"cannot join the Ray cluster at '{address}' ({err}).") from None
+            except (ConnectionError, ValueError, RuntimeError, ray.exceptions.RayError) as err:
+                token = "" if os.environ.get("RAY_AUTH_MODE") == "token" else (
+                    "; if the cluster requires a token, set RAY_AUTH_MODE=token and RAY_AUTH_TOKEN to its token")
+                raise UsageError(f"cannot join the Ray cluster at '{address}' ({err}){token}.") from None
+        if signal.getsignal(signal.SIGTERM) is not sigterm and sigterm is not None:
+            signal.signal(signal.SIGTERM, sigterm)
         imports = os.environ.get("DRLTG_IMPORT")  # workers on other nodes import the same plugins
-        runtime_env = {"env_vars": {"DRLTG_IMPORT": imports}} if imports else None
-        self.task = ray.remote(run_one).options(max_retries=0, runtime_env=runtime_env, **resources)
-        self.group_task = ray.remote(run_group).options(max_retries=0, runtime_env=runtime_env, **resources)
+        options = dict(max_retries=RAY_RETRIES, retry_exceptions=False, **resources)
+        if imports:
+            options["runtime_env"] = {"env_vars": {"DRLTG_IMPORT": imports}}
+        self.task = ray.remote(_cancellable).options(**options)
 
     capacity = math.inf  # Ray queues the tasks and runs as many as the cluster's resources allow
 
     def submit(self, run: Run):
-        return self.task.remote(run.cfg, str(run.path), str(run.log))
+        ref = self.task.remote(run_one, run.cfg, str(run.path), str(run.log))
+        self.pending.add(ref)
+        return ref
 
     def submit_group(self, runs: list[Run]):
-        return self.group_task.remote([r.cfg for r in runs], [str(r.path) for r in runs], [str(r.log) for r in runs])
+        ref = self.task.remote(run_group, [r.cfg for r in runs], [str(r.path) for r in runs],
+                               [str(r.log) for r in runs])
+        self.pending.add(ref)
+        return ref
 
     def wait(self, handles: list, timeout: float) -> list[tuple[Any, tuple[str, str]]]:
         ready, _ = self.ray.wait(handles, num_returns=1, timeout=timeout)
@@ -343,14 +376,30 @@ class RayBackend:
             ready, _ = self.ray.wait(handles, num_returns=len(handles), timeout=0)
         results = []
         for ref in ready:
+            self.pending.discard(ref)
             try:
                 results.append((ref, self.ray.get(ref)))
-            except Exception as err:  # the task's worker or node died
+            except Exception as err:  # its worker or node died more often than it is retried
                 results.append((ref, ("failed", f"Ray task failed: {type(err).__name__}")))
         return results
 
-    def close(self) -> None:
-        self.ray.shutdown()
+    def close(self, grace: float = CANCEL_GRACE) -> None:
+        """Cancel the tasks still running (the sweep was stopped) and leave the cluster. A cancelled task gets
+        a KeyboardInterrupt, which ends its run at the next batch as Ctrl-C ends ``drltg train`` (lock
+        released, checkpoint kept); one still running after ``grace`` seconds is killed with its worker."""
+        try:
+            if self.pending:
+                pending = list(self.pending)
+                for ref in pending:
+                    self.ray.cancel(ref)
+                _, left = self.ray.wait(pending, num_returns=len(pending), timeout=grace)
+                for ref in left:
+                    self.ray.cancel(ref, force=True)
+                print(f"ray: cancelled {len(pending)} task(s) of this sweep"
+                      + (f", {len(left)} of them killed after {grace:g} s" if left else ""), file=sys.stderr)
+                self.pending.clear()
+        finally:
+            self.ray.shutdown()
 
 
 # --------------------------------------------------------------------------------------- schedule

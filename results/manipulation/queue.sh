@@ -6,8 +6,8 @@
 #               cloning at weight 10), 60k frames;
 #    lift-soc4  the soft option-critic with 4 options on Lift with Lift's potential as reward shaping
 #               (demonstrations work with SAC and TD3 only), SOC_FRAMES frames (default 100k).
-#    A complete run is skipped and an interrupted one resumed; WORKERS at a time; their curves and
-#    configs are kept in results/manipulation/sources/.
+#    A complete run is skipped and an interrupted one resumed; WORKERS at a time; their curves, configs
+#    and weights are kept in results/manipulation/sources/ (keep_source.py).
 # 2. Every row in ROWS order (results/manipulation/ROW.sh); a row already reported is skipped.
 set -euo pipefail
 RUNS=${RUNS:-runs/manipulation}
@@ -40,8 +40,9 @@ for name in "${!SOURCE[@]}"; do
   for s in $SEEDS; do
     final=$(grep -o '"success_rate": [0-9.]*' "$RUNS/sources/$name/seed-$s/summary.json" | tail -1)
     echo "source $name seed $s: final ${final:-success_rate unknown}"
-    mkdir -p "results/manipulation/sources/$name/seed-$s"
-    cp "$RUNS/sources/$name/seed-$s/"{config.yaml,eval.csv,summary.json} "results/manipulation/sources/$name/seed-$s/"
+    [ -f "results/manipulation/sources/$name/seed-$s/checkpoints/last.pt" ] && continue
+    ${PYTHON:-python} results/manipulation/keep_source.py "$RUNS/sources/$name/seed-$s" \
+      "results/manipulation/sources/$name/seed-$s"
   done
 done
 

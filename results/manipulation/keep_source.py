@@ -1,0 +1,36 @@
+"""Keep a finished source run in the repo: its config, curve and summary, and the learner's weights only.
+
+    python results/manipulation/keep_source.py RUN_DIR DEST_DIR
+
+The replay buffer and optimiser state (about 420 MB on Lift) are left out, so DEST_DIR serves as
+``transfer.source`` (model reuse, policy reuse, value shaping) but cannot be resumed.
+"""
+import shutil
+import sys
+from pathlib import Path
+
+import torch
+
+from drltg.errors import UsageError
+
+
+def keep_source(run: Path, dest: Path) -> None:
+    if not (run / "summary.json").is_file():
+        raise UsageError(f"{run} has no summary.json: only a finished run is kept as a source.")
+    ckpt = torch.load(run / "checkpoints" / "last.pt", map_location="cpu", weights_only=False, mmap=True)
+    (dest / "checkpoints").mkdir(parents=True, exist_ok=True)
+    for name in ("config.yaml", "eval.csv", "summary.json"):
+        shutil.copyfile(run / name, dest / name)
+    tmp = dest / "checkpoints" / "last.pt.tmp"
+    torch.save({"loss": ckpt["loss"], "frames": ckpt["frames"]}, tmp)
+    tmp.replace(dest / "checkpoints" / "last.pt")
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 3:
+        sys.exit(__doc__)
+    try:
+        keep_source(Path(sys.argv[1]), Path(sys.argv[2]))
+    except UsageError as e:
+        print(f"keep_source: error: {e}", file=sys.stderr)
+        sys.exit(2)
