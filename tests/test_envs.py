@@ -79,6 +79,36 @@ def test_no_tunnelling_with_any_step_length(max_step):
         assert nxt[0]["position"].tolist() == pytest.approx(stop)
 
 
+def _move_one(x, y, dx, dy):
+    """The wall rule for one agent in float32 scalars: each axis moves by its displacement and stops at the
+    nearest face, among the walls whose extent along the other axis strictly contains the agent."""
+    f = np.float32
+
+    def slide(coord, across, delta, axis):
+        upper, lower = f(fr.ARENA_SIZE), f(0.0)
+        for wall in fr.WALLS:
+            lo, hi, olo, ohi = (f(wall[i]) for i in (axis, axis + 2, 1 - axis, 3 - axis))
+            if olo < across < ohi:
+                upper = min(upper, lo) if lo >= coord else upper
+                lower = max(lower, hi) if hi <= coord else lower
+        return min(max(f(coord + delta), lower), upper)
+
+    nx = slide(x, y, dx, 0)
+    return nx, slide(y, nx, dy, 1)
+
+
+def test_batched_move_equals_the_rule_for_one_agent_bit_for_bit():
+    gen = torch.Generator().manual_seed(3)
+    faces = torch.tensor([0.0, 1.5, 2.5, 4.75, 5.25, 7.0, 8.0, 10.0])
+    pos = torch.rand(300, 2, generator=gen) * 10
+    pos[:60] = faces[torch.randint(0, 8, (60, 2), generator=gen)]  # on wall faces and doorway edges
+    pos = pos[fr.in_free_space(pos)]
+    step = (torch.rand(len(pos), 2, generator=gen) * 2 - 1) * 3.0
+    moved = fr.move(pos, step)
+    expected = [_move_one(*(np.float32(v) for v in (*p, *d))) for p, d in zip(pos.tolist(), step.tolist())]
+    assert moved.tolist() == [[float(a), float(b)] for a, b in expected]
+
+
 def test_random_walk_never_enters_a_wall():
     env = FourRoomsEnv(goal=(8.0, 8.0), max_step=2.0, horizon=10_000, batch_size=(256,), seed=0)
     td = env.reset()

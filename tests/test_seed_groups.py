@@ -7,7 +7,7 @@ from torchrl.envs import TransformedEnv
 
 from drltg import config as config_lib
 from drltg.learners import UpdateStep, make_agent
-from drltg.seed_group import SeedGroup
+from drltg.seed_group import SeedGroup, SeedStreams
 from drltg.training.loop import build_env
 
 SMALL = ["network.hidden=[16,16]"]
@@ -53,6 +53,21 @@ def test_one_vmapped_update_is_each_seeds_own_update(task, algo, update_actor):
         for name, value in after.items():
             stacked = group.params.get(tuple(name.split(".")))
             torch.testing.assert_close(stacked[k], value, atol=1e-5, rtol=1e-5, msg=name)
+
+
+def test_with_seed_streams_each_seed_updates_as_alone_from_its_generator_state():
+    agents, batches = _agents_and_batches("fourrooms/northeast", "sac")
+    states = [torch.Generator().manual_seed(100 + k).get_state() for k in range(len(agents))]
+    group = SeedGroup(agents, streams=SeedStreams(states))
+    grouped = group.update(torch.stack(batches))
+    for k, (agent, batch) in enumerate(zip(agents, batches)):
+        torch.set_rng_state(states[k])
+        single = UpdateStep(agent)(batch)
+        for key in single.keys():
+            torch.testing.assert_close(grouped[key][k], single[key], atol=1e-5, rtol=1e-5)
+        for name, value in agent.loss.state_dict().items():
+            torch.testing.assert_close(group.params.get(tuple(name.split(".")))[k], value, atol=1e-5, rtol=1e-5)
+        assert torch.equal(group.streams.states[k], torch.get_rng_state())  # as many draws as the update alone
 
 
 def test_different_randomness_draws_independent_noise_per_seed():
@@ -139,6 +154,27 @@ def test_a_group_writes_one_ordinary_run_directory_per_seed(group_run):
         agent = make_agent(build_env(cfg, seed=seed), cfg)
         alone = evaluate(make_envs(cfg)[1], agent.actor)
         assert rows[0] == {"frames": 0, **alone}
+
+
+def test_a_seed_in_a_group_draws_as_its_run_alone_and_matches_it(group_run, tmp_path):
+    """SAC on the CPU: each seed draws from its own stream (warm-up actions, exploration, replay sampling,
+    the losses' noise), so a seed's generator state is that of its run alone, and its curve and parameters
+    match its run alone's to rounding over a short run."""
+    from drltg.training.loop import train
+    from drltg.training.rundir import read_eval_csv
+
+    for seed in (3, 4):
+        alone = train(tiny_cfg(seed=seed), tmp_path / f"alone-{seed}", progress=False)
+        grouped = group_run / f"seed-{seed}"
+        rows, ref = read_eval_csv(grouped / "eval.csv"), read_eval_csv(alone / "eval.csv")
+        assert [r["frames"] for r in rows] == [0, 256, 512]
+        for row, expected in zip(rows, ref):
+            assert row == pytest.approx(expected, abs=1e-5)
+        ckpt, ckpt_alone = (torch.load(d / "checkpoints" / "last.pt", weights_only=False) for d in (grouped, alone))
+        assert ckpt["updates"] == ckpt_alone["updates"] > 0
+        assert torch.equal(ckpt["rng"], ckpt_alone["rng"])  # the same number of draws, in the same order
+        for name, value in ckpt_alone["loss"].items():
+            torch.testing.assert_close(ckpt["loss"][name], value, atol=1e-5, rtol=1e-5, msg=name)
 
 
 def test_a_group_is_reproduced_by_the_same_group(group_run, tmp_path):

@@ -73,7 +73,8 @@ def run(args: argparse.Namespace) -> int:
         rundir.atomic_write(saved, yaml.safe_dump(d, sort_keys=False))
         backend = LocalBackend(args.workers)
         try:
-            # run by run, as its committed results were trained: a seed group draws other random streams
+            # run by run, as its committed results were trained: a seed group's batched products round
+            # differently, and its curves drift from the runs alone over the demo's thousands of updates
             status = execute(as_runs(runs, out), backend, desc="demo", group_seeds=False)
         finally:
             backend.close()

@@ -122,14 +122,16 @@ def in_free_space(pos: torch.Tensor) -> torch.Tensor:
 def _slide(coord, across, delta, walls, axis):
     """Moves ``coord`` by ``delta`` along ``axis``, stopping at the first wall face on the way.
 
-    Only walls whose extent along the other axis strictly contains ``across`` are in the way.
+    Only walls whose extent along the other axis strictly contains ``across`` are in the way. The
+    comparisons are laid out ``[walls, *batch]`` so that every elementwise kernel runs along the batch
+    (contiguous, vectorised) rather than along the six walls.
     """
-    lo, hi = walls[:, axis], walls[:, axis + 2]
-    olo, ohi = walls[:, 1 - axis], walls[:, 3 - axis]
-    c, o = coord.unsqueeze(-1), across.unsqueeze(-1)
-    in_the_way = (olo < o) & (o < ohi)
-    upper = torch.where(in_the_way & (lo >= c), lo, ARENA_SIZE).amin(-1)
-    lower = torch.where(in_the_way & (hi <= c), hi, 0.0).amax(-1)
+    shape = (-1,) + (1,) * coord.dim()
+    lo, hi = walls[:, axis].reshape(shape), walls[:, axis + 2].reshape(shape)
+    olo, ohi = walls[:, 1 - axis].reshape(shape), walls[:, 3 - axis].reshape(shape)
+    in_the_way = (olo < across) & (across < ohi)
+    upper = torch.where(in_the_way & (lo >= coord), lo, ARENA_SIZE).amin(0)
+    lower = torch.where(in_the_way & (hi <= coord), hi, 0.0).amax(0)
     return torch.minimum(torch.maximum(coord + delta, lower), upper)
 
 
@@ -201,7 +203,9 @@ class FourRoomsEnv(EnvBase):
         regions = [ROOMS[start_room]] if start_room else list(ROOMS.values()) + list(DOOR_PASSAGES)
         self.register_buffer("goal", goal_t.to(self.device))
         self.register_buffer("_walls", torch.tensor(WALLS, device=self.device))
-        self._regions = torch.tensor(regions)
+        regions = torch.tensor(regions)
+        self._region_low, self._region_size = regions[:, :2], regions[:, 2:] - regions[:, :2]
+        self._region_areas = self._region_size.prod(-1)
         self._make_spec()
         if seed is None:
             seed = torch.empty((), dtype=torch.int64).random_().item()
@@ -253,14 +257,12 @@ class FourRoomsEnv(EnvBase):
         Draws on the CPU generator, so a seed gives the same starts on every device.
         """
         rng = self.rng if rng is None else rng
-        regions = self._regions
-        areas = (regions[:, 2] - regions[:, 0]) * (regions[:, 3] - regions[:, 1])
         goal = self.goal.cpu()
         pos = torch.empty(n, 2)
         todo = torch.arange(n)
         while todo.numel():
-            box = regions[torch.multinomial(areas, todo.numel(), replacement=True, generator=rng)]
-            pos[todo] = box[:, :2] + torch.rand(todo.numel(), 2, generator=rng) * (box[:, 2:] - box[:, :2])
+            box = torch.multinomial(self._region_areas, todo.numel(), replacement=True, generator=rng)
+            pos[todo] = self._region_low[box] + torch.rand(todo.numel(), 2, generator=rng) * self._region_size[box]
             todo = todo[(pos[todo] - goal).norm(dim=-1) <= self.goal_radius]
         return pos.to(self.device)
 

@@ -7,15 +7,23 @@ N × ``collector.num_envs`` envs, one vmapped policy call (one call per seed for
 whose option choice branches on the data) and one vmapped update per step, a replay buffer per seed.
 Otherwise they train one after another with :func:`~drltg.training.loop.train`.
 
-What a seed shares with its run alone: its initial networks (built under ``torch.manual_seed(seed)``
-as a run alone builds them), its env's starts and noise, training and evaluation (a random stream per
-seed, :mod:`drltg.envs.seeding`), its replay buffer, and its updates given a batch and random draws
-(``tests/test_seed_groups.py``). What differs: the warm-up's random actions, the policy's exploration
-draws, the replay buffer's sampling and the losses' random draws come from the process's one
-generator, seeded with the group's first seed, so past frame 0 a seed's curve in a group is not its
-curve alone. A group is reproduced exactly by the
-same group (same ``--seeds`` and ``--seed``); each seed's summary.json records its group
-(``seed_group.seeds``, the group's seeds in order).
+What a seed shares with its run alone: its initial networks (built under ``torch.manual_seed(seed)`` as
+a run alone builds them), its env's starts and noise, training and evaluation (a random stream per seed,
+:mod:`drltg.envs.seeding`), its replay buffer, and its updates given a batch and random draws
+(``tests/test_seed_groups.py``). For SAC on continuous actions on the CPU (:func:`streams_supported`)
+the rest is the seed's too: each seed draws from its own :class:`~drltg.seed_group.SeedStreams` stream,
+the state torch's global generator holds in its run alone once that run has built its networks and envs,
+in the same order and shapes (the warm-up's random actions, the policy's exploration draws, the replay
+buffer's sampling, the losses' draws), so a seed in a group draws exactly the random numbers of its run
+alone and its checkpoint holds its own stream; its parameters match its run alone to float rounding
+(``tests/test_seed_groups.py``), which training amplifies over thousands of updates (batched products
+round differently from single ones). For TD3, discrete SAC and soft option-critic (draws other than
+``Normal.rsample``'s: TD3's loss draws its smoothing noise with ``randn_like``, discrete SAC samples
+categorically, the option policy draws Bernoulli terminations and categorical options) those draws come
+from the process's one generator, seeded with the group's first seed, so past frame 0 a seed's curve in
+a group is not its curve alone. A group is reproduced exactly by the same group (same ``--seeds`` and
+``--seed``); each seed's summary.json records its group (``seed_group.seeds``, the group's seeds in
+order).
 """
 from __future__ import annotations
 
@@ -27,6 +35,7 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.data import LazyTensorStorage, ReplayBuffer
 from torchrl.envs import RewardSum, TransformedEnv
+from torchrl.objectives import SACLoss
 
 from drltg import config
 from drltg.config import RunConfig
@@ -35,7 +44,7 @@ from drltg.errors import UsageError
 from drltg.learners import sample_batches
 from drltg.losses import SoftOptionCriticLoss
 from drltg.modules import make_option_policy
-from drltg.seed_group import GroupPolicy, SeedGroup, SeedLoopPolicy
+from drltg.seed_group import GroupPolicy, SeedGroup, SeedLoopPolicy, SeedStreams
 from drltg.training import health, rundir
 from drltg.training.loop import (
     _check_saved_config,
@@ -47,6 +56,7 @@ from drltg.training.loop import (
     deferred_signals,
     evaluate_seeds,
     make_collector,
+    make_envs,
     run_loop,
     train,
 )
@@ -112,8 +122,8 @@ class GroupLearner:
         else:
             actor_params = group.params["actor_network_params"]
             noise = None if first.policy is first.actor else first.policy[-1]
-            self.policy = GroupPolicy(first.actor, actor_params, then=noise)
-            self.actor = GroupPolicy(first.actor, actor_params)
+            self.policy = GroupPolicy(first.actor, actor_params, then=noise, streams=group.streams)
+            self.actor = GroupPolicy(first.actor, actor_params, streams=group.streams)
         self.in_keys = list(group.loss.in_keys)
 
     def split(self, data: TensorDictBase) -> list[TensorDictBase]:
@@ -124,7 +134,11 @@ class GroupLearner:
             buffer.extend(piece.select(*self.in_keys))
 
     def batches(self, count: int):
-        per_seed = [sample_batches(buffer, count) for buffer in self.buffers]
+        streams = self.group.streams
+        per_seed = []
+        for k, buffer in enumerate(self.buffers):
+            with contextlib.nullcontext() if streams is None else streams.use(k):
+                per_seed.append(sample_batches(buffer, count))
         return (torch.stack(batch) for batch in zip(*per_seed))
 
     def update(self, batch: TensorDictBase, update_actor: bool) -> TensorDictBase:
@@ -135,16 +149,47 @@ class GroupLearner:
 
     def state(self) -> list[dict]:
         self.group.sync()
-        rng = torch.get_rng_state()
+        streams = self.group.streams
+        rngs = [torch.get_rng_state()] * self.seeds if streams is None else [s.clone() for s in streams.states]
         return [
             {"loss": agent.loss.state_dict(), "optimizer": self.group.optimizer_state(k),
-             "buffer": buffer.state_dict(), "rng": rng}
+             "buffer": buffer.state_dict(), "rng": rngs[k]}
             for k, (agent, buffer) in enumerate(zip(self.group.agents, self.buffers))
         ]
 
 
-def _group_env(cfg: RunConfig, seeds: list[int], per_seed: int, seed_offset: int, transforms=()):
-    env = TransformedEnv(build_env(cfg, batch_size=(len(seeds) * per_seed,), seed=seeds[0] + seed_offset))
+class StreamedRandomActions(TransformedEnv):
+    """A group's training env whose random actions (the collector's warm-up) are drawn block by block,
+    block k from seed k's stream, as ``rand_action`` draws them on seed k's env alone."""
+
+    def __init__(self, env, streams: SeedStreams):
+        super().__init__(env)
+        self.__dict__["_streams"] = streams
+        self.__dict__["_one_seed_spec"] = None
+
+    def rand_action(self, tensordict: TensorDictBase | None = None) -> TensorDictBase:
+        seeds = len(self._streams.states)
+        if self._one_seed_spec is None:  # the action spec of one seed's env alone
+            self.__dict__["_one_seed_spec"] = self.full_action_spec[: self.batch_size[0] // seeds]
+        parts = []
+        for k in range(seeds):
+            with self._streams.use(k):
+                parts.append(self._one_seed_spec.rand())
+        actions = torch.cat(parts)
+        if tensordict is None:
+            return actions
+        return tensordict.update(actions)
+
+
+def streams_supported(agent, cfg: RunConfig) -> bool:
+    """Whether a group of this learner can give each seed its own random stream (its run alone): SAC on
+    continuous actions on the CPU, whose only random draws are ``Normal.rsample``'s."""
+    return type(agent.loss) is SACLoss and torch.device(cfg.device).type == "cpu"
+
+
+def _group_env(cfg: RunConfig, seeds: list[int], per_seed: int, seed_offset: int, transforms=(), streams=None):
+    base = build_env(cfg, batch_size=(len(seeds) * per_seed,), seed=seeds[0] + seed_offset)
+    env = TransformedEnv(base) if streams is None else StreamedRandomActions(base, streams)
     set_block_seeds(env, [s + seed_offset for s in seeds])
     for t in transforms:
         env.append_transform(t.clone())
@@ -178,10 +223,13 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
             states = [(None, []) for _ in dirs]
 
         torch.set_num_threads(cfg.threads)
-        agents = []
-        for c in cfgs:  # each seed's networks as its run alone builds them
+        agents, rng_states = [], []
+        for c in cfgs:  # each seed's networks as its run alone builds them, and its random stream from there on
             torch.manual_seed(c.seed)
             agents.append(check_config(c)[1])
+            if streams_supported(agents[-1], c):
+                make_envs(c, agents[-1].env_transforms)  # the draws a run alone makes before its loop (env seeds)
+            rng_states.append(torch.get_rng_state())
         torch.manual_seed(cfg.seed)
         buffers = [ReplayBuffer(storage=LazyTensorStorage(cfg.buffer.size, device=cfg.device),
                                 batch_size=cfg.buffer.batch_size) for _ in cfgs]
@@ -196,10 +244,13 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
                     raise UsageError(
                         f"checkpoint '{d / CHECKPOINT}' does not fit the run's config ({type(err).__name__})."
                     ) from None
-        group = SeedGroup(agents)
+        streams = None
+        if streams_supported(agents[0], cfg):
+            streams = SeedStreams(rng_states if ckpts[0] is None else [ckpt["rng"] for ckpt in ckpts])
+        group = SeedGroup(agents, streams=streams)
         seeds = [c.seed for c in cfgs]
         transforms = agents[0].env_transforms  # what the policy needs the env to carry (SOC's option)
-        train_env = _group_env(cfg, seeds, cfg.collector.num_envs, 0, transforms)
+        train_env = _group_env(cfg, seeds, cfg.collector.num_envs, 0, transforms, streams)
         train_env.append_transform(RewardSum())
         eval_env = _group_env(cfg, seeds, cfg.eval.episodes, 10_000, transforms)
         learner = GroupLearner(group, buffers, eval_env)
