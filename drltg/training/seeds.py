@@ -28,13 +28,14 @@ order).
 from __future__ import annotations
 
 import contextlib
+import functools
 import sys
 from pathlib import Path
 
 import torch
 from tensordict import TensorDictBase
 from torchrl.data import LazyTensorStorage, ReplayBuffer
-from torchrl.envs import RewardSum, TransformedEnv
+from torchrl.envs import BatchSizeTransform, EnvBase, ParallelEnv, RewardSum, TransformedEnv
 from torchrl.objectives import SACLoss
 
 from drltg import config
@@ -85,10 +86,16 @@ def group_support(cfg: RunConfig) -> str | None:
         return f"transfer method {cfg.transfer.method} has no grouped form"
     from drltg.envs import get_task
 
-    factory = get_task(cfg.task).factory
-    if not hasattr(factory, "set_block_seeds"):
-        return f"task {cfg.task} has no per-seed random streams"
+    get_task(cfg.task)  # an unknown task is one UsageError sentence
     return None
+
+
+def in_process(cfg: RunConfig) -> bool:
+    """Whether the task's env gives each seed its own random stream in one batched env
+    (:mod:`drltg.envs.seeding`); otherwise a group steps one env per seed in worker processes."""
+    from drltg.envs import get_task
+
+    return hasattr(get_task(cfg.task).factory, "set_block_seeds")
 
 
 def train_seeds(cfg: RunConfig, run_dir: str | Path, seeds: int, *, resume: bool = False, progress: bool = True,
@@ -163,7 +170,7 @@ class StreamedRandomActions(TransformedEnv):
     block k from seed k's stream, as ``rand_action`` draws them on seed k's env alone."""
 
     def __init__(self, env, streams: SeedStreams):
-        super().__init__(env)
+        super().__init__(env, auto_unwrap=False)
         self.__dict__["_streams"] = streams
         self.__dict__["_one_seed_spec"] = None
 
@@ -187,10 +194,42 @@ def streams_supported(agent, cfg: RunConfig) -> bool:
     return type(agent.loss) is SACLoss and torch.device(cfg.device).type == "cpu"
 
 
+class SeedMajor(BatchSizeTransform):
+    """A ``ParallelEnv`` of per-seed envs (batch ``[seeds, E]``) seen as one flat batch ``[seeds * E]``,
+    seed k's envs at ``k*E … k*E+E−1``: the layout of a blocked env (:mod:`drltg.envs.seeding`). A partial
+    reset's ``_reset`` mask is unflattened for the workers too."""
+
+    def __init__(self):
+        super().__init__(reshape_fn=_flatten)
+
+    def _reset_env_preprocess(self, tensordict: TensorDictBase | None) -> TensorDictBase | None:
+        if tensordict is None:
+            return None
+        return tensordict.reshape(self.parent.batch_size)
+
+
+def _flatten(data):
+    return data.reshape(data.shape.numel())  # an explicit size: TorchRL's bounded specs refuse reshape(-1)
+
+
+def _worker_env(cfg: RunConfig, seeds: list[int], per_seed: int, seed_offset: int) -> EnvBase:
+    """One worker process per seed, each building the env its run alone builds (same factory, settings
+    and seed), flattened seed-major; the workers start as ``env.mp_start_method`` says (TorchRL's default
+    if unset). Transforms go on an env around this one: the flattening must come first on both ways."""
+    workers = ParallelEnv(len(seeds), functools.partial(build_env, cfg, batch_size=(per_seed,)),
+                          create_env_kwargs=[{"seed": s + seed_offset} for s in seeds],
+                          mp_start_method=cfg.env.get("mp_start_method"))
+    return TransformedEnv(workers, SeedMajor())
+
+
 def _group_env(cfg: RunConfig, seeds: list[int], per_seed: int, seed_offset: int, transforms=(), streams=None):
-    base = build_env(cfg, batch_size=(len(seeds) * per_seed,), seed=seeds[0] + seed_offset)
-    env = TransformedEnv(base) if streams is None else StreamedRandomActions(base, streams)
-    set_block_seeds(env, [s + seed_offset for s in seeds])
+    if in_process(cfg):
+        base = build_env(cfg, batch_size=(len(seeds) * per_seed,), seed=seeds[0] + seed_offset)
+    else:
+        base = _worker_env(cfg, seeds, per_seed, seed_offset)
+    env = TransformedEnv(base, auto_unwrap=False) if streams is None else StreamedRandomActions(base, streams)
+    if in_process(cfg):
+        set_block_seeds(env, [s + seed_offset for s in seeds])
     for t in transforms:
         env.append_transform(t.clone())
     return env
@@ -227,7 +266,7 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
         for c in cfgs:  # each seed's networks as its run alone builds them, and its random stream from there on
             torch.manual_seed(c.seed)
             agents.append(check_config(c)[1])
-            if streams_supported(agents[-1], c):
+            if streams_supported(agents[-1], c) and in_process(c):
                 make_envs(c, agents[-1].env_transforms)  # the draws a run alone makes before its loop (env seeds)
             rng_states.append(torch.get_rng_state())
         torch.manual_seed(cfg.seed)
@@ -252,7 +291,9 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
         transforms = agents[0].env_transforms  # what the policy needs the env to carry (SOC's option)
         train_env = _group_env(cfg, seeds, cfg.collector.num_envs, 0, transforms, streams)
         train_env.append_transform(RewardSum())
+        owned.callback(train_env.close, raise_if_closed=False)  # worker processes, where the task has them
         eval_env = _group_env(cfg, seeds, cfg.eval.episodes, 10_000, transforms)
+        owned.callback(eval_env.close, raise_if_closed=False)
         learner = GroupLearner(group, buffers, eval_env)
 
         created = [not d.exists() for d in dirs]
