@@ -3,7 +3,8 @@
 Seeds S … S+N−1 are written to ``DIR/seed-<S+k>/``, each an ordinary run directory (``report`` reads it
 alone, ``--resume`` continues it, alone or with its group). Where the learner supports it
 (:func:`group_support`) the seeds train as one :class:`~drltg.seed_group.SeedGroup`: one batched env of
-N × ``collector.num_envs`` envs, one vmapped policy call (one call per seed for soft option-critic,
+N × ``collector.num_envs`` envs (for a task without per-seed streams, robosuite's, a ``ParallelEnv`` of
+each seed's own env, :func:`_worker_env`), one vmapped policy call (one call per seed for soft option-critic,
 whose option choice branches on the data) and one vmapped update per step, a replay buffer per seed.
 Otherwise they train one after another with :func:`~drltg.training.loop.train`.
 
@@ -12,7 +13,8 @@ a run alone builds them), its env's starts and noise, training and evaluation (a
 :mod:`drltg.envs.seeding`), its replay buffer, and its updates given a batch and random draws
 (``tests/test_seed_groups.py``). For SAC on continuous actions on the CPU (:func:`streams_supported`)
 the rest is the seed's too: each seed draws from its own :class:`~drltg.seed_group.SeedStreams` stream,
-the state torch's global generator holds in its run alone once that run has built its networks and envs,
+the state torch's global generator holds in its run alone once that run has built its networks and envs
+(building robosuite's envs draws nothing from it: ``tests/test_robosuite_groups.py``),
 in the same order and shapes (the warm-up's random actions, the policy's exploration draws, the replay
 buffer's sampling, the losses' draws), so a seed in a group draws exactly the random numbers of its run
 alone and its checkpoint holds its own stream; its parameters match its run alone to float rounding
