@@ -278,6 +278,16 @@ def test_runs_that_differ_only_in_their_seed_form_one_unit(tmp_path):
         ["b0", "b100"], ["s50", "s150"], ["t0"], ["o0", "o100"], ["r0"], ["t100"], ["r100"]]
 
 
+def test_an_experiment_leaves_worker_process_groups_to_train_seeds(tmp_path):
+    from drltg.experiments.executor import Run, seed_groups
+    from drltg.training.seeds import group_support
+
+    lift = [Run("baseline", tiny_cfg(seed=s, task="lift"), tmp_path / f"l{s}", tmp_path / f"l{s}.log")
+            for s in (0, 100)]
+    assert group_support(lift[0].cfg) is None  # `drltg train lift --seeds 2` groups them
+    assert [[r.path.name for r in unit] for unit in seed_groups(lift)] == [["l0"], ["l100"]]
+
+
 def test_run_group_trains_an_experiments_seeds_together(tmp_path):
     import json
 

@@ -134,9 +134,11 @@ def run_group(cfgs: list[RunConfig], run_dirs: list[str], log_paths: list[str]) 
 
 def seed_groups(runs: list[Run]) -> list[list[Run]]:
     """``runs`` in units of work, in order: runs that need no other run, whose configs differ only in
-    the seed and whose learner trains as a seed group (:func:`~drltg.training.seeds.group_support`),
-    and that are all new or all resumable, form one unit; every other run is a unit of one."""
-    from drltg.training.seeds import group_support, same_but_seed
+    the seed and whose learner trains as a seed group in this process (:func:`~drltg.training.seeds.group_support`,
+    :func:`~drltg.training.seeds.in_process`), and that are all new or all resumable, form one unit; every
+    other run is a unit of one. A group of worker-process envs (robosuite) holds N runs' envs at once, and
+    units run side by side here, so such tasks group only when asked (``drltg train --seeds N``)."""
+    from drltg.training.seeds import group_support, in_process, same_but_seed
 
     units: list[list[Run]] = []
     for run in runs:
@@ -144,7 +146,7 @@ def seed_groups(runs: list[Run]) -> list[list[Run]]:
             first = unit[0]
             if (run.needs is None and first.needs is None and same_but_seed(first.cfg, run.cfg)
                     and (run.path / rundir.CONFIG).is_file() == (first.path / rundir.CONFIG).is_file()
-                    and group_support(run.cfg) is None):
+                    and group_support(run.cfg) is None and in_process(run.cfg)):
                 unit.append(run)
                 break
         else:
