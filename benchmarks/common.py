@@ -56,6 +56,23 @@ def interleaved(
     return {name: summarize(wall[name]) | ({"cpu": summarize(cpu[name])} if on_cpu else {}) for name in cases}
 
 
+def stepping(env, actions: list[torch.Tensor], steps: int) -> Callable[[], int]:
+    """A case that steps ``env`` ``steps`` times through ``actions`` in turn (resetting finished envs)
+    from where its last call stopped; returns the frames stepped."""
+    state = {"td": env.reset()}
+    batch = env.batch_size[0]
+
+    def run() -> int:
+        td = state["td"]
+        for i in range(steps):
+            td["action"] = actions[i % len(actions)]
+            _, td = env.step_and_maybe_reset(td)
+        state["td"] = td
+        return steps * batch
+
+    return run
+
+
 def summarize(rates: list[float]) -> dict:
     return {
         "median": round(statistics.median(rates), 2),

@@ -20,7 +20,7 @@ import math
 import numpy as np
 import torch
 
-from benchmarks.common import interleaved, ratio
+from benchmarks.common import interleaved, ratio, stepping
 from drltg.envs import FourRoomsEnv
 from drltg.envs.fourrooms import ARENA_SIZE, WALLS
 
@@ -152,17 +152,7 @@ def _drltg_case(batch: int, device: str, steps: int):
     env = make_drltg(batch, device)
     gen = torch.Generator().manual_seed(0)
     actions = [(torch.rand(batch, 2, generator=gen) * 2 - 1).to(device) for _ in range(16)]
-    state = {"td": env.reset()}
-
-    def run() -> int:
-        td = state["td"]
-        for i in range(steps):
-            td["action"] = actions[i % 16]
-            _, td = env.step_and_maybe_reset(td)
-        state["td"] = td
-        return steps * batch
-
-    return run
+    return stepping(env, actions, steps)
 
 
 def _drltg_part_case(batch: int, device: str, steps: int, dynamics_only: bool):

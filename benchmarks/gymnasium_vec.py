@@ -18,7 +18,7 @@ import numpy as np
 import torch
 
 import drltg  # noqa: F401  (registers the drltg/ ids)
-from benchmarks.common import interleaved, ratios
+from benchmarks.common import interleaved, ratios, stepping
 from drltg.envs import make_env
 
 ENV_ID, TASK = "drltg/fourrooms-northeast-v0", "fourrooms/northeast"
@@ -40,17 +40,7 @@ def _vector_case(env, steps: int):
 def _torch_case(n: int, steps: int):
     env = make_env(TASK, batch_size=(n,), seed=0)
     actions = [torch.rand(n, 2, generator=torch.Generator().manual_seed(i)) * 2 - 1 for i in range(16)]
-    state = {"td": env.reset()}
-
-    def run() -> int:
-        td = state["td"]
-        for i in range(steps):
-            td["action"] = actions[i % 16]
-            _, td = env.step_and_maybe_reset(td)
-        state["td"] = td
-        return steps * n
-
-    return run
+    return stepping(env, actions, steps)
 
 
 def run(device: str = "cpu", quick: bool = False) -> dict:
