@@ -225,12 +225,13 @@ def _worker_env(cfg: RunConfig, seeds: list[int], per_seed: int, seed_offset: in
 
 
 def _group_env(cfg: RunConfig, seeds: list[int], per_seed: int, seed_offset: int, transforms=(), streams=None):
-    if in_process(cfg):
+    blocked = in_process(cfg)
+    if blocked:
         base = build_env(cfg, batch_size=(len(seeds) * per_seed,), seed=seeds[0] + seed_offset)
     else:
         base = _worker_env(cfg, seeds, per_seed, seed_offset)
     env = TransformedEnv(base, auto_unwrap=False) if streams is None else StreamedRandomActions(base, streams)
-    if in_process(cfg):
+    if blocked:
         set_block_seeds(env, [s + seed_offset for s in seeds])
     for t in transforms:
         env.append_transform(t.clone())
