@@ -363,12 +363,13 @@ class AgentLearner:
 
 def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, frames: int = 0, updates: int = 0,
              progress: bool = True, stop_if_signalled: Callable[[], None] = lambda: None,
-             extra_summary: dict | None = None) -> None:
+             extra_summary: dict | list[dict] | None = None) -> None:
     """Collect, store, update, evaluate and checkpoint until ``cfg.frames`` frames per seed.
 
     ``learner`` trains one or several seeds in step (see :class:`AgentLearner`); ``writers`` gets one
     :class:`~drltg.training.rundir.RunWriter` per seed and receives every evaluation, logged scalar,
-    checkpoint and the summary: the loop itself writes no file. ``frames`` counts one seed's frames.
+    checkpoint and the summary (with ``extra_summary``, one for every writer or a list of one per writer):
+    the loop itself writes no file. ``frames`` counts one seed's frames.
     """
     col, opt = cfg.collector, cfg.optim
     seeds = learner.seeds
@@ -432,8 +433,9 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
         run_eval()
     save_checkpoint()
     wall = time.perf_counter() - start
-    for writer in writers:
-        writer.finish(frames, updates, wall, (frames - start_frames) / max(wall, 1e-9), extra_summary)
+    extras = extra_summary if isinstance(extra_summary, list) else [extra_summary] * len(writers)
+    for writer, extra in zip(writers, extras):
+        writer.finish(frames, updates, wall, (frames - start_frames) / max(wall, 1e-9), extra)
 
 
 def _episode_stats(data: TensorDictBase, stats: dict) -> None:

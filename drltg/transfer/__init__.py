@@ -21,7 +21,8 @@ registers the built-in methods (``a+b`` names a combination, :func:`combine`); t
 """
 from drltg.transfer.registry import METHODS, Transfer, TransferMethod, combine, get_method, register_method
 
-register_method(TransferMethod("none", "plain learning on the task: the baseline", lambda *a, **k: Transfer()))
+register_method(TransferMethod("none", "plain learning on the task: the baseline", lambda *a, **k: Transfer(),
+                               grouped=True))
 
 from drltg.transfer import reward_shaping, value_shaping, policy_reuse, model_reuse, demonstrations  # noqa: E402,I001
 from drltg.transfer.model_reuse import load_from_run  # noqa: E402

@@ -84,6 +84,11 @@ class TransferMethod:
         takes: the places of the pipeline it owns alone (``"policy"``: the collector's policy,
             ``"batches"``: the minibatches, ``"weights"``: the learner's initial weights); two methods
             that take one place cannot be combined.
+        grouped: whether its seeds can train as one seed group (:mod:`drltg.training.seeds`). The group
+            calls ``build`` once per seed, on that seed's learner before the seeds' parameters are
+            stacked, and shapes seed k's block of its batched env with seed k's ``train_transforms``
+            joined by their ``seed_blocks`` (:meth:`drltg.transforms.PotentialShaping.seed_blocks`); a
+            method whose ``Transfer`` sets the policy, schedules, batches or loss terms has no grouped form.
     """
 
     name: str
@@ -94,6 +99,7 @@ class TransferMethod:
     check: Callable[[RunConfig], None] | None = None
     algos: tuple[str, ...] | None = None
     takes: tuple[str, ...] = ()
+    grouped: bool = False
 
     def validate(self, cfg: RunConfig) -> None:
         if self.algos is not None and cfg.algo not in self.algos:
@@ -155,7 +161,8 @@ def combine(*methods: TransferMethod) -> TransferMethod:
     The parts' ``Transfer`` fields are joined: transforms and loss terms add up, schedules are all told
     the frames, files and summaries are merged. A place only one method may own (``takes``) refuses a
     second owner, and so do sources of different kinds: with one ``transfer.source``, a method that
-    reuses a run's weights and one that asks for a demonstrator cannot share it.
+    reuses a run's weights and one that asks for a demonstrator cannot share it. The combination trains
+    as a seed group only if every part does.
     """
     names = [m.name for m in methods]
     name = "+".join(names)
@@ -188,7 +195,7 @@ def combine(*methods: TransferMethod) -> TransferMethod:
 
     options = {k: v for m in methods for k, v in m.options.items()}
     return TransferMethod(name, " + ".join(m.help for m in methods), build, source=source, options=options,
-                          check=check, algos=algos, takes=tuple(owners))
+                          check=check, algos=algos, takes=tuple(owners), grouped=all(m.grouped for m in methods))
 
 
 _PLACES = {"policy": "collector's policy", "batches": "minibatches", "weights": "learner's initial weights"}
