@@ -17,9 +17,9 @@ def sources(tmp_path_factory):
     return seeds.train_seeds(tiny_cfg(task="fourrooms/southwest", frames=192, seed=50), root, 2, progress=False)
 
 
-def transfer_cfgs(method, sources, **overrides):
+def transfer_cfgs(method, sources, frames=192, **overrides):
     """Seeds 3 and 4 of ``method`` on fourrooms/northeast, seed k reading source k (as an experiment plans them)."""
-    return [tiny_cfg(seed=3 + k, frames=192, **{"transfer.method": method, "transfer.source": str(src), **overrides})
+    return [tiny_cfg(seed=3 + k, frames=frames, **{"transfer.method": method, "transfer.source": str(src), **overrides})
             for k, src in enumerate(sources)]
 
 
@@ -61,6 +61,32 @@ def test_model_reuse_a_seed_in_a_group_starts_from_its_own_source_as_alone(sourc
             frozen = any(name.startswith(p) for p in freeze)
             if name.startswith(("actor_network_params", "qvalue_network_params")):
                 assert torch.equal(grouped["loss"][name], source_loss[k][name]) == frozen, name
+
+
+def test_a_model_reuse_group_resumes_with_its_frozen_parameters_still_its_sources(sources, tmp_path, monkeypatch):
+    from drltg.training.rundir import read_eval_csv
+
+    real = loop._episode_stats
+
+    def crash_after_first_checkpoint(data, stats):
+        if (tmp_path / "seed-4" / "checkpoints" / "last.pt").exists():
+            raise KeyboardInterrupt
+        return real(data, stats)
+
+    cfgs = [config_lib.updated(c, {"checkpoint.every": 128, "eval.every": 128})  # TINY's override the keywords
+            for c in transfer_cfgs("model-reuse", sources, frames=256, **{"transfer.freeze": ["actor_network_params"]})]
+    dirs = [tmp_path / f"seed-{c.seed}" for c in cfgs]
+    monkeypatch.setattr(loop, "_episode_stats", crash_after_first_checkpoint)
+    with pytest.raises(KeyboardInterrupt):
+        seeds.train_group(cfgs, dirs, progress=False)
+    monkeypatch.setattr(loop, "_episode_stats", real)
+    seeds.train_group(cfgs, dirs, resume=True, progress=False)
+    for d, src in zip(dirs, sources):
+        assert [r["frames"] for r in read_eval_csv(d / "eval.csv")] == [0, 128, 256]
+        loss, source_loss = load_checkpoint(d)["loss"], load_checkpoint(src)["loss"]
+        for name, value in source_loss.items():
+            if name.startswith(("actor_network_params", "qvalue_network_params")):
+                assert torch.equal(loss[name], value) == name.startswith("actor_network_params"), name
 
 
 def _transfer(cfg):
@@ -191,3 +217,16 @@ def test_a_transfer_group_starts_once_each_seeds_source_is_done_and_loses_only_a
     assert backend.units == [["s50", "s150", "s250"], ["t0", "t200"]]
     assert status[tmp_path / "t100"] == ("failed", f"not run: the run it needs failed ({tmp_path / 's150'})")
     assert status[tmp_path / "t0"] == status[tmp_path / "t200"] == ("done", "")
+
+
+@pytest.mark.parametrize("spec, counts", [("fourrooms", (45, 17, 7, 35)), ("fourrooms-graded", (130, 46, 21, 105))])
+def test_the_fourrooms_reference_sweeps_group_as_the_readme_says(spec, counts, tmp_path):
+    from pathlib import Path
+
+    from drltg.experiments.sweep import load_spec, plan
+
+    runs, _ = plan(load_spec(Path(__file__).parents[1] / "examples" / "sweeps" / f"{spec}.yaml"), tmp_path)
+    units = seed_groups(runs)
+    groups = [u for u in units if len(u) > 1]
+    assert (len(runs), len(units), len(groups), sum(map(len, groups))) == counts
+    assert {r.cfg.transfer.method for u in units if len(u) == 1 for r in u} == {"policy-reuse"}

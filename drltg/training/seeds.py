@@ -8,6 +8,16 @@ each seed's own env, :func:`_worker_env`), one vmapped policy call (one call per
 whose option choice branches on the data) and one vmapped update per step, a replay buffer per seed.
 Otherwise they train one after another with :func:`~drltg.training.loop.train`.
 
+A transfer method groups if it declares a grouped form (``TransferMethod.grouped``; ``a+b`` if every
+part does): ``none``, ``model-reuse`` (each seed's networks load its own ``transfer.source`` before the
+seeds are stacked; frozen parameters stay frozen in the stack), ``reward-shaping`` and
+``value-shaping`` (seed k's env block shaped with seed k's own potential,
+:meth:`~drltg.transforms.PotentialShaping.seed_blocks`). Each seed's transfer is built as its run alone
+builds it, at the same point of its random stream. ``policy-reuse``, ``jumpstart`` and
+``demonstrations`` (a mixer in the collector's policy, a demonstration buffer) have none. The configs
+of a group may differ in ``transfer.source`` (an experiment's transfer run of seed s reads its own
+seed's source run).
+
 What a seed shares with its run alone: its initial networks (built under ``torch.manual_seed(seed)`` as
 a run alone builds them), its env's starts and noise, training and evaluation (a random stream per seed,
 :mod:`drltg.envs.seeding`), its replay buffer, and its updates given a batch and random draws
