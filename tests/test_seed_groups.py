@@ -216,10 +216,11 @@ def test_a_group_resumes_from_its_seeds_checkpoints(group_run, tmp_path, monkeyp
 def test_a_method_without_a_grouped_form_trains_its_seeds_one_after_another(group_run, tmp_path, capsys):
     from drltg.training.seeds import train_seeds
 
-    cfg = tiny_cfg(frames=64, **{"transfer.method": "policy-reuse", "transfer.source": str(group_run / "seed-3")})
+    cfg = tiny_cfg(frames=64, **{"transfer.method": "demonstrations", "transfer.source": str(group_run / "seed-3"),
+                                 "transfer.demo_episodes": 1, "env.horizon": 16})
     dirs = train_seeds(config_lib.updated(cfg, {"eval.every": 64}), tmp_path, 2, progress=False)
     err = capsys.readouterr().err
-    assert "transfer method policy-reuse has no grouped form; training the 2 seeds one after another" in err
+    assert "transfer method demonstrations has no grouped form; training the 2 seeds one after another" in err
     assert [d.name for d in dirs] == ["seed-3", "seed-4"] and all((d / "summary.json").is_file() for d in dirs)
 
 
@@ -273,8 +274,8 @@ def test_runs_that_differ_only_in_their_seed_form_one_unit(tmp_path):
     shaped = [run("r0", seed=0, **{"transfer.method": "reward-shaping"}),
               run("r100", seed=100, **{"transfer.method": "reward-shaping"})]
     reused = [run(f"p{s}", needs=tmp_path / f"s{s + 50}", seed=s,
-                  **{"transfer.method": "policy-reuse", "transfer.source": str(tmp_path / f"s{s + 50}")})
-              for s in (0, 100)]  # a collector-side mixer: no grouped form
+                  **{"transfer.method": "demonstrations", "transfer.source": str(tmp_path / f"s{s + 50}")})
+              for s in (0, 100)]  # a buffer of demonstrations: no grouped form
     units = seed_groups([baseline[0], source[0], transfer[0], soc[0], shaped[0], reused[0], baseline[1], source[1],
                          transfer[1], soc[1], shaped[1], reused[1]])
     assert [[r.path.name for r in unit] for unit in units] == [

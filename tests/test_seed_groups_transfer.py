@@ -63,6 +63,27 @@ def test_model_reuse_a_seed_in_a_group_starts_from_its_own_source_as_alone(sourc
                 assert torch.equal(grouped["loss"][name], source_loss[k][name]) == frozen, name
 
 
+@pytest.mark.parametrize("method, options", [
+    ("policy-reuse", {"transfer.psi": 0.8, "transfer.upsilon": 0.9}),
+    ("jumpstart", {"transfer.guide_steps": 3, "transfer.guide_stages": 1, "transfer.guide_frames": 1000,
+                   "env.horizon": 7})])
+def test_policy_reuse_a_seed_in_a_group_mixes_in_its_own_source_as_alone(sources, method, options, tmp_path):
+    """Seed k's mixer acts on seed k's envs with seed k's source policy and draws from seed k's stream: its
+    reuse decisions (the logged reused fraction), random draws and parameters are those of its run alone
+    (the second seed's: its block would differ from its run alone's with the first seed's source or stream)."""
+    cfgs = [config_lib.updated(c, {"log.every": 16}) for c in transfer_cfgs(method, sources, **options)]
+    dirs = seeds.train_group(cfgs, [tmp_path / f"seed-{c.seed}" for c in cfgs], progress=False)
+    for c, d in zip(cfgs[1:], dirs[1:]):
+        alone = loop.train(c, tmp_path / f"alone-{c.seed}", progress=False)
+        reused = [sorted(run.rglob("reused_fraction.csv"))[0].read_text() for run in (d, alone)]
+        values = [float(line.split(",")[-1]) for line in reused[1].splitlines()[128 // 16:]]  # after the warm-up
+        assert reused[0] == reused[1] and 0 < max(values) and min(values) < 1  # the source acted, not always
+        grouped, single = load_checkpoint(d), load_checkpoint(alone)
+        assert grouped["updates"] == single["updates"] > 0 and torch.equal(grouped["rng"], single["rng"])
+        for name, value in single["loss"].items():
+            torch.testing.assert_close(grouped["loss"][name], value, atol=1e-5, rtol=1e-5, msg=name)
+
+
 def test_a_model_reuse_group_resumes_with_its_frozen_parameters_still_its_sources(sources, tmp_path, monkeypatch):
     from drltg.training.rundir import read_eval_csv
 
@@ -133,8 +154,9 @@ def test_value_shaping_shapes_each_block_with_its_own_sources_value(sources):
 
 
 @pytest.mark.parametrize("method, grouped", [("none", True), ("reward-shaping", True), ("value-shaping", True),
-                                             ("model-reuse", True), ("policy-reuse", False), ("jumpstart", False),
+                                             ("model-reuse", True), ("policy-reuse", True), ("jumpstart", True),
                                              ("demonstrations", False), ("model-reuse+reward-shaping", True),
+                                             ("reward-shaping+policy-reuse", True),
                                              ("model-reuse+demonstrations", False)])
 def test_a_method_groups_only_if_it_and_every_part_declare_it(method, grouped):
     assert get_method(method).grouped is grouped
@@ -175,9 +197,9 @@ def test_a_sweep_groups_the_transfer_runs_that_differ_only_in_their_seed(tmp_pat
         ["reward-shaping/transfer/seed-0", "reward-shaping/transfer/seed-100"],
         ["value-shaping/transfer/seed-0", "value-shaping/transfer/seed-100"],
         ["model-reuse/transfer/seed-0", "model-reuse/transfer/seed-100"],
-        ["policy-reuse/transfer/seed-0"], ["policy-reuse/transfer/seed-100"]])
+        ["policy-reuse/transfer/seed-0", "policy-reuse/transfer/seed-100"]])
     by_path = {r.path: r for r in runs}
-    for method in ("value-shaping", "model-reuse"):  # each seed reads the source run of its own seed
+    for method in ("value-shaping", "policy-reuse", "model-reuse"):  # each seed reads its own seed's source run
         for seed in (0, 100):
             run = by_path[out / "fourrooms-near" / "sac" / method / "transfer" / f"seed-{seed}"]
             assert run.needs == out / "fourrooms-near" / "sac" / "source" / f"seed-{seed + 50}"
@@ -219,7 +241,7 @@ def test_a_transfer_group_starts_once_each_seeds_source_is_done_and_loses_only_a
     assert status[tmp_path / "t0"] == status[tmp_path / "t200"] == ("done", "")
 
 
-@pytest.mark.parametrize("spec, counts", [("fourrooms", (45, 17, 7, 35)), ("fourrooms-graded", (130, 46, 21, 105))])
+@pytest.mark.parametrize("spec, counts", [("fourrooms", (45, 9, 9, 45)), ("fourrooms-graded", (130, 26, 26, 130))])
 def test_the_fourrooms_reference_sweeps_group_as_the_readme_says(spec, counts, tmp_path):
     from pathlib import Path
 
@@ -229,4 +251,4 @@ def test_the_fourrooms_reference_sweeps_group_as_the_readme_says(spec, counts, t
     units = seed_groups(runs)
     groups = [u for u in units if len(u) > 1]
     assert (len(runs), len(units), len(groups), sum(map(len, groups))) == counts
-    assert {r.cfg.transfer.method for u in units if len(u) == 1 for r in u} == {"policy-reuse"}
+    assert all(len(u) == 5 for u in units)  # every run in a group of its 5 seeds

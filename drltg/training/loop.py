@@ -23,6 +23,7 @@ from typing import Callable
 import torch
 import yaml
 from tensordict import TensorDictBase
+from tensordict.nn import TensorDictSequential
 from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, ReplayBuffer
 from torchrl.envs import EnvBase, ExplorationType, RewardSum, TransformedEnv, set_exploration_type
@@ -333,6 +334,8 @@ class AgentLearner:
         self.agent, self.buffer, self.eval_env, self.transfer = agent, buffer, eval_env, transfer
         self.actor_delay = agent.actor_delay
         self.policy = agent.policy if transfer.policy is None else transfer.policy
+        if transfer.mixer is not None:
+            self.policy = TensorDictSequential(self.policy, transfer.mixer)
         self.step = UpdateStep(agent, loss_terms=transfer.loss_terms)
 
     def split(self, data: TensorDictBase) -> list[TensorDictBase]:

@@ -12,11 +12,12 @@ A transfer method groups if it declares a grouped form (``TransferMethod.grouped
 part does): ``none``, ``model-reuse`` (each seed's networks load its own ``transfer.source`` before the
 seeds are stacked; frozen parameters stay frozen in the stack), ``reward-shaping`` and
 ``value-shaping`` (seed k's env block shaped with seed k's own potential,
-:meth:`~drltg.transforms.PotentialShaping.seed_blocks`). Each seed's transfer is built as its run alone
-builds it, at the same point of its random stream. ``policy-reuse``, ``jumpstart`` and
-``demonstrations`` (a mixer in the collector's policy, a demonstration buffer) have none. The configs
-of a group may differ in ``transfer.source`` (an experiment's transfer run of seed s reads its own
-seed's source run).
+:meth:`~drltg.transforms.PotentialShaping.seed_blocks`), ``policy-reuse`` and ``jumpstart`` (seed k's
+mixer over its own source policy on seed k's envs, :class:`~drltg.seed_group.SeedBlocks`, drawing from
+seed k's stream). Each seed's transfer is built as its run alone builds it, at the same point of its
+random stream. ``demonstrations`` (a demonstration buffer mixed into every minibatch) has none. The
+configs of a group may differ in ``transfer.source`` (an experiment's transfer run of seed s reads its
+own seed's source run).
 
 What a seed shares with its run alone: its initial networks (built under ``torch.manual_seed(seed)`` as
 a run alone builds them), its env's starts and noise, training and evaluation (a random stream per seed,
@@ -46,6 +47,7 @@ from pathlib import Path
 
 import torch
 from tensordict import TensorDictBase
+from tensordict.nn import TensorDictSequential
 from torchrl.data import LazyTensorStorage, ReplayBuffer
 from torchrl.envs import BatchSizeTransform, EnvBase, ParallelEnv, RewardSum, TransformedEnv
 from torchrl.objectives import SACLoss
@@ -57,7 +59,7 @@ from drltg.errors import UsageError
 from drltg.learners import sample_batches
 from drltg.losses import SoftOptionCriticLoss
 from drltg.modules import make_option_policy
-from drltg.seed_group import GroupPolicy, SeedGroup, SeedLoopPolicy, SeedStreams
+from drltg.seed_group import GroupPolicy, SeedBlocks, SeedGroup, SeedLoopPolicy, SeedStreams
 from drltg.training import health, rundir
 from drltg.training.loop import (
     _check_saved_config,
@@ -140,7 +142,7 @@ class GroupLearner:
     """A :class:`SeedGroup` as the training loop's learner (see :class:`~drltg.training.loop.AgentLearner`):
     a replay buffer per seed, stacked batches, per-seed evaluation on a blocked env."""
 
-    def __init__(self, group: SeedGroup, buffers: list[ReplayBuffer], eval_env):
+    def __init__(self, group: SeedGroup, buffers: list[ReplayBuffer], eval_env, transfers: list[Transfer]):
         self.group, self.buffers, self.eval_env = group, buffers, eval_env
         self.seeds, self.actor_delay = group.seeds, group.actor_delay
         first = group.agents[0]
@@ -151,12 +153,17 @@ class GroupLearner:
             noise = None if first.policy is first.actor else first.policy[-1]
             self.policy = GroupPolicy(first.actor, actor_params, then=noise, streams=group.streams)
             self.actor = GroupPolicy(first.actor, actor_params, streams=group.streams)
+        if transfers[0].mixer is not None:  # seed k's mixer (policy reuse over its own source) on its envs
+            self.policy = TensorDictSequential(self.policy, SeedBlocks([t.mixer for t in transfers], group.streams))
+        self.on_frames = [t.on_frames for t in transfers if t.on_frames is not None]
         self.in_keys = list(group.loss.in_keys)
 
     def split(self, data: TensorDictBase) -> list[TensorDictBase]:
         return list(data.reshape(self.seeds, -1).unbind(0))
 
     def store(self, data: list[TensorDictBase], frames: int) -> None:
+        for tell in self.on_frames:
+            tell(frames)
         for buffer, piece in zip(self.buffers, data):
             buffer.extend(piece.select(*self.in_keys))
 
@@ -259,8 +266,8 @@ def _group_env(cfg: RunConfig, seeds: list[int], per_seed: int, seed_offset: int
 def _seed_block_transforms(name: str, transfers: list[Transfer]) -> list:
     """The group's training-env transforms: position by position, the seeds' own transforms joined by
     their ``seed_blocks`` (seed k's shapes block k). A grouped method sets nothing a group cannot give
-    each seed (its collector policy, schedules, minibatches, loss terms)."""
-    for field in ("policy", "on_frames", "batches", "loss_terms"):
+    each seed (a whole collector policy, minibatches, loss terms)."""
+    for field in ("policy", "batches", "loss_terms"):
         if getattr(transfers[0], field) is not None:
             raise UsageError(f"transfer method {name} is registered with grouped=True but sets the Transfer's "
                              f"{field}, which a seed group cannot give each seed; register it without grouped.")
@@ -351,7 +358,7 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
         owned.callback(train_env.close, raise_if_closed=False)  # worker processes, where the task has them
         eval_env = _group_env(cfg, seeds, cfg.eval.episodes, 10_000, transforms)
         owned.callback(eval_env.close, raise_if_closed=False)
-        learner = GroupLearner(group, buffers, eval_env)
+        learner = GroupLearner(group, buffers, eval_env, transfers)
 
         created = [not d.exists() for d in dirs]
         if resume:

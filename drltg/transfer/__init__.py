@@ -16,9 +16,9 @@ another network, model reuse).
 
 :mod:`drltg.transfer.registry` defines what a method is (:class:`TransferMethod`) and what it adds to a
 run (:class:`Transfer`); :mod:`drltg.transfer.source` reads ``transfer.source``. Importing this package
-registers the built-in methods (``a+b`` names a combination, :func:`combine`); ``none``, model reuse,
-reward shaping and value shaping train their seeds as one seed group (``TransferMethod.grouped``,
-:mod:`drltg.training.seeds`), the others one after another; the parts themselves
+registers the built-in methods (``a+b`` names a combination, :func:`combine`); all but demonstrations
+train their seeds as one seed group (``TransferMethod.grouped``, :mod:`drltg.training.seeds`),
+demonstrations one after another; the parts themselves
 (``drltg.transforms``, ``drltg.collectors``, ``drltg.losses``, ``drltg.modules``) register nothing.
 """
 from drltg.transfer.registry import METHODS, Transfer, TransferMethod, combine, get_method, register_method
