@@ -138,9 +138,8 @@ def seed_groups(runs: list[Run]) -> list[list[Run]]:
     transfer method train as a seed group in this process (:func:`~drltg.training.seeds.group_support`,
     :func:`~drltg.training.seeds.in_process`), and that are all new or all resumable, form one unit, which
     starts once every run its runs need is done (runs that need none are not held back by runs that do);
-    every other run is a unit of one. A group of
-    worker-process envs (robosuite) holds N runs' envs at once, and units run side by side here, so such
-    tasks group only when asked (``drltg train --seeds N``)."""
+    every other run is a unit of one. A group of worker-process envs (robosuite) holds N runs' envs at
+    once, and units run side by side here, so such tasks group only when asked (``drltg train --seeds N``)."""
     from drltg.training.seeds import group_support, in_process, same_but_seed
 
     units: list[list[Run]] = []

@@ -333,7 +333,6 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
             transfers.append(method.build(c, agent, probe, resuming=ckpt is not None))
             agents.append(agent)
             rng_states.append(torch.get_rng_state())
-        _seed_block_transforms(method.name, transfers)  # a misregistered method fails before anything is written
         torch.manual_seed(cfg.seed)
         buffers = [ReplayBuffer(storage=LazyTensorStorage(cfg.buffer.size, device=cfg.device),
                                 batch_size=cfg.buffer.batch_size) for _ in cfgs]
