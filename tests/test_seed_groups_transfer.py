@@ -252,3 +252,16 @@ def test_the_fourrooms_reference_sweeps_group_as_the_readme_says(spec, counts, t
     groups = [u for u in units if len(u) > 1]
     assert (len(runs), len(units), len(groups), sum(map(len, groups))) == counts
     assert all(len(u) == 5 for u in units)  # every run in a group of its 5 seeds
+
+
+def test_an_experiment_with_kept_per_seed_sources_groups_its_transfer_runs(tmp_path):
+    """``-o transfer.source=DIR/seed-{seed}``: each transfer run reads its own seed's kept run and needs no planned
+    run; its seeds still form one group."""
+    from drltg.experiments.experiment import as_runs, plan_runs
+
+    planned = plan_runs("fourrooms/northeast", "model-reuse", frames=64, out=tmp_path / "out", seeds=3,
+                        overrides=[f"transfer.source={tmp_path}/kept/seed-{{seed}}"])
+    units = seed_groups(as_runs(planned, tmp_path / "out"))
+    assert [[(r.role, r.cfg.seed, r.needs) for r in unit] for unit in units] == [
+        [("baseline", s, None) for s in (0, 100, 200)], [("transfer", s, None) for s in (0, 100, 200)]]
+    assert [r.cfg.transfer.source for r in units[1]] == [str(tmp_path / "kept" / f"seed-{s}") for s in (0, 100, 200)]
