@@ -353,3 +353,37 @@ def test_demonstrations_are_credited_to_the_option_the_learner_would_choose():
     batch = _demo_batch([[0.1, 0.2]] * 4000, extra=0)
     share = option_labels(loss, 4000)(batch)["option"].float().mean().item()
     assert abs(share - 0.75) < 0.03  # binomial sd 0.007
+
+
+def test_each_batch_credits_its_demonstrations_with_the_networks_of_its_own_update(source_run):
+    """The method's batches are drawn one at a time: a change of the critics between two updates
+    changes the second batch's options (egreedy with epsilon 0: the greedy option only)."""
+    from torchrl.envs import TransformedEnv
+
+    from drltg.modules import option_transforms
+    from drltg.transfer import get_method
+
+    cfg = config_lib.resolve({}, TINY + [f"transfer.source={source_run}", "transfer.method=demonstrations",
+                                         "transfer.demo_episodes=1", "soc.num_options=2",
+                                         "soc.option_policy=egreedy", "soc.option_epsilon=0"],
+                             task="fourrooms/northeast-shifted", algo="soc", seed=2)
+    env = TransformedEnv(make_env("fourrooms/northeast-shifted", batch_size=(4,), horizon=20))
+    for transform in option_transforms(2):  # the option the buffer's transitions carry, as in training
+        env.append_transform(transform)
+    agent = make_agent(env, cfg)
+    transfer = get_method("demonstrations").build(cfg, agent, env, resuming=False)
+    buffer = ReplayBuffer(storage=LazyTensorStorage(64), batch_size=32)
+    buffer.extend(env.rollout(8, break_when_any_done=False).reshape(-1).select(*agent.loss.in_keys))
+    *_, bias = agent.loss.qvalue_network_params.values(True, True)  # the critics' last bias, [2 copies, K]
+
+    def prefer(option):
+        bias.data.fill_(-100.0)
+        bias.data[:, option] = 100.0
+
+    k = round(cfg.transfer.demo_ratio * 32)
+    batches = transfer.batches(buffer, 2)
+    prefer(1)
+    first = next(batches)
+    prefer(0)
+    second = next(batches)
+    assert first["option"][:k].eq(1).all() and second["option"][:k].eq(0).all()
