@@ -342,6 +342,10 @@ def test_two_options_clone_by_hand():
     assert filtered["loss_actor_bc"].item() == pytest.approx(2.0 * kept, rel=1e-5)
     assert filtered["bc_accepted"].item() == pytest.approx(accepted, rel=1e-5)
     assert out["bc_accepted"].item() == pytest.approx(1.0)
+    labelled = option_labels(loss, len(actions))(batch.clone())  # pi_Omega left in the batch is the same
+    torch.testing.assert_close(labelled["option_probs"], torch.tensor([probs] * len(actions) + [[0.0, 0.0]] * 2))
+    assert behaviour_cloning(loss, len(actions), 2.0, q_filter=True)(labelled)["loss_actor_bc"].item() == \
+        pytest.approx(2.0 * kept, rel=1e-5)
 
 
 def test_demonstrations_are_credited_to_the_option_the_learner_would_choose():

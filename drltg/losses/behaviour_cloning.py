@@ -27,7 +27,11 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.envs import ExplorationType, set_exploration_type
 
-__all__ = ["behaviour_cloning", "option_labels"]
+__all__ = ["behaviour_cloning", "option_labels", "OPTION_PROBS"]
+
+OPTION_PROBS = "option_probs"
+"""Where :func:`option_labels` leaves ``pi_Omega(.|s)`` of the demonstrations it labelled (``[B, K]``, zero
+past them), for :func:`behaviour_cloning` in the same update to reuse instead of computing again."""
 
 
 def _min_q(loss, td: TensorDictBase) -> torch.Tensor:
@@ -55,17 +59,20 @@ def option_labels(loss, count: int) -> Callable[[TensorDictBase], TensorDictBase
     """``label(batch)`` writes into the first ``count`` rows of ``batch`` (the demonstrations, as
     :func:`drltg.collectors.mixed_batches` lays them out) an option drawn from the policy over options of
     the :class:`~drltg.losses.SoftOptionCriticLoss` ``loss`` at their state, ``o ~ pi_Omega(.|s)`` (see the
-    module docstring), and returns the batch; with one option, 0 (no random draw). Call it just before the
-    batch's update, so that the draw uses the networks that update trains."""
+    module docstring), and ``pi_Omega(.|s)`` itself into ``OPTION_PROBS``, and returns the batch; with one
+    option, 0 (no random draw). Call it just before the batch's update, so that the draw uses the networks
+    that update trains."""
     key = loss.tensor_keys.option
 
     def label(batch: TensorDictBase) -> TensorDictBase:
-        demo = batch[:count]
-        probs = _option_probs(loss, demo)
+        probs = _option_probs(loss, batch[:count])
         option = torch.zeros(count, 1, dtype=torch.int64, device=probs.device)
         if probs.shape[-1] > 1:
             option = torch.multinomial(probs, 1)
         batch.get(key)[:count] = option
+        full = probs.new_zeros(*batch.batch_size, probs.shape[-1])
+        full[:count] = probs
+        batch.set(OPTION_PROBS, full)
         return batch
 
     return label
@@ -85,7 +92,8 @@ def behaviour_cloning(loss, count: int, weight: float | Callable[[], float], *, 
     (SAC, TD3) the sum has the one term ``pi = 1``: ``w * mean_i ||mu(s_i) - a_i||^2 * 1[...]``, so one
     option is exactly SAC's term. The Q filter clones a demonstrated action only while the critic rates it
     above the actor's own, so the term fades where the learner has become better than its demonstrator.
-    ``weight`` may be a function read at every step (an annealed weight). Returns ``loss_terms(batch)``
+    ``weight`` may be a function read at every step (an annealed weight); ``pi_Omega`` is read from the
+    batch's ``OPTION_PROBS`` where :func:`option_labels` left it. Returns ``loss_terms(batch)``
     for :class:`~drltg.learners.UpdateStep`,
     with ``bc_accepted``, the (``pi_Omega``-weighted) share of demonstrations kept."""
     actor, actor_params = loss.actor_network, loss.actor_network_params
@@ -103,7 +111,7 @@ def behaviour_cloning(loss, count: int, weight: float | Callable[[], float], *, 
 
     def loss_terms(batch: TensorDictBase) -> dict[str, torch.Tensor]:
         demo = batch[:count]
-        probs = _option_probs(loss, demo)
+        probs = demo.get(OPTION_PROBS) if OPTION_PROBS in demo.keys() else _option_probs(loss, demo)
         pair = per_option(demo)
         with set_exploration_type(ExplorationType.DETERMINISTIC), actor_params.to_module(actor):
             action = actor(pair.exclude("action"))["action"]
