@@ -627,8 +627,9 @@ def manipulation_cost() -> str:
             f"({WORKERS} × rate)), at {fps:.1f} frames/s per run: the median of the {n} runs of "
             f"`results/{RATE_RUNS.name}/` (Lift+Place, run two at a time on this machine's 2 cores beside other work, "
             "evaluated every 2.5k frames on 10 episodes; the rows evaluate every 5k). The soft option-critic's rate on "
-            "these tasks is "
-            f"not measured at this scale and is taken as the same. All steps in the queue: about {total:.0f} h.\n")
+            "these tasks is not measured at this scale and is taken as the same, a lower bound on its time: its update "
+            "evaluates K option copies of every next state, and with demonstrations the policy over options at each "
+            f"demonstrated state. All steps in the queue: about {total:.0f} h.\n")
 
 
 SOURCE_THRESHOLD = 0.8
