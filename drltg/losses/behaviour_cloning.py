@@ -93,9 +93,9 @@ def behaviour_cloning(loss, count: int, weight: float | Callable[[], float], *, 
     option is exactly SAC's term. The Q filter clones a demonstrated action only while the critic rates it
     above the actor's own, so the term fades where the learner has become better than its demonstrator.
     ``weight`` may be a function read at every step (an annealed weight); ``pi_Omega`` is read from the
-    batch's ``OPTION_PROBS`` where :func:`option_labels` left it. Returns ``loss_terms(batch)``
-    for :class:`~drltg.learners.UpdateStep`,
-    with ``bc_accepted``, the (``pi_Omega``-weighted) share of demonstrations kept."""
+    batch's ``OPTION_PROBS`` where :func:`option_labels` left it. Returns ``loss_terms(batch)`` for
+    :class:`~drltg.learners.UpdateStep`, with ``bc_accepted``, the (``pi_Omega``-weighted) share of
+    demonstrations kept."""
     actor, actor_params = loss.actor_network, loss.actor_network_params
     num_options = _num_options(loss)
     option_key = loss.tensor_keys.option if num_options > 1 else None
