@@ -16,7 +16,7 @@ from drltg.experiments.sweep import load_spec, plan
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPTS = ROOT / "results" / "manipulation"
 SPECS = ROOT / "examples" / "sweeps" / "manipulation-rows"
-ROWS = sorted(p.stem for p in SCRIPTS.glob("*.sh") if p.stem not in ("row", "queue"))
+ROWS = sorted(p.stem for p in SCRIPTS.glob("*.sh") if p.stem not in ("row", "queue", "earlier"))
 SOURCED = re.compile(r"runs/manipulation/sources/([\w-]+)/seed-\{seed\}")
 
 
