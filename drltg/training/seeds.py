@@ -294,8 +294,9 @@ def group_train_env(cfgs: list[RunConfig], transforms, transfers: list[Transfer]
 
 
 def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False, progress: bool = True) -> list[Path]:
-    """Train ``cfgs`` (configs equal but for their seeds, :func:`group_support` true) as one seed group
-    into ``dirs``, one run directory each; ``resume`` continues them from their checkpoints."""
+    """Train ``cfgs`` (configs equal but for their seeds and sources, :func:`same_but_seed`;
+    :func:`group_support` true) as one seed group into ``dirs``, one run directory each; ``resume``
+    continues them from their checkpoints."""
     cfg, count = cfgs[0], len(cfgs)
     with contextlib.ExitStack() as owned:
         if resume:
