@@ -27,3 +27,12 @@ def test_the_demo_reuses_one_source_over_paired_seeds(tmp_path):
         assert t.transfer.method == "model-reuse" and Path(t.transfer.source) == source_dir
     assert len({b.seed for _, b, _ in pairs}) == d["seeds"]
     assert source_cfg.seed not in {b.seed for _, b, _ in pairs}  # the source shares no seed with a target run
+
+
+def test_the_demo_trains_its_baselines_and_its_transfer_runs_as_two_seed_groups(tmp_path):
+    from drltg.experiments.executor import seed_groups
+    from drltg.experiments.experiment import as_runs
+
+    units = seed_groups(as_runs(demo.plan(tmp_path), tmp_path))
+    assert [[r.role for r in unit] for unit in units] == [["source"], ["baseline"] * demo.DEMO["seeds"],
+                                                          ["transfer"] * demo.DEMO["seeds"]]

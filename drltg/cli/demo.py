@@ -4,7 +4,8 @@ SAC learns the source task (goal in the north-east room) once; then the target t
 unit) is learnt from scratch and from that source's weights (model reuse), on paired seeds: baseline and
 transfer run i share seed and initial weights. One source run serves every pair, so the experiment's
 spread is that of target training, the demo's question being "does reusing *this* source help?"; a
-study of sources as well trains one per seed (`drltg experiment`). The last line is the headline from
+study of sources as well trains one per seed (`drltg experiment`). The baselines train as one seed
+group and the transfer runs as another (:mod:`drltg.training.seeds`). The last line is the headline from
 :mod:`drltg.analysis.claims`: the mean return gain with its interval and verdict. Running it again
 reuses the finished runs.
 """
@@ -73,9 +74,7 @@ def run(args: argparse.Namespace) -> int:
         rundir.atomic_write(saved, yaml.safe_dump(d, sort_keys=False))
         backend = LocalBackend(args.workers)
         try:
-            # run by run, as its committed results were trained: a seed group's batched products round
-            # differently, and its curves drift from the runs alone over the demo's thousands of updates
-            status = execute(as_runs(runs, out), backend, desc="demo", group_seeds=False)
+            status = execute(as_runs(runs, out), backend, desc="demo")
         finally:
             backend.close()
         failures = [f"{path}: {detail}" for path, (state, detail) in status.items() if state == "failed"]
