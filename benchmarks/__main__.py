@@ -7,8 +7,9 @@ Suites: ``env`` (FourRooms vs a NumPy reference), ``robosuite`` (wrapper overhea
 ``drltg train`` runs), ``memory`` (1e6-transition replay buffer), ``gymnasium`` (FourRooms through
 ``gymnasium.make_vec`` against copies and the torch env); all six by default. ``lift``
 (``drltg train lift`` against Stable-Baselines3 SAC on robosuite's Lift, several minutes) and ``demo``
-(``drltg demo``, several minutes) and ``seeds`` (N seeds in one process against N runs one after
-another, many minutes) run only when named.
+(``drltg demo``, several minutes), ``seeds`` (N seeds in one process against N runs one after
+another, many minutes) and ``sweep`` (a FourRooms sweep with seed groups against every run alone, about
+15 minutes on 2 cores) run only when named.
 """
 from __future__ import annotations
 
@@ -28,7 +29,7 @@ import torch
 from benchmarks.common import REPO, machine, versions
 
 DEFAULT = ("env", "robosuite", "sac", "train", "memory", "gymnasium")
-NAMED_ONLY = ("lift", "demo", "seeds")
+NAMED_ONLY = ("lift", "demo", "seeds", "sweep")
 
 
 def _suite(name: str):
@@ -48,6 +49,8 @@ def _suite(name: str):
         from benchmarks.lift_e2e import run
     elif name == "seeds":
         from benchmarks.seeds import run
+    elif name == "sweep":
+        from benchmarks.sweep import run
     else:
         run = _demo
     return run
@@ -114,6 +117,10 @@ def summarize(suites: dict, device: str) -> dict:
         if target is not None:
             entry |= {"target": f">= {target}", "met": _met(r["wall"], target)}
         out[f"seeds: lift-sized update {key} (wall clock)"] = entry
+    sweep = suites.get("sweep")
+    if sweep:
+        for clock in ("wall", "cpu"):
+            out[f"sweep: every run alone / seed groups ({clock})"] = {"value": sweep[f"ratio_{clock}"]}
     mem = suites.get("memory", {}).get("loss_keys")
     if mem:
         out["memory: replay RSS growth / raw bytes"] = {
@@ -125,7 +132,7 @@ def summarize(suites: dict, device: str) -> dict:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.split("\n\n")[0])
     parser.add_argument("suites", nargs="*", metavar="suite",
-                        help=f"any of {', '.join(DEFAULT + NAMED_ONLY)} (default: all but lift and demo)")
+                        help=f"any of {', '.join(DEFAULT + NAMED_ONLY)} (default: all but {', '.join(NAMED_ONLY)})")
     parser.add_argument("--device", default="cpu", help="cpu or cuda (default cpu)")
     parser.add_argument("--quick", action="store_true", help="a smoke run of about a minute")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1, as drltg train)")
