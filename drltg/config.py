@@ -173,7 +173,7 @@ class TransferConfig(Section):
                                   json_schema_extra=_what("a source run directory, demonstrator:TASK"))
     allow_incomplete: Bool = Field(False, description="reuse a source run that did not finish (no summary.json)")
     source_checkpoint: Literal["last", "best"] = Field(
-        "last", description="the source run's checkpoint reused: last (last.pt) or best (best.pt, checkpoint.keep_best)")
+        "last", description="the source run's checkpoint reused: last.pt, or best.pt (kept with checkpoint.keep_best)")
 
     @field_validator("method")
     @classmethod

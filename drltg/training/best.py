@@ -86,5 +86,6 @@ def check_resume(cfg: RunConfig, run_dir: Path, ckpt: dict | None, rows: list[di
     name = metric(cfg, rows[-1])
     raise UsageError(
         f"cannot resume '{run_dir}': its {BEST.as_posix()} {held}, not that of its best evaluation (frame "
-        f"{best['frames']}, {name} {score(cfg, best, name):g}); restore it, or start the run again in another --run-dir."
+        f"{best['frames']}, {name} {score(cfg, best, name):g}); restore it, or start the run again in another "
+        "--run-dir."
     )

@@ -1,9 +1,10 @@
 """Where transferred knowledge comes from: ``transfer.source``, a source run or a scripted demonstrator.
 
 ``transfer.source`` is a drltg run directory (its ``config.yaml`` and ``checkpoints/last.pt``, or
-``checkpoints/best.pt`` with ``transfer.source_checkpoint=best``), or for methods that reuse a policy on the manipulation tasks ``demonstrator:TASK``, the scripted policy of
-``TASK`` (:func:`drltg.envs.robosuite.demonstrator_for`) acting as the past policy. :func:`check` runs
-before anything is trained or written; :func:`source_actor` rebuilds the past policy. In user code,
+``checkpoints/best.pt`` with ``transfer.source_checkpoint=best``), or for methods that reuse a policy on
+the manipulation tasks ``demonstrator:TASK``, the scripted policy of ``TASK``
+(:func:`drltg.envs.robosuite.demonstrator_for`) acting as the past policy. :func:`check` runs before
+anything is trained or written; :func:`source_actor` rebuilds the past policy. In user code,
 :func:`load_actor`, :func:`load_critic` and :func:`load_agent` rebuild a run's actor, value or whole
 learner from its run directory in one call (``checkpoint="best"``: from its best evaluated checkpoint).
 """
