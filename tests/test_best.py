@@ -1,0 +1,309 @@
+"""checkpoint.keep_best (checkpoints/best.pt), `drltg evaluate` and transfer.source_checkpoint.
+
+The evaluations are scripted (``AgentLearner.evaluate`` returns chosen scores by frame), so the frame
+best.pt must come from is known; the weights at each evaluation are recorded to compare with it.
+"""
+import json
+import math
+
+import pytest
+import torch
+import yaml
+
+import drltg.training.loop as loop
+from drltg import config as config_lib
+from drltg.cli import main
+from drltg.errors import UsageError
+from drltg.training import rundir
+from drltg.training.loop import read_eval_csv, train
+
+TINY = [
+    "network.hidden=[16,16]",
+    "collector.num_envs=4",
+    "collector.frames_per_batch=16",
+    "collector.init_random_frames=256",
+    "optim.updates_per_batch=1",
+    "buffer.batch_size=32",
+    "eval.every=512",
+    "eval.episodes=4",
+    "checkpoint.every=1024",
+    "log.every=256",
+    "log.tensorboard=false",
+]
+
+
+def keep_best_cfg(*overrides, frames=2048):
+    return config_lib.resolve({}, [*TINY, "checkpoint.keep_best=true", *overrides], task="fourrooms/northeast",
+                              frames=frames, seed=3)
+
+
+def rows(success=None, returns=None):
+    """Evaluation results by frame: success rates (return 0) or returns (no success reported), or both."""
+    frames = list(success or returns)
+    return {f: {"return_mean": (returns or {}).get(f, 0.0), "return_std": 0.0, "episodes": 4,
+                **({"success_rate": success[f]} if success else {})} for f in frames}
+
+
+def script(monkeypatch, results: dict, *, stop_at=None):
+    """Make every evaluation return ``results[frames]`` and record the learner's weights at each; raise
+    KeyboardInterrupt at the evaluation of frame ``stop_at``."""
+    weights = {}
+
+    def evaluate(self):
+        frames = len(self.buffer)  # every collected frame is stored (buffer.size is larger than the run)
+        if frames == stop_at:
+            raise KeyboardInterrupt
+        weights[frames] = {k: v.detach().clone() for k, v in self.agent.loss.state_dict().items()}
+        return [dict(results[frames])]
+
+    monkeypatch.setattr(loop.AgentLearner, "evaluate", evaluate)
+    return weights
+
+
+def record_saves(monkeypatch):
+    """``[(file name, frames)]`` of every checkpoint written, in order."""
+    saves, real = [], rundir.atomic_torch_save
+
+    def save(obj, path):
+        saves.append((path.name, obj["frames"]))
+        return real(obj, path)
+
+    monkeypatch.setattr(rundir, "atomic_torch_save", save)
+    return saves
+
+
+def load(run, name="best"):
+    return torch.load(run / "checkpoints" / f"{name}.pt", weights_only=False)
+
+
+def same(a: dict, b: dict) -> bool:
+    return a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+
+
+# ------------------------------------------------------------------------------------------ keep_best
+SUCCESS = {0: 0.0, 512: 0.5, 1024: 0.25, 1536: 0.5, 2048: 0.25}
+RETURNS = {0: -1.0, 512: -0.5, 1024: 0.0, 1536: -0.2, 2048: 0.0}
+
+
+@pytest.mark.parametrize("results, overrides, metric, best", [
+    # success rates: 512 beats 0; 1536 ties 512, and a tie keeps the earlier
+    (rows(success=SUCCESS), [], "success_rate", [0, 512]),
+    # a task that reports no success: return_mean (1024 beats -0.5; 2048 ties it)
+    (rows(returns=RETURNS), [], "return_mean", [0, 512, 1024]),
+    # both reported: auto ranks the success rates, checkpoint.best_metric=return_mean the returns
+    (rows(SUCCESS, RETURNS), [], "success_rate", [0, 512]),
+    (rows(SUCCESS, RETURNS), ["checkpoint.best_metric=return_mean"], "return_mean", [0, 512, 1024]),
+])
+def test_best_pt_is_the_checkpoint_of_the_first_highest_evaluation(tmp_path, monkeypatch, results, overrides, metric,
+                                                                   best):
+    weights = script(monkeypatch, results)
+    saves = record_saves(monkeypatch)
+    run = train(keep_best_cfg(*overrides), tmp_path / "run", progress=False)
+    assert [f for name, f in saves if name == "best.pt"] == best
+    assert ("last.pt", 0) not in saves  # nothing trained yet: best.pt alone
+    for frames in best[1:]:  # last.pt first, then the same state as best.pt
+        assert saves.index(("last.pt", frames)) + 1 == saves.index(("best.pt", frames))
+    saved = load(run)
+    assert saved["frames"] == best[-1] and saved["evaluations"] == [f for f in results if f <= best[-1]]
+    assert same(saved["loss"], weights[best[-1]])
+    assert not same(saved["loss"], load(run, "last")["loss"])  # trained on after it
+    assert set(saved) == set(load(run, "last"))  # the same content as last.pt
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["best"] == {"checkpoint": "checkpoints/best.pt", "frames": best[-1], "metric": metric,
+                               "score": results[best[-1]][metric]}
+    rundir.manifest.verify(run, "checkpoints/best.pt")
+
+
+def test_without_keep_best_there_is_no_best_pt(tmp_path, monkeypatch):
+    script(monkeypatch, rows({0: 0.0, 512: 0.5, 1024: 0.25}))
+    run = train(keep_best_cfg("checkpoint.keep_best=false", frames=1024), tmp_path / "run", progress=False)
+    assert not (run / "checkpoints" / "best.pt").exists()
+    assert "best" not in json.loads((run / "summary.json").read_text())
+
+
+def test_a_resumed_run_knows_the_best_score_so_far(tmp_path, monkeypatch):
+    script(monkeypatch, rows(SUCCESS), stop_at=1536)  # stopped after the checkpoint at 1024
+    with pytest.raises(KeyboardInterrupt):
+        train(keep_best_cfg(), tmp_path / "run", progress=False)
+    before = load(tmp_path / "run")
+    assert before["frames"] == 512
+    script(monkeypatch, rows(SUCCESS))
+    saves = record_saves(monkeypatch)
+    run = train(keep_best_cfg(), tmp_path / "run", resume=True, progress=False)
+    assert [f for name, f in saves if name == "best.pt"] == []  # 0.5 at 1536 ties the 0.5 at 512 before the stop
+    assert same(load(run)["loss"], before["loss"])
+    assert json.loads((run / "summary.json").read_text())["best"]["frames"] == 512
+    assert [r["frames"] for r in read_eval_csv(run / "eval.csv")] == [0, 512, 1024, 1536, 2048]
+
+
+def test_a_stop_between_last_pt_and_best_pt_is_repaired_on_resume(tmp_path, monkeypatch):
+    weights = script(monkeypatch, rows({0: 0.0, 512: 0.25, 1024: 0.5, 1536: 0.5, 2048: 0.0}))
+    real = rundir.atomic_torch_save
+
+    def stop_before_best(obj, path):
+        if path.name == "best.pt" and obj["frames"] == 1024:
+            raise KeyboardInterrupt
+        return real(obj, path)
+
+    monkeypatch.setattr(rundir, "atomic_torch_save", stop_before_best)
+    with pytest.raises(KeyboardInterrupt):
+        train(keep_best_cfg(), tmp_path / "run", progress=False)
+    assert load(tmp_path / "run")["frames"] == 512 and load(tmp_path / "run", "last")["frames"] == 1024
+    monkeypatch.setattr(rundir, "atomic_torch_save", real)
+    run = train(keep_best_cfg(), tmp_path / "run", resume=True, progress=False)
+    assert load(run)["frames"] == 1024 and same(load(run)["loss"], weights[1024])
+    rundir.manifest.verify(run, "checkpoints/best.pt")
+
+
+def test_a_resume_without_the_best_pt_is_refused_in_one_sentence(tmp_path, monkeypatch, capsys):
+    script(monkeypatch, rows(SUCCESS), stop_at=1536)
+    with pytest.raises(KeyboardInterrupt):
+        train(keep_best_cfg(), tmp_path / "run", progress=False)
+    (tmp_path / "run" / "checkpoints" / "best.pt").unlink()
+    assert main(["train", "--resume", "--run-dir", str(tmp_path / "run"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert "checkpoints/best.pt is missing, not that of its best evaluation (frame 512, success_rate 0.5)" in err
+
+
+def test_a_best_metric_the_task_does_not_report_is_refused_before_the_run(tmp_path):
+    with pytest.raises(UsageError, match="checkpoint.best_metric=lifted_rate, but task 'fourrooms/northeast' reports "
+                                         "no 'lifted'"):
+        train(keep_best_cfg("checkpoint.best_metric=lifted_rate"), tmp_path / "run", progress=False)
+    assert not (tmp_path / "run").exists()
+
+
+# ------------------------------------------------------------------------------------------ evaluate
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """A real tiny run with keep_best."""
+    return train(keep_best_cfg(frames=1536), tmp_path_factory.mktemp("runs") / "run", progress=False)
+
+
+def test_evaluate_reports_the_training_evaluation_of_fresh_episodes(trained, tmp_path, capsys):
+    from torchrl.envs import TransformedEnv
+
+    from drltg.envs import make_env
+    from drltg.transfer import load_actor
+
+    out = tmp_path / "e.json"
+    assert main(["evaluate", str(trained), "--checkpoint", "best", "--episodes", "7", "--out", str(out)]) == 0
+    assert len(capsys.readouterr().out.strip().splitlines()) == 1
+    result = json.loads(out.read_text())
+    cfg = yaml.safe_load((trained / "config.yaml").read_text())
+    assert result["seed"] == 3 + 30_000  # the training evaluations' env is seeded 3 + 10_000
+    env = TransformedEnv(make_env("fourrooms/northeast", batch_size=(7,), seed=3 + 30_000, **cfg["env"]))
+    direct = loop.evaluate(env, load_actor(trained, checkpoint="best"))
+    assert {k: result[k] for k in direct if k != "episodes"} == {k: v for k, v in direct.items() if k != "episodes"}
+    assert result["episodes"] == 7 and result["checkpoint"] == "best"
+    assert result["frames"] == json.loads((trained / "summary.json").read_text())["best"]["frames"]
+    k = round(result["success_rate"] * 7)
+    from scipy import stats
+    assert result["success_rate_ci95"] == pytest.approx([stats.beta.ppf(0.025, k, 8 - k) if k else 0.0,
+                                                         stats.beta.ppf(0.975, k + 1, 7 - k) if k < 7 else 1.0])
+
+
+def test_evaluate_with_a_seed_writes_its_default_file(trained, capsys):
+    assert main(["evaluate", str(trained), "--episodes", "2", "--seed", "11"]) == 0
+    result = json.loads((trained / "evaluate-last-seed11-2ep.json").read_text())
+    assert result["seed"] == 11 and result["checkpoint"] == "last" and result["frames"] == 1536
+
+
+@pytest.mark.parametrize("k, n, expected", [
+    (10, 10, (0.025 ** (1 / 10), 1.0)),  # Clopper-Pearson at k = n: [(alpha/2)^(1/n), 1]
+    (0, 10, (0.0, 1 - 0.025 ** (1 / 10))),
+    (7, 10, None),  # [B(0.025; 7, 4), B(0.975; 8, 3)]
+])
+def test_the_rate_interval_is_clopper_pearson(k, n, expected):
+    from scipy import stats
+
+    from drltg.training.reevaluate import rate_interval
+
+    if expected is None:
+        expected = (stats.beta.ppf(0.025, k, n - k + 1), stats.beta.ppf(0.975, k + 1, n - k))
+    assert rate_interval(k, n) == pytest.approx(expected, abs=1e-12)
+    assert math.isclose(rate_interval(7, 10)[0], 0.3475471499, rel_tol=1e-8)  # R: binom.test(7, 10)$conf.int
+
+
+@pytest.mark.parametrize("args, message", [
+    (["evaluate", "{tmp}/missing"], "run directory '{tmp}/missing' does not exist."),
+    (["evaluate", "{tmp}", "--checkpoint", "best"], "holds no checkpoints/best.pt: only a run trained with"),
+    (["evaluate", "{run}", "--episodes", "0"], "--episodes must be at least 1, got 0."),
+    (["evaluate", "{run}", "--checkpoint", "first"], "invalid choice: 'first'"),
+])
+def test_evaluate_bad_input_is_one_sentence_and_exit_2(trained, tmp_path, capsys, args, message):
+    (tmp_path / "config.yaml").write_text(yaml.safe_dump(config_lib.defaults()))
+    args = [a.format(tmp=tmp_path, run=trained) for a in args]
+    try:
+        code = main(args)
+    except SystemExit as stop:  # argparse's own refusal
+        code = stop.code
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and message.format(tmp=tmp_path) in err, err
+
+
+# ------------------------------------------------------------------------------------------ a source's checkpoint
+@pytest.fixture(scope="module")
+def source(tmp_path_factory):
+    """A finished run whose best.pt (frame 512) is not its last.pt."""
+    with pytest.MonkeyPatch.context() as mp:
+        script(mp, rows({0: 0.0, 512: 0.5, 1024: 0.25}))
+        return train(keep_best_cfg(frames=1024), tmp_path_factory.mktemp("src") / "run", progress=False)
+
+
+def part(weights: dict, prefix: str) -> dict:
+    return {k.removeprefix(prefix): v for k, v in weights.items() if k.startswith(prefix)}
+
+
+def test_every_loader_reads_the_named_checkpoint(source):
+    from drltg.envs import make_env
+    from drltg.learners import make_agent
+    from drltg.transfer import load_actor, load_agent, load_critic, load_from_run
+
+    best, last = load(source)["loss"], load(source, "last")["loss"]
+    assert not same(best, last)
+    for name, weights in (("best", best), ("last", last)):
+        assert same(load_agent(source, checkpoint=name).loss.state_dict(), weights)
+        assert same(load_actor(source, checkpoint=name).state_dict(), part(weights, "actor_network_params."))
+        critic = load_critic(source, checkpoint=name).critic_params.flatten_keys(".")
+        assert same(dict(critic.items()), part(weights, "qvalue_network_params."))
+        cfg = config_lib.build(yaml.safe_load((source / "config.yaml").read_text()))
+        agent = make_agent(make_env(cfg.task, **cfg.env), cfg)
+        load_from_run(agent.loss, source, checkpoint=name)
+        assert same(agent.loss.state_dict(), weights)
+
+
+@pytest.mark.parametrize("method", ["model-reuse", "policy-reuse", "value-shaping"])
+def test_transfer_source_checkpoint_best_is_what_the_methods_reuse(source, tmp_path, method):
+    import drltg.transfer  # noqa: F401
+    from drltg.transfer import source as source_mod
+
+    cfg = config_lib.resolve({}, [*TINY, f"transfer.method={method}", f"transfer.source={source}",
+                                  "transfer.source_checkpoint=best"], task="fourrooms/northeast", frames=32, seed=3)
+    source_mod.check(cfg)
+    assert same(source_mod.source_agent(cfg).loss.state_dict(), load(source)["loss"])
+    if method == "model-reuse":
+        probe, agent = loop.check_config(cfg)
+        drltg.transfer.get_method(method).build(cfg, agent, probe, resuming=False)
+        assert same(agent.loss.state_dict(), load(source)["loss"])
+
+
+def test_a_source_without_best_pt_is_one_sentence(trained, tmp_path, capsys):
+    import shutil
+
+    import drltg.transfer  # noqa: F401
+    from drltg.transfer import source as source_mod
+
+    src = shutil.copytree(trained, tmp_path / "src")
+    (src / "checkpoints" / "best.pt").unlink()
+    assert main(["train", "fourrooms/northeast", "--run-dir", str(tmp_path / "t"), "-o", "transfer.method=model-reuse",
+                 "-o", f"transfer.source={src}", "-o", "transfer.source_checkpoint=best"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert f"transfer.source_checkpoint=best: '{src}' holds no checkpoints/best.pt" in err
+    assert not (tmp_path / "t").exists()
+    cfg = config_lib.resolve({}, ["transfer.method=policy-reuse", "transfer.source=demonstrator:lift",
+                                  "transfer.source_checkpoint=best"], task="fourrooms/northeast")
+    with pytest.raises(UsageError, match="demonstrator:lift is a scripted policy and has none"):
+        source_mod.check(cfg)
