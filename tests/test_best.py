@@ -21,18 +21,18 @@ TINY = [
     "network.hidden=[16,16]",
     "collector.num_envs=4",
     "collector.frames_per_batch=16",
-    "collector.init_random_frames=256",
+    "collector.init_random_frames=128",
     "optim.updates_per_batch=1",
     "buffer.batch_size=32",
-    "eval.every=512",
+    "eval.every=256",
     "eval.episodes=4",
-    "checkpoint.every=1024",
-    "log.every=256",
+    "checkpoint.every=512",
+    "log.every=128",
     "log.tensorboard=false",
 ]
 
 
-def keep_best_cfg(*overrides, frames=2048):
+def keep_best_cfg(*overrides, frames=1024):
     return config_lib.resolve({}, [*TINY, "checkpoint.keep_best=true", *overrides], task="fourrooms/northeast",
                               frames=frames, seed=3)
 
@@ -81,18 +81,18 @@ def same(a: dict, b: dict) -> bool:
 
 
 # ------------------------------------------------------------------------------------------ keep_best
-SUCCESS = {0: 0.0, 512: 0.5, 1024: 0.25, 1536: 0.5, 2048: 0.25}
-RETURNS = {0: -1.0, 512: -0.5, 1024: 0.0, 1536: -0.2, 2048: 0.0}
+SUCCESS = {0: 0.0, 256: 0.5, 512: 0.25, 768: 0.5, 1024: 0.25}
+RETURNS = {0: -1.0, 256: -0.5, 512: 0.0, 768: -0.2, 1024: 0.0}
 
 
 @pytest.mark.parametrize("results, overrides, metric, best", [
-    # success rates: 512 beats 0; 1536 ties 512, and a tie keeps the earlier
-    (rows(success=SUCCESS), [], "success_rate", [0, 512]),
-    # a task that reports no success: return_mean (1024 beats -0.5; 2048 ties it)
-    (rows(returns=RETURNS), [], "return_mean", [0, 512, 1024]),
+    # success rates: 256 beats 0; 768 ties 256, and a tie keeps the earlier
+    (rows(success=SUCCESS), [], "success_rate", [0, 256]),
+    # a task that reports no success: return_mean (512 beats -0.5; 1024 ties it)
+    (rows(returns=RETURNS), [], "return_mean", [0, 256, 512]),
     # both reported: auto ranks the success rates, checkpoint.best_metric=return_mean the returns
-    (rows(SUCCESS, RETURNS), [], "success_rate", [0, 512]),
-    (rows(SUCCESS, RETURNS), ["checkpoint.best_metric=return_mean"], "return_mean", [0, 512, 1024]),
+    (rows(SUCCESS, RETURNS), [], "success_rate", [0, 256]),
+    (rows(SUCCESS, RETURNS), ["checkpoint.best_metric=return_mean"], "return_mean", [0, 256, 512]),
 ])
 def test_best_pt_is_the_checkpoint_of_the_first_highest_evaluation(tmp_path, monkeypatch, results, overrides, metric,
                                                                    best):
@@ -115,55 +115,55 @@ def test_best_pt_is_the_checkpoint_of_the_first_highest_evaluation(tmp_path, mon
 
 
 def test_without_keep_best_there_is_no_best_pt(tmp_path, monkeypatch):
-    script(monkeypatch, rows({0: 0.0, 512: 0.5, 1024: 0.25}))
-    run = train(keep_best_cfg("checkpoint.keep_best=false", frames=1024), tmp_path / "run", progress=False)
+    script(monkeypatch, rows({0: 0.0, 256: 0.5, 512: 0.25}))
+    run = train(keep_best_cfg("checkpoint.keep_best=false", frames=512), tmp_path / "run", progress=False)
     assert not (run / "checkpoints" / "best.pt").exists()
     assert "best" not in json.loads((run / "summary.json").read_text())
 
 
 def test_a_resumed_run_knows_the_best_score_so_far(tmp_path, monkeypatch):
-    script(monkeypatch, rows(SUCCESS), stop_at=1536)  # stopped after the checkpoint at 1024
+    script(monkeypatch, rows(SUCCESS), stop_at=768)  # stopped after the checkpoint at 512
     with pytest.raises(KeyboardInterrupt):
         train(keep_best_cfg(), tmp_path / "run", progress=False)
     before = load(tmp_path / "run")
-    assert before["frames"] == 512
+    assert before["frames"] == 256
     script(monkeypatch, rows(SUCCESS))
     saves = record_saves(monkeypatch)
     run = train(keep_best_cfg(), tmp_path / "run", resume=True, progress=False)
-    assert [f for name, f in saves if name == "best.pt"] == []  # 0.5 at 1536 ties the 0.5 at 512 before the stop
+    assert [f for name, f in saves if name == "best.pt"] == []  # 0.5 at 768 ties the 0.5 at 256 before the stop
     assert same(load(run)["loss"], before["loss"])
-    assert json.loads((run / "summary.json").read_text())["best"]["frames"] == 512
-    assert [r["frames"] for r in read_eval_csv(run / "eval.csv")] == [0, 512, 1024, 1536, 2048]
+    assert json.loads((run / "summary.json").read_text())["best"]["frames"] == 256
+    assert [r["frames"] for r in read_eval_csv(run / "eval.csv")] == [0, 256, 512, 768, 1024]
 
 
 def test_a_stop_between_last_pt_and_best_pt_is_repaired_on_resume(tmp_path, monkeypatch):
-    weights = script(monkeypatch, rows({0: 0.0, 512: 0.25, 1024: 0.5, 1536: 0.5, 2048: 0.0}))
+    weights = script(monkeypatch, rows({0: 0.0, 256: 0.25, 512: 0.5, 768: 0.5, 1024: 0.0}))
     real = rundir.atomic_torch_save
 
     def stop_before_best(obj, path):
-        if path.name == "best.pt" and obj["frames"] == 1024:
+        if path.name == "best.pt" and obj["frames"] == 512:
             raise KeyboardInterrupt
         return real(obj, path)
 
     monkeypatch.setattr(rundir, "atomic_torch_save", stop_before_best)
     with pytest.raises(KeyboardInterrupt):
         train(keep_best_cfg(), tmp_path / "run", progress=False)
-    assert load(tmp_path / "run")["frames"] == 512 and load(tmp_path / "run", "last")["frames"] == 1024
+    assert load(tmp_path / "run")["frames"] == 256 and load(tmp_path / "run", "last")["frames"] == 512
     monkeypatch.setattr(rundir, "atomic_torch_save", real)
     run = train(keep_best_cfg(), tmp_path / "run", resume=True, progress=False)
-    assert load(run)["frames"] == 1024 and same(load(run)["loss"], weights[1024])
+    assert load(run)["frames"] == 512 and same(load(run)["loss"], weights[512])
     rundir.manifest.verify(run, "checkpoints/best.pt")
 
 
 def test_a_resume_without_the_best_pt_is_refused_in_one_sentence(tmp_path, monkeypatch, capsys):
-    script(monkeypatch, rows(SUCCESS), stop_at=1536)
+    script(monkeypatch, rows(SUCCESS), stop_at=768)
     with pytest.raises(KeyboardInterrupt):
         train(keep_best_cfg(), tmp_path / "run", progress=False)
     (tmp_path / "run" / "checkpoints" / "best.pt").unlink()
     assert main(["train", "--resume", "--run-dir", str(tmp_path / "run"), "--no-progress"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1
-    assert "checkpoints/best.pt is missing, not that of its best evaluation (frame 512, success_rate 0.5)" in err
+    assert "checkpoints/best.pt is missing, not that of its best evaluation (frame 256, success_rate 0.5)" in err
 
 
 def test_a_best_metric_the_task_does_not_report_is_refused_before_the_run(tmp_path):
@@ -177,7 +177,7 @@ def test_a_best_metric_the_task_does_not_report_is_refused_before_the_run(tmp_pa
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     """A real tiny run with keep_best."""
-    return train(keep_best_cfg(frames=1536), tmp_path_factory.mktemp("runs") / "run", progress=False)
+    return train(keep_best_cfg(frames=768), tmp_path_factory.mktemp("runs") / "run", progress=False)
 
 
 def test_evaluate_reports_the_training_evaluation_of_fresh_episodes(trained, tmp_path, capsys):
@@ -206,7 +206,7 @@ def test_evaluate_reports_the_training_evaluation_of_fresh_episodes(trained, tmp
 def test_evaluate_with_a_seed_writes_its_default_file(trained, capsys):
     assert main(["evaluate", str(trained), "--episodes", "2", "--seed", "11"]) == 0
     result = json.loads((trained / "evaluate-last-seed11-2ep.json").read_text())
-    assert result["seed"] == 11 and result["checkpoint"] == "last" and result["frames"] == 1536
+    assert result["seed"] == 11 and result["checkpoint"] == "last" and result["frames"] == 768
 
 
 @pytest.mark.parametrize("k, n, expected", [
@@ -246,10 +246,10 @@ def test_evaluate_bad_input_is_one_sentence_and_exit_2(trained, tmp_path, capsys
 # ------------------------------------------------------------------------------------------ a source's checkpoint
 @pytest.fixture(scope="module")
 def source(tmp_path_factory):
-    """A finished run whose best.pt (frame 512) is not its last.pt."""
+    """A finished run whose best.pt (frame 256) is not its last.pt."""
     with pytest.MonkeyPatch.context() as mp:
-        script(mp, rows({0: 0.0, 512: 0.5, 1024: 0.25}))
-        return train(keep_best_cfg(frames=1024), tmp_path_factory.mktemp("src") / "run", progress=False)
+        script(mp, rows({0: 0.0, 256: 0.5, 512: 0.25}))
+        return train(keep_best_cfg(frames=512), tmp_path_factory.mktemp("src") / "run", progress=False)
 
 
 def part(weights: dict, prefix: str) -> dict:
