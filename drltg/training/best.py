@@ -26,7 +26,7 @@ from drltg.config import RunConfig
 from drltg.errors import UsageError
 from drltg.training.rundir import BEST, CHECKPOINT, EPISODE_FLAGS, load_checkpoint, write_tracked
 
-__all__ = ["metric", "score", "best_row", "improves", "check_metric", "check_resume"]
+__all__ = ["metric", "score", "best_row", "improves", "summary", "check_metric", "check_resume"]
 
 
 def metric(cfg: RunConfig, row: dict) -> str:
@@ -54,6 +54,15 @@ def best_row(cfg: RunConfig, rows: list[dict]) -> dict | None:
 def improves(cfg: RunConfig, rows: list[dict]) -> bool:
     """Whether the last evaluation of ``rows`` scores higher than every earlier one (the first always does)."""
     return best_row(cfg, rows) is rows[-1]
+
+
+def summary(cfg: RunConfig, rows: list[dict]) -> dict:
+    """``{"best": {checkpoint, frames, metric, score}}`` for summary.json (``{}`` without keep_best)."""
+    if not cfg.checkpoint.keep_best or not rows:
+        return {}
+    row, name = best_row(cfg, rows), metric(cfg, rows[-1])
+    return {"best": {"checkpoint": BEST.as_posix(), "frames": row["frames"], "metric": name,
+                     "score": score(cfg, row, name)}}
 
 
 def check_metric(cfg: RunConfig, eval_env) -> None:

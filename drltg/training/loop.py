@@ -455,7 +455,8 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
     save_checkpoint()
     wall = time.perf_counter() - start
     for writer in writers:
-        writer.finish(frames, updates, wall, (frames - start_frames) / max(wall, 1e-9), extra_summary)
+        writer.finish(frames, updates, wall, (frames - start_frames) / max(wall, 1e-9),
+                      {**(extra_summary or {}), **best.summary(cfg, writer.rows)})
 
 
 def _episode_stats(data: TensorDictBase, stats: dict) -> None:

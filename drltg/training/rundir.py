@@ -583,13 +583,6 @@ class RunWriter:
             "final_eval": self.rows[-1],
             **(extra or {}),
         }
-        if self.cfg.checkpoint.keep_best:
-            from drltg.training.best import best_row, metric
-
-            row = best_row(self.cfg, self.rows)
-            name = metric(self.cfg, self.rows[-1])
-            summary["best"] = {"checkpoint": BEST.as_posix(), "frames": row["frames"], "metric": name,
-                               "score": row[name]}
         atomic_write(self.run_dir / SUMMARY, json.dumps(summary, indent=2) + "\n")
         finalize_manifest(self.run_dir)
 
