@@ -180,6 +180,17 @@ def trained(tmp_path_factory):
     return train(keep_best_cfg(frames=768), tmp_path_factory.mktemp("runs") / "run", progress=False)
 
 
+def test_keep_best_changes_no_number_of_the_run(tmp_path, monkeypatch):
+    script(monkeypatch, rows(SUCCESS))
+    saves = record_saves(monkeypatch)
+    kept = train(keep_best_cfg(frames=512), tmp_path / "kept", progress=False)
+    assert ("best.pt", 256) in saves  # a checkpoint between the regular ones
+    plain = train(keep_best_cfg("checkpoint.keep_best=false", frames=512), tmp_path / "plain", progress=False)
+    a, b = load(kept, "last"), load(plain, "last")
+    assert same(a["loss"], b["loss"]) and torch.equal(a["rng"], b["rng"]) and a["updates"] == b["updates"]
+    assert (kept / "eval.csv").read_text() == (plain / "eval.csv").read_text()
+
+
 def test_evaluate_reports_the_training_evaluation_of_fresh_episodes(trained, tmp_path, capsys):
     from torchrl.envs import TransformedEnv
 
