@@ -318,3 +318,26 @@ def test_a_source_without_best_pt_is_one_sentence(trained, tmp_path, capsys):
                                   "transfer.source_checkpoint=best"], task="fourrooms/northeast")
     with pytest.raises(UsageError, match="demonstrator:lift is a scripted policy and has none"):
         source_mod.check(cfg)
+
+
+def test_each_seed_of_a_group_keeps_its_own_best(tmp_path, monkeypatch):
+    from drltg.training import seeds as seeds_mod
+
+    results = [rows({0: 0.0, 256: 0.5, 512: 0.25}), rows({0: 0.0, 256: 0.0, 512: 0.75})]
+    monkeypatch.setattr(seeds_mod.GroupLearner, "evaluate",
+                        lambda self: [dict(r[len(self.buffers[0])]) for r in results])
+    saves = []
+    real = rundir.atomic_torch_save
+
+    def save(obj, path):
+        saves.append((path.parents[1].name, path.name, obj["frames"]))
+        return real(obj, path)
+
+    monkeypatch.setattr(rundir, "atomic_torch_save", save)
+    dirs = seeds_mod.train_seeds(keep_best_cfg(frames=512), tmp_path / "group", 2, progress=False)
+    assert [d.name for d in dirs] == ["seed-3", "seed-4"]
+    assert [(s, f) for s, name, f in saves if name == "best.pt"] == [
+        ("seed-3", 0), ("seed-4", 0), ("seed-3", 256), ("seed-4", 512)]
+    for d, best in zip(dirs, (256, 512)):
+        assert load(d)["frames"] == best
+        assert json.loads((d / "summary.json").read_text())["best"]["frames"] == best
