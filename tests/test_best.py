@@ -60,13 +60,15 @@ def script(monkeypatch, results: dict, *, stop_at=None):
     return weights
 
 
-def record_saves(monkeypatch):
-    """``[(file name, frames)]`` of every checkpoint written, in order."""
+def record_saves(monkeypatch, written=None):
+    """``[(file name, frames)]`` of every checkpoint written, in order (and into ``written`` their bytes)."""
     saves, real = [], rundir.atomic_torch_save
 
     def save(obj, path):
         saves.append((path.name, obj["frames"]))
-        return real(obj, path)
+        real(obj, path)
+        if written is not None:
+            written[saves[-1]] = path.read_bytes()
 
     monkeypatch.setattr(rundir, "atomic_torch_save", save)
     return saves
@@ -97,12 +99,17 @@ RETURNS = {0: -1.0, 256: -0.5, 512: 0.0, 768: -0.2, 1024: 0.0}
 def test_best_pt_is_the_checkpoint_of_the_first_highest_evaluation(tmp_path, monkeypatch, results, overrides, metric,
                                                                    best):
     weights = script(monkeypatch, results)
-    saves = record_saves(monkeypatch)
+    written = {}
+    saves = record_saves(monkeypatch, written)
     run = train(keep_best_cfg(*overrides), tmp_path / "run", progress=False)
     assert [f for name, f in saves if name == "best.pt"] == best
-    assert ("last.pt", 0) not in saves  # nothing trained yet: best.pt alone
-    for frames in best[1:]:  # last.pt first, then the same state as best.pt
+    # last.pt at each new best (not at frame 0: nothing trained), at checkpoint.every=512 unless saved there
+    # already, and once more at the end
+    assert [f for name, f in saves if name == "last.pt"] == [*sorted({*best[1:], 512, 1024}), 1024]
+    for frames in best[1:]:  # last.pt first, then the same checkpoint as best.pt
         assert saves.index(("last.pt", frames)) + 1 == saves.index(("best.pt", frames))
+        assert written[("last.pt", frames)] == written[("best.pt", frames)]
+    assert (run / "checkpoints" / "best.pt").read_bytes() == written[("best.pt", best[-1])]
     saved = load(run)
     assert saved["frames"] == best[-1] and saved["evaluations"] == [f for f in results if f <= best[-1]]
     assert same(saved["loss"], weights[best[-1]])

@@ -2,7 +2,7 @@
 
 A run's last checkpoint is not always its best policy: a policy that reached success 1.0 can dip
 later. With ``checkpoint.keep_best=true``, after every evaluation whose score is higher than that of
-every earlier evaluation, the run saves its checkpoint as ``last.pt`` and the same bytes as
+every earlier evaluation, the run saves its checkpoint as ``last.pt`` and the same content as
 ``best.pt`` (at frame 0, before anything is trained, ``best.pt`` only). The score is the evaluation's
 ``checkpoint.best_metric``; ``auto`` is ``success_rate`` where the task reports success, else
 ``return_mean``. A tie keeps the earlier checkpoint: an equal score over the same episodes count is no

@@ -442,8 +442,9 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
             if frames >= next_eval or frames >= cfg.frames:
                 run_eval()
                 next_eval = (frames // cfg.eval.every + 1) * cfg.eval.every
-            if (frames >= next_ckpt or frames >= cfg.frames) and saved != frames:
-                save_checkpoint()
+            if frames >= next_ckpt or frames >= cfg.frames:
+                if saved != frames:  # not saved already with best.pt at this frame
+                    save_checkpoint()
                 next_ckpt = (frames // cfg.checkpoint.every + 1) * cfg.checkpoint.every
     finally:
         collector.shutdown()

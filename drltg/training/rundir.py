@@ -48,7 +48,7 @@ EVAL_COLUMNS = ["frames", "return_mean", "return_std", "episodes", *(f"{flag}_ra
 
 __all__ = ["atomic_write", "atomic_torch_save", "atomic_path", "write_files", "read_eval_csv", "write_eval_csv",
            "read_config", "write_config", "absolute_source", "is_complete", "check_directory", "lock",
-           "load_checkpoint", "checkpoint_path", "truncate_logs", "RunWriter"]
+           "load_checkpoint", "checkpoint_path", "missing_checkpoint", "truncate_logs", "RunWriter"]
 
 
 # ------------------------------------------------------------------------------------------ config
@@ -560,7 +560,7 @@ class RunWriter:
 
     def checkpoint(self, state: dict, frames: int, updates: int, *, last: bool = True, best: bool = False) -> None:
         """Save ``state`` (weights, optimiser, buffer, RNG) with the counters a resume needs, as ``last.pt``
-        and, for the best evaluation so far (:mod:`drltg.training.best`), the same bytes as ``best.pt``
+        and, for the best evaluation so far (:mod:`drltg.training.best`), the same content as ``best.pt``
         after it."""
         evaluations = [r["frames"] for r in self.rows]
         for name in [CHECKPOINT] * last + [BEST] * best:
