@@ -8,7 +8,7 @@
     checkpoints/best.pt  with checkpoint.keep_best: the same, saved at the best evaluation (drltg.training.best)
     model_reuse.txt      what model reuse loaded (model-reuse runs)
     summary.json         the run is finished when it exists: status complete (or diverged, with the reason)
-    manifest.json        SHA-256 of the checkpoint and eval.csv, and when the run ends (written last) of
+    manifest.json        SHA-256 of the checkpoints and eval.csv, and when the run ends (written last) of
                          every file: a changed or damaged file is refused (drltg.training.manifest)
     .drltg.lock          pid, host and start time of the process writing the directory, while it runs
 
