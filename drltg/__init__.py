@@ -11,7 +11,7 @@ when first used)::
     drltg.transforms   PotentialShaping, TimeDependentPotential, SourceValue      reward and value shaping
     drltg.collectors   PolicyReuse, PiReuse, JumpStart, PRQL                     policy reuse, jump-start
                        collect_demonstrations, demonstration_buffer, mixed_batches   demonstrations
-    drltg.losses       SoftOptionCriticLoss, behaviour_cloning
+    drltg.losses       SoftOptionCriticLoss, behaviour_cloning, option_labels
     drltg.modules      load_weights (model reuse onto any module), option_transforms, make_option_policy
     drltg.config       resolve: a full, checked, typed run config (``cfg.optim.lr``; task defaults, ``KEY=VALUE``)
     drltg.learners     make_agent(env, cfg): actor, exploration policy, loss, target updater, optimiser;
@@ -39,7 +39,7 @@ _SURFACE = {
     "drltg.transforms": ["PotentialShaping", "TimeDependentPotential", "SourceValue"],
     "drltg.collectors": ["PolicyReuse", "PiReuse", "JumpStart", "PRQL", "collect_demonstrations",
                          "demonstration_buffer", "mixed_batches"],
-    "drltg.losses": ["SoftOptionCriticLoss", "behaviour_cloning"],
+    "drltg.losses": ["SoftOptionCriticLoss", "behaviour_cloning", "option_labels"],
     "drltg.modules": ["load_weights", "option_transforms", "make_option_policy"],
     "drltg.config": ["resolve"],
     "drltg.learners": ["make_agent", "UpdateStep", "sample_batches"],

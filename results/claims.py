@@ -627,8 +627,9 @@ def manipulation_cost() -> str:
             f"({WORKERS} × rate)), at {fps:.1f} frames/s per run: the median of the {n} runs of "
             f"`results/{RATE_RUNS.name}/` (Lift+Place, run two at a time on this machine's 2 cores beside other work, "
             "evaluated every 2.5k frames on 10 episodes; the rows evaluate every 5k). The soft option-critic's rate on "
-            "these tasks is "
-            f"not measured at this scale and is taken as the same. All steps in the queue: about {total:.0f} h.\n")
+            "these tasks is not measured at this scale and is taken as the same, a lower bound on its time: its update "
+            "evaluates K option copies of every next state, and with demonstrations the policy over options at each "
+            f"demonstrated state. All steps in the queue: about {total:.0f} h.\n")
 
 
 SOURCE_THRESHOLD = 0.8
@@ -654,6 +655,34 @@ def manipulation_sources() -> str:
                      f"to the end of {cl.frames(frames[-1])} frames ({'; '.join(held)}).")
     frames = sorted({f for _, (p,) in rows for f in _evals(p, "success_rate")})
     return curve_table(rows, "success_rate", frames, fmt=".1f") + "\n" + "\n".join(lines) + "\n"
+
+
+EARLIER = MANIP / "earlier"
+
+
+def _row_report(row: str, tag: str = "success") -> dict | None:
+    """The study's report of ``row`` on ``tag`` (``results/manipulation/ROW/PAIR/ALGO/METHOD/report-TAG/``)."""
+    found = sorted((MANIP / row).glob(f"*/*/*/report-{tag}/transfer_metrics.json"))
+    return load(found[0]) if found else None
+
+
+def manipulation_earlier() -> str:
+    """The earlier implementation's rows (one run a side, its own reward) beside the study's (3 paired seeds)."""
+    out = [("row", "earlier runs: no transfer → transfer", "frames", "final return, B / T", "mean return gain",
+            "gain at 100k frames", "drltg: mean success-rate gain, 3 paired seeds")]
+    order = _queue()[0]
+    for folder in sorted((p for p in EARLIER.iterdir() if p.is_dir()), key=lambda p: order.index(p.name)):
+        whole, cut = load(folder / "transfer_metrics.json"), load(folder / "at-100k" / "transfer_metrics.json")
+        m, st = whole["metrics"], whole["settings"]
+        ours = _row_report(folder.name)
+        mine = ("not trained yet" if ours is None else
+                estimate(ours["metrics"]["mean_return_gain"], ours["metrics"].get("mean_return_gain_ci"), "+.2f"))
+        out.append((f"`{folder.name}`", f"`{Path(st['baseline'][0]).parent.name}` → "
+                    f"`{Path(st['transfer'][0]).parent.name}`", cl.frames(st["budget"]),
+                    f"{m['final_performance_baseline']:.0f} / {m['final_performance_transfer']:.0f}",
+                    estimate(m["mean_return_gain"], None, "+.1f"),
+                    estimate(cut["metrics"]["mean_return_gain"], None, "+.1f"), mine))
+    return render(out, "markdown")
 
 
 PLACEMENT = MANIP / "placement-diagnostics"
@@ -761,6 +790,7 @@ REGIONS = {
         "lift-summary": readme_lift,
         "manipulation-cost": manipulation_cost,
         "manipulation-sources": manipulation_sources,
+        "manipulation-earlier": manipulation_earlier,
     },
 }
 

@@ -82,8 +82,10 @@ def test_the_parts_options_and_learners_are_joined():
     assert method.algos == ("sac", "td3") and method.source == "run"
     assert {"value_scale", "demo_ratio", "bc_weight"} <= set(method.options)
     assert get_method("reward-shaping+policy-reuse").source == "policy"
+    assert get_method("reward-shaping+demonstrations").algos == ("sac", "td3", "soc")
+    assert config_lib.resolve({}, [*SMALL, "transfer.method=reward-shaping+demonstrations"], task=TASK, algo="soc")
     with pytest.raises(UsageError, match="works with algo sac or td3, not 'soc'"):
-        config_lib.resolve({}, [*SMALL, "transfer.method=reward-shaping+demonstrations"], task=TASK, algo="soc")
+        config_lib.resolve({}, [*SMALL, "transfer.method=value-shaping+demonstrations"], task=TASK, algo="soc")
 
 
 def test_a_demonstrator_cannot_feed_a_method_that_reuses_weights(tmp_path, capsys):

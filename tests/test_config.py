@@ -119,7 +119,7 @@ def test_bad_value_is_one_sentence_naming_the_key(override, key, expected):
     "overrides, key, expected",
     [
         (["transfer.method=policy-reuse", "transfer.psi_end=0.1"], "transfer.psi_end", "annealing_frames > 0"),
-        (["transfer.method=demonstrations", "algo=soc"], "transfer.method", "which works with algo sac or td3"),
+        (["transfer.method=value-shaping", "algo=soc"], "transfer.method", "which works with algo sac or td3"),
     ],
 )
 def test_a_methods_own_rules_hold_when_it_is_chosen(overrides, key, expected):

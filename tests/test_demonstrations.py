@@ -1,5 +1,6 @@
 """Learning from demonstrations: collecting demonstrator episodes and the mixed batches."""
 import json
+import math
 
 import pytest
 import torch
@@ -99,9 +100,22 @@ def test_demonstrations_of_a_source_run_train_the_target_reproducibly(source_run
     assert same == [True, True, False]  # the same demonstrations each time; the updates saw them
 
 
-def test_demonstrations_need_a_learner_without_options():
-    with pytest.raises(UsageError, match="which works with algo sac or td3, not .soc."):
-        config_lib.resolve({}, TINY + ["transfer.method=demonstrations"], task="fourrooms/northeast", algo="soc")
+def test_soft_option_critic_learns_from_demonstrations_from_the_command_line(source_run, tmp_path):
+    from drltg.cli import main
+
+    args = ["train", "fourrooms/northeast-shifted", "--algo", "soc", "--options", "2", "--frames", "128",
+            "--seed", "3", "--no-progress",
+            *[x for o in [*TINY, f"transfer.source={source_run}",
+                          "transfer.method=reward-shaping+demonstrations", "transfer.demo_episodes=5", "log.every=32",
+                          "transfer.demo_ratio=0.5"] for x in ("-o", o)]]
+    assert main([*args, "--run-dir", str(tmp_path / "a")]) == 0
+    assert main([*args, "--run-dir", str(tmp_path / "b")]) == 0
+    summary = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert summary["demonstration_frames"] == 4 * 50
+    assert read_eval_csv(tmp_path / "a" / "eval.csv") == read_eval_csv(tmp_path / "b" / "eval.csv")
+    logged = {p.stem: p for p in (tmp_path / "a" / "logs" / "csv").rglob("*.csv")}
+    cloned = [float(line.split(",")[-1]) for line in logged["loss_actor_bc"].read_text().split()]
+    assert cloned and all(x > 0 for x in cloned)  # the options' actors were pulled towards the demonstrations
 
 
 @pytest.mark.parametrize("override, message", [
@@ -225,3 +239,155 @@ def test_annealed_behaviour_cloning_falls_linearly_to_zero(source_run):
         bc.append(transfer.loss_terms(batch)["loss_actor_bc"].item())
     assert bc[0] > 0
     assert bc[1] == pytest.approx(0.75 * bc[0], rel=1e-6) and bc[2] == 0.0 and bc[3] == 0.0
+
+
+# ------------------------------------------------------------------ with options
+from torchrl.data import Bounded  # noqa: E402
+
+from drltg.losses import SoftOptionCriticLoss, option_labels  # noqa: E402
+from drltg.modules import make_option_actor, make_option_qvalue, make_termination  # noqa: E402
+
+
+def _copy(src, dst):
+    for a, b in zip(src.values(True, True), dst.values(True, True), strict=True):
+        assert a.shape == b.shape
+        b.data.copy_(a.data)
+
+
+@pytest.mark.parametrize("q_filter", [False, True])
+def test_one_option_clones_exactly_as_sac(q_filter):
+    """SOC with K = 1 holding SAC's weights: the same term, the same gradients, and no option drawn."""
+    sac, batch = _agent_and_batch("sac", n=48, seed=3)
+    cfg = config_lib.resolve({}, ["network.hidden=[16,16]", "soc.num_options=1"], task="fourrooms/northeast",
+                             algo="soc")
+    soc = make_agent(make_env("fourrooms/northeast", seed=0), cfg)
+    for name in ("actor_network_params", "qvalue_network_params"):
+        _copy(getattr(sac.loss, name), getattr(soc.loss, name))
+    count, weight = 20, 0.7
+    with_option = batch.clone().set("option", torch.full((48, 1), 5, dtype=torch.int64))  # not an option
+    rng = torch.get_rng_state()
+    option_labels(soc.loss, count)(with_option)
+    assert torch.equal(torch.get_rng_state(), rng)
+    assert with_option["option"][:count].eq(0).all() and with_option["option"][count:].eq(5).all()
+    with_option["option"][count:] = 0
+
+    out = []
+    for agent, b in ((sac, batch), (soc, with_option)):
+        terms = behaviour_cloning(agent.loss, count, weight, q_filter=q_filter)(b)
+        params = [p for p in agent.loss.actor_network_params.values(True, True) if p.requires_grad]
+        out.append((terms, torch.autograd.grad(terms["loss_actor_bc"], params)))
+    (sac_terms, sac_grads), (soc_terms, soc_grads) = out
+    torch.testing.assert_close(soc_terms["loss_actor_bc"], sac_terms["loss_actor_bc"], rtol=0, atol=1e-6)
+    torch.testing.assert_close(soc_terms["bc_accepted"], sac_terms["bc_accepted"], rtol=0, atol=1e-6)
+    assert len(soc_grads) == len(sac_grads) > 0
+    for g, h in zip(soc_grads, sac_grads):
+        torch.testing.assert_close(g, h, rtol=0, atol=1e-6)
+    assert sac_terms["loss_actor_bc"] > 0
+    if q_filter:
+        assert 0 < sac_terms["bc_accepted"] < 1  # both kinds of demonstration occur
+
+
+SPEC2 = Bounded(-1.0, 1.0, (2,))
+
+
+def _two_option_loss(epsilon):
+    """K = 2, one linear layer per network: mu_o = tanh(c_o) everywhere; Q_U(s, o, a) = v_o . a + b_o with
+    b = (0, 5), so option 1 is the greedy option at every state (|v_o . a| <= 0.8 < 5)."""
+    K, obs = 2, 3
+    actor = make_option_actor(SPEC2, K, (), in_features=obs)
+    loc = torch.tensor([[0.5, -0.2], [-0.4, 0.3]])
+    with torch.no_grad():
+        linear = actor.module[0].module.net[0]
+        linear.weight.zero_()
+        linear.bias.copy_(torch.cat([loc, torch.zeros(K, 2)], -1).flatten())
+    loss = SoftOptionCriticLoss(actor, make_option_qvalue(K, (), in_features=obs + 2),
+                                make_termination(K, (), in_features=obs), num_options=K, alpha_init=1e-9,
+                                fixed_alpha=True, option_policy="egreedy", option_epsilon=epsilon)
+    v, b = torch.tensor([[0.5, -0.3], [-0.2, 0.4]]), torch.tensor([0.0, 5.0])
+    for params in (loss.qvalue_network_params, loss.target_qvalue_network_params):
+        weight, bias = params.values(True, True)
+        weight.data.copy_(torch.cat([torch.zeros(K, obs), v], -1).expand_as(weight))
+        bias.data.copy_(b.expand_as(bias))
+    return loss, loc, v
+
+
+def _demo_batch(actions, extra=2):
+    n = len(actions) + extra
+    g = torch.Generator().manual_seed(0)
+    return TensorDict({"observation": torch.randn(n, 3, generator=g),
+                       "action": torch.cat([torch.tensor(actions), torch.zeros(extra, 2)]),
+                       "option": torch.zeros(n, 1, dtype=torch.int64)}, [n])
+
+
+def test_two_options_clone_by_hand():
+    """pi_Omega = (eps/2, 1 - eps/2) = (0.1, 0.9); each demonstration's squared error to each option's
+    mean action, weighted by it, kept where v_o . a > v_o . mu_o (the Q filter)."""
+    loss, loc, v = _two_option_loss(epsilon=0.2)
+    actions = [[0.4, -0.2], [-0.5, 0.5], [0.9, 0.9]]
+    batch = _demo_batch(actions)
+    probs = [0.1, 0.9]
+    mu = [[math.tanh(x) for x in row] for row in loc.tolist()]
+    plain = kept = accepted = 0.0
+    for a in actions:
+        for o in range(2):
+            error = sum((m - x) ** 2 for m, x in zip(mu[o], a))
+            keep = sum(w * x for w, x in zip(v[o].tolist(), a)) > sum(w * m for w, m in zip(v[o].tolist(), mu[o]))
+            plain += probs[o] * error / len(actions)
+            kept += probs[o] * error * keep / len(actions)
+            accepted += probs[o] * keep / len(actions)
+    assert 0 < accepted < 1
+    out = behaviour_cloning(loss, len(actions), 2.0)(batch)
+    assert out["loss_actor_bc"].item() == pytest.approx(2.0 * plain, rel=1e-5)
+    filtered = behaviour_cloning(loss, len(actions), 2.0, q_filter=True)(batch)
+    assert filtered["loss_actor_bc"].item() == pytest.approx(2.0 * kept, rel=1e-5)
+    assert filtered["bc_accepted"].item() == pytest.approx(accepted, rel=1e-5)
+    assert out["bc_accepted"].item() == pytest.approx(1.0)
+    labelled = option_labels(loss, len(actions))(batch.clone())  # pi_Omega left in the batch is the same
+    torch.testing.assert_close(labelled["option_probs"], torch.tensor([probs] * len(actions) + [[0.0, 0.0]] * 2))
+    assert behaviour_cloning(loss, len(actions), 2.0, q_filter=True)(labelled)["loss_actor_bc"].item() == \
+        pytest.approx(2.0 * kept, rel=1e-5)
+
+
+def test_demonstrations_are_credited_to_the_option_the_learner_would_choose():
+    loss, *_ = _two_option_loss(epsilon=0.0)  # pi_Omega = (0, 1): every label is option 1
+    batch = _demo_batch([[0.1, 0.2]] * 5, extra=3)
+    assert option_labels(loss, 5)(batch)["option"].squeeze(-1).tolist() == [1] * 5 + [0] * 3
+    loss, *_ = _two_option_loss(epsilon=0.5)  # pi_Omega = (0.25, 0.75)
+    torch.manual_seed(0)
+    batch = _demo_batch([[0.1, 0.2]] * 4000, extra=0)
+    share = option_labels(loss, 4000)(batch)["option"].float().mean().item()
+    assert abs(share - 0.75) < 0.03  # binomial sd 0.007
+
+
+def test_each_batch_credits_its_demonstrations_with_the_networks_of_its_own_update(source_run):
+    """The method's batches are drawn one at a time: a change of the critics between two updates
+    changes the second batch's options (egreedy with epsilon 0: the greedy option only)."""
+    from torchrl.envs import TransformedEnv
+
+    from drltg.modules import option_transforms
+    from drltg.transfer import get_method
+
+    cfg = config_lib.resolve({}, TINY + [f"transfer.source={source_run}", "transfer.method=demonstrations",
+                                         "transfer.demo_episodes=1", "soc.num_options=2",
+                                         "soc.option_policy=egreedy", "soc.option_epsilon=0"],
+                             task="fourrooms/northeast-shifted", algo="soc", seed=2)
+    env = TransformedEnv(make_env("fourrooms/northeast-shifted", batch_size=(4,), horizon=20))
+    for transform in option_transforms(2):  # the option the buffer's transitions carry, as in training
+        env.append_transform(transform)
+    agent = make_agent(env, cfg)
+    transfer = get_method("demonstrations").build(cfg, agent, env, resuming=False)
+    buffer = ReplayBuffer(storage=LazyTensorStorage(64), batch_size=32)
+    buffer.extend(env.rollout(8, break_when_any_done=False).reshape(-1).select(*agent.loss.in_keys))
+    *_, bias = agent.loss.qvalue_network_params.values(True, True)  # the critics' last bias, [2 copies, K]
+
+    def prefer(option):
+        bias.data.fill_(-100.0)
+        bias.data[:, option] = 100.0
+
+    k = round(cfg.transfer.demo_ratio * 32)
+    batches = transfer.batches(buffer, 2)
+    prefer(1)
+    first = next(batches)
+    prefer(0)
+    second = next(batches)
+    assert first["option"][:k].eq(1).all() and second["option"][:k].eq(0).all()

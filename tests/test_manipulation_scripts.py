@@ -16,7 +16,7 @@ from drltg.experiments.sweep import load_spec, plan
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPTS = ROOT / "results" / "manipulation"
 SPECS = ROOT / "examples" / "sweeps" / "manipulation-rows"
-ROWS = sorted(p.stem for p in SCRIPTS.glob("*.sh") if p.stem not in ("row", "queue"))
+ROWS = sorted(p.stem for p in SCRIPTS.glob("*.sh") if p.stem not in ("row", "queue", "earlier"))
 SOURCED = re.compile(r"runs/manipulation/sources/([\w-]+)/seed-\{seed\}")
 
 
@@ -218,3 +218,29 @@ def test_kept_lift_sources_are_weights_only_and_load_as_actors(seed):
     assert set(torch.load(source / "checkpoints" / "last.pt", weights_only=False)) == {"loss", "frames"}
     actor = load_actor(source)
     assert sum(p.numel() for p in actor.parameters()) > 0
+
+
+def test_the_soc_source_learns_lift_from_the_same_demonstrations_as_the_sac_source():
+    """lift-soc4's config is lift-sac's but for the learner: the same demonstrator, episodes, share,
+    cloning weight and frames."""
+    import shlex
+
+    from drltg.config import resolve
+
+    text = (SCRIPTS / "queue.sh").read_text()
+    text = text.replace("$SOC_FRAMES", re.search(r"SOC_FRAMES:-(\d+)", text).group(1))
+    configs = {}
+    for name, line in re.findall(r'^\s+\[([\w-]+)\]="([^"]*)"', text, re.M):
+        args, kwargs, overrides = shlex.split(line), {}, []
+        for flag, value in zip(args[::2], args[1::2]):
+            if flag == "-o":
+                overrides.append(value)
+            elif flag == "--options":
+                overrides.append(f"soc.num_options={value}")
+            else:
+                kwargs[flag.removeprefix("--")] = int(value) if flag == "--frames" else value
+        configs[name] = resolve(task="lift", overrides=overrides, **kwargs)
+    sac, soc = configs["lift-sac"], configs["lift-soc4"]
+    assert config_changes(sac, soc) == ["algo"]
+    assert (soc.algo, soc.soc.num_options, soc.frames) == ("soc", 4, 60_000)
+    assert (soc.transfer.method, soc.transfer.source) == ("demonstrations", "demonstrator:lift")

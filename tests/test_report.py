@@ -772,3 +772,19 @@ def test_foreign_logs_are_compared_over_their_whole_overlap():
         report.compute([Curve(c.frames, c.values, c.source, c.label, config={"seed": i}) for i, c in enumerate(short)],
                        [Curve(c.frames, c.values, c.source, c.label, config={"seed": i}) for i, c in enumerate(long)],
                        asymptote_window=0.5)
+
+
+@pytest.mark.parametrize("row", sorted(p.name for p in (Path(__file__).parents[1] / "results/manipulation/earlier")
+                                       .iterdir()))
+def test_the_earlier_rows_in_results_are_the_report_of_their_logs(row, tmp_path, capsys):
+    """results/manipulation/earlier/ROW (README's side-by-side table) is what the report computes from the
+    earlier implementation's logs now, over their whole length and cut at 100k frames."""
+    root = Path(__file__).parents[1]
+    for sub, budget in (("", []), ("at-100k", ["--budget", "100000"])):
+        kept = json.loads((root / "results/manipulation/earlier" / row / sub / "transfer_metrics.json").read_text())
+        logs = [str(root / Path(kept["settings"][side][0]).parent) for side in ("baseline", "transfer")]
+        assert report.main(["--baseline", logs[0], "--transfer", logs[1], *budget, "--out", str(tmp_path / row)]) == 0
+        fresh = json.loads((tmp_path / row / "transfer_metrics.json").read_text())
+        assert fresh["settings"]["budget"] == kept["settings"]["budget"]
+        for key in ("mean_return_gain", "final_performance_baseline", "final_performance_transfer"):
+            assert fresh["metrics"][key] == pytest.approx(kept["metrics"][key], rel=1e-12)

@@ -3,8 +3,10 @@
     SoftOptionCriticLoss   SAC over K options: intra-option policies, option-indexed critics,
                            terminations, a policy over options; K = 1 is exactly SAC      (soc)
     behaviour_cloning      w * mean ||mu(s) - a_demo||^2 on a batch's demonstrations   (behaviour_cloning)
+                           (with options: sum_o pi_Omega(o|s) ||mu_o(s) - a_demo||^2)
+    option_labels          the option a demonstration is credited to: o ~ pi_Omega(.|s)
 """
-from drltg.losses.behaviour_cloning import behaviour_cloning
+from drltg.losses.behaviour_cloning import behaviour_cloning, option_labels
 from drltg.losses.soc import SoftOptionCriticLoss
 
-__all__ = ["SoftOptionCriticLoss", "behaviour_cloning"]
+__all__ = ["SoftOptionCriticLoss", "behaviour_cloning", "option_labels"]

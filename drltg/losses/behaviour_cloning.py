@@ -1,4 +1,24 @@
-"""Behaviour cloning on demonstrations as an extra actor loss (Nair et al. 2018), Q-filtered on request."""
+r"""Behaviour cloning on demonstrations as an extra actor loss (Nair et al. 2018), Q-filtered on request,
+and the option a demonstration is credited to when the learner has options.
+
+A demonstrator acts without options, but every loss of the soft option-critic reads the option ``o`` of
+a transition: the critic regresses :math:`Q_U(s,o,a)` on
+:math:`y(o) = r + \gamma(1-d')\,[\bar Q_\Omega(s',o) - \beta_o(s')\,\bar A_\Omega(s',o)]`, and the actor and
+termination losses use ``o`` as well. The critic is off-policy in ``a`` and :math:`y(o)` is defined for every
+option, so a demonstrated :math:`(s, a, r, s')` is a valid sample for each of them; it is credited to the
+option the learner would choose afresh at ``s`` (:func:`option_labels`),
+
+.. math::
+
+    o \sim \pi_\Omega(\cdot|s), \qquad
+    \mathbb{E}_{o\sim\pi_\Omega(\cdot|s)}\big[L_Q(s,o,a)\big],
+
+drawn anew each time the transition is sampled, with the current networks. The options the learner
+would act with at ``s`` learn what the demonstrated action returns there, and the behaviour-cloning term
+pulls the same options, in the same proportions, towards it (:func:`behaviour_cloning`). A label drawn
+once per episode (or uniformly) would credit options the learner does not choose at ``s`` and that the
+cloning term does not train there. With one option the label is 0 and both are SAC's.
+"""
 from __future__ import annotations
 
 from typing import Callable
@@ -7,9 +27,15 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.envs import ExplorationType, set_exploration_type
 
+__all__ = ["behaviour_cloning", "option_labels", "OPTION_PROBS"]
+
+OPTION_PROBS = "option_probs"
+"""Where :func:`option_labels` leaves ``pi_Omega(.|s)`` of the demonstrations it labelled (``[B, K]``, zero
+past them), for :func:`behaviour_cloning` in the same update to reuse instead of computing again."""
+
 
 def _min_q(loss, td: TensorDictBase) -> torch.Tensor:
-    """The smaller of ``loss``'s critics at ``td``'s (observation, action), without gradients."""
+    """The smaller of ``loss``'s critics at ``td``'s (observation[, option], action), without gradients."""
     values = []
     for params in loss.qvalue_network_params.detach().unbind(0):
         with params.to_module(loss.qvalue_network):
@@ -17,30 +43,84 @@ def _min_q(loss, td: TensorDictBase) -> torch.Tensor:
     return torch.stack(values).amin(0).squeeze(-1)
 
 
+def _num_options(loss) -> int:
+    return getattr(loss, "num_options", 1)
+
+
+@torch.no_grad()
+def _option_probs(loss, demo: TensorDictBase) -> torch.Tensor:
+    """``pi_Omega(o|s)`` ``[k, K]`` of the policy over options (ones for a learner without options)."""
+    if _num_options(loss) == 1:
+        return torch.ones(*demo.batch_size, 1, device=demo.device)
+    return loss.option_probs(loss.option_values(demo))
+
+
+def option_labels(loss, count: int) -> Callable[[TensorDictBase], TensorDictBase]:
+    """``label(batch)`` writes into the first ``count`` rows of ``batch`` (the demonstrations, as
+    :func:`drltg.collectors.mixed_batches` lays them out) an option drawn from the policy over options of
+    the :class:`~drltg.losses.SoftOptionCriticLoss` ``loss`` at their state, ``o ~ pi_Omega(.|s)`` (see the
+    module docstring), and ``pi_Omega(.|s)`` itself into ``OPTION_PROBS``, and returns the batch; with one
+    option, 0 (no random draw). Call it just before the batch's update, so that the draw uses the networks
+    that update trains."""
+    key = loss.tensor_keys.option
+
+    def label(batch: TensorDictBase) -> TensorDictBase:
+        probs = _option_probs(loss, batch[:count])
+        option = torch.zeros(count, 1, dtype=torch.int64, device=probs.device)
+        if probs.shape[-1] > 1:
+            option = torch.multinomial(probs, 1)
+        batch.get(key)[:count] = option
+        full = probs.new_zeros(*batch.batch_size, probs.shape[-1])
+        full[:count] = probs
+        batch.set(OPTION_PROBS, full)
+        return batch
+
+    return label
+
+
 def behaviour_cloning(loss, count: int, weight: float | Callable[[], float], *, q_filter: bool = False):
-    """Nair et al. (2018)'s behaviour-cloning term on the first ``count`` transitions of each batch (the
-    demonstrations, as :func:`drltg.collectors.mixed_batches` lays them out), for a SAC or TD3 loss module:
+    r"""Nair et al. (2018)'s behaviour-cloning term on the first ``count`` transitions of each batch (the
+    demonstrations, as :func:`drltg.collectors.mixed_batches` lays them out), for a SAC, TD3 or soft
+    option-critic loss module:
 
-        loss_actor_bc = weight * mean_i ||mu(s_i) - a_i||^2 * 1[Q(s_i, a_i) > Q(s_i, mu(s_i))]
+        loss_actor_bc = w * mean_i sum_o pi_Omega(o|s_i) ||mu_o(s_i) - a_i||^2 * 1[Q(s_i,o,a_i) > Q(s_i,o,mu_o(s_i))]
 
-    ``mu`` the actor's deterministic action, ``Q`` the smaller of the current critics. The Q filter
-    clones a demonstrated action only while the critic rates it above the actor's own, so the term fades
-    where the learner has become better than its demonstrator. ``weight`` may be a function read at every
-    step (an annealed weight). Returns ``loss_terms(batch)`` for
-    :class:`~drltg.learners.UpdateStep`, with ``bc_accepted``, the share of demonstrations kept."""
+    ``w`` the ``weight``, ``mu_o`` the deterministic action of the actor (of option ``o``), ``Q`` the
+    smaller of the current critics, ``pi_Omega`` the soft option-critic's policy over options at ``s_i``
+    (without gradients): the expected cloning error of the option the learner would choose there, from
+    the distribution the demonstrations' labels are drawn from (:func:`option_labels`). Without options
+    (SAC, TD3) the sum has the one term ``pi = 1``: ``w * mean_i ||mu(s_i) - a_i||^2 * 1[...]``, so one
+    option is exactly SAC's term. The Q filter clones a demonstrated action only while the critic rates it
+    above the actor's own, so the term fades where the learner has become better than its demonstrator.
+    ``weight`` may be a function read at every step (an annealed weight); ``pi_Omega`` is read from the
+    batch's ``OPTION_PROBS`` where :func:`option_labels` left it. Returns ``loss_terms(batch)`` for
+    :class:`~drltg.learners.UpdateStep`, with ``bc_accepted``, the (``pi_Omega``-weighted) share of
+    demonstrations kept."""
     actor, actor_params = loss.actor_network, loss.actor_network_params
-    obs_keys = list(actor.in_keys)
+    num_options = _num_options(loss)
+    option_key = loss.tensor_keys.option if num_options > 1 else None
+    obs_keys = [k for k in actor.in_keys if k != option_key]
+
+    def per_option(demo: TensorDictBase) -> TensorDictBase:
+        """The demonstrations' inputs ``[k, K]``, one copy per option (``[k, 1]`` without options)."""
+        td = demo.select(*obs_keys, "action").unsqueeze(-1).expand(*demo.batch_size, num_options).clone(False)
+        if option_key is not None:
+            options = torch.arange(num_options, device=td.device).unsqueeze(-1)
+            td.set(option_key, options.expand(*td.batch_size, 1))
+        return td
 
     def loss_terms(batch: TensorDictBase) -> dict[str, torch.Tensor]:
         demo = batch[:count]
+        probs = demo.get(OPTION_PROBS) if OPTION_PROBS in demo.keys() else _option_probs(loss, demo)
+        pair = per_option(demo)
         with set_exploration_type(ExplorationType.DETERMINISTIC), actor_params.to_module(actor):
-            action = actor(demo.select(*obs_keys).clone(False))["action"]
-        error = (action - demo["action"]).pow(2).sum(-1)
+            action = actor(pair.exclude("action"))["action"]
+        error = (action - pair["action"]).pow(2).sum(-1)
         accepted = torch.ones_like(error)
         if q_filter:
-            pair = demo.select(*obs_keys, "action")
             accepted = (_min_q(loss, pair) > _min_q(loss, pair.clone(False).set("action", action.detach()))).float()
         w = weight() if callable(weight) else weight
-        return {"loss_actor_bc": w * (error * accepted).mean(), "bc_accepted": accepted.mean()}
+        return {"loss_actor_bc": w * (probs * error * accepted).sum(-1).mean(),
+                "bc_accepted": (probs * accepted).sum(-1).mean()}
 
     return loss_terms

@@ -13,13 +13,14 @@ from drltg.transfer.registry import Transfer, TransferMethod, register_method
 def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     """``transfer.demo_episodes`` episodes of the source policy on the training task, from an env
     seeded apart from the training and evaluation envs, kept in a buffer of their own; a resumed run
-    collects the same episodes again."""
+    collects the same episodes again. For the soft option-critic each sampled demonstration is credited
+    to an option drawn from the learner's policy over options (:func:`drltg.losses.option_labels`)."""
     from torchrl.data import OneHot
     from torchrl.envs import TransformedEnv
 
     from drltg.collectors import collect_demonstrations, demonstration_buffer, mixed_batches
     from drltg.envs import make_env
-    from drltg.losses import behaviour_cloning
+    from drltg.losses import SoftOptionCriticLoss, behaviour_cloning, option_labels
     from drltg.transfer.source import source_actor
 
     t = cfg.transfer
@@ -45,7 +46,13 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
         weight[0] = t.bc_weight * max(0.0, 1.0 - frames / t.bc_anneal_frames)
 
     bc = behaviour_cloning(agent.loss, count, lambda: weight[0], q_filter=t.bc_q_filter)
-    return Transfer(batches=lambda own, n: mixed_batches(own, demos, n, t.demo_ratio),
+    label = option_labels(agent.loss, count) if isinstance(agent.loss, SoftOptionCriticLoss) and count else None
+
+    def batches(own, n):  # a generator: each batch's options are drawn just before its update
+        mixed = mixed_batches(own, demos, n, t.demo_ratio)
+        return mixed if label is None else (label(batch) for batch in mixed)
+
+    return Transfer(batches=batches,
                     loss_terms=bc if t.bc_weight > 0 and count > 0 else None,
                     on_frames=anneal if t.bc_anneal_frames > 0 else None,
                     summary={"demonstration_frames": data.numel()})
@@ -57,7 +64,7 @@ DEMONSTRATIONS = register_method(TransferMethod(
     _build,
     source="policy",
     takes=("batches",),
-    algos=("sac", "td3"),
+    algos=("sac", "td3", "soc"),
     options=builtin_options("demonstrations", {
         "demo_episodes": Annotated[Int, Field(ge=1, description="demonstrations: episodes of the source policy "
                                                                 "collected")],

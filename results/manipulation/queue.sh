@@ -4,8 +4,8 @@
 # 1. The kept sources, RUNS/sources/NAME/seed-<s> for seeds 0, 100, 200, that every row reuses:
 #    lift-sac   SAC on Lift with 50 episodes of the scripted demonstrator (1/4 of every batch, behaviour
 #               cloning at weight 10), 60k frames;
-#    lift-soc4  the soft option-critic with 4 options on Lift with Lift's potential as reward shaping
-#               (demonstrations work with SAC and TD3 only), SOC_FRAMES frames (default 100k).
+#    lift-soc4  the soft option-critic with 4 options on Lift with the same demonstrations (each credited
+#               to an option drawn from its policy over options), SOC_FRAMES frames (default 60k).
 #    A complete run is skipped and an interrupted one resumed; WORKERS at a time; their curves, configs
 #    and weights are kept in results/manipulation/sources/ (keep_source.py).
 # 2. Every row in ROWS order (results/manipulation/ROW.sh); a row already reported is skipped.
@@ -13,7 +13,7 @@ set -euo pipefail
 RUNS=${RUNS:-runs/manipulation}
 WORKERS=${WORKERS:-2}
 DRLTG=${DRLTG:-drltg}
-SOC_FRAMES=${SOC_FRAMES:-100000}
+SOC_FRAMES=${SOC_FRAMES:-60000}
 ROWS=${ROWS:-"lift-shaping pi-reuse-place pi-reuse-barrier model-reuse-place soc-model-reuse-place
   demonstrations-place demonstrations-barrier combined-place combined-barrier demonstrations-reference-place
   demonstrations-reference-barrier"}
@@ -21,7 +21,7 @@ SEEDS="0 100 200"
 EVAL="-o eval.every=5000 -o eval.episodes=10 -o checkpoint.every=5000"
 declare -A SOURCE=(
   [lift-sac]="--frames 60000 -o transfer.method=demonstrations -o transfer.source=demonstrator:lift"
-  [lift-soc4]="--algo soc --options 4 --frames $SOC_FRAMES -o transfer.method=reward-shaping"
+  [lift-soc4]="--algo soc --options 4 --frames $SOC_FRAMES -o transfer.method=demonstrations -o transfer.source=demonstrator:lift"
 )
 export OMP_NUM_THREADS=1 MKL_NUM_THREADS=1
 
