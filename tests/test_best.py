@@ -247,6 +247,8 @@ def test_the_rate_interval_is_clopper_pearson(k, n, expected):
     (["evaluate", "{tmp}/missing"], "run directory '{tmp}/missing' does not exist."),
     (["evaluate", "{tmp}", "--checkpoint", "best"], "holds no checkpoints/best.pt: only a run trained with"),
     (["evaluate", "{run}", "--episodes", "0"], "--episodes must be at least 1, got 0."),
+    (["evaluate", "{run}", "--seed", "-1"], "--seed must be an integer in [0, 2147483647], got -1."),
+    (["evaluate", "{run}/eval.csv"], "eval.csv' is a file, not a directory"),
     (["evaluate", "{run}", "--checkpoint", "first"], "invalid choice: 'first'"),
 ])
 def test_evaluate_bad_input_is_one_sentence_and_exit_2(trained, tmp_path, capsys, args, message):

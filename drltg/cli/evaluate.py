@@ -23,8 +23,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from drltg.training.reevaluate import evaluate_run
-    from drltg.training.rundir import atomic_write
+    from drltg.training.rundir import atomic_write, check_directory
 
+    check_directory(args.run_dir, "RUN_DIR")
     if not args.run_dir.expanduser().is_dir():
         raise UsageError(f"run directory '{args.run_dir}' does not exist.")
     if args.out is not None and args.out.is_dir():
