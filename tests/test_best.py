@@ -350,3 +350,10 @@ def test_each_seed_of_a_group_keeps_its_own_best(tmp_path, monkeypatch):
     for d, best in zip(dirs, (256, 512)):
         assert load(d)["frames"] == best
         assert json.loads((d / "summary.json").read_text())["best"]["frames"] == best
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["evaluate", "--help"]])
+def test_the_help_lists_evaluate(argv, capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    assert stop.value.code == 0 and "evaluate" in capsys.readouterr().out
