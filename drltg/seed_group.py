@@ -31,7 +31,7 @@ from torchrl.envs.utils import exploration_type
 
 from drltg.learners import Agent, loss_total
 
-__all__ = ["SeedGroup", "GroupPolicy", "SeedLoopPolicy", "SeedStreams"]
+__all__ = ["SeedGroup", "GroupPolicy", "SeedLoopPolicy", "SeedBlocks", "SeedStreams"]
 
 
 @contextlib.contextmanager
@@ -265,3 +265,25 @@ class SeedLoopPolicy(TensorDictModuleBase):
         out = torch.stack(outs).reshape(tensordict.batch_size)
         tensordict.update(out.select(*self.out_keys, strict=False))
         return tensordict
+
+
+class SeedBlocks(TensorDictModuleBase):
+    """Per-seed modules on a seed group's batched env: block k of the flat batch (seed k's envs) goes
+    through ``modules[k]`` (e.g. seed k's policy-reuse mixer over its own source policy), drawing from
+    seed k's stream where the group has :class:`SeedStreams`, as the module draws in seed k's run alone."""
+
+    def __init__(self, modules: Sequence[TensorDictModuleBase], streams: SeedStreams | None = None):
+        super().__init__()
+        self.blocks = torch.nn.ModuleList(modules)
+        self.streams = streams
+        self.in_keys = list(dict.fromkeys(k for m in modules for k in m.in_keys))
+        self.out_keys = list(dict.fromkeys(k for m in modules for k in m.out_keys))
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        blocks = tensordict.reshape(len(self.blocks), -1)
+        outs = []
+        for k, module in enumerate(self.blocks):
+            with contextlib.nullcontext() if self.streams is None else self.streams.use(k):
+                outs.append(module(blocks[k].copy()))
+        out = torch.stack(outs).reshape(tensordict.batch_size)
+        return tensordict.update(out.select(*self.out_keys, strict=False))

@@ -47,15 +47,15 @@ def test_model_reuse_plus_demonstrations_loads_the_weights_and_mixes_the_batches
     assert transfer.batches is not None and transfer.loss_terms is not None
     assert set(transfer.files) == {"model_reuse.txt"}
     assert transfer.summary["demonstration_frames"] > 0
-    assert transfer.policy is None and transfer.train_transforms == []
+    assert transfer.policy is None and transfer.mixer is None and transfer.train_transforms == []
 
 
 def test_shaping_plus_policy_reuse_keeps_the_transform_and_the_mixer(source_run):
     _, transfer = _build("reward-shaping+policy-reuse", source_run)
     # the shaping transform, then the mixer's primer (which carries the episode's choice of past policy)
-    assert [type(t).__name__ for t in transfer.train_transforms] == ["PotentialShaping", "TensorDictPrimer"]
+    assert [type(t).__name__ for t in transfer.train_transforms] == ["PotentialShaping", "ReuseIndexPrimer"]
     assert set(transfer.train_transforms[1].primers.keys()) == {"reuse_index"}
-    assert transfer.policy is not None and transfer.on_frames is not None
+    assert transfer.mixer is not None and transfer.on_frames is not None
 
 
 def test_every_part_is_told_the_frames():

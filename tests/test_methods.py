@@ -44,8 +44,8 @@ def test_every_method_builds_a_transfer_for_a_run(name, tmp_path):
     changed = {k for k, v in vars(transfer).items() if v not in (None, [], {})}
     expected = {
         "none": set(), "reward-shaping": {"train_transforms"}, "value-shaping": {"train_transforms"},
-        "policy-reuse": {"train_transforms", "policy", "on_frames"},
-        "jumpstart": {"train_transforms", "policy", "on_frames"},
+        "policy-reuse": {"train_transforms", "mixer", "on_frames"},
+        "jumpstart": {"train_transforms", "mixer", "on_frames"},
         "model-reuse": {"files"}, "demonstrations": {"batches", "loss_terms", "summary"},
     }
     assert changed == expected[name]
@@ -96,7 +96,7 @@ def test_jumpstart_guides_for_the_configured_steps(tmp_path):
                "transfer.guide_steps=40", "transfer.guide_stages=4", "transfer.guide_frames=1000")
     env = make_env("fourrooms/northeast")
     transfer = get_method("jumpstart").build(cfg, make_agent(env, cfg), env, resuming=False)
-    mixer = transfer.policy[-1]
+    mixer = transfer.mixer
     assert isinstance(mixer, PolicyReuse) and isinstance(mixer.schedule, JumpStart)
     horizons = []
     for frames in (0, 249, 250, 500, 999, 1000, 5000):

@@ -397,6 +397,7 @@ def _config(task, *overrides):
 
 
 def test_demonstrator_as_past_policy_acts_through_the_reuse_mixer(envs):
+    from tensordict.nn import TensorDictSequential
     from torchrl.envs.utils import ExplorationType, set_exploration_type
 
     from drltg.learners import make_agent
@@ -409,9 +410,10 @@ def test_demonstrator_as_past_policy_acts_through_the_reuse_mixer(envs):
     assert isinstance(past, PickPlaceDemonstrator) and not past.place  # lift's skill: reach, grasp, lift
     env = envs["lift-place"]
     env.set_seed(0)
-    transfer = get_method("policy-reuse").build(cfg, make_agent(env, cfg), env, resuming=False)
+    agent = make_agent(env, cfg)
+    transfer = get_method("policy-reuse").build(cfg, agent, env, resuming=False)
     (primer,) = transfer.train_transforms  # declares the episode's choice of past policy, "reuse_index"
-    td, policy = primer(env.reset()), transfer.policy
+    td, policy = primer(env.reset()), TensorDictSequential(agent.policy, transfer.mixer)
     with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
         out = policy(td.clone())
     assert out["reused"].item()  # psi_h = 1 * 1^h: the demonstrator always acts

@@ -213,13 +213,14 @@ def test_a_group_resumes_from_its_seeds_checkpoints(group_run, tmp_path, monkeyp
         assert (tmp_path / f"seed-{seed}" / "summary.json").is_file()
 
 
-def test_a_method_without_a_grouped_form_trains_its_seeds_one_after_another(tmp_path, capsys):
+def test_a_method_without_a_grouped_form_trains_its_seeds_one_after_another(group_run, tmp_path, capsys):
     from drltg.training.seeds import train_seeds
 
-    cfg = tiny_cfg(frames=64, **{"transfer.method": "reward-shaping"})
+    cfg = tiny_cfg(frames=64, **{"transfer.method": "demonstrations", "transfer.source": str(group_run / "seed-3"),
+                                 "transfer.demo_episodes": 1, "env.horizon": 16})
     dirs = train_seeds(config_lib.updated(cfg, {"eval.every": 64}), tmp_path, 2, progress=False)
     err = capsys.readouterr().err
-    assert "transfer method reward-shaping has no grouped form; training the 2 seeds one after another" in err
+    assert "transfer method demonstrations has no grouped form; training the 2 seeds one after another" in err
     assert [d.name for d in dirs] == ["seed-3", "seed-4"] and all((d / "summary.json").is_file() for d in dirs)
 
 
@@ -272,10 +273,13 @@ def test_runs_that_differ_only_in_their_seed_form_one_unit(tmp_path):
     soc = [run("o0", seed=0, algo="soc"), run("o100", seed=100, algo="soc")]  # grouped too
     shaped = [run("r0", seed=0, **{"transfer.method": "reward-shaping"}),
               run("r100", seed=100, **{"transfer.method": "reward-shaping"})]
-    units = seed_groups([baseline[0], source[0], transfer[0], soc[0], shaped[0], baseline[1], source[1], transfer[1],
-                         soc[1], shaped[1]])
+    reused = [run(f"p{s}", needs=tmp_path / f"s{s + 50}", seed=s,
+                  **{"transfer.method": "demonstrations", "transfer.source": str(tmp_path / f"s{s + 50}")})
+              for s in (0, 100)]  # a buffer of demonstrations: no grouped form
+    units = seed_groups([baseline[0], source[0], transfer[0], soc[0], shaped[0], reused[0], baseline[1], source[1],
+                         transfer[1], soc[1], shaped[1], reused[1]])
     assert [[r.path.name for r in unit] for unit in units] == [
-        ["b0", "b100"], ["s50", "s150"], ["t0"], ["o0", "o100"], ["r0"], ["t100"], ["r100"]]
+        ["b0", "b100"], ["s50", "s150"], ["t0", "t100"], ["o0", "o100"], ["r0", "r100"], ["p0"], ["p100"]]
 
 
 def test_an_experiment_leaves_worker_process_groups_to_train_seeds(tmp_path):

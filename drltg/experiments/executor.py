@@ -5,9 +5,9 @@
 :class:`RayBackend` (Ray tasks on a local instance or a cluster). A run's output goes to its own log;
 a broken run is reported with its log and the others go on; a complete run (``summary.json``) is
 skipped and an interrupted one resumes from its checkpoint, so running the same plan again finishes
-what is missing. Runs that share everything but the seed (and need no other run) train as one seed
-group in one task (:mod:`drltg.training.seeds`) where the learner supports it, unless ``group_seeds``
-is off.
+what is missing. Runs that share everything but the seed (and the source run each reads) train as one
+seed group in one task (:mod:`drltg.training.seeds`) where the learner and transfer method support it,
+unless ``group_seeds`` is off.
 """
 from __future__ import annotations
 
@@ -133,18 +133,22 @@ def run_group(cfgs: list[RunConfig], run_dirs: list[str], log_paths: list[str]) 
 
 
 def seed_groups(runs: list[Run]) -> list[list[Run]]:
-    """``runs`` in units of work, in order: runs that need no other run, whose configs differ only in
-    the seed and whose learner trains as a seed group in this process (:func:`~drltg.training.seeds.group_support`,
-    :func:`~drltg.training.seeds.in_process`), and that are all new or all resumable, form one unit; every
-    other run is a unit of one. A group of worker-process envs (robosuite) holds N runs' envs at once, and
-    units run side by side here, so such tasks group only when asked (``drltg train --seeds N``)."""
+    """``runs`` in units of work, in order: runs whose configs differ only in the seed (and in
+    ``transfer.source``: a transfer run of seed s reads its own seed's source run), whose learner and
+    transfer method train as a seed group in this process (:func:`~drltg.training.seeds.group_support`,
+    :func:`~drltg.training.seeds.in_process`), and that are all new or all resumable, form one unit, which
+    starts once every run its runs need is done (runs that need none are not held back by runs that do);
+    every other run is a unit of one. A group of worker-process envs (robosuite) holds N runs' envs at
+    once, and units run side by side here, so such tasks group only when asked (``drltg train --seeds N``)."""
     from drltg.training.seeds import group_support, in_process, same_but_seed
 
     units: list[list[Run]] = []
     for run in runs:
         for unit in units:
             first = unit[0]
-            if (run.needs is None and first.needs is None and same_but_seed(first.cfg, run.cfg)
+            if (same_but_seed(first.cfg, run.cfg) and (run.needs is None) == (first.needs is None)
+                    and run.needs not in {r.path for r in unit}
+                    and run.path not in {r.needs for r in unit}
                     and (run.path / rundir.CONFIG).is_file() == (first.path / rundir.CONFIG).is_file()
                     and group_support(run.cfg) is None and in_process(run.cfg)):
                 unit.append(run)
@@ -435,15 +439,17 @@ def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs",
     try:
         while units or running:
             for unit in list(units):
-                run = unit[0]
-                state = status.get(run.needs, ("done", ""))[0] if run.needs else "done"
-                if run.needs and run.needs not in status:
-                    continue  # its source is not trained yet
-                if state in ("failed", "diverged"):
-                    status[run.path] = ("failed", f"not run: the run it needs {state} ({run.needs})")
+                if any(run.needs and run.needs not in status for run in unit):
+                    continue  # a source is not trained yet
+                for run in list(unit):
+                    state = status[run.needs][0] if run.needs else "done"
+                    if state in ("failed", "diverged"):
+                        status[run.path] = ("failed", f"not run: the run it needs {state} ({run.needs})")
+                        unit.remove(run)
+                if not unit:
                     units.remove(unit)
                 elif len(running) < backend.capacity:
-                    handle = backend.submit(run) if len(unit) == 1 else backend.submit_group(unit)
+                    handle = backend.submit(unit[0]) if len(unit) == 1 else backend.submit_group(unit)
                     running[handle] = unit
                     units.remove(unit)
             postfix()

@@ -55,7 +55,7 @@ from typing import Any
 
 from drltg.config import RunConfig
 from drltg.errors import UsageError
-from drltg.experiments.executor import LocalBackend, RayBackend, Run, execute
+from drltg.experiments.executor import LocalBackend, RayBackend, Run, execute, seed_groups
 from drltg.training import rundir
 
 KEYS = ("pairs", "methods", "algos", "seeds", "seed", "frames", "source_frames", "overrides", "grid",
@@ -446,7 +446,10 @@ def run(args: argparse.Namespace) -> int:
     if args.dry_run:
         for r in runs:
             print(f"{r.role:<9} {r.frames:>9} frames  {r.path.relative_to(out)}")
-        print(f"{len(runs)} runs, {len(cells)} reports")
+        units = [[r] for r in runs] if args.no_seed_groups else seed_groups(runs)
+        groups = [u for u in units if len(u) > 1]
+        print(f"{len(runs)} runs, {len(cells)} reports; {len(units)} units of work: {len(groups)} seed groups "
+              f"of {sum(map(len, groups))} runs, {len(units) - len(groups)} runs alone")
         return 0
     check_runs([(r.role, r.cfg, r.path) for r in runs])
     check_existing(runs)

@@ -23,6 +23,7 @@ from typing import Callable
 import torch
 import yaml
 from tensordict import TensorDictBase
+from tensordict.nn import TensorDictSequential
 from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, ReplayBuffer
 from torchrl.envs import EnvBase, ExplorationType, RewardSum, TransformedEnv, set_exploration_type
@@ -347,6 +348,8 @@ class AgentLearner:
         self.agent, self.buffer, self.eval_env, self.transfer = agent, buffer, eval_env, transfer
         self.actor_delay = agent.actor_delay
         self.policy = agent.policy if transfer.policy is None else transfer.policy
+        if transfer.mixer is not None:
+            self.policy = TensorDictSequential(self.policy, transfer.mixer)
         self.step = UpdateStep(agent, loss_terms=transfer.loss_terms)
 
     def split(self, data: TensorDictBase) -> list[TensorDictBase]:
@@ -377,12 +380,13 @@ class AgentLearner:
 
 def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, frames: int = 0, updates: int = 0,
              progress: bool = True, stop_if_signalled: Callable[[], None] = lambda: None,
-             extra_summary: dict | None = None) -> None:
+             extra_summary: dict | list[dict] | None = None) -> None:
     """Collect, store, update, evaluate and checkpoint until ``cfg.frames`` frames per seed.
 
     ``learner`` trains one or several seeds in step (see :class:`AgentLearner`); ``writers`` gets one
     :class:`~drltg.training.rundir.RunWriter` per seed and receives every evaluation, logged scalar,
-    checkpoint and the summary: the loop itself writes no file. ``frames`` counts one seed's frames.
+    checkpoint and the summary (with ``extra_summary``, one for every writer or a list of one per writer):
+    the loop itself writes no file. ``frames`` counts one seed's frames.
     """
     col, opt = cfg.collector, cfg.optim
     seeds = learner.seeds
@@ -455,9 +459,10 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
         run_eval()
     save_checkpoint()
     wall = time.perf_counter() - start
-    for writer in writers:
+    extras = extra_summary if isinstance(extra_summary, list) else [extra_summary] * len(writers)
+    for writer, extra in zip(writers, extras):
         writer.finish(frames, updates, wall, (frames - start_frames) / max(wall, 1e-9),
-                      {**(extra_summary or {}), **best.summary(cfg, writer.rows)})
+                      {**(extra or {}), **best.summary(cfg, writer.rows)})
 
 
 def _episode_stats(data: TensorDictBase, stats: dict) -> None:

@@ -8,6 +8,17 @@ each seed's own env, :func:`_worker_env`), one vmapped policy call (one call per
 whose option choice branches on the data) and one vmapped update per step, a replay buffer per seed.
 Otherwise they train one after another with :func:`~drltg.training.loop.train`.
 
+A transfer method groups if it declares a grouped form (``TransferMethod.grouped``; ``a+b`` if every
+part does): ``none``, ``model-reuse`` (each seed's networks load its own ``transfer.source`` before the
+seeds are stacked; frozen parameters stay frozen in the stack), ``reward-shaping`` and
+``value-shaping`` (seed k's env block shaped with seed k's own potential,
+:meth:`~drltg.transforms.PotentialShaping.seed_blocks`), ``policy-reuse`` and ``jumpstart`` (seed k's
+mixer over its own source policy on seed k's envs, :class:`~drltg.seed_group.SeedBlocks`, drawing from
+seed k's stream). Each seed's transfer is built as its run alone builds it, at the same point of its
+random stream. ``demonstrations`` (a demonstration buffer mixed into every minibatch) has none. The
+configs of a group may differ in ``transfer.source`` (an experiment's transfer run of seed s reads its
+own seed's source run).
+
 What a seed shares with its run alone: its initial networks (built under ``torch.manual_seed(seed)`` as
 a run alone builds them), its env's starts and noise, training and evaluation (a random stream per seed,
 :mod:`drltg.envs.seeding`), its replay buffer, and its updates given a batch and random draws
@@ -36,6 +47,7 @@ from pathlib import Path
 
 import torch
 from tensordict import TensorDictBase
+from tensordict.nn import TensorDictSequential
 from torchrl.data import LazyTensorStorage, ReplayBuffer
 from torchrl.envs import BatchSizeTransform, EnvBase, ParallelEnv, RewardSum, TransformedEnv
 from torchrl.objectives import SACLoss
@@ -47,7 +59,7 @@ from drltg.errors import UsageError
 from drltg.learners import sample_batches
 from drltg.losses import SoftOptionCriticLoss
 from drltg.modules import make_option_policy
-from drltg.seed_group import GroupPolicy, SeedGroup, SeedLoopPolicy, SeedStreams
+from drltg.seed_group import GroupPolicy, SeedBlocks, SeedGroup, SeedLoopPolicy, SeedStreams
 from drltg.training import best, health, rundir
 from drltg.training.loop import (
     _check_saved_config,
@@ -64,8 +76,10 @@ from drltg.training.loop import (
     train,
 )
 from drltg.training.rundir import CHECKPOINT, CONFIG, RunWriter, is_complete
+from drltg.transfer import Transfer, get_method
+from drltg.transfer.source import check as check_source
 
-__all__ = ["train_seeds", "train_group", "group_support", "seed_dirs", "same_but_seed"]
+__all__ = ["train_seeds", "train_group", "group_train_env", "group_support", "seed_dirs", "same_but_seed"]
 
 GROUPED_ALGOS = ("sac", "td3", "soc")
 """Learners whose seeds train as one group (SAC covers discrete SAC on discrete tasks)."""
@@ -76,15 +90,21 @@ def seed_dirs(run_dir: Path, first: int, count: int) -> list[Path]:
 
 
 def same_but_seed(a: RunConfig, b: RunConfig) -> bool:
-    """Whether two configs differ in their seed at most: their runs can share a seed group."""
-    return {**a.model_dump(), "seed": 0} == {**b.model_dump(), "seed": 0}
+    """Whether two configs differ at most in their seed and their ``transfer.source`` (an experiment's
+    transfer run of seed s reads the source run of its own seed): their runs can share a seed group,
+    each seed transferring from its own source."""
+    def key(cfg: RunConfig) -> dict:
+        dump = cfg.model_dump()
+        return {**dump, "seed": 0, "transfer": {**dump["transfer"], "source": None}}
+
+    return key(a) == key(b)
 
 
 def group_support(cfg: RunConfig) -> str | None:
     """``None`` if the seeds of ``cfg`` can train as one group, else why not (one clause)."""
     if cfg.algo not in GROUPED_ALGOS:
         return f"--algo {cfg.algo} has no grouped update"
-    if cfg.transfer.method != "none":
+    if not get_method(cfg.transfer.method).grouped:
         return f"transfer method {cfg.transfer.method} has no grouped form"
     from drltg.envs import get_task
 
@@ -122,7 +142,7 @@ class GroupLearner:
     """A :class:`SeedGroup` as the training loop's learner (see :class:`~drltg.training.loop.AgentLearner`):
     a replay buffer per seed, stacked batches, per-seed evaluation on a blocked env."""
 
-    def __init__(self, group: SeedGroup, buffers: list[ReplayBuffer], eval_env):
+    def __init__(self, group: SeedGroup, buffers: list[ReplayBuffer], eval_env, transfers: list[Transfer]):
         self.group, self.buffers, self.eval_env = group, buffers, eval_env
         self.seeds, self.actor_delay = group.seeds, group.actor_delay
         first = group.agents[0]
@@ -133,12 +153,17 @@ class GroupLearner:
             noise = None if first.policy is first.actor else first.policy[-1]
             self.policy = GroupPolicy(first.actor, actor_params, then=noise, streams=group.streams)
             self.actor = GroupPolicy(first.actor, actor_params, streams=group.streams)
+        if transfers[0].mixer is not None:  # seed k's mixer (policy reuse over its own source) on its envs
+            self.policy = TensorDictSequential(self.policy, SeedBlocks([t.mixer for t in transfers], group.streams))
+        self.on_frames = [t.on_frames for t in transfers if t.on_frames is not None]
         self.in_keys = list(group.loss.in_keys)
 
     def split(self, data: TensorDictBase) -> list[TensorDictBase]:
         return list(data.reshape(self.seeds, -1).unbind(0))
 
     def store(self, data: list[TensorDictBase], frames: int) -> None:
+        for tell in self.on_frames:
+            tell(frames)
         for buffer, piece in zip(self.buffers, data):
             buffer.extend(piece.select(*self.in_keys))
 
@@ -238,9 +263,40 @@ def _group_env(cfg: RunConfig, seeds: list[int], per_seed: int, seed_offset: int
     return env
 
 
+def _seed_block_transforms(name: str, transfers: list[Transfer]) -> list:
+    """The group's training-env transforms: position by position, the seeds' own transforms joined by
+    their ``seed_blocks`` (seed k's shapes block k). A grouped method sets nothing a group cannot give
+    each seed (a whole collector policy, minibatches, loss terms)."""
+    for field in ("policy", "batches", "loss_terms"):
+        if getattr(transfers[0], field) is not None:
+            raise UsageError(f"transfer method {name} is registered with grouped=True but sets the Transfer's "
+                             f"{field}, which a seed group cannot give each seed; register it without grouped.")
+    joined = []
+    for parts in zip(*(t.train_transforms for t in transfers), strict=True):
+        seed_blocks = getattr(type(parts[0]), "seed_blocks", None)
+        if seed_blocks is None:
+            raise UsageError(f"transfer method {name} is registered with grouped=True but its transform "
+                             f"{type(parts[0]).__name__} has no seed_blocks to shape each seed's envs apart.")
+        joined.append(seed_blocks(parts))
+    return joined
+
+
+def group_train_env(cfgs: list[RunConfig], transforms, transfers: list[Transfer], streams=None) -> EnvBase:
+    """A group's training env: ``collector.num_envs`` envs per seed, the learner's ``transforms``, the
+    episode-return tracking, then each seed's transfer transforms on its own block (after ``RewardSum``,
+    as in a run alone: ``train/episode_return`` stays the task's return)."""
+    cfg = cfgs[0]
+    env = _group_env(cfg, [c.seed for c in cfgs], cfg.collector.num_envs, 0, transforms, streams)
+    env.append_transform(RewardSum())
+    for shaping in _seed_block_transforms(get_method(cfg.transfer.method).name, transfers):
+        env.append_transform(shaping)
+    return env
+
+
 def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False, progress: bool = True) -> list[Path]:
-    """Train ``cfgs`` (configs equal but for their seeds, :func:`group_support` true) as one seed group
-    into ``dirs``, one run directory each; ``resume`` continues them from their checkpoints."""
+    """Train ``cfgs`` (configs equal but for their seeds and sources, :func:`same_but_seed`;
+    :func:`group_support` true) as one seed group into ``dirs``, one run directory each; ``resume``
+    continues them from their checkpoints."""
     cfg, count = cfgs[0], len(cfgs)
     with contextlib.ExitStack() as owned:
         if resume:
@@ -265,12 +321,18 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
             states = [(None, []) for _ in dirs]
 
         torch.set_num_threads(cfg.threads)
-        agents, rng_states = [], []
-        for c in cfgs:  # each seed's networks as its run alone builds them, and its random stream from there on
+        method = get_method(cfg.transfer.method)
+        agents, transfers, rng_states = [], [], []
+        for c, (ckpt, _) in zip(cfgs, states):
+            # each seed's networks and transfer as its run alone builds them (model reuse loads the seed's
+            # own source into them, before they are stacked), and its random stream from there on
             torch.manual_seed(c.seed)
-            agents.append(check_config(c)[1])
-            if streams_supported(agents[-1], c) and in_process(c):
-                make_envs(c, agents[-1].env_transforms)  # the draws a run alone makes before its loop (env seeds)
+            check_source(c)
+            probe, agent = check_config(c)
+            if streams_supported(agent, c) and in_process(c):
+                make_envs(c, agent.env_transforms)  # the draws a run alone makes before its loop (env seeds)
+            transfers.append(method.build(c, agent, probe, resuming=ckpt is not None))
+            agents.append(agent)
             rng_states.append(torch.get_rng_state())
         torch.manual_seed(cfg.seed)
         buffers = [ReplayBuffer(storage=LazyTensorStorage(cfg.buffer.size, device=cfg.device),
@@ -292,13 +354,12 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
         group = SeedGroup(agents, streams=streams)
         seeds = [c.seed for c in cfgs]
         transforms = agents[0].env_transforms  # what the policy needs the env to carry (SOC's option)
-        train_env = _group_env(cfg, seeds, cfg.collector.num_envs, 0, transforms, streams)
-        train_env.append_transform(RewardSum())
+        train_env = group_train_env(cfgs, transforms, transfers, streams)
         owned.callback(train_env.close, raise_if_closed=False)  # worker processes, where the task has them
         eval_env = _group_env(cfg, seeds, cfg.eval.episodes, 10_000, transforms)
         best.check_metric(cfg, eval_env)
         owned.callback(eval_env.close, raise_if_closed=False)
-        learner = GroupLearner(group, buffers, eval_env)
+        learner = GroupLearner(group, buffers, eval_env, transfers)
 
         created = [not d.exists() for d in dirs]
         if resume:
@@ -314,18 +375,18 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
                 _refuse_existing(d)
         try:
             writers = [RunWriter(d, c, rows) for d, c, (_, rows) in zip(dirs, cfgs, states)]
-            for writer in writers:
-                writer.start()
+            for writer, transfer in zip(writers, transfers):
+                writer.start(transfer.files)
             frames, updates = 0, 0
             if ckpts[0] is not None:
                 torch.set_rng_state(ckpts[0]["rng"])
                 frames, updates = ckpts[0]["frames"], ckpts[0]["updates"]
             collector = make_collector(cfg, train_env, learner.policy, frames, seeds=count)
-            summary = {"seed_group": {"seeds": seeds}}
+            summaries = [{**transfer.summary, "seed_group": {"seeds": seeds}} for transfer in transfers]
             with deferred_signals() as stop_if_signalled:
                 try:
                     run_loop(cfg, collector, learner, writers, frames=frames, updates=updates, progress=progress,
-                             stop_if_signalled=stop_if_signalled, extra_summary=summary)
+                             stop_if_signalled=stop_if_signalled, extra_summary=summaries)
                 except health.Diverged as err:  # a diverged seed is finished; the others resume from their checkpoints
                     for k in range(count) if err.seeds is None else err.seeds:
                         health.write_diverged(dirs[k], cfgs[k], err)

@@ -17,12 +17,15 @@ its ``best.pt`` (``transfer.source_checkpoint`` for the methods).
 
 :mod:`drltg.transfer.registry` defines what a method is (:class:`TransferMethod`) and what it adds to a
 run (:class:`Transfer`); :mod:`drltg.transfer.source` reads ``transfer.source``. Importing this package
-registers the built-in methods (``a+b`` names a combination, :func:`combine`); the parts themselves
+registers the built-in methods (``a+b`` names a combination, :func:`combine`); all but demonstrations
+train their seeds as one seed group (``TransferMethod.grouped``, :mod:`drltg.training.seeds`),
+demonstrations one after another; the parts themselves
 (``drltg.transforms``, ``drltg.collectors``, ``drltg.losses``, ``drltg.modules``) register nothing.
 """
 from drltg.transfer.registry import METHODS, Transfer, TransferMethod, combine, get_method, register_method
 
-register_method(TransferMethod("none", "plain learning on the task: the baseline", lambda *a, **k: Transfer()))
+register_method(TransferMethod("none", "plain learning on the task: the baseline", lambda *a, **k: Transfer(),
+                               grouped=True))
 
 from drltg.transfer import reward_shaping, value_shaping, policy_reuse, model_reuse, demonstrations  # noqa: E402,I001
 from drltg.transfer.model_reuse import load_from_run  # noqa: E402

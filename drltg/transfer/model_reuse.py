@@ -48,6 +48,7 @@ MODEL_REUSE_METHOD = register_method(TransferMethod(
     "model-reuse",
     "the learner starts from the source run's weights (observation-size changes mapped)",
     _build,
+    grouped=True,
     source="run",
     takes=("weights",),
     options=builtin_options("model-reuse", {

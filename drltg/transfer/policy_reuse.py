@@ -15,14 +15,11 @@ if TYPE_CHECKING:
 
 def _mixed(cfg: RunConfig, agent, env, schedule: ReuseSchedule) -> Transfer:
     """The learner's exploration policy followed by the mixer over the source's past policy."""
-    from tensordict.nn import TensorDictSequential
-
     from drltg.collectors import PolicyReuse
     from drltg.transfer.source import source_actor
 
     mixer = PolicyReuse(source_actor(cfg, env), schedule=schedule)
-    return Transfer(train_transforms=[mixer.primer()], policy=TensorDictSequential(agent.policy, mixer),
-                    on_frames=mixer.set_progress)
+    return Transfer(train_transforms=[mixer.primer()], mixer=mixer, on_frames=mixer.set_progress)
 
 
 def _pi_reuse(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
@@ -45,6 +42,7 @@ POLICY_REUSE = register_method(TransferMethod(
     _pi_reuse,
     source="policy",
     takes=("policy",),
+    grouped=True,
     check=_check_pi_reuse,
     options=builtin_options("policy-reuse", {
         "psi": Annotated[Probability, Field(description="pi-reuse: probability of reusing at an episode's first step")],
@@ -71,6 +69,7 @@ JUMPSTART = register_method(TransferMethod(
     _jumpstart,
     source="policy",
     takes=("policy",),
+    grouped=True,
     options=builtin_options("jumpstart", {
         "guide_steps": Annotated[Int, Field(ge=0, description="jumpstart: steps the source policy acts at the "
                                                              "start (H at first)")],

@@ -42,8 +42,11 @@ class Transfer:
     Attributes:
         train_transforms: appended to the training env after the episode-return tracking, so the
             logged ``train/episode_return`` and every evaluation stay on the task's own reward.
-        policy: the collector's policy instead of the learner's exploration policy (e.g. the learner
-            followed by a policy mixer).
+        policy: the collector's policy instead of the learner's exploration policy.
+        mixer: a module applied after the learner's exploration policy in the collector (policy reuse's
+            :class:`~drltg.collectors.PolicyReuse`): the collector's policy is
+            ``TensorDictSequential(learner's policy, mixer)``; in a seed group, seed k's mixer acts on
+            seed k's envs.
         on_frames: told the frames collected so far after every batch (schedules over training).
         batches: ``batches(buffer, n)`` gives the ``n`` minibatches of one round of updates instead of
             ``n`` samples of the replay buffer.
@@ -56,6 +59,7 @@ class Transfer:
 
     train_transforms: list = field(default_factory=list)
     policy: Any = None
+    mixer: Any = None
     on_frames: Callable[[int], None] | None = None
     batches: Callable[[Any, int], Iterable] | None = None
     loss_terms: Callable[[Any], dict] | None = None
@@ -84,6 +88,12 @@ class TransferMethod:
         takes: the places of the pipeline it owns alone (``"policy"``: the collector's policy,
             ``"batches"``: the minibatches, ``"weights"``: the learner's initial weights); two methods
             that take one place cannot be combined.
+        grouped: whether its seeds can train as one seed group (:mod:`drltg.training.seeds`). The group
+            calls ``build`` once per seed, on that seed's learner before the seeds' parameters are
+            stacked, and shapes seed k's block of its batched env with seed k's ``train_transforms``
+            joined by their ``seed_blocks`` (:meth:`drltg.transforms.PotentialShaping.seed_blocks`), seed
+            k's ``mixer`` on seed k's envs and every seed's ``on_frames``; a method whose ``Transfer``
+            sets the policy, batches or loss terms has no grouped form.
     """
 
     name: str
@@ -94,6 +104,7 @@ class TransferMethod:
     check: Callable[[RunConfig], None] | None = None
     algos: tuple[str, ...] | None = None
     takes: tuple[str, ...] = ()
+    grouped: bool = False
 
     def validate(self, cfg: RunConfig) -> None:
         if self.algos is not None and cfg.algo not in self.algos:
@@ -155,7 +166,8 @@ def combine(*methods: TransferMethod) -> TransferMethod:
     The parts' ``Transfer`` fields are joined: transforms and loss terms add up, schedules are all told
     the frames, files and summaries are merged. A place only one method may own (``takes``) refuses a
     second owner, and so do sources of different kinds: with one ``transfer.source``, a method that
-    reuses a run's weights and one that asks for a demonstrator cannot share it.
+    reuses a run's weights and one that asks for a demonstrator cannot share it. The combination trains
+    as a seed group only if every part does.
     """
     names = [m.name for m in methods]
     name = "+".join(names)
@@ -188,7 +200,7 @@ def combine(*methods: TransferMethod) -> TransferMethod:
 
     options = {k: v for m in methods for k, v in m.options.items()}
     return TransferMethod(name, " + ".join(m.help for m in methods), build, source=source, options=options,
-                          check=check, algos=algos, takes=tuple(owners))
+                          check=check, algos=algos, takes=tuple(owners), grouped=all(m.grouped for m in methods))
 
 
 _PLACES = {"policy": "collector's policy", "batches": "minibatches", "weights": "learner's initial weights"}
@@ -196,10 +208,11 @@ _PLACES = {"policy": "collector's policy", "batches": "minibatches", "weights": 
 
 def _join(parts: list[Transfer]) -> Transfer:
     policies = [t.policy for t in parts if t.policy is not None]
+    mixers = [t.mixer for t in parts if t.mixer is not None]
     batches = [t.batches for t in parts if t.batches is not None]
     on_frames = [t.on_frames for t in parts if t.on_frames is not None]
     terms = [t.loss_terms for t in parts if t.loss_terms is not None]
-    assert len(policies) <= 1 and len(batches) <= 1, "combine() admits one owner per place"
+    assert len(policies) + len(mixers) <= 1 and len(batches) <= 1, "combine() admits one owner per place"
 
     def tell(frames: int) -> None:
         for f in on_frames:
@@ -211,6 +224,7 @@ def _join(parts: list[Transfer]) -> Transfer:
     return Transfer(
         train_transforms=[x for t in parts for x in t.train_transforms],
         policy=policies[0] if policies else None,
+        mixer=mixers[0] if mixers else None,
         on_frames=tell if on_frames else None,
         batches=batches[0] if batches else None,
         loss_terms=loss_terms if terms else None,

@@ -27,5 +27,6 @@ REWARD_SHAPING = register_method(TransferMethod(
     "reward-shaping",
     "adds gamma Phi(s') - Phi(s) to the training reward, Phi the task's registered potential",
     _build,
+    grouped=True,
     check=_check,
 ))

@@ -25,6 +25,7 @@ VALUE_SHAPING = register_method(TransferMethod(
     "value-shaping",
     "adds gamma Phi(s') - Phi(s) to the training reward, Phi the source run's value V_source(s)",
     _build,
+    grouped=True,
     source="run",
     algos=("sac", "td3"),
     options=builtin_options("value-shaping", {
