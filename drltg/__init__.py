@@ -21,7 +21,8 @@ when first used)::
                        the named methods of ``drltg train -o transfer.method=...``
     drltg.training     train(cfg, run_dir): the loop that writes a run directory (is_complete(run_dir));
                        evaluate(env, actor): success rate and return of deterministic episodes;
-                       train_seeds(cfg, run_dir, n): seeds S..S+n-1 in one process, one run directory each
+                       train_seeds(cfg, run_dir, n): seeds S..S+n-1 in one process, one run directory each;
+                       evaluate_run(run_dir, checkpoint="best"): a saved policy on fresh episodes, with intervals
     drltg.experiments  source, baseline and transfer runs over seeds (``drltg experiment``, ``drltg sweep``)
     drltg.analysis     transfer metrics, reports, plots and tables from run directories (no torch)
     drltg.cli          the ``drltg`` command
@@ -46,6 +47,7 @@ _SURFACE = {
     "drltg.transfer": ["load_actor", "load_critic", "load_agent", "load_from_run"],
     "drltg.training.loop": ["train", "evaluate", "is_complete"],
     "drltg.training.seeds": ["train_seeds"],
+    "drltg.training.reevaluate": ["evaluate_run"],
 }
 _WHERE = {name: module for module, names in _SURFACE.items() for name in names}
 

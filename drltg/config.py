@@ -9,10 +9,11 @@ range in its section's model (``describe()`` lists them); a typo or a value out 
 :class:`~drltg.errors.UsageError` sentence naming the key (pydantic's errors are translated), before
 anything is built or written.
 
-Two parts are open-ended: the ``transfer`` section holds, besides ``method``, ``source`` and
-``allow_incomplete``, the options of every registered transfer method (each method's options are a
-model of their own, built when it is registered, :func:`add_method`), and ``env`` is a mapping of the
-task's keyword arguments, checked against the keywords its factory declares (:func:`validate`).
+Two parts are open-ended: the ``transfer`` section holds, besides ``method``, ``source``,
+``allow_incomplete`` and ``source_checkpoint``, the options of every registered transfer method (each
+method's options are a model of their own, built when it is registered, :func:`add_method`), and ``env``
+is a mapping of the task's keyword arguments, checked against the keywords its factory declares
+(:func:`validate`).
 """
 from __future__ import annotations
 
@@ -151,6 +152,10 @@ class EvalConfig(Section):
 
 class CheckpointConfig(Section):
     every: Int = Field(10_000, ge=1, description="frames between checkpoints")
+    keep_best: Bool = Field(False, description="also keep checkpoints/best.pt, the checkpoint of the best evaluation")
+    best_metric: Literal["auto", "success_rate", "lifted_rate", "return_mean"] = Field(
+        "auto", description="the evaluation score best.pt maximises; auto: success_rate where the task reports it, "
+                            "else return_mean")
 
 
 class LogConfig(Section):
@@ -160,13 +165,15 @@ class LogConfig(Section):
 
 class TransferConfig(Section):
     """How a run transfers knowledge: a method of drltg.transfer (``none``: the baseline). The options of
-    every registered method follow these three keys (the section :func:`transfer_model` builds)."""
+    every registered method follow these four keys (the section :func:`transfer_model` builds)."""
 
     method: Str = Field("none", description="transfer method (`drltg tasks` lists them)",
                         json_schema_extra={"noun": "transfer method", "choices": "registered"})
     source: Optional[Str] = Field(None, description="source run directory, or demonstrator:TASK",
                                   json_schema_extra=_what("a source run directory, demonstrator:TASK"))
     allow_incomplete: Bool = Field(False, description="reuse a source run that did not finish (no summary.json)")
+    source_checkpoint: Literal["last", "best"] = Field(
+        "last", description="the source run's checkpoint reused: last.pt, or best.pt (kept with checkpoint.keep_best)")
 
     @field_validator("method")
     @classmethod

@@ -196,6 +196,17 @@ def test_keep_source_keeps_the_weights_and_refuses_an_unfinished_run(tmp_path):
     assert set(kept) == {"loss", "frames"} and kept["frames"] == 60000
     assert torch.equal(kept["loss"]["actor.weight"], weights["actor.weight"])
     assert (tmp_path / "kept" / "config.yaml").read_text() == "config.yaml"
+    assert not (tmp_path / "kept" / "checkpoints" / "best.pt").exists()  # a run without keep_best has none
+
+    best = {"actor.weight": -torch.arange(6.0).reshape(2, 3)}
+    torch.save({"loss": best, "frames": 25000, "buffer": torch.zeros(1000), "optimizer": {}},
+               run / "checkpoints" / "best.pt")
+    keep_source(run, tmp_path / "kept-best")
+    kept = torch.load(tmp_path / "kept-best" / "checkpoints" / "best.pt", weights_only=False)
+    assert set(kept) == {"loss", "frames"} and kept["frames"] == 25000
+    assert torch.equal(kept["loss"]["actor.weight"], best["actor.weight"])
+    last = torch.load(tmp_path / "kept-best" / "checkpoints" / "last.pt", weights_only=False)
+    assert last["frames"] == 60000 and torch.equal(last["loss"]["actor.weight"], weights["actor.weight"])
 
 
 @pytest.mark.parametrize("seed", [0, 100, 200])

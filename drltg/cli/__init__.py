@@ -14,6 +14,8 @@ from drltg.errors import RunFailed, UsageError
 SUBCOMMANDS = {
     "tasks": ("drltg.cli.tasks", "list the registered tasks and task pairs"),
     "train": ("drltg.cli.train", "train one agent on one task (writes a run directory)"),
+    "evaluate": ("drltg.cli.evaluate",
+                 "evaluate a run's last or best checkpoint on fresh episodes, with confidence intervals"),
     "demo": ("drltg.cli.demo", "a short FourRooms run on the built-in defaults"),
     "experiment": ("drltg.experiments.experiment",
                    "train source, baseline and transfer runs over seeds, then report"),

@@ -34,13 +34,13 @@ from drltg.config import RunConfig, config_changes
 from drltg.envs import make_env
 from drltg.errors import UsageError
 from drltg.learners import Agent, UpdateStep, make_agent, sample_batches
-from drltg.training import health, preflight, rundir
+from drltg.training import best, health, preflight, rundir
 from drltg.training.rundir import CHECKPOINT, CONFIG, EPISODE_FLAGS, EVAL, RunWriter, is_complete, read_eval_csv
 from drltg.transfer import Transfer, get_method
 from drltg.transfer.source import check as check_source
 
 __all__ = ["train", "run_loop", "AgentLearner", "make_collector", "evaluate", "evaluate_seeds", "make_envs",
-           "build_env", "check_config", "is_complete", "read_eval_csv"]
+           "make_eval_env", "build_env", "check_config", "is_complete", "read_eval_csv"]
 
 
 # ----------------------------------------------------------------------------- envs
@@ -55,18 +55,31 @@ def build_env(cfg: RunConfig, **kwargs) -> EnvBase:
         raise UsageError(f"task '{cfg.task}' cannot be built with env settings {cfg.env} ({err}).") from None
 
 
+EVAL_SEED_OFFSET = 10_000
+"""The evaluation env is seeded ``seed + 10_000``, the training env ``seed`` (demonstrations: ``+ 20_000``)."""
+
+
 def make_envs(cfg: RunConfig, agent_transforms=()) -> tuple[EnvBase, EnvBase]:
     """Training env (``num_envs`` batched, episode-return tracking) and a separate evaluation env
     (``eval.episodes`` batched, seeded apart from the training env)."""
-    seed = cfg.seed
-    train_env = TransformedEnv(build_env(cfg, batch_size=(cfg.collector.num_envs,), seed=seed))
-    eval_env = TransformedEnv(build_env(cfg, batch_size=(cfg.eval.episodes,), seed=seed + 10_000))
+    train_env = TransformedEnv(build_env(cfg, batch_size=(cfg.collector.num_envs,), seed=cfg.seed))
+    eval_env = make_eval_env(cfg, cfg.eval.episodes, cfg.seed + EVAL_SEED_OFFSET)
     preflight.check_batch(cfg, train_env, eval_env)
+    best.check_metric(cfg, eval_env)
     for t in agent_transforms:
         train_env.append_transform(t.clone())
         eval_env.append_transform(t.clone())
     train_env.append_transform(RewardSum())
     return train_env, eval_env
+
+
+def make_eval_env(cfg: RunConfig, episodes: int, seed: int, agent_transforms=()) -> EnvBase:
+    """The evaluation env of :func:`evaluate`: ``episodes`` envs in one batch, seeded ``seed``, carrying
+    the transforms the policy needs (``agent_transforms``), and no shaping."""
+    env = TransformedEnv(build_env(cfg, batch_size=(episodes,), seed=seed))
+    for t in agent_transforms:
+        env.append_transform(t.clone())
+    return env
 
 
 def check_config(cfg: RunConfig):
@@ -169,6 +182,7 @@ def _resume_state(cfg: RunConfig, run_dir: Path) -> tuple[dict | None, list[dict
             f"cannot resume '{run_dir}': {EVAL} repeats frames before the checkpoint at frame {frames}; restore "
             "it or start the run again in another --run-dir."
         )
+    best.check_resume(cfg, run_dir, ckpt, rows)
     return ckpt, rows
 
 
@@ -378,15 +392,23 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
     seeds = learner.seeds
     init_random = math.ceil(col.init_random_frames / col.frames_per_batch) * col.frames_per_batch
 
+    saved = frames  # the frame of the latest last.pt (a resumed run's checkpoint; none yet at frame 0)
+
     def run_eval() -> None:
         for writer, row in zip(writers, learner.evaluate()):
             writer.evaluation({"frames": frames, **row})
         bar.set_postfix(eval_return=f"{writers[0].rows[-1]['return_mean']:.3f}", refresh=False)
+        if cfg.checkpoint.keep_best:
+            improved = [best.improves(cfg, writer.rows) for writer in writers]
+            if any(improved):  # last.pt too, so that best.pt is never later than the checkpoint a resume reads
+                save_checkpoint(improved, last=frames > 0)
 
-    def save_checkpoint() -> None:
+    def save_checkpoint(improved=(), last: bool = True) -> None:
+        nonlocal saved
         for k, (writer, state) in enumerate(zip(writers, learner.state())):
             health.check_state(state["loss"], frames, k if seeds > 1 else None)
-            writer.checkpoint(state, frames, updates)
+            writer.checkpoint(state, frames, updates, last=last, best=bool(improved and improved[k]))
+        saved = frames if last else saved
 
     bar = tqdm(total=cfg.frames, initial=frames, unit="frame", disable=not progress, dynamic_ncols=True)
     try:
@@ -425,7 +447,8 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
                 run_eval()
                 next_eval = (frames // cfg.eval.every + 1) * cfg.eval.every
             if frames >= next_ckpt or frames >= cfg.frames:
-                save_checkpoint()
+                if saved != frames:  # not saved already with best.pt at this frame
+                    save_checkpoint()
                 next_ckpt = (frames // cfg.checkpoint.every + 1) * cfg.checkpoint.every
     finally:
         collector.shutdown()
@@ -438,7 +461,8 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
     wall = time.perf_counter() - start
     extras = extra_summary if isinstance(extra_summary, list) else [extra_summary] * len(writers)
     for writer, extra in zip(writers, extras):
-        writer.finish(frames, updates, wall, (frames - start_frames) / max(wall, 1e-9), extra)
+        writer.finish(frames, updates, wall, (frames - start_frames) / max(wall, 1e-9),
+                      {**(extra or {}), **best.summary(cfg, writer.rows)})
 
 
 def _episode_stats(data: TensorDictBase, stats: dict) -> None:

@@ -5,9 +5,10 @@
                          evaluation; a rate column the earlier rows of a resumed run lack is empty there)
     logs/csv/, logs/tensorboard/   training scalars (TorchRL CSVLogger + TensorboardLogger)
     checkpoints/last.pt  weights, optimizer, replay buffer and RNG state (for --resume and model reuse)
+    checkpoints/best.pt  with checkpoint.keep_best: the same, saved at the best evaluation (drltg.training.best)
     model_reuse.txt      what model reuse loaded (model-reuse runs)
     summary.json         the run is finished when it exists: status complete (or diverged, with the reason)
-    manifest.json        SHA-256 of the checkpoint and eval.csv, and when the run ends (written last) of
+    manifest.json        SHA-256 of the checkpoints and eval.csv, and when the run ends (written last) of
                          every file: a changed or damaged file is refused (drltg.training.manifest)
     .drltg.lock          pid, host and start time of the process writing the directory, while it runs
 
@@ -35,6 +36,9 @@ CONFIG = "config.yaml"
 EVAL = "eval.csv"
 SUMMARY = "summary.json"
 CHECKPOINT = Path("checkpoints") / "last.pt"
+BEST = Path("checkpoints") / "best.pt"
+CHECKPOINTS = {"last": CHECKPOINT, "best": BEST}
+"""A run's checkpoints by the name ``--checkpoint`` and ``transfer.source_checkpoint`` give them."""
 LOGS = "logs"
 MODEL_REUSE = "model_reuse.txt"
 LOCK = ".drltg.lock"
@@ -44,7 +48,7 @@ EVAL_COLUMNS = ["frames", "return_mean", "return_std", "episodes", *(f"{flag}_ra
 
 __all__ = ["atomic_write", "atomic_torch_save", "atomic_path", "write_files", "read_eval_csv", "write_eval_csv",
            "read_config", "write_config", "absolute_source", "is_complete", "check_directory", "lock",
-           "load_checkpoint", "truncate_logs", "RunWriter"]
+           "load_checkpoint", "checkpoint_path", "missing_checkpoint", "truncate_logs", "RunWriter"]
 
 
 # ------------------------------------------------------------------------------------------ config
@@ -144,10 +148,11 @@ def atomic_torch_save(obj, path: str | Path) -> None:
     buf = io.BytesIO()
     torch.save(obj, buf)
     path = Path(path)
-    if path.as_posix().endswith(CHECKPOINT.as_posix()):
-        write_tracked(path.parents[1], CHECKPOINT.as_posix(), buf.getvalue())
-    else:
-        atomic_write(path, buf.getvalue())
+    for name in CHECKPOINTS.values():
+        if path.as_posix().endswith(name.as_posix()):
+            write_tracked(path.parents[1], name.as_posix(), buf.getvalue())
+            return
+    atomic_write(path, buf.getvalue())
 
 
 def write_files(directory: str | Path, files: dict[str, bytes | str]) -> None:
@@ -434,18 +439,35 @@ def entries(directory: Path) -> list[Path]:
 
 
 # -------------------------------------------------------------------------------------- checkpoint
-def load_checkpoint(run_dir: str | Path, map_location="cpu", mmap: bool = False) -> dict:
-    """``checkpoints/last.pt`` of a run; a truncated or foreign file is one :class:`UsageError` sentence."""
+def checkpoint_path(name: str) -> Path:
+    """``checkpoints/last.pt`` or ``checkpoints/best.pt`` for ``last`` or ``best``."""
+    if name not in CHECKPOINTS:
+        raise UsageError(f"a run's checkpoint is {' or '.join(CHECKPOINTS)}, not {name!r}.")
+    return CHECKPOINTS[name]
+
+
+def missing_checkpoint(run_dir: str | Path, name: str = "last") -> str:
+    """The sentence for a run that lacks checkpoint ``name`` (what to do depends on which one)."""
+    if name == "best":
+        return (f"'{run_dir}' holds no {BEST.as_posix()}: only a run trained with -o checkpoint.keep_best=true "
+                "keeps its best evaluated checkpoint; use its last checkpoint or train it with keep_best.")
+    return f"'{run_dir}' holds no {CHECKPOINT.as_posix()}; train the run first or fix the path."
+
+
+def load_checkpoint(run_dir: str | Path, map_location="cpu", mmap: bool = False, checkpoint: str = "last") -> dict:
+    """``checkpoints/last.pt`` (or ``best.pt``: ``checkpoint="best"``) of a run; a missing, truncated or foreign
+    file is one :class:`UsageError` sentence."""
     import torch
 
-    path = Path(run_dir) / CHECKPOINT
+    name = checkpoint_path(checkpoint)
+    path = Path(run_dir) / name
     if not path.is_file():
-        raise UsageError(f"'{run_dir}' holds no {CHECKPOINT.as_posix()}; train the run first or fix the path.")
+        raise UsageError(missing_checkpoint(run_dir, checkpoint))
     try:
         ckpt = torch.load(path, map_location=map_location, weights_only=False, mmap=mmap)
     except Exception as err:  # a truncated or foreign file surfaces as one of many library errors
         raise UsageError(f"cannot read checkpoint '{path}' ({type(err).__name__}); is it truncated?") from None
-    manifest.verify(run_dir, CHECKPOINT.as_posix())
+    manifest.verify(run_dir, name.as_posix())
     if not isinstance(ckpt, dict) or "loss" not in ckpt:
         raise UsageError(f"checkpoint '{path}' has no 'loss' entry; is it a drltg training checkpoint?")
     return ckpt
@@ -536,12 +558,14 @@ class RunWriter:
         write_eval_csv(self.run_dir / EVAL, self.rows)
         self.log({f"eval/{k}": v for k, v in row.items() if k != "frames"}, row["frames"])
 
-    def checkpoint(self, state: dict, frames: int, updates: int) -> None:
-        """Save ``state`` (weights, optimiser, buffer, RNG) with the counters a resume needs."""
+    def checkpoint(self, state: dict, frames: int, updates: int, *, last: bool = True, best: bool = False) -> None:
+        """Save ``state`` (weights, optimiser, buffer, RNG) with the counters a resume needs, as ``last.pt``
+        and, for the best evaluation so far (:mod:`drltg.training.best`), the same content as ``best.pt``
+        after it."""
         evaluations = [r["frames"] for r in self.rows]
-        atomic_torch_save(
-            {**state, "frames": frames, "updates": updates, "evaluations": evaluations}, self.run_dir / CHECKPOINT
-        )
+        for name in [CHECKPOINT] * last + [BEST] * best:
+            atomic_torch_save({**state, "frames": frames, "updates": updates, "evaluations": evaluations},
+                              self.run_dir / name)
 
     def finish(self, frames: int, updates: int, wall: float, frames_per_s: float, extra: dict | None = None) -> None:
         """Write summary.json: the run is complete."""

@@ -60,7 +60,7 @@ from drltg.learners import sample_batches
 from drltg.losses import SoftOptionCriticLoss
 from drltg.modules import make_option_policy
 from drltg.seed_group import GroupPolicy, SeedBlocks, SeedGroup, SeedLoopPolicy, SeedStreams
-from drltg.training import health, rundir
+from drltg.training import best, health, rundir
 from drltg.training.loop import (
     _check_saved_config,
     _refuse_existing,
@@ -357,6 +357,7 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
         train_env = group_train_env(cfgs, transforms, transfers, streams)
         owned.callback(train_env.close, raise_if_closed=False)  # worker processes, where the task has them
         eval_env = _group_env(cfg, seeds, cfg.eval.episodes, 10_000, transforms)
+        best.check_metric(cfg, eval_env)
         owned.callback(eval_env.close, raise_if_closed=False)
         learner = GroupLearner(group, buffers, eval_env, transfers)
 

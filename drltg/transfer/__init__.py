@@ -12,7 +12,8 @@
 A trained run as a source, in one call each (they print nothing): ``load_actor(run_dir)`` (the past
 policy of policy reuse), ``load_critic(run_dir)`` (its value V(s), the potential of value shaping),
 ``load_agent(run_dir)`` (the whole learner) and ``load_from_run(module, run_dir)`` (its weights into
-another network, model reuse).
+another network, model reuse); each reads the run's ``checkpoints/last.pt``, or with ``checkpoint="best"``
+its ``best.pt`` (``transfer.source_checkpoint`` for the methods).
 
 :mod:`drltg.transfer.registry` defines what a method is (:class:`TransferMethod`) and what it adds to a
 run (:class:`Transfer`); :mod:`drltg.transfer.source` reads ``transfer.source``. Importing this package

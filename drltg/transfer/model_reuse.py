@@ -1,4 +1,5 @@
-"""The model-reuse method: the learner starts from a source run's weights (``load_weights``)."""
+"""The model-reuse method: the learner starts from a source run's weights (``load_weights``), those of its
+``transfer.source_checkpoint``."""
 from __future__ import annotations
 
 import logging
@@ -17,15 +18,16 @@ if TYPE_CHECKING:
     from drltg.modules.weights import LoadReport
 
 
-def load_from_run(loss_module: nn.Module, run_dir: str | Path, **kwargs) -> LoadReport:
-    """Initialise ``loss_module`` from ``<run_dir>/checkpoints/last.pt`` (its ``"loss"`` entry).
+def load_from_run(loss_module: nn.Module, run_dir: str | Path, *, checkpoint: str = "last", **kwargs) -> LoadReport:
+    """Initialise ``loss_module`` from ``<run_dir>/checkpoints/last.pt`` (``checkpoint="best"``: ``best.pt``),
+    its ``"loss"`` entry.
 
     Keyword arguments go to :func:`load_weights`. The checkpoint is unpickled: load only runs you trust.
     """
     from drltg.modules.weights import load_weights
 
-    checkpoint = load_checkpoint(Path(run_dir).expanduser())
-    return load_weights(loss_module, checkpoint["loss"], **kwargs)
+    saved = load_checkpoint(Path(run_dir).expanduser(), checkpoint=checkpoint)
+    return load_weights(loss_module, saved["loss"], **kwargs)
 
 
 def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
@@ -37,7 +39,7 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     if resuming:
         freeze_parameters(agent.loss, t.freeze)
         return Transfer()
-    report = load_from_run(agent.loss, t.source, freeze=t.freeze, partial=t.partial)
+    report = load_from_run(agent.loss, t.source, checkpoint=t.source_checkpoint, freeze=t.freeze, partial=t.partial)
     logging.getLogger(__name__).info(report.summary())
     return Transfer(files={MODEL_REUSE: f"{report}\n"})
 

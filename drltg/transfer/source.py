@@ -1,16 +1,17 @@
 """Where transferred knowledge comes from: ``transfer.source``, a source run or a scripted demonstrator.
 
-``transfer.source`` is a drltg run directory (its ``config.yaml`` and ``checkpoints/last.pt``), or for
-methods that reuse a policy on the manipulation tasks ``demonstrator:TASK``, the scripted policy of
-``TASK`` (:func:`drltg.envs.robosuite.demonstrator_for`) acting as the past policy. :func:`check` runs
-before anything is trained or written; :func:`source_actor` rebuilds the past policy. In user code,
+``transfer.source`` is a drltg run directory (its ``config.yaml`` and ``checkpoints/last.pt``, or
+``checkpoints/best.pt`` with ``transfer.source_checkpoint=best``), or for methods that reuse a policy on
+the manipulation tasks ``demonstrator:TASK``, the scripted policy of ``TASK``
+(:func:`drltg.envs.robosuite.demonstrator_for`) acting as the past policy. :func:`check` runs before
+anything is trained or written; :func:`source_actor` rebuilds the past policy. In user code,
 :func:`load_actor`, :func:`load_critic` and :func:`load_agent` rebuild a run's actor, value or whole
-learner from its run directory in one call.
+learner from its run directory in one call (``checkpoint="best"``: from its best evaluated checkpoint).
 """
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import yaml
 
@@ -19,7 +20,7 @@ from drltg.config import RunConfig, TransferConfig
 from drltg.envs import make_env
 from drltg.envs.robosuite.layout import TASKS as MANIPULATION
 from drltg.errors import UsageError
-from drltg.training.rundir import CHECKPOINT, CONFIG, SUMMARY, is_complete, load_checkpoint
+from drltg.training.rundir import CONFIG, SUMMARY, checkpoint_path, is_complete, load_checkpoint, missing_checkpoint
 from drltg.transfer.registry import get_method
 
 if TYPE_CHECKING:
@@ -37,6 +38,9 @@ def check(cfg: RunConfig) -> None:
     if not t.source:
         raise UsageError(f"transfer.method={method.name} needs transfer.source, the source run directory.")
     demonstrated = demonstrator_task(t.source)
+    if demonstrated is not None and t.source_checkpoint != "last":
+        raise UsageError(f"transfer.source_checkpoint={t.source_checkpoint} names a checkpoint of a source run; "
+                         f"transfer.source={t.source} is a scripted policy and has none.")
     if demonstrated is None:
         _check_source_run(Path(t.source).expanduser(), t)
     elif method.source != "policy":
@@ -49,12 +53,15 @@ def check(cfg: RunConfig) -> None:
 
 
 def _check_source_run(run: Path, t: TransferConfig) -> None:
-    if not (run / CHECKPOINT).is_file():
-        raise UsageError(f"transfer.source '{t.source}' holds no {CHECKPOINT.as_posix()}; train the source first.")
+    name = checkpoint_path(t.source_checkpoint)
+    if t.source_checkpoint == "best" and not (run / name).is_file() and (run / CONFIG).is_file():
+        raise UsageError(f"transfer.source_checkpoint=best: {missing_checkpoint(t.source, 'best')}")
+    if not (run / name).is_file():
+        raise UsageError(f"transfer.source '{t.source}' holds no {name.as_posix()}; train the source first.")
     if not (run / CONFIG).is_file():
         raise UsageError(f"transfer.source '{t.source}' holds no {CONFIG}; is it a drltg run directory?")
     if not is_complete(run) and not t.allow_incomplete:
-        frames = load_checkpoint(run, mmap=True).get("frames", "?")
+        frames = load_checkpoint(run, mmap=True, checkpoint=t.source_checkpoint).get("frames", "?")
         raise UsageError(
             f"transfer.source '{t.source}' did not finish (no {SUMMARY}; its checkpoint is at frame {frames}); "
             f"finish it with `drltg train --resume --run-dir {t.source}`, or reuse it as it is with "
@@ -86,15 +93,29 @@ def check_same_spaces(source: EnvBase, target: EnvBase, source_name: str, target
         )
 
 
-def _rebuild(run_dir, device: str = "cpu"):
-    """A run's learner, its env and its config, rebuilt from ``config.yaml`` and ``checkpoints/last.pt``;
-    anything that keeps it from being built is one :class:`UsageError` sentence."""
+class Rebuilt(NamedTuple):
+    agent: Any
+    """:class:`drltg.learners.Agent` with the checkpoint's weights"""
+    env: Any
+    """one env of the run's task, built with its ``env`` settings"""
+    cfg: RunConfig
+    frames: int | None
+    """the checkpoint's frame"""
+
+
+def rebuild(run_dir, device: str = "cpu", checkpoint: str = "last") -> Rebuilt:
+    """A run's learner, its env and its config, rebuilt from ``config.yaml`` and ``checkpoints/last.pt``
+    (``checkpoint="best"``: ``best.pt``); anything that keeps it from being built is one
+    :class:`UsageError` sentence."""
     from drltg.learners import make_agent
 
     run = Path(run_dir).expanduser()
-    for name in (CONFIG, CHECKPOINT):
-        if not (run / name).is_file():
-            raise UsageError(f"'{run_dir}' is not a drltg run directory: it holds no {Path(name).as_posix()}.")
+    if not (run / CONFIG).is_file():
+        raise UsageError(f"'{run_dir}' is not a drltg run directory: it holds no {CONFIG}.")
+    ckpt = checkpoint_path(checkpoint)
+    if not (run / ckpt).is_file():
+        raise UsageError(missing_checkpoint(run_dir, checkpoint) if checkpoint == "best" else
+                         f"'{run_dir}' is not a drltg run directory: it holds no {ckpt.as_posix()}.")
     data = yaml.safe_load((run / CONFIG).read_text())
     if not isinstance(data, dict) or not {"task", "algo", "env"} <= set(data):
         raise UsageError(f"'{run / CONFIG}' is not a drltg run config (it lacks task, algo or env).")
@@ -104,7 +125,8 @@ def _rebuild(run_dir, device: str = "cpu"):
     except UsageError as err:
         raise UsageError(f"run '{run_dir}' cannot be rebuilt: {err}") from None
     agent = make_agent(env, cfg)
-    saved = load_checkpoint(run, map_location=device).get("loss", {})
+    loaded = load_checkpoint(run, map_location=device, checkpoint=checkpoint)
+    saved = loaded.get("loss", {})
     mismatch = _first_mismatch(agent.loss.state_dict(), saved)
     if mismatch:
         raise UsageError(
@@ -112,7 +134,7 @@ def _rebuild(run_dir, device: str = "cpu"):
             f"({mismatch})."
         )
     agent.loss.load_state_dict(saved)
-    return agent, env, cfg
+    return Rebuilt(agent, env, cfg, loaded.get("frames"))
 
 
 def _first_mismatch(expected: dict, saved: dict) -> str | None:
@@ -125,20 +147,21 @@ def _first_mismatch(expected: dict, saved: dict) -> str | None:
     return None
 
 
-def load_agent(run_dir, *, device: str = "cpu"):
+def load_agent(run_dir, *, device: str = "cpu", checkpoint: str = "last"):
     """A trained run's learner (:class:`drltg.learners.Agent`: actor, loss with critics, temperature),
-    rebuilt from the run directory's ``config.yaml`` and ``checkpoints/last.pt``. Prints nothing.
-    The checkpoint is unpickled: load only runs you trust."""
-    return _rebuild(run_dir, device)[0]
+    rebuilt from the run directory's ``config.yaml`` and ``checkpoints/last.pt`` (``checkpoint="best"``:
+    ``best.pt``, kept with ``checkpoint.keep_best``). Prints nothing. The checkpoint is unpickled: load only
+    runs you trust."""
+    return rebuild(run_dir, device, checkpoint).agent
 
 
-def load_actor(run_dir, *, device: str = "cpu") -> TensorDictModuleBase:
+def load_actor(run_dir, *, device: str = "cpu", checkpoint: str = "last") -> TensorDictModuleBase:
     """A trained run's actor: reads ``"observation"``, writes ``"action"`` (its mean/greedy action under
     ``ExplorationType.DETERMINISTIC``), e.g. the past policy of :class:`drltg.collectors.PolicyReuse`."""
-    return load_agent(run_dir, device=device).actor
+    return load_agent(run_dir, device=device, checkpoint=checkpoint).actor
 
 
-def load_critic(run_dir, *, device: str = "cpu", scale: float = 1.0):
+def load_critic(run_dir, *, device: str = "cpu", scale: float = 1.0, checkpoint: str = "last"):
     """A trained run's value of a state, V(s) = scale * min_k Q_k(s, mu(s)) (its twin critics at its own
     deterministic action), as a frozen module of the observation: :class:`drltg.transforms.SourceValue`,
     the potential of value shaping. SAC, discrete-SAC and TD3 runs."""
@@ -146,15 +169,16 @@ def load_critic(run_dir, *, device: str = "cpu", scale: float = 1.0):
 
     from drltg.transforms import SourceValue
 
-    agent, env, _ = _rebuild(run_dir, device)
+    agent, env, _, _ = rebuild(run_dir, device, checkpoint)
     discrete = isinstance(env.full_action_spec_unbatched["action"], OneHot)
     return SourceValue(agent.loss, discrete=discrete, scale=scale)
 
 
 def source_agent(cfg: RunConfig, target_env: EnvBase | None = None):
-    """The learner of ``transfer.source`` (:func:`load_agent`). With ``target_env``, a source that
-    observes or acts differently is refused here rather than failing inside the first rollout."""
-    agent, env, src_cfg = _rebuild(cfg.transfer.source, cfg.device)
+    """The learner of ``transfer.source`` (:func:`load_agent`), from its ``transfer.source_checkpoint``.
+    With ``target_env``, a source that observes or acts differently is refused here rather than failing
+    inside the first rollout."""
+    agent, env, src_cfg, _ = rebuild(cfg.transfer.source, cfg.device, cfg.transfer.source_checkpoint)
     if target_env is not None:
         check_same_spaces(env, target_env, f"transfer.source '{cfg.transfer.source}' ({src_cfg.task})",
                           f"task '{cfg.task}'")

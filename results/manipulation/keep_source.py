@@ -3,7 +3,8 @@
     python results/manipulation/keep_source.py RUN_DIR DEST_DIR
 
 The replay buffer and optimiser state (about 420 MB on Lift) are left out, so DEST_DIR serves as
-``transfer.source`` (model reuse, policy reuse, value shaping) but cannot be resumed.
+``transfer.source`` (model reuse, policy reuse, value shaping) but cannot be resumed. A run trained with
+``checkpoint.keep_best=true`` keeps ``checkpoints/best.pt`` too (``transfer.source_checkpoint=best``).
 """
 import shutil
 import sys
@@ -17,13 +18,15 @@ from drltg.errors import UsageError
 def keep_source(run: Path, dest: Path) -> None:
     if not (run / "summary.json").is_file():
         raise UsageError(f"{run} has no summary.json: only a finished run is kept as a source.")
-    ckpt = torch.load(run / "checkpoints" / "last.pt", map_location="cpu", weights_only=False, mmap=True)
     (dest / "checkpoints").mkdir(parents=True, exist_ok=True)
     for name in ("config.yaml", "eval.csv", "summary.json"):
         shutil.copyfile(run / name, dest / name)
-    tmp = dest / "checkpoints" / "last.pt.tmp"
-    torch.save({"loss": ckpt["loss"], "frames": ckpt["frames"]}, tmp)
-    tmp.replace(dest / "checkpoints" / "last.pt")
+    for name in ("last.pt", "best.pt"):
+        if name == "last.pt" or (run / "checkpoints" / name).is_file():
+            ckpt = torch.load(run / "checkpoints" / name, map_location="cpu", weights_only=False, mmap=True)
+            tmp = dest / "checkpoints" / f"{name}.tmp"
+            torch.save({"loss": ckpt["loss"], "frames": ckpt["frames"]}, tmp)
+            tmp.replace(dest / "checkpoints" / name)
 
 
 if __name__ == "__main__":

@@ -88,7 +88,8 @@ register_pair("line-shift", "line/right", "line/middle", "the goal moves from 0.
 def critic_reuse(cfg, agent, env, *, resuming):
     if resuming:  # the checkpoint holds the weights
         return Transfer()
-    report = load_from_run(agent.loss, cfg.transfer.source, exclude=["actor_network_params"])
+    report = load_from_run(agent.loss, cfg.transfer.source, checkpoint=cfg.transfer.source_checkpoint,
+                           exclude=["actor_network_params"])
     return Transfer(files={"model_reuse.txt": f"{report}\n"})
 
 

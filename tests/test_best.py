@@ -1,0 +1,359 @@
+"""checkpoint.keep_best (checkpoints/best.pt), `drltg evaluate` and transfer.source_checkpoint.
+
+The evaluations are scripted (``AgentLearner.evaluate`` returns chosen scores by frame), so the frame
+best.pt must come from is known; the weights at each evaluation are recorded to compare with it.
+"""
+import json
+import math
+
+import pytest
+import torch
+import yaml
+
+import drltg.training.loop as loop
+from drltg import config as config_lib
+from drltg.cli import main
+from drltg.errors import UsageError
+from drltg.training import rundir
+from drltg.training.loop import read_eval_csv, train
+
+TINY = [
+    "network.hidden=[16,16]",
+    "collector.num_envs=4",
+    "collector.frames_per_batch=16",
+    "collector.init_random_frames=128",
+    "optim.updates_per_batch=1",
+    "buffer.batch_size=32",
+    "eval.every=256",
+    "eval.episodes=4",
+    "checkpoint.every=512",
+    "log.every=128",
+    "log.tensorboard=false",
+]
+
+
+def keep_best_cfg(*overrides, frames=1024):
+    return config_lib.resolve({}, [*TINY, "checkpoint.keep_best=true", *overrides], task="fourrooms/northeast",
+                              frames=frames, seed=3)
+
+
+def rows(success=None, returns=None):
+    """Evaluation results by frame: success rates (return 0) or returns (no success reported), or both."""
+    frames = list(success or returns)
+    return {f: {"return_mean": (returns or {}).get(f, 0.0), "return_std": 0.0, "episodes": 4,
+                **({"success_rate": success[f]} if success else {})} for f in frames}
+
+
+def script(monkeypatch, results: dict, *, stop_at=None):
+    """Make every evaluation return ``results[frames]`` and record the learner's weights at each; raise
+    KeyboardInterrupt at the evaluation of frame ``stop_at``."""
+    weights = {}
+
+    def evaluate(self):
+        frames = len(self.buffer)  # every collected frame is stored (buffer.size is larger than the run)
+        if frames == stop_at:
+            raise KeyboardInterrupt
+        weights[frames] = {k: v.detach().clone() for k, v in self.agent.loss.state_dict().items()}
+        return [dict(results[frames])]
+
+    monkeypatch.setattr(loop.AgentLearner, "evaluate", evaluate)
+    return weights
+
+
+def record_saves(monkeypatch, written=None):
+    """``[(file name, frames)]`` of every checkpoint written, in order (and into ``written`` their bytes)."""
+    saves, real = [], rundir.atomic_torch_save
+
+    def save(obj, path):
+        saves.append((path.name, obj["frames"]))
+        real(obj, path)
+        if written is not None:
+            written[saves[-1]] = path.read_bytes()
+
+    monkeypatch.setattr(rundir, "atomic_torch_save", save)
+    return saves
+
+
+def load(run, name="best"):
+    return torch.load(run / "checkpoints" / f"{name}.pt", weights_only=False)
+
+
+def same(a: dict, b: dict) -> bool:
+    return a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+
+
+# ------------------------------------------------------------------------------------------ keep_best
+SUCCESS = {0: 0.0, 256: 0.5, 512: 0.25, 768: 0.5, 1024: 0.25}
+RETURNS = {0: -1.0, 256: -0.5, 512: 0.0, 768: -0.2, 1024: 0.0}
+
+
+@pytest.mark.parametrize("results, overrides, metric, best", [
+    # success rates: 256 beats 0; 768 ties 256, and a tie keeps the earlier
+    (rows(success=SUCCESS), [], "success_rate", [0, 256]),
+    # a task that reports no success: return_mean (512 beats -0.5; 1024 ties it)
+    (rows(returns=RETURNS), [], "return_mean", [0, 256, 512]),
+    # both reported: auto ranks the success rates, checkpoint.best_metric=return_mean the returns
+    (rows(SUCCESS, RETURNS), [], "success_rate", [0, 256]),
+    (rows(SUCCESS, RETURNS), ["checkpoint.best_metric=return_mean"], "return_mean", [0, 256, 512]),
+])
+def test_best_pt_is_the_checkpoint_of_the_first_highest_evaluation(tmp_path, monkeypatch, results, overrides, metric,
+                                                                   best):
+    weights = script(monkeypatch, results)
+    written = {}
+    saves = record_saves(monkeypatch, written)
+    run = train(keep_best_cfg(*overrides), tmp_path / "run", progress=False)
+    assert [f for name, f in saves if name == "best.pt"] == best
+    # last.pt at each new best (not at frame 0: nothing trained), at checkpoint.every=512 unless saved there
+    # already, and once more at the end
+    assert [f for name, f in saves if name == "last.pt"] == [*sorted({*best[1:], 512, 1024}), 1024]
+    for frames in best[1:]:  # last.pt first, then the same checkpoint as best.pt
+        assert saves.index(("last.pt", frames)) + 1 == saves.index(("best.pt", frames))
+        assert written[("last.pt", frames)] == written[("best.pt", frames)]
+    assert (run / "checkpoints" / "best.pt").read_bytes() == written[("best.pt", best[-1])]
+    saved = load(run)
+    assert saved["frames"] == best[-1] and saved["evaluations"] == [f for f in results if f <= best[-1]]
+    assert same(saved["loss"], weights[best[-1]])
+    assert not same(saved["loss"], load(run, "last")["loss"])  # trained on after it
+    assert set(saved) == set(load(run, "last"))  # the same content as last.pt
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["best"] == {"checkpoint": "checkpoints/best.pt", "frames": best[-1], "metric": metric,
+                               "score": results[best[-1]][metric]}
+    rundir.manifest.verify(run, "checkpoints/best.pt")
+
+
+def test_without_keep_best_there_is_no_best_pt(tmp_path, monkeypatch):
+    script(monkeypatch, rows({0: 0.0, 256: 0.5, 512: 0.25}))
+    run = train(keep_best_cfg("checkpoint.keep_best=false", frames=512), tmp_path / "run", progress=False)
+    assert not (run / "checkpoints" / "best.pt").exists()
+    assert "best" not in json.loads((run / "summary.json").read_text())
+
+
+def test_a_resumed_run_knows_the_best_score_so_far(tmp_path, monkeypatch):
+    script(monkeypatch, rows(SUCCESS), stop_at=768)  # stopped after the checkpoint at 512
+    with pytest.raises(KeyboardInterrupt):
+        train(keep_best_cfg(), tmp_path / "run", progress=False)
+    before = load(tmp_path / "run")
+    assert before["frames"] == 256
+    script(monkeypatch, rows(SUCCESS))
+    saves = record_saves(monkeypatch)
+    run = train(keep_best_cfg(), tmp_path / "run", resume=True, progress=False)
+    assert [f for name, f in saves if name == "best.pt"] == []  # 0.5 at 768 ties the 0.5 at 256 before the stop
+    assert same(load(run)["loss"], before["loss"])
+    assert json.loads((run / "summary.json").read_text())["best"]["frames"] == 256
+    assert [r["frames"] for r in read_eval_csv(run / "eval.csv")] == [0, 256, 512, 768, 1024]
+
+
+def test_a_stop_between_last_pt_and_best_pt_is_repaired_on_resume(tmp_path, monkeypatch):
+    weights = script(monkeypatch, rows({0: 0.0, 256: 0.25, 512: 0.5, 768: 0.5, 1024: 0.0}))
+    real = rundir.atomic_torch_save
+
+    def stop_before_best(obj, path):
+        if path.name == "best.pt" and obj["frames"] == 512:
+            raise KeyboardInterrupt
+        return real(obj, path)
+
+    monkeypatch.setattr(rundir, "atomic_torch_save", stop_before_best)
+    with pytest.raises(KeyboardInterrupt):
+        train(keep_best_cfg(), tmp_path / "run", progress=False)
+    assert load(tmp_path / "run")["frames"] == 256 and load(tmp_path / "run", "last")["frames"] == 512
+    monkeypatch.setattr(rundir, "atomic_torch_save", real)
+    run = train(keep_best_cfg(), tmp_path / "run", resume=True, progress=False)
+    assert load(run)["frames"] == 512 and same(load(run)["loss"], weights[512])
+    rundir.manifest.verify(run, "checkpoints/best.pt")
+
+
+def test_a_resume_without_the_best_pt_is_refused_in_one_sentence(tmp_path, monkeypatch, capsys):
+    script(monkeypatch, rows(SUCCESS), stop_at=768)
+    with pytest.raises(KeyboardInterrupt):
+        train(keep_best_cfg(), tmp_path / "run", progress=False)
+    (tmp_path / "run" / "checkpoints" / "best.pt").unlink()
+    assert main(["train", "--resume", "--run-dir", str(tmp_path / "run"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert "checkpoints/best.pt is missing, not that of its best evaluation (frame 256, success_rate 0.5)" in err
+
+
+def test_a_best_metric_the_task_does_not_report_is_refused_before_the_run(tmp_path):
+    with pytest.raises(UsageError, match="checkpoint.best_metric=lifted_rate, but task 'fourrooms/northeast' reports "
+                                         "no 'lifted'"):
+        train(keep_best_cfg("checkpoint.best_metric=lifted_rate"), tmp_path / "run", progress=False)
+    assert not (tmp_path / "run").exists()
+
+
+# ------------------------------------------------------------------------------------------ evaluate
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """A real tiny run with keep_best."""
+    return train(keep_best_cfg(frames=768), tmp_path_factory.mktemp("runs") / "run", progress=False)
+
+
+def test_keep_best_changes_no_number_of_the_run(tmp_path, monkeypatch):
+    script(monkeypatch, rows(SUCCESS))
+    saves = record_saves(monkeypatch)
+    kept = train(keep_best_cfg(frames=512), tmp_path / "kept", progress=False)
+    assert ("best.pt", 256) in saves  # a checkpoint between the regular ones
+    plain = train(keep_best_cfg("checkpoint.keep_best=false", frames=512), tmp_path / "plain", progress=False)
+    a, b = load(kept, "last"), load(plain, "last")
+    assert same(a["loss"], b["loss"]) and torch.equal(a["rng"], b["rng"]) and a["updates"] == b["updates"]
+    assert (kept / "eval.csv").read_text() == (plain / "eval.csv").read_text()
+
+
+def test_evaluate_reports_the_training_evaluation_of_fresh_episodes(trained, tmp_path, capsys):
+    from torchrl.envs import TransformedEnv
+
+    from drltg.envs import make_env
+    from drltg.transfer import load_actor
+
+    out = tmp_path / "e.json"
+    assert main(["evaluate", str(trained), "--checkpoint", "best", "--episodes", "7", "--out", str(out)]) == 0
+    assert len(capsys.readouterr().out.strip().splitlines()) == 1
+    result = json.loads(out.read_text())
+    cfg = yaml.safe_load((trained / "config.yaml").read_text())
+    assert result["seed"] == 3 + 30_000  # the training evaluations' env is seeded 3 + 10_000
+    env = TransformedEnv(make_env("fourrooms/northeast", batch_size=(7,), seed=3 + 30_000, **cfg["env"]))
+    direct = loop.evaluate(env, load_actor(trained, checkpoint="best"))
+    assert {k: result[k] for k in direct if k != "episodes"} == {k: v for k, v in direct.items() if k != "episodes"}
+    assert result["episodes"] == 7 and result["checkpoint"] == "best"
+    assert result["frames"] == json.loads((trained / "summary.json").read_text())["best"]["frames"]
+    k = round(result["success_rate"] * 7)
+    from scipy import stats
+    assert result["success_rate_ci95"] == pytest.approx([stats.beta.ppf(0.025, k, 8 - k) if k else 0.0,
+                                                         stats.beta.ppf(0.975, k + 1, 7 - k) if k < 7 else 1.0])
+
+
+def test_evaluate_with_a_seed_writes_its_default_file(trained, capsys):
+    assert main(["evaluate", str(trained), "--episodes", "2", "--seed", "11"]) == 0
+    result = json.loads((trained / "evaluate-last-seed11-2ep.json").read_text())
+    assert result["seed"] == 11 and result["checkpoint"] == "last" and result["frames"] == 768
+
+
+@pytest.mark.parametrize("k, n, expected", [
+    (10, 10, (0.025 ** (1 / 10), 1.0)),  # Clopper-Pearson at k = n: [(alpha/2)^(1/n), 1]
+    (0, 10, (0.0, 1 - 0.025 ** (1 / 10))),
+    (7, 10, None),  # [B(0.025; 7, 4), B(0.975; 8, 3)]
+])
+def test_the_rate_interval_is_clopper_pearson(k, n, expected):
+    from scipy import stats
+
+    from drltg.training.reevaluate import rate_interval
+
+    if expected is None:
+        expected = (stats.beta.ppf(0.025, k, n - k + 1), stats.beta.ppf(0.975, k + 1, n - k))
+    assert rate_interval(k, n) == pytest.approx(expected, abs=1e-12)
+    assert math.isclose(rate_interval(7, 10)[0], 0.3475471499, rel_tol=1e-8)  # R: binom.test(7, 10)$conf.int
+
+
+@pytest.mark.parametrize("args, message", [
+    (["evaluate", "{tmp}/missing"], "run directory '{tmp}/missing' does not exist."),
+    (["evaluate", "{tmp}", "--checkpoint", "best"], "holds no checkpoints/best.pt: only a run trained with"),
+    (["evaluate", "{run}", "--episodes", "0"], "--episodes must be at least 1, got 0."),
+    (["evaluate", "{run}", "--seed", "-1"], "--seed must be an integer in [0, 2147483647], got -1."),
+    (["evaluate", "{run}/eval.csv"], "eval.csv' is a file, not a directory"),
+    (["evaluate", "{run}", "--checkpoint", "first"], "invalid choice: 'first'"),
+])
+def test_evaluate_bad_input_is_one_sentence_and_exit_2(trained, tmp_path, capsys, args, message):
+    (tmp_path / "config.yaml").write_text(yaml.safe_dump(config_lib.defaults()))
+    args = [a.format(tmp=tmp_path, run=trained) for a in args]
+    try:
+        code = main(args)
+    except SystemExit as stop:  # argparse's own refusal
+        code = stop.code
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and message.format(tmp=tmp_path) in err, err
+
+
+# ------------------------------------------------------------------------------------------ a source's checkpoint
+@pytest.fixture(scope="module")
+def source(tmp_path_factory):
+    """A finished run whose best.pt (frame 256) is not its last.pt."""
+    with pytest.MonkeyPatch.context() as mp:
+        script(mp, rows({0: 0.0, 256: 0.5, 512: 0.25}))
+        return train(keep_best_cfg(frames=512), tmp_path_factory.mktemp("src") / "run", progress=False)
+
+
+def part(weights: dict, prefix: str) -> dict:
+    return {k.removeprefix(prefix): v for k, v in weights.items() if k.startswith(prefix)}
+
+
+def test_every_loader_reads_the_named_checkpoint(source):
+    from drltg.envs import make_env
+    from drltg.learners import make_agent
+    from drltg.transfer import load_actor, load_agent, load_critic, load_from_run
+
+    best, last = load(source)["loss"], load(source, "last")["loss"]
+    assert not same(best, last)
+    for name, weights in (("best", best), ("last", last)):
+        assert same(load_agent(source, checkpoint=name).loss.state_dict(), weights)
+        assert same(load_actor(source, checkpoint=name).state_dict(), part(weights, "actor_network_params."))
+        critic = load_critic(source, checkpoint=name).critic_params.flatten_keys(".")
+        assert same(dict(critic.items()), part(weights, "qvalue_network_params."))
+        cfg = config_lib.build(yaml.safe_load((source / "config.yaml").read_text()))
+        agent = make_agent(make_env(cfg.task, **cfg.env), cfg)
+        load_from_run(agent.loss, source, checkpoint=name)
+        assert same(agent.loss.state_dict(), weights)
+
+
+@pytest.mark.parametrize("method", ["model-reuse", "policy-reuse", "value-shaping"])
+def test_transfer_source_checkpoint_best_is_what_the_methods_reuse(source, tmp_path, method):
+    import drltg.transfer  # noqa: F401
+    from drltg.transfer import source as source_mod
+
+    cfg = config_lib.resolve({}, [*TINY, f"transfer.method={method}", f"transfer.source={source}",
+                                  "transfer.source_checkpoint=best"], task="fourrooms/northeast", frames=32, seed=3)
+    source_mod.check(cfg)
+    assert same(source_mod.source_agent(cfg).loss.state_dict(), load(source)["loss"])
+    if method == "model-reuse":
+        probe, agent = loop.check_config(cfg)
+        drltg.transfer.get_method(method).build(cfg, agent, probe, resuming=False)
+        assert same(agent.loss.state_dict(), load(source)["loss"])
+
+
+def test_a_source_without_best_pt_is_one_sentence(trained, tmp_path, capsys):
+    import shutil
+
+    import drltg.transfer  # noqa: F401
+    from drltg.transfer import source as source_mod
+
+    src = shutil.copytree(trained, tmp_path / "src")
+    (src / "checkpoints" / "best.pt").unlink()
+    assert main(["train", "fourrooms/northeast", "--run-dir", str(tmp_path / "t"), "-o", "transfer.method=model-reuse",
+                 "-o", f"transfer.source={src}", "-o", "transfer.source_checkpoint=best"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert f"transfer.source_checkpoint=best: '{src}' holds no checkpoints/best.pt" in err
+    assert not (tmp_path / "t").exists()
+    cfg = config_lib.resolve({}, ["transfer.method=policy-reuse", "transfer.source=demonstrator:lift",
+                                  "transfer.source_checkpoint=best"], task="fourrooms/northeast")
+    with pytest.raises(UsageError, match="demonstrator:lift is a scripted policy and has none"):
+        source_mod.check(cfg)
+
+
+def test_each_seed_of_a_group_keeps_its_own_best(tmp_path, monkeypatch):
+    from drltg.training import seeds as seeds_mod
+
+    results = [rows({0: 0.0, 256: 0.5, 512: 0.25}), rows({0: 0.0, 256: 0.0, 512: 0.75})]
+    monkeypatch.setattr(seeds_mod.GroupLearner, "evaluate",
+                        lambda self: [dict(r[len(self.buffers[0])]) for r in results])
+    saves = []
+    real = rundir.atomic_torch_save
+
+    def save(obj, path):
+        saves.append((path.parents[1].name, path.name, obj["frames"]))
+        return real(obj, path)
+
+    monkeypatch.setattr(rundir, "atomic_torch_save", save)
+    dirs = seeds_mod.train_seeds(keep_best_cfg(frames=512), tmp_path / "group", 2, progress=False)
+    assert [d.name for d in dirs] == ["seed-3", "seed-4"]
+    assert [(s, f) for s, name, f in saves if name == "best.pt"] == [
+        ("seed-3", 0), ("seed-4", 0), ("seed-3", 256), ("seed-4", 512)]
+    for d, best in zip(dirs, (256, 512)):
+        assert load(d)["frames"] == best
+        assert json.loads((d / "summary.json").read_text())["best"]["frames"] == best
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["evaluate", "--help"]])
+def test_the_help_lists_evaluate(argv, capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    assert stop.value.code == 0 and "evaluate" in capsys.readouterr().out
