@@ -221,6 +221,29 @@ def test_evaluate_reports_the_training_evaluation_of_fresh_episodes(trained, tmp
                                                          stats.beta.ppf(0.975, k + 1, 7 - k) if k < 7 else 1.0])
 
 
+def test_evaluate_runs_many_episodes_in_batches_of_the_runs_evaluation(trained):
+    """More episodes than the run evaluated at once: batches of eval.episodes envs, batch i seeded seed + i,
+    pooled over every episode (a robosuite run's 100 episodes never hold 100 envs at once)."""
+    from torchrl.envs import TransformedEnv
+
+    from drltg.envs import make_env
+    from drltg.training.reevaluate import evaluate_run
+    from drltg.transfer import load_actor
+
+    cfg = yaml.safe_load((trained / "config.yaml").read_text())
+    batch = cfg["eval"]["episodes"]
+    result = evaluate_run(trained, episodes=batch + 3, seed=5)
+    actor = load_actor(trained)
+    rows = [loop.evaluate(TransformedEnv(make_env("fourrooms/northeast", batch_size=(n,), seed=s, **cfg["env"])),
+                          actor) for n, s in ((batch, 5), (3, 6))]
+    n = batch + 3
+    mean = (batch * rows[0]["return_mean"] + 3 * rows[1]["return_mean"]) / n
+    var = sum(r["episodes"] * (r["return_std"] ** 2 + r["return_mean"] ** 2) for r in rows) / n - mean**2
+    assert result["episodes"] == n
+    assert result["return_mean"] == pytest.approx(mean) and result["return_std"] == pytest.approx(var**0.5)
+    assert result["success_rate"] == pytest.approx((batch * rows[0]["success_rate"] + 3 * rows[1]["success_rate"]) / n)
+
+
 def test_evaluate_with_a_seed_writes_its_default_file(trained, capsys):
     assert main(["evaluate", str(trained), "--episodes", "2", "--seed", "11"]) == 0
     result = json.loads((trained / "evaluate-last-seed11-2ep.json").read_text())

@@ -29,12 +29,26 @@ def rate_interval(successes: int, episodes: int, confidence: float = 0.95) -> tu
     return float(ci.low), float(ci.high)
 
 
+def pooled(rows: list[dict]) -> dict:
+    """One evaluation row from the rows of several batches: rates and the mean weighted by episodes, the
+    standard deviation of all episodes together, sqrt(sum_i n_i (s_i^2 + m_i^2) / N - m^2)."""
+    n = [r["episodes"] for r in rows]
+    total = sum(n)
+    mean = sum(k * r["return_mean"] for k, r in zip(n, rows)) / total
+    square = sum(k * (r["return_std"] ** 2 + r["return_mean"] ** 2) for k, r in zip(n, rows)) / total
+    out = {"return_mean": mean, "return_std": max(square - mean**2, 0.0) ** 0.5, "episodes": total}
+    for key in [k for k in rows[0] if k.endswith("_rate")]:
+        out[key] = sum(k * r[key] for k, r in zip(n, rows)) / total
+    return out
+
+
 def evaluate_run(run_dir: str | Path, *, checkpoint: str = "last", episodes: int = 100, seed: int | None = None,
                  device: str = "cpu") -> dict:
     """Evaluate the deterministic actor of ``run_dir``'s ``checkpoints/<checkpoint>.pt`` on ``episodes``
-    episodes (one batched env, as a training evaluation), seeded ``seed`` (default: the run's seed +
-    ``FRESH_SEED_OFFSET``). Returns the evaluation's numbers with the checkpoint, its frame, the seed and
-    a 95% interval ``<flag>_rate_ci95`` for every rate."""
+    episodes, in batched envs of at most the run's ``eval.episodes`` envs (what its training evaluations
+    held at once: 10 robosuite envs, not 100), batch i seeded ``seed + i`` (default ``seed``: the run's
+    seed + ``FRESH_SEED_OFFSET``), the rows :func:`pooled`. Returns the evaluation's numbers with the
+    checkpoint, its frame, the seed and a 95% interval ``<flag>_rate_ci95`` for every rate."""
     from drltg.training.loop import evaluate, make_eval_env
     from drltg.transfer.source import rebuild
 
@@ -45,11 +59,15 @@ def evaluate_run(run_dir: str | Path, *, checkpoint: str = "last", episodes: int
     agent, _, cfg, frames = rebuild(run_dir, device, checkpoint)
     cfg = cfg.model_copy(update={"device": device})
     seed = cfg.seed + FRESH_SEED_OFFSET if seed is None else seed
-    env = make_eval_env(cfg, episodes, seed, agent.env_transforms)
-    try:
-        row = evaluate(env, agent.actor)
-    finally:
-        env.close()
+    batch = cfg.eval.episodes
+    rows = []
+    for i, start in enumerate(range(0, episodes, batch)):
+        env = make_eval_env(cfg, min(batch, episodes - start), seed + i, agent.env_transforms)
+        try:
+            rows.append(evaluate(env, agent.actor))
+        finally:
+            env.close()
+    row = pooled(rows)
     result = {"run": str(Path(run_dir).expanduser().resolve()), "checkpoint": checkpoint, "frames": frames,
               "episodes": episodes, "seed": seed, **{k: v for k, v in row.items() if k != "episodes"}}
     for key in [k for k in row if k.endswith("_rate")]:
