@@ -635,24 +635,56 @@ def manipulation_cost() -> str:
 SOURCE_THRESHOLD = 0.8
 
 
+def _held(seeds: list[Path], threshold: float, column: str = "success_rate") -> tuple[int, str]:
+    """How many of ``seeds`` hold ``column`` at or above ``threshold`` to their last evaluation (the
+    report's sustained rule), and per seed from when or how low it fell over its second half."""
+    held = []
+    for p in seeds:
+        ev = _evals(p, column)
+        frames, values = list(ev), list(ev.values())
+        since = mx.sustained_time_to_threshold(frames, values, threshold)
+        late = [v for f, v in ev.items() if f >= frames[-1] / 2]
+        held.append(f"seed {p.name.split('-')[1]} " + (f"from {cl.frames(since)}" if since is not None else
+                    f"does not, lowest {min(late):.1f} over the second half"))
+    return sum("from" in h for h in held), "; ".join(held)
+
+
 def manipulation_sources() -> str:
     """The kept sources' success rate over training, and per source how many seeds hold 0.8 to the end."""
     rows, lines = [], []
     for source in sorted(p for p in (MANIP / "sources").iterdir() if p.is_dir()):
         seeds = _seeds(source)
         rows += [(f"`{source.name}` seed {p.name.split('-')[1]}", [p]) for p in seeds]
-        held = []
-        for p in seeds:
-            ev = _evals(p, "success_rate")
-            frames, values = list(ev), list(ev.values())
-            since = mx.sustained_time_to_threshold(frames, values, SOURCE_THRESHOLD)
-            late = [v for f, v in ev.items() if f >= frames[-1] / 2]
-            held.append(f"seed {p.name.split('-')[1]} " + (f"from {cl.frames(since)}" if since is not None else
-                        f"does not, lowest {min(late):.1f} over the second half"))
-        n = sum("from" in h for h in held)
-        verb = "holds" if n == 1 else "hold"
-        lines.append(f"- `{source.name}`: {n} of {len(seeds)} seeds {verb} a success rate ≥ {SOURCE_THRESHOLD} "
-                     f"to the end of {cl.frames(frames[-1])} frames ({'; '.join(held)}).")
+        n, held = _held(seeds, SOURCE_THRESHOLD)
+        last = max(max(_evals(p, "success_rate")) for p in seeds)
+        lines.append(f"- `{source.name}`: {n} of {len(seeds)} seeds {'holds' if n == 1 else 'hold'} a success rate "
+                     f"≥ {SOURCE_THRESHOLD} to the end of {cl.frames(last)} frames ({held}).")
+    frames = sorted({f for _, (p,) in rows for f in _evals(p, "success_rate")})
+    return curve_table(rows, "success_rate", frames, fmt=".1f") + "\n" + "\n".join(lines) + "\n"
+
+
+PLACE_THRESHOLD = 0.5
+
+
+def manipulation_placing() -> str:
+    """The study's finished runs on the placing targets, kept so far whether or not their row is complete:
+    success rate (the cube resting on the target) over training, and per row and side how many seeds
+    hold 0.5 to the end."""
+    rows, lines = [], []
+    sides = sorted([*MANIP.glob("*/lift-to-place*/*/*/transfer"), *MANIP.glob("*/lift-to-place*/*/baseline")])
+    for side in sides:
+        seeds = _seeds(side)
+        if not seeds:
+            continue
+        row, pair = side.relative_to(MANIP).parts[:2]
+        what = side.parent.name if side.name == "transfer" else "no transfer"
+        rows += [(f"`{row}`, {what}, seed {p.name.split('-')[1]}", [p]) for p in seeds]
+        n, held = _held(seeds, PLACE_THRESHOLD)
+        last = max(max(_evals(p, "success_rate")) for p in seeds)
+        lines.append(f"- `{row}` ({pair}), {what}: {n} of {len(seeds)} finished seeds {'holds' if n == 1 else 'hold'} "
+                     f"a success rate ≥ {PLACE_THRESHOLD} to the end of {cl.frames(last)} frames ({held}).")
+    if not rows:
+        return "No run on a placing target has finished yet.\n"
     frames = sorted({f for _, (p,) in rows for f in _evals(p, "success_rate")})
     return curve_table(rows, "success_rate", frames, fmt=".1f") + "\n" + "\n".join(lines) + "\n"
 
@@ -791,6 +823,7 @@ REGIONS = {
         "manipulation-cost": manipulation_cost,
         "manipulation-sources": manipulation_sources,
         "manipulation-earlier": manipulation_earlier,
+        "manipulation-placing": manipulation_placing,
     },
 }
 
