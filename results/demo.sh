@@ -4,6 +4,7 @@
 #   bash results/demo.sh "a shared 2-core AMD EPYC virtual machine (CPU only, torch 2.13.0)"
 # From a fresh clone, time the install first and pass its wall seconds on, so the README quotes both:
 #   /usr/bin/time -f %e -o install.txt make install && INSTALL_S=$(cat install.txt) bash results/demo.sh "..."
+# (INSTALL_NOTE="pip's download cache warm" says how it was installed)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 machine=${1:?describe the machine in a few words}
@@ -12,7 +13,7 @@ load_before=$(cut -d' ' -f1 /proc/loadavg)
 /usr/bin/time -f '%e %U %S' -o runs/demo-time.txt drltg demo --out runs/demo
 load_after=$(cut -d' ' -f1 /proc/loadavg)
 rm -rf results/demo
-python - "$machine" "$load_before" "$load_after" "${INSTALL_S:-}" <<'PY'
+python - "$machine" "$load_before" "$load_after" "${INSTALL_S:-}" "${INSTALL_NOTE:-}" <<'PY'
 import json, os, sys
 from pathlib import Path
 sys.path.insert(0, "results")
@@ -21,7 +22,7 @@ from drltg.analysis.report import transfer_report
 from drltg.cli.demo import DEMO
 from drltg.training import rundir
 
-machine, before, after, install = sys.argv[1:]
+machine, before, after, install, note = sys.argv[1:]
 dest = Path("results/demo")
 keep_curves(Path("runs/demo").resolve(), dest.resolve())
 rundir.atomic_write(dest / "demo.yaml", Path("runs/demo/demo.yaml").read_text())
@@ -33,7 +34,8 @@ low, high = sorted([float(before), float(after)])
 rundir.atomic_write(dest / "machine.json", json.dumps({
     "machine": machine, "cores": os.cpu_count(), "command": "time drltg demo --out runs/demo (venv installed)",
     "wall_s": wall, "cpu_s": user + system, "load": f"{low:.1f} to {high:.1f}",
-    **({"install_s": float(install), "install": "make install from a fresh clone"} if install else {})},
+    **({"install_s": float(install),
+        "install": "`make install` from a fresh clone" + (f" ({note})" if note else "")} if install else {})},
     indent=2) + "\n")
 PY
 python results/claims.py
