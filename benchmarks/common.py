@@ -60,7 +60,7 @@ def stepping(env, actions: list[torch.Tensor], steps: int) -> Callable[[], int]:
     """A case that steps ``env`` ``steps`` times through ``actions`` in turn (resetting finished envs)
     from where its last call stopped; returns the frames stepped."""
     state = {"td": env.reset()}
-    batch = env.batch_size[0]
+    batch = max(env.batch_size.numel(), 1)
 
     def run() -> int:
         td = state["td"]

@@ -23,7 +23,7 @@ import time
 import numpy as np
 import torch
 
-from benchmarks.common import interleaved, ratios
+from benchmarks.common import interleaved, ratios, stepping
 
 TASK, HORIZON = "lift", 500
 TASKS = ("lift", "lift-place", "lift-place-barrier")
@@ -78,19 +78,8 @@ def drltg_case(steps: int, workers: int | None = None, fast: bool = True):
     else:
         env = ParallelEnv(workers, functools.partial(RobosuiteEnv, TASK, horizon=HORIZON, fast=fast))
         env.set_seed(0)
-    n = max(env.batch_size.numel(), 1)
     actions = [torch.as_tensor(a, dtype=torch.float32).expand(*env.batch_size, 7).clone() for a in _actions()]
-    state = {"td": env.reset()}
-
-    def run() -> int:
-        td = state["td"]
-        for i in range(steps):
-            td["action"] = actions[i % len(actions)]
-            _, td = env.step_and_maybe_reset(td)
-        state["td"] = td
-        return steps * n
-
-    return run, env
+    return stepping(env, actions, steps), env
 
 
 class _Clock:
