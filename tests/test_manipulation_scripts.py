@@ -58,6 +58,7 @@ def test_each_row_reuses_the_kept_source_of_its_own_seed(row, monkeypatch):
         assert name in queue_sources()
         kept = ROOT / "runs" / "manipulation" / "sources" / name / f"seed-{run.cfg.seed}"
         assert run.cfg.transfer.source == str(kept)
+        assert run.cfg.transfer.source_checkpoint == "best"  # what queue.sh evaluates and keeps
     assert [r.cfg.seed for r in transfers] == [100 * i for i in range(spec.seeds)]
     if source is None or "{seed}" in source:  # the baselines of every row on the target, whatever its source
         assert all(r.cfg.transfer.source is None for r in runs if r.role == "baseline")
@@ -242,5 +243,7 @@ def test_the_soc_source_learns_lift_from_the_same_demonstrations_as_the_sac_sour
         configs[name] = resolve(task="lift", overrides=overrides, **kwargs)
     sac, soc = configs["lift-sac"], configs["lift-soc4"]
     assert config_changes(sac, soc) == ["algo"]
+    kept = resolve(task="lift", overrides=shlex.split(re.search(r'^EVAL="([^"]*)"', text, re.M).group(1))[1::2])
+    assert kept.checkpoint.keep_best  # best.pt, which the rows reuse
     assert (soc.algo, soc.soc.num_options, soc.frames) == ("soc", 4, 60_000)
     assert (soc.transfer.method, soc.transfer.source) == ("demonstrations", "demonstrator:lift")

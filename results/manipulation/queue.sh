@@ -6,8 +6,10 @@
 #               cloning at weight 10), 60k frames;
 #    lift-soc4  the soft option-critic with 4 options on Lift with the same demonstrations (each credited
 #               to an option drawn from its policy over options), SOC_FRAMES frames (default 60k).
-#    A complete run is skipped and an interrupted one resumed; WORKERS at a time; their curves, configs
-#    and weights are kept in results/manipulation/sources/ (keep_source.py).
+#    Each keeps its best evaluated checkpoint (checkpoint.keep_best), which the rows reuse
+#    (transfer.source_checkpoint=best), and is evaluated at it on 50 fresh episodes (drltg evaluate).
+#    A complete run is skipped and an interrupted one resumed; WORKERS at a time; their curves, configs,
+#    weights and that evaluation are kept in results/manipulation/sources/ (keep_source.py).
 # 2. Every row in ROWS order (results/manipulation/ROW.sh); a row already reported is skipped.
 set -euo pipefail
 RUNS=${RUNS:-runs/manipulation}
@@ -18,7 +20,7 @@ ROWS=${ROWS:-"lift-shaping pi-reuse-place pi-reuse-barrier model-reuse-place soc
   demonstrations-place demonstrations-barrier combined-place combined-barrier demonstrations-reference-place
   demonstrations-reference-barrier"}
 SEEDS="0 100 200"
-EVAL="-o eval.every=5000 -o eval.episodes=10 -o checkpoint.every=5000"
+EVAL="-o eval.every=5000 -o eval.episodes=10 -o checkpoint.every=5000 -o checkpoint.keep_best=true"
 declare -A SOURCE=(
   [lift-sac]="--frames 60000 -o transfer.method=demonstrations -o transfer.source=demonstrator:lift"
   [lift-soc4]="--algo soc --options 4 --frames $SOC_FRAMES -o transfer.method=demonstrations -o transfer.source=demonstrator:lift"
@@ -40,9 +42,9 @@ for name in "${!SOURCE[@]}"; do
   for s in $SEEDS; do
     final=$(grep -o '"success_rate": [0-9.]*' "$RUNS/sources/$name/seed-$s/summary.json" | tail -1)
     echo "source $name seed $s: final ${final:-success_rate unknown}"
-    [ -f "results/manipulation/sources/$name/seed-$s/checkpoints/last.pt" ] && continue
-    ${PYTHON:-python} results/manipulation/keep_source.py "$RUNS/sources/$name/seed-$s" \
-      "results/manipulation/sources/$name/seed-$s"
+    kept=results/manipulation/sources/$name/seed-$s
+    [ -f "$kept/checkpoints/last.pt" ] || ${PYTHON:-python} results/manipulation/keep_source.py "$RUNS/sources/$name/seed-$s" "$kept"
+    ls "$kept"/evaluate-best-*-50ep.json > /dev/null 2>&1 || $DRLTG evaluate "$kept" --checkpoint best --episodes 50
   done
 done
 
