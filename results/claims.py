@@ -659,8 +659,59 @@ def manipulation_sources() -> str:
         last = max(max(_evals(p, "success_rate")) for p in seeds)
         lines.append(f"- `{source.name}`: {n} of {len(seeds)} seeds {'holds' if n == 1 else 'hold'} a success rate "
                      f"≥ {SOURCE_THRESHOLD} to the end of {cl.frames(last)} frames ({held}).")
+        lines += _best_evaluated(source.name, seeds)
     frames = sorted({f for _, (p,) in rows for f in _evals(p, "success_rate")})
     return curve_table(rows, "success_rate", frames, fmt=".1f") + "\n" + "\n".join(lines) + "\n"
+
+
+def _best_evaluated(name: str, seeds: list[Path]) -> list[str]:
+    """The line on ``name``'s kept best checkpoints, evaluated on fresh episodes by queue.sh
+    (``evaluate-best-*-50ep.json``), if any seed has one."""
+    found = {p: sorted(p.glob("evaluate-best-*-50ep.json")) for p in seeds}
+    if not any(found.values()):
+        return []
+    parts, n = [], 0
+    for p, files in found.items():
+        seed = p.name.split("-")[1]
+        if not files:
+            parts.append(f"seed {seed} not evaluated")
+            continue
+        r = load(files[0])
+        lo, hi = r["success_rate_ci95"]
+        n += r["success_rate"] >= SOURCE_THRESHOLD
+        parts.append(f"seed {seed} {r['success_rate']:.2f} [{lo:.2f}, {hi:.2f}] at {cl.frames(r['frames'])}")
+    episodes = load(next(f for files in found.values() for f in files))["episodes"]
+    return [f"  - the checkpoint the rows reuse, `best.pt`, on {episodes} fresh episodes (95% Clopper-Pearson): "
+            f"{n} of {len(seeds)} at or above {SOURCE_THRESHOLD} ({'; '.join(parts)})."]
+
+
+def critic_scale() -> str:
+    """The kept SAC sources' critics at the demonstrator's states against the ceiling 1 / (1 - gamma)
+    (``results/manipulation/sources/critic_scale.csv``), and which of them dipped."""
+    rows = list(csv.DictReader((MANIP / "sources" / "critic_scale.csv").open()))
+    table = [("run", "Q(s, a) at demonstrated steps", "Q(s, μ(s))", "ceiling", "final success",
+              "lowest success, second half")]
+    table += [(f"`{r['source']}` seed {r['seed']}", r["q_demonstrated"], r["q_actor"], r["ceiling"],
+               f"{float(r['final_success']):.1f}", f"{float(r['lowest_success_second_half']):.1f}") for r in rows]
+
+    def name(r):
+        return f"`{r['source']}` seed {r['seed']}"
+
+    over = [r for r in rows if float(r["q_demonstrated"]) > float(r["ceiling"])]
+    under = [r for r in rows if r not in over]
+
+    def dipped(group):
+        return [r for r in group if float(r["lowest_success_second_half"]) < SOURCE_THRESHOLD]
+
+    def listed(group):
+        return ", ".join(f"{name(r)} (Q {float(r['q_demonstrated']):.0f}, lowest "
+                         f"{float(r['lowest_success_second_half']):.1f})" for r in group) or "none"
+
+    sentence = (f"{len(over)} of {len(rows)} SAC sources end with critics that value the demonstrator's states "
+                f"above the ceiling, {len(dipped(over))} of them dipping below {SOURCE_THRESHOLD} over the second "
+                f"half: {listed(over)}. Of the {len(under)} below it, {len(dipped(under))} dipped as well: "
+                f"{listed(dipped(under))}; {listed([r for r in under if r not in dipped(under)])} did not.")
+    return render(table, "markdown") + "\n" + sentence + "\n"
 
 
 PLACE_THRESHOLD = 0.5
@@ -822,6 +873,7 @@ REGIONS = {
         "lift-summary": readme_lift,
         "manipulation-cost": manipulation_cost,
         "manipulation-sources": manipulation_sources,
+        "manipulation-critics": critic_scale,
         "manipulation-earlier": manipulation_earlier,
         "manipulation-placing": manipulation_placing,
     },

@@ -247,3 +247,21 @@ def test_the_soc_source_learns_lift_from_the_same_demonstrations_as_the_sac_sour
     assert kept.checkpoint.keep_best  # best.pt, which the rows reuse
     assert (soc.algo, soc.soc.num_options, soc.frames) == ("soc", 4, 60_000)
     assert (soc.transfer.method, soc.transfer.source) == ("demonstrations", "demonstrator:lift")
+
+
+def test_the_committed_critic_scale_describes_the_kept_sources():
+    """critic_scale.csv names every kept SAC source once, with the success rates of its own eval.csv."""
+    import csv
+    import importlib.util
+
+    path = SCRIPTS / "sources" / "critic_scale.py"
+    spec = importlib.util.spec_from_file_location("critic_scale", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    rows = list(csv.DictReader((SCRIPTS / "sources" / "critic_scale.csv").open()))
+    kept = sorted(p.relative_to(SCRIPTS / "sources").as_posix() for p in (SCRIPTS / "sources").glob("lift-sac*/seed-*"))
+    assert sorted(f"{r['source']}/seed-{r['seed']}" for r in rows) == kept
+    for r in rows:
+        final, lowest = module.success(SCRIPTS / "sources" / r["source"] / f"seed-{r['seed']}")
+        assert (float(r["final_success"]), float(r["lowest_success_second_half"])) == (final, lowest)
+        assert float(r["ceiling"]) == 100.0  # 1 / (1 - 0.99): Lift pays at most 1 per step
