@@ -33,8 +33,8 @@ from torchrl.envs import ExplorationType, set_exploration_type  # noqa: E402
 
 from drltg.collectors.demonstrations import collect_demonstrations  # noqa: E402
 from drltg.envs.robosuite import demonstrator_for  # noqa: E402
-from drltg.transfer.source import rebuild  # noqa: E402
 from drltg.training.rundir import atomic_write  # noqa: E402
+from drltg.transfer.source import rebuild  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 COLUMNS = ("source", "seed", "frames", "q_demonstrated", "q_actor", "reward_per_step", "ceiling",
