@@ -588,11 +588,12 @@ def _queue() -> tuple[list[str], dict[str, tuple[int, int]]]:
     return rows, {"lift-sac": (seeds, sac), "lift-soc4": (seeds, soc)}
 
 
-def run_rate() -> tuple[float, int]:
-    """The median frames/s of the committed Lift+Place runs (two at a time on this machine's 2 cores)."""
+def run_rate(runs: Path = RATE_RUNS) -> tuple[float, int]:
+    """The median frames/s of the finished runs under ``runs`` (default: the committed Lift+Place runs,
+    two at a time on this machine's 2 cores)."""
     import statistics
 
-    rates = [load(p)["frames_per_s"] for p in sorted(RATE_RUNS.glob("**/seed-*/summary.json"))]
+    rates = [load(p)["frames_per_s"] for p in sorted(runs.glob("**/seed-*/summary.json"))]
     return statistics.median(rates), len(rates)
 
 
@@ -605,9 +606,10 @@ def manipulation_cost() -> str:
 
     rows, sources = _queue()
     fps, n = run_rate()
+    soc_fps, soc_n = run_rate(MANIP / "sources" / "lift-soc4")
+    rate = {"lift-sac": fps, "lift-soc4": soc_fps, "sac": fps, "soc": soc_fps}
     out = [("step", "command", "runs it adds × frames", "wall time on 2 cores")]
-    total_frames = sum(k * f for k, f in sources.values())
-    hours = total_frames / (WORKERS * fps) / 3600
+    hours = sum(k * f / rate[name] for name, (k, f) in sources.items()) / WORKERS / 3600
     out.append(("sources: " + ", ".join(f"`{name}` {k} × {cl.frames(f)}" for name, (k, f) in sources.items()),
                 "`bash results/manipulation/queue.sh` (first step)",
                 " + ".join(f"{k} × {cl.frames(f)}" for k, f in sources.values()), f"{hours:.1f} h"))
@@ -619,17 +621,17 @@ def manipulation_cost() -> str:
         group = (nested, spec["pairs"][0], spec["algos"][0])
         k = spec["seeds"] * (1 if group in seen else 2)
         seen.add(group)
-        h = math.ceil(k / WORKERS) * spec["frames"] / fps / 3600
+        h = math.ceil(k / WORKERS) * spec["frames"] / rate[spec["algos"][0]] / 3600
         total += h
         out.append((f"`{row}`", f"`bash results/manipulation/{row}.sh`", f"{k} × {cl.frames(spec['frames'])}",
                     f"{h:.1f} h"))
     return (render(out, "markdown") + f"\nWall time = ⌈runs / {WORKERS}⌉ × frames / rate (sources: all their frames / "
             f"({WORKERS} × rate)), at {fps:.1f} frames/s per run: the median of the {n} runs of "
             f"`results/{RATE_RUNS.name}/` (Lift+Place, run two at a time on this machine's 2 cores beside other work, "
-            "evaluated every 2.5k frames on 10 episodes; the rows evaluate every 5k). The soft option-critic's rate on "
-            "these tasks is not measured at this scale and is taken as the same, a lower bound on its time: its update "
-            "evaluates K option copies of every next state, and with demonstrations the policy over options at each "
-            f"demonstrated state. All steps in the queue: about {total:.0f} h.\n")
+            "evaluated every 2.5k frames on 10 episodes; the rows evaluate every 5k); the soft option-critic's, "
+            f"{soc_fps:.1f} frames/s, is the median of the {soc_n} kept `lift-soc4` source run{'s' * (soc_n != 1)} "
+            "(Lift, two at a time): its update evaluates K option copies of every next state, and with demonstrations "
+            f"the policy over options at each demonstrated state. All steps in the queue: about {total:.0f} h.\n")
 
 
 SOURCE_THRESHOLD = 0.8
