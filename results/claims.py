@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -663,7 +664,22 @@ def manipulation_sources() -> str:
                      f"≥ {SOURCE_THRESHOLD} to the end of {cl.frames(last)} frames ({held}).")
         lines += _best_evaluated(source.name, seeds)
     frames = sorted({f for _, (p,) in rows for f in _evals(p, "success_rate")})
+    lines.append(_how_strict(frames, episodes=int(load(seeds[0] / "summary.json")["final_eval"]["episodes"])))
     return curve_table(rows, "success_rate", frames, fmt=".1f") + "\n" + "\n".join(lines) + "\n"
+
+
+def _how_strict(frames: list[float], episodes: int, p: float = 0.9, low: float = 0.3) -> str:
+    """How often evaluations of ``episodes`` episodes make a policy whose true success rate is ``p`` miss
+    the 0.8 rule over the second half of ``frames``, against how rarely they show ``low`` or less."""
+    from scipy.stats import binom
+
+    late = sum(f >= frames[-1] / 2 for f in frames)
+    below = binom.cdf(math.ceil(SOURCE_THRESHOLD * episodes) - 1, episodes, p)
+    deep = binom.cdf(math.floor(low * episodes), episodes, p)
+    return (f"- How strict the rule is: an evaluation on {episodes} episodes of a policy whose true success rate "
+            f"is {p} shows less than {SOURCE_THRESHOLD} with probability {below:.2f}, so at least one of {late} "
+            f"second-half evaluations does with probability {1 - (1 - below) ** late:.2f}; it shows {low} or less "
+            f"with probability {deep:.0e}. A fall to {low} or below means the policy changed, not the sample.")
 
 
 def _best_evaluated(name: str, seeds: list[Path]) -> list[str]:
