@@ -68,7 +68,7 @@ def evaluate_run(run_dir: str | Path, *, checkpoint: str = "last", episodes: int
         finally:
             env.close()
     row = pooled(rows)
-    result = {"run": str(Path(run_dir).expanduser().resolve()), "checkpoint": checkpoint, "frames": frames,
+    result = {"run": Path(run_dir).as_posix(), "checkpoint": checkpoint, "frames": frames,
               "episodes": episodes, "seed": seed, **{k: v for k, v in row.items() if k != "episodes"}}
     for key in [k for k in row if k.endswith("_rate")]:
         result[f"{key}_ci95"] = list(rate_interval(round(row[key] * episodes), episodes))
