@@ -693,7 +693,7 @@ def _best_evaluated(name: str, seeds: list[Path]) -> list[str]:
         seed = p.name.split("-")[1]
         if not files:
             kept = (p / "checkpoints" / "best.pt").is_file()
-            parts.append(f"seed {seed} {'not evaluated' if kept else 'kept no best.pt (trained without keep_best)'}")
+            parts.append(f"seed {seed} {'not evaluated' if kept else 'kept no best.pt: it was trained without keep_best'}")
             continue
         r = load(files[0])
         lo, hi = r["success_rate_ci95"]
