@@ -584,9 +584,9 @@ def _queue() -> tuple[list[str], dict[str, tuple[int, int]]]:
     text = (MANIP / "queue.sh").read_text()
     rows = re.search(r'ROWS=\$\{ROWS:-"([^"]*)"\}', text).group(1).split()
     soc = int(re.search(r"SOC_FRAMES:-(\d+)", text).group(1))
-    sac = int(re.search(r'\[lift-sac\]="--frames (\d+)', text).group(1))
+    sac = int(re.search(r'\[lift-sac-ln-half\]="--frames (\d+)', text).group(1))
     seeds = len(re.search(r'SEEDS="([^"]*)"', text).group(1).split())
-    return rows, {"lift-sac": (seeds, sac), "lift-soc4": (seeds, soc)}
+    return rows, {"lift-sac-ln-half": (seeds, sac), "lift-soc4": (seeds, soc)}
 
 
 def run_rate(runs: Path = RATE_RUNS) -> tuple[float, int]:
@@ -608,7 +608,7 @@ def manipulation_cost() -> str:
     rows, sources = _queue()
     fps, n = run_rate()
     soc_fps, soc_n = run_rate(MANIP / "sources" / "lift-soc4")
-    rate = {"lift-sac": fps, "lift-soc4": soc_fps, "sac": fps, "soc": soc_fps}
+    rate = {"lift-sac-ln-half": fps, "lift-soc4": soc_fps, "sac": fps, "soc": soc_fps}
     out = [("step", "command", "runs it adds × frames", "wall time on 2 cores")]
     hours = sum(k * f / rate[name] for name, (k, f) in sources.items()) / WORKERS / 3600
     out.append(("sources: " + ", ".join(f"`{name}` {k} × {cl.frames(f)}" for name, (k, f) in sources.items()),
@@ -693,7 +693,8 @@ def _best_evaluated(name: str, seeds: list[Path]) -> list[str]:
         seed = p.name.split("-")[1]
         if not files:
             kept = (p / "checkpoints" / "best.pt").is_file()
-            parts.append(f"seed {seed} {'not evaluated' if kept else 'kept no best.pt: it was trained without keep_best'}")
+            why = "not evaluated" if kept else "kept no best.pt: it was trained without keep_best"
+            parts.append(f"seed {seed} {why}")
             continue
         r = load(files[0])
         lo, hi = r["success_rate_ci95"]

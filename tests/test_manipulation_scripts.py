@@ -38,7 +38,7 @@ def test_every_script_parses_and_every_row_has_its_spec_and_a_place_in_the_queue
         assert (SCRIPTS / f"{row}.sh").read_text().rstrip().endswith(f'row.sh" {row}')
     queued = re.search(r'ROWS=\$\{ROWS:-"([^"]*)"\}', (SCRIPTS / "queue.sh").read_text()).group(1).split()
     assert sorted(queued) == ROWS
-    assert queue_sources() == {"lift-sac", "lift-soc4"}
+    assert queue_sources() == {"lift-sac-ln-half", "lift-soc4"}
 
 
 @pytest.mark.parametrize("row", ROWS)
@@ -215,15 +215,15 @@ def test_kept_lift_sources_are_weights_only_and_load_as_actors(seed):
     import torch
 
     from drltg.transfer import load_actor
-    source = SCRIPTS / "sources" / "lift-sac" / f"seed-{seed}"
+    source = SCRIPTS / "sources" / "lift-sac-ln-half" / f"seed-{seed}"
     assert set(torch.load(source / "checkpoints" / "last.pt", weights_only=False)) == {"loss", "frames"}
     actor = load_actor(source)
     assert sum(p.numel() for p in actor.parameters()) > 0
 
 
 def test_the_soc_source_learns_lift_from_the_same_demonstrations_as_the_sac_source():
-    """lift-soc4's config is lift-sac's but for the learner: the same demonstrator, episodes, share,
-    cloning weight and frames."""
+    """lift-soc4's config is lift-sac-ln-half's but for the learner and the SAC critics' stabilisers
+    (LayerNorm, half of every batch demonstrated): the same demonstrator, episodes, cloning weight and frames."""
     import shlex
 
     from drltg.config import resolve
@@ -241,8 +241,8 @@ def test_the_soc_source_learns_lift_from_the_same_demonstrations_as_the_sac_sour
             else:
                 kwargs[flag.removeprefix("--")] = int(value) if flag == "--frames" else value
         configs[name] = resolve(task="lift", overrides=overrides, **kwargs)
-    sac, soc = configs["lift-sac"], configs["lift-soc4"]
-    assert config_changes(sac, soc) == ["algo"]
+    sac, soc = configs["lift-sac-ln-half"], configs["lift-soc4"]
+    assert config_changes(sac, soc) == ["algo", "network.layer_norm", "transfer.demo_ratio"]
     kept = resolve(task="lift", overrides=shlex.split(re.search(r'^EVAL="([^"]*)"', text, re.M).group(1))[1::2])
     assert kept.checkpoint.keep_best  # best.pt, which the rows reuse
     assert (soc.algo, soc.soc.num_options, soc.frames) == ("soc", 4, 60_000)

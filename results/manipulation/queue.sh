@@ -2,8 +2,8 @@
 # The manipulation study in one command: bash results/manipulation/queue.sh
 #   (RUNS=runs/manipulation WORKERS=2 DRLTG=drltg PYTHON=python by default; ROWS="..." picks rows)
 # 1. The kept sources, RUNS/sources/NAME/seed-<s> for seeds 0, 100, 200, that every row reuses:
-#    lift-sac   SAC on Lift with 50 episodes of the scripted demonstrator (1/4 of every batch, behaviour
-#               cloning at weight 10), 60k frames;
+#    lift-sac-ln-half  SAC on Lift with LayerNorm critics and 50 episodes of the scripted demonstrator
+#               (1/2 of every batch, behaviour cloning at weight 10), 60k frames;
 #    lift-soc4  the soft option-critic with 4 options on Lift with the same demonstrations (each credited
 #               to an option drawn from its policy over options), SOC_FRAMES frames (default 60k).
 #    Each keeps its best evaluated checkpoint (checkpoint.keep_best), which the rows reuse
@@ -22,7 +22,7 @@ ROWS=${ROWS:-"lift-shaping pi-reuse-place pi-reuse-barrier model-reuse-place soc
 SEEDS="0 100 200"
 EVAL="-o eval.every=5000 -o eval.episodes=10 -o checkpoint.every=5000 -o checkpoint.keep_best=true"
 declare -A SOURCE=(
-  [lift-sac]="--frames 60000 -o transfer.method=demonstrations -o transfer.source=demonstrator:lift"
+  [lift-sac-ln-half]="--frames 60000 -o transfer.method=demonstrations -o transfer.source=demonstrator:lift -o network.layer_norm=critics -o transfer.demo_ratio=0.5"
   [lift-soc4]="--algo soc --options 4 --frames $SOC_FRAMES -o transfer.method=demonstrations -o transfer.source=demonstrator:lift"
 )
 export OMP_NUM_THREADS=1 MKL_NUM_THREADS=1
