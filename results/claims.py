@@ -20,6 +20,8 @@ import math
 import sys
 from pathlib import Path
 
+import yaml
+
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "results"
 if str(ROOT) not in sys.path:
@@ -603,8 +605,6 @@ def manipulation_cost() -> str:
     baselines are trained by the first row that needs them) and its wall time on 2 cores at the measured rate."""
     import math
 
-    import yaml
-
     rows, sources = _queue()
     fps, n = run_rate()
     soc_fps, soc_n = run_rate(MANIP / "sources" / "lift-soc4")
@@ -682,7 +682,8 @@ def _how_strict(frames: list[float], episodes: int, p: float = 0.9, low: float =
             f"with probability {deep:.0e}. A fall to {low} or below means the policy changed, not the sample.")
 
 
-def _best_evaluated(name: str, seeds: list[Path]) -> list[str]:
+def _best_evaluated(name: str, seeds: list[Path], threshold: float = SOURCE_THRESHOLD,
+                    what: str = "the checkpoint the rows reuse, `best.pt`") -> list[str]:
     """The line on ``name``'s kept best checkpoints, evaluated on fresh episodes by queue.sh
     (``evaluate-best-*-50ep.json``), if any seed has one."""
     found = {p: sorted(p.glob("evaluate-best-*-50ep.json")) for p in seeds}
@@ -698,11 +699,11 @@ def _best_evaluated(name: str, seeds: list[Path]) -> list[str]:
             continue
         r = load(files[0])
         lo, hi = r["success_rate_ci95"]
-        n += r["success_rate"] >= SOURCE_THRESHOLD
+        n += r["success_rate"] >= threshold
         parts.append(f"seed {seed} {r['success_rate']:.2f} [{lo:.2f}, {hi:.2f}] at {cl.frames(r['frames'])}")
     episodes = load(next(f for files in found.values() for f in files))["episodes"]
-    return [f"  - the checkpoint the rows reuse, `best.pt`, on {episodes} fresh episodes (95% Clopper-Pearson): "
-            f"{n} of {len(seeds)} at or above {SOURCE_THRESHOLD} ({'; '.join(parts)})."]
+    return [f"  - {what}, on {episodes} fresh episodes (95% Clopper-Pearson): "
+            f"{n} of {len(seeds)} at or above {threshold} ({'; '.join(parts)})."]
 
 
 def critic_scale() -> str:
@@ -740,20 +741,26 @@ PLACE_THRESHOLD = 0.5
 def manipulation_placing() -> str:
     """The study's finished runs on the placing targets, kept so far whether or not their row is complete:
     success rate (the cube resting on the target) over training, and per row and side how many seeds
-    hold 0.5 to the end."""
-    rows, lines = [], []
-    sides = sorted([*MANIP.glob("*/lift-to-place*/*/*/transfer"), *MANIP.glob("*/lift-to-place*/*/baseline")])
-    for side in sides:
-        seeds = _seeds(side)
-        if not seeds:
-            continue
+    hold 0.5 to the end; then the measurements beside the rows (``results/manipulation/measurements/NAME``)."""
+    groups = []  # (name in the table, name in its line, seeds)
+    for side in sorted([*MANIP.glob("*/lift-to-place*/*/*/transfer"), *MANIP.glob("*/lift-to-place*/*/baseline")]):
         row, pair = side.relative_to(MANIP).parts[:2]
         what = side.parent.name if side.name == "transfer" else "no transfer"
-        rows += [(f"`{row}`, {what}, seed {p.name.split('-')[1]}", [p]) for p in seeds]
+        groups.append((f"`{row}`, {what}", f"`{row}` ({pair}), {what}", _seeds(side)))
+    for measured in sorted(p for p in (MANIP / "measurements").glob("*") if p.is_dir()):
+        seeds = _seeds(measured)
+        task = yaml.safe_load((seeds[0] / "config.yaml").read_text())["task"] if seeds else ""
+        groups.append((f"`measurements/{measured.name}`", f"`measurements/{measured.name}` ({task})", seeds))
+    rows, lines = [], []
+    for name, line, seeds in groups:
+        if not seeds:
+            continue
+        rows += [(f"{name}, seed {p.name.split('-')[1]}", [p]) for p in seeds]
         n, held = _held(seeds, PLACE_THRESHOLD)
         last = max(max(_evals(p, "success_rate")) for p in seeds)
-        lines.append(f"- `{row}` ({pair}), {what}: {n} of {len(seeds)} finished seeds {'holds' if n == 1 else 'hold'} "
+        lines.append(f"- {line}: {n} of {len(seeds)} finished seeds {'holds' if n == 1 else 'hold'} "
                      f"a success rate ≥ {PLACE_THRESHOLD} to the end of {cl.frames(last)} frames ({held}).")
+        lines += _best_evaluated(name, seeds, PLACE_THRESHOLD, "its best checkpoint, `best.pt`")
     if not rows:
         return "No run on a placing target has finished yet.\n"
     frames = sorted({f for _, (p,) in rows for f in _evals(p, "success_rate")})
