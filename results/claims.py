@@ -603,8 +603,6 @@ def run_rate(runs: Path = RATE_RUNS) -> tuple[float, int]:
 def manipulation_cost() -> str:
     """README's table of the study's one-command rows: what each adds in the queue's order (a target's
     baselines are trained by the first row that needs them) and its wall time on 2 cores at the measured rate."""
-    import math
-
     rows, sources = _queue()
     fps, n = run_rate()
     soc_fps, soc_n = run_rate(MANIP / "sources" / "lift-soc4")
