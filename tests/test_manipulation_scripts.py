@@ -221,6 +221,23 @@ def test_kept_lift_sources_are_weights_only_and_load_as_actors(seed):
     assert sum(p.numel() for p in actor.parameters()) > 0
 
 
+def resolve_args(task: str, line: str, **kwargs):
+    """The config ``drltg train TASK`` resolves from the flags of a script's ``line``."""
+    import shlex
+
+    from drltg.config import resolve
+
+    args, overrides = shlex.split(line), []
+    for flag, value in zip(args[::2], args[1::2]):
+        if flag == "-o":
+            overrides.append(value)
+        elif flag == "--options":
+            overrides.append(f"soc.num_options={value}")
+        else:
+            kwargs[flag.removeprefix("--")] = int(value) if flag == "--frames" else value
+    return resolve(task=task, overrides=overrides, **kwargs)
+
+
 def test_the_soc_source_learns_lift_from_the_same_demonstrations_as_the_sac_source():
     """lift-soc4's config is lift-sac-ln-half's but for the learner and the SAC critics' stabilisers
     (LayerNorm, half of every batch demonstrated): the same demonstrator, episodes, cloning weight and frames."""
@@ -230,17 +247,7 @@ def test_the_soc_source_learns_lift_from_the_same_demonstrations_as_the_sac_sour
 
     text = (SCRIPTS / "queue.sh").read_text()
     text = text.replace("$SOC_FRAMES", re.search(r"SOC_FRAMES:-(\d+)", text).group(1))
-    configs = {}
-    for name, line in re.findall(r'^\s+\[([\w-]+)\]="([^"]*)"', text, re.M):
-        args, kwargs, overrides = shlex.split(line), {}, []
-        for flag, value in zip(args[::2], args[1::2]):
-            if flag == "-o":
-                overrides.append(value)
-            elif flag == "--options":
-                overrides.append(f"soc.num_options={value}")
-            else:
-                kwargs[flag.removeprefix("--")] = int(value) if flag == "--frames" else value
-        configs[name] = resolve(task="lift", overrides=overrides, **kwargs)
+    configs = {name: resolve_args("lift", line) for name, line in re.findall(r'^\s+\[([\w-]+)\]="([^"]*)"', text, re.M)}
     sac, soc = configs["lift-sac-ln-half"], configs["lift-soc4"]
     assert config_changes(sac, soc) == ["algo", "network.layer_norm", "transfer.demo_ratio"]
     kept = resolve(task="lift", overrides=shlex.split(re.search(r'^EVAL="([^"]*)"', text, re.M).group(1))[1::2])
@@ -265,3 +272,4 @@ def test_the_committed_critic_scale_describes_the_kept_sources():
         final, lowest = module.success(SCRIPTS / "sources" / r["source"] / f"seed-{r['seed']}")
         assert (float(r["final_success"]), float(r["lowest_success_second_half"])) == (final, lowest)
         assert float(r["ceiling"]) == 100.0  # 1 / (1 - 0.99): Lift pays at most 1 per step
+
