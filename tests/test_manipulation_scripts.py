@@ -92,6 +92,25 @@ def test_a_source_written_with_seed_serves_each_transfer_run_from_its_own_seed(t
                                                                              ("transfer", "kept/one")}
 
 
+@pytest.mark.parametrize("row", [r for r in ROWS if "model-reuse" in load_spec(SPECS / f"{r}.yaml").methods[0]])
+def test_the_rows_that_reuse_weights_build_the_learner_of_their_kept_source(row, monkeypatch):
+    """Model reuse loads the kept source's best.pt whole (no partial load): each such row's transfer
+    learner has its source's networks, LayerNorm included, on the target task."""
+    pytest.importorskip("robosuite")
+    from drltg.envs import make_env
+    from drltg.learners import make_agent
+    from drltg.transfer.model_reuse import load_from_run
+
+    monkeypatch.chdir(ROOT)
+    spec = load_spec(SPECS / f"{row}.yaml")
+    run = next(r for r in plan(spec, runs_of(row))[0] if r.role == "transfer")
+    kept = SCRIPTS / "sources" / SOURCED.fullmatch(spec.overrides["transfer.source"]).group(1) / f"seed-{run.cfg.seed}"
+    env = make_env(run.cfg.task, **run.cfg.env)
+    report = load_from_run(make_agent(env, run.cfg).loss, kept, checkpoint="best")
+    env.close()
+    assert not (report.widened or report.narrowed or report.skipped), report.summary()
+
+
 def test_a_soc_lift_learner_hands_every_weight_to_a_soc_lift_place_learner():
     """The soft option-critic row: SOC-4's weights on lift fit its learner on lift-place entry for entry
     (the tasks share one observation layout), so model reuse copies them all."""
