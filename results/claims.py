@@ -765,6 +765,51 @@ def manipulation_placing() -> str:
     return curve_table(rows, "success_rate", frames, fmt=".1f") + "\n" + "\n".join(lines) + "\n"
 
 
+FALLEN_BELOW = -0.01
+"""m: a cube whose centre ends below the target's (which rests on the table) has left the table."""
+
+
+def manipulation_collapse() -> str:
+    """Where the cube is at the end of each kept measurement's episodes, at ``best.pt`` and at ``last.pt``
+    (``results/manipulation/measurements/NAME/collapse.csv``, written by ``collapse.py``)."""
+    out = [("run", "checkpoint", "placed at the end", "ever lifted", "held at the end", "off the table",
+            "steps placed (mean)")]
+    lines = []
+    for path in sorted((MANIP / "measurements").glob("*/collapse.csv")):
+        rows = list(csv.DictReader(path.open()))
+        seeds = sorted({int(r["seed"]) for r in rows})
+        fewer, unplaced = [], []
+        for seed in seeds:
+            placed = {}
+            for checkpoint in ("best", "last"):
+                rs = [r for r in rows if int(r["seed"]) == seed and r["checkpoint"] == checkpoint]
+                n = len(rs)
+                count = {k: sum(int(r[k]) for r in rs) for k in ("placed", "lifted", "grasped")}
+                fallen = sum(float(r["height_m"]) < FALLEN_BELOW for r in rs)
+                out.append((f"`measurements/{path.parent.name}` seed {seed}",
+                            f"`{checkpoint}.pt` ({cl.frames(int(rs[0]['frames']))})",
+                            f"{count['placed']}/{n}", f"{count['lifted']}/{n}", f"{count['grasped']}/{n}",
+                            f"{fallen}/{n}", f"{sum(int(r['steps_placed']) for r in rs) / n:.0f}"))
+                placed[checkpoint] = count["placed"]
+                if checkpoint == "last":
+                    unplaced += [r for r in rs if not int(r["placed"])]
+            if placed["last"] < placed["best"]:
+                fewer.append(seed)
+        fallen = sum(float(r["height_m"]) < FALLEN_BELOW for r in unplaced)
+        held = sum(int(r["grasped"]) and float(r["height_m"]) >= FALLEN_BELOW for r in unplaced)
+        rest = [r for r in unplaced if not int(r["grasped"]) and float(r["height_m"]) >= FALLEN_BELOW]
+        away = (f" ({100 * sum(float(r['distance_m']) for r in rest) / len(rest):.0f} cm from the target's centre "
+                "on average)" if rest else "")
+        lines.append(f"- `measurements/{path.parent.name}`: at `last.pt` {len(fewer)} of {len(seeds)} seeds place "
+                     f"in fewer episodes than at `best.pt`"
+                     + (f" (seed{'s' * (len(fewer) > 1)} {', '.join(map(str, fewer))})" if fewer else "")
+                     + f"; of the {len(unplaced)} episodes that end unplaced at `last.pt`, the cube is off the table "
+                     f"in {fallen}, held in the gripper in {held} and resting on the table in {len(rest)}{away}.")
+    if not lines:
+        return "No measurement has a collapse.csv yet.\n"
+    return render(out, "markdown") + "\n" + "\n".join(lines) + "\n"
+
+
 EARLIER = MANIP / "earlier"
 
 
@@ -901,6 +946,7 @@ REGIONS = {
         "manipulation-critics": critic_scale,
         "manipulation-earlier": manipulation_earlier,
         "manipulation-placing": manipulation_placing,
+        "manipulation-collapse": manipulation_collapse,
     },
 }
 

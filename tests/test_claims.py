@@ -159,3 +159,25 @@ def test_the_report_command_ends_with_the_generated_headline(tmp_path, capsys):
     committed = json.loads((demo / "report" / "transfer_metrics.json").read_text())
     assert cl.headline(committed) in printed  # the committed curves give back the quoted headline
     assert committed["metrics"]["n_seeds_transfer"] == 6 and committed["settings"]["paired"]
+
+
+def test_the_collapse_lines_count_where_each_unplaced_cube_ends(tmp_path, monkeypatch):
+    """Two seeds, two episodes each per checkpoint: seed 0 places both at best.pt and none at last.pt (one
+    cube off the table, one resting 10 cm away); seed 5 places one at both (its other cube held)."""
+    claims = generator()
+    monkeypatch.setattr(claims, "MANIP", tmp_path)
+    folder = tmp_path / "measurements" / "demo"
+    folder.mkdir(parents=True)
+    rows = ["seed,checkpoint,frames,episode,placed,lifted,grasped,distance_m,height_m,steps_placed",
+            "0,best,40000,0,1,1,0,0.01,0.02,400", "0,best,40000,1,1,1,0,0.01,0.02,380",
+            "0,last,100000,0,0,1,0,0.30,-0.50,0", "0,last,100000,1,0,1,0,0.10,0.02,0",
+            "5,best,45000,0,1,1,0,0.01,0.02,300", "5,best,45000,1,0,1,1,0.05,0.10,0",
+            "5,last,100000,0,1,1,0,0.01,0.02,410", "5,last,100000,1,0,1,1,0.05,0.10,0"]
+    (folder / "collapse.csv").write_text("\n".join(rows) + "\n")
+    text = claims.manipulation_collapse()
+    assert "| `measurements/demo` seed 0 | `last.pt` (100k) | 0/2 | 2/2 | 0/2 | 1/2 | 0 |" in text
+    assert "| `measurements/demo` seed 5 | `best.pt` (45k) | 1/2 | 2/2 | 1/2 | 0/2 | 150 |" in text
+    assert text.endswith(
+        "- `measurements/demo`: at `last.pt` 1 of 2 seeds place in fewer episodes than at `best.pt` (seed 0); of "
+        "the 3 episodes that end unplaced at `last.pt`, the cube is off the table in 1, held in the gripper in 1 "
+        "and resting on the table in 1 (10 cm from the target's centre on average).\n")

@@ -1,0 +1,87 @@
+"""What a placing policy does after it collapses: each kept run of a measurement, at ``best.pt`` and at
+``last.pt``, on the same seeded episodes.
+
+    python results/manipulation/measurements/collapse.py [NAME] [--episodes 10]
+
+For every ``results/manipulation/measurements/NAME/seed-<s>`` (default NAME: place-reference-ln-half)
+and both checkpoints, ``--episodes`` episodes of the deterministic actor (the run's evaluation env,
+seeded ``seed + FRESH_SEED_OFFSET`` as ``drltg evaluate`` seeds them) over the full horizon, and per
+episode at its last step: placed (the task's success), ever lifted, grasped, the cube's horizontal
+distance to the target's centre and its height above it (``cube_pos - target_pos``, m), and the steps
+spent placed (the sparse return). Writes ``NAME/collapse.csv`` (one row per episode) and prints the means.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import sys
+from pathlib import Path
+
+import torch
+from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+ROOT = Path(__file__).resolve().parents[3]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from drltg.envs.robosuite import LAYOUT  # noqa: E402
+from drltg.training.loop import make_eval_env  # noqa: E402
+from drltg.training.reevaluate import FRESH_SEED_OFFSET  # noqa: E402
+from drltg.training.rundir import atomic_write  # noqa: E402
+from drltg.transfer.source import rebuild  # noqa: E402
+
+FIELDS = ("seed", "checkpoint", "frames", "episode", "placed", "lifted", "grasped", "distance_m", "height_m",
+          "steps_placed")
+
+
+@torch.no_grad()
+def episodes_end(run: Path, checkpoint: str, episodes: int) -> list[dict]:
+    """One row per episode: where the cube is at the last step, and how long it rested on the target."""
+    agent, _, cfg, frames = rebuild(run, checkpoint=checkpoint)
+    env = make_eval_env(cfg, episodes, cfg.seed + FRESH_SEED_OFFSET, agent.env_transforms)
+    td = env.reset()
+    lifted = torch.zeros(episodes, dtype=torch.bool)
+    placed_steps = torch.zeros(episodes)
+    with set_exploration_type(ExplorationType.DETERMINISTIC):
+        while True:
+            td = env.step(agent.actor(td))
+            nxt = td["next"]
+            lifted |= nxt["lifted"].reshape(-1).bool()
+            placed_steps += nxt["success"].reshape(-1).float()
+            if nxt["done"].all():
+                break
+            td = nxt.clone()
+    env.close()
+    obs = nxt["observation"]
+    offset = -obs[:, LAYOUT["cube_to_target_pos"]]  # cube_pos - target_pos
+    return [{"seed": cfg.seed, "checkpoint": checkpoint, "frames": frames, "episode": i,
+             "placed": int(nxt["success"][i].item()), "lifted": int(lifted[i]),
+             "grasped": int(obs[i, LAYOUT["cube_grasped"]].item() > 0.5),
+             "distance_m": round(float(offset[i, :2].norm()), 4), "height_m": round(float(offset[i, 2]), 4),
+             "steps_placed": int(placed_steps[i])} for i in range(episodes)]
+
+
+def main(argv=None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("name", nargs="?", default="place-reference-ln-half")
+    p.add_argument("--episodes", type=int, default=10)
+    args = p.parse_args(argv)
+    folder = Path(__file__).resolve().parent / args.name
+    rows = [row for run in sorted(folder.glob("seed-*"), key=lambda r: int(r.name.split("-")[1]))
+            for checkpoint in ("best", "last") for row in episodes_end(run, checkpoint, args.episodes)]
+    out = io.StringIO()
+    writer = csv.DictWriter(out, FIELDS, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    atomic_write(folder / "collapse.csv", out.getvalue())
+    for seed in sorted({r["seed"] for r in rows}):
+        for checkpoint in ("best", "last"):
+            rs = [r for r in rows if r["seed"] == seed and r["checkpoint"] == checkpoint]
+            mean = {k: sum(r[k] for r in rs) / len(rs) for k in FIELDS[4:]}
+            print(f"seed {seed} {checkpoint}.pt ({rs[0]['frames']} frames): "
+                  + ", ".join(f"{k} {v:.3f}" for k, v in mean.items()))
+
+
+if __name__ == "__main__":
+    main()
