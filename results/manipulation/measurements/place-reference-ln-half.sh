@@ -5,7 +5,8 @@
 # every 5k frames on 10 episodes. Does it stop the collapses of demonstrations-reference-place?
 #   bash results/manipulation/measurements/place-reference-ln-half.sh
 # trains in RUNS/measurements/place-reference-ln-half/seed-<s> (WORKERS at a time; re-running resumes),
-# keeps each run's curves, config and weights here (keep_source.py) and evaluates its best.pt on 50 episodes.
+# keeps each run's curves, config and weights here (keep_source.py), evaluates its best.pt on 50 episodes
+# and plays best.pt and last.pt on the same 10 episodes (collapse.py).
 set -euo pipefail
 RUNS=${RUNS:-runs/manipulation}
 WORKERS=${WORKERS:-2}
@@ -28,3 +29,4 @@ for s in 0 100 200; do
   [ -f "$kept/checkpoints/last.pt" ] || ${PYTHON:-python} results/manipulation/keep_source.py "$RUNS/measurements/$NAME/seed-$s" "$kept"
   ls "$kept"/evaluate-best-*-50ep.json > /dev/null 2>&1 || $DRLTG evaluate "$kept" --checkpoint best --episodes 50
 done
+${PYTHON:-python} results/manipulation/measurements/collapse.py "$NAME"
