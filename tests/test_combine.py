@@ -117,3 +117,33 @@ def test_a_sweep_names_combinations_and_refuses_a_conflict():
     assert spec.methods == ["model-reuse+policy-reuse"]
     with pytest.raises(UsageError, match="sweep spec: transfer.method 'policy-reuse\\+jumpstart': policy-reuse and"):
         parse_spec({"pairs": ["fourrooms-near"], "methods": ["policy-reuse+jumpstart"], "frames": 100})
+
+
+@pytest.mark.parametrize("method", ["reward-shaping+demonstrations", "demonstrations+reward-shaping"])
+def test_shaping_plus_demonstrations_shapes_the_demonstrated_rewards_too(method, source_run, monkeypatch):
+    """Either order: the demonstrations are collected through the shaping transform, so every demonstrated
+    reward is the task's plus gamma Phi(s') (1 - terminated) - Phi(s), as the learner's own are."""
+    import drltg.collectors as collectors
+    from drltg.envs import get_task
+
+    collected = []
+
+    def keep(env, policy, episodes):
+        collected.append(real(env, policy, episodes))
+        return collected[-1]
+
+    real = collectors.collect_demonstrations
+    monkeypatch.setattr(collectors, "collect_demonstrations", keep)
+    _, transfer = _build(method, source_run)
+    data = collected[0]
+    from drltg.transforms import PotentialShaping
+
+    spec = get_task(TASK)
+    gamma = _cfg().optim.gamma
+    phi = PotentialShaping(spec.potential(dict(spec.defaults)), gamma=gamma).potential_of
+    reward = data["next", "reward"]
+    alive = 1.0 - data["next", "terminated"].float()
+    shaping = gamma * phi(data["next"]).reshape(reward.shape) * alive - phi(data).reshape(reward.shape)
+    assert torch.allclose(reward, data["next", "task_reward"] + shaping)
+    assert not torch.equal(reward, data["next", "task_reward"])
+    assert len(transfer.train_transforms) == 1  # the learner's env is shaped once, by the shaping part

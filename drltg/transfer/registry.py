@@ -25,7 +25,7 @@ its config must follow. A new method is one module and one :func:`register_metho
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Iterable
 
 from drltg import config
@@ -164,7 +164,9 @@ def combine(*methods: TransferMethod) -> TransferMethod:
     """One method that applies several, in order (``transfer.method=model-reuse+demonstrations``).
 
     The parts' ``Transfer`` fields are joined: transforms and loss terms add up, schedules are all told
-    the frames, files and summaries are merged. A place only one method may own (``takes``) refuses a
+    the frames, files and summaries are merged; a part that brings its own batches (demonstrations)
+    collects them through the others' training transforms (``reward-shaping+demonstrations`` shapes the
+    demonstrated rewards as it shapes the learner's). A place only one method may own (``takes``) refuses a
     second owner, and so do sources of different kinds: with one ``transfer.source``, a method that
     reuses a run's weights and one that asks for a demonstrator cannot share it. The combination trains
     as a seed group only if every part does.
@@ -196,7 +198,15 @@ def combine(*methods: TransferMethod) -> TransferMethod:
             m.validate(cfg)
 
     def build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
-        return _join([m.build(cfg, agent, env, resuming=resuming) for m in methods])
+        # a part that brings batches of its own (demonstrations) is built last, and collects its data
+        # through the other parts' training transforms: its rewards are shaped as the learner's own are
+        built: dict[int, Transfer] = {}
+        for i in sorted(range(len(methods)), key=lambda i: "batches" in methods[i].takes):
+            shaping = [x for part in built.values() for x in part.train_transforms]
+            seen = replace(agent, env_transforms=[*agent.env_transforms, *shaping]) if shaping else agent
+            built[i] = methods[i].build(cfg, seen if "batches" in methods[i].takes else agent, env,
+                                        resuming=resuming)
+        return _join([built[i] for i in range(len(methods))])
 
     options = {k: v for m in methods for k, v in m.options.items()}
     return TransferMethod(name, " + ".join(m.help for m in methods), build, source=source, options=options,
