@@ -202,10 +202,10 @@ def combine(*methods: TransferMethod) -> TransferMethod:
         # through the other parts' training transforms: its rewards are shaped as the learner's own are
         built: dict[int, Transfer] = {}
         for i in sorted(range(len(methods)), key=lambda i: "batches" in methods[i].takes):
-            shaping = [x for part in built.values() for x in part.train_transforms]
-            seen = replace(agent, env_transforms=[*agent.env_transforms, *shaping]) if shaping else agent
-            built[i] = methods[i].build(cfg, seen if "batches" in methods[i].takes else agent, env,
-                                        resuming=resuming)
+            if "batches" in methods[i].takes:  # one owner at most, the last built
+                others = [x for part in built.values() for x in part.train_transforms]
+                agent = replace(agent, env_transforms=[*agent.env_transforms, *others])
+            built[i] = methods[i].build(cfg, agent, env, resuming=resuming)
         return _join([built[i] for i in range(len(methods))])
 
     options = {k: v for m in methods for k, v in m.options.items()}
