@@ -769,6 +769,10 @@ FALLEN_BELOW = -0.01
 """m: a cube whose centre ends below the target's (which rests on the table) has left the table."""
 
 
+def _off_table(row: dict) -> bool:
+    return float(row["height_m"]) < FALLEN_BELOW
+
+
 def manipulation_collapse() -> str:
     """Where the cube is at the end of each kept measurement's episodes, at ``best.pt`` and at ``last.pt``
     (``results/manipulation/measurements/NAME/collapse.csv``, written by ``collapse.py``)."""
@@ -785,7 +789,7 @@ def manipulation_collapse() -> str:
                 rs = [r for r in rows if int(r["seed"]) == seed and r["checkpoint"] == checkpoint]
                 n = len(rs)
                 count = {k: sum(int(r[k]) for r in rs) for k in ("placed", "lifted", "grasped")}
-                fallen = sum(float(r["height_m"]) < FALLEN_BELOW for r in rs)
+                fallen = sum(map(_off_table, rs))
                 out.append((f"`measurements/{path.parent.name}` seed {seed}",
                             f"`{checkpoint}.pt` ({cl.frames(int(rs[0]['frames']))})",
                             f"{count['placed']}/{n}", f"{count['lifted']}/{n}", f"{count['grasped']}/{n}",
@@ -795,9 +799,9 @@ def manipulation_collapse() -> str:
                     unplaced += [r for r in rs if not int(r["placed"])]
             if placed["last"] < placed["best"]:
                 fewer.append(seed)
-        fallen = sum(float(r["height_m"]) < FALLEN_BELOW for r in unplaced)
-        held = sum(int(r["grasped"]) and float(r["height_m"]) >= FALLEN_BELOW for r in unplaced)
-        rest = [r for r in unplaced if not int(r["grasped"]) and float(r["height_m"]) >= FALLEN_BELOW]
+        fallen = sum(map(_off_table, unplaced))
+        held = sum(bool(int(r["grasped"])) and not _off_table(r) for r in unplaced)
+        rest = [r for r in unplaced if not int(r["grasped"]) and not _off_table(r)]
         away = (f" ({100 * sum(float(r['distance_m']) for r in rest) / len(rest):.0f} cm from the target's centre "
                 "on average)" if rest else "")
         lines.append(f"- `measurements/{path.parent.name}`: at `last.pt` {len(fewer)} of {len(seeds)} seeds place "

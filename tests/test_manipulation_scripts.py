@@ -293,20 +293,21 @@ def test_the_committed_critic_scale_describes_the_kept_sources():
         assert float(r["ceiling"]) == 100.0  # 1 / (1 - 0.99): Lift pays at most 1 per step
 
 
-
 def test_the_kept_measurements_are_the_runs_their_scripts_train():
     """Each kept run in results/manipulation/measurements/NAME/ has the config NAME.sh trains for its seed
     (so the script reproduces it), and its best checkpoint is kept and evaluated; a measurement is kept
     with all three seeds or not yet at all."""
     import yaml
 
-    scripts = sorted((SCRIPTS / "measurements").glob("*.sh"))
+    subprocess.run(["bash", "-n", str(SCRIPTS / "measurements" / "measure.sh")], check=True)
+    scripts = sorted(p for p in (SCRIPTS / "measurements").glob("*.sh") if p.stem != "measure")
     kept_any = False
     for script in scripts:
         subprocess.run(["bash", "-n", str(script)], check=True)
         text = script.read_text()
         assert re.search(r"^NAME=([\w-]+)$", text, re.M).group(1) == script.stem
-        task = re.search(r"\$DRLTG train ([\w-]+) ", text).group(1)
+        assert text.rstrip().endswith('. "$(dirname "$0")/measure.sh"')
+        task = re.search(r"^TASK=([\w-]+)$", text, re.M).group(1)
         line = " ".join(re.search(r'^ARGS="([^"]*)"', text, re.M | re.S).group(1).split())
         resolve_args(task, line)  # a script whose runs are still to come resolves its config too
         folder = SCRIPTS / "measurements" / script.stem
