@@ -8,7 +8,8 @@ and both checkpoints, ``--episodes`` episodes of the deterministic actor (the ru
 seeded ``seed + FRESH_SEED_OFFSET`` as ``drltg evaluate`` seeds them) over the full horizon, and per
 episode at its last step: placed (the task's success), ever lifted, grasped, the cube's horizontal
 distance to the target's centre and its height above it (``cube_pos - target_pos``, m), and the steps
-spent placed (the sparse return). Writes ``NAME/collapse.csv`` (one row per episode) and prints the means.
+spent placed (the sparse return). An episode that ends early (``env.terminate_on_success``) is read at
+its own last step, while the others play on. Writes ``NAME/collapse.csv`` (one row per episode) and prints the means.
 """
 from __future__ import annotations
 
@@ -41,22 +42,24 @@ def episodes_end(run: Path, checkpoint: str, episodes: int) -> list[dict]:
     agent, _, cfg, frames = rebuild(run, checkpoint=checkpoint)
     env = make_eval_env(cfg, episodes, cfg.seed + FRESH_SEED_OFFSET, agent.env_transforms)
     td = env.reset()
+    obs, success = td["observation"].clone(), torch.zeros(episodes, dtype=torch.bool)
+    ended = torch.zeros(episodes, dtype=torch.bool)
     lifted = torch.zeros(episodes, dtype=torch.bool)
     placed_steps = torch.zeros(episodes)
     with set_exploration_type(ExplorationType.DETERMINISTIC):
-        while True:
+        while not ended.all():
             td = env.step(agent.actor(td))
-            nxt = td["next"]
-            lifted |= nxt["lifted"].reshape(-1).bool()
-            placed_steps += nxt["success"].reshape(-1).float()
-            if nxt["done"].all():
-                break
+            nxt, live = td["next"], ~ended
+            obs[live] = nxt["observation"][live]
+            success[live] = nxt["success"].reshape(-1)[live].bool()
+            lifted[live] |= nxt["lifted"].reshape(-1)[live].bool()
+            placed_steps[live] += 1.0 * success[live]
+            ended |= nxt["done"].reshape(-1)
             td = nxt.clone()
     env.close()
-    obs = nxt["observation"]
     offset = -obs[:, LAYOUT["cube_to_target_pos"]]  # cube_pos - target_pos
     return [{"seed": cfg.seed, "checkpoint": checkpoint, "frames": frames, "episode": i,
-             "placed": int(nxt["success"][i].item()), "lifted": int(lifted[i]),
+             "placed": int(success[i].item()), "lifted": int(lifted[i]),
              "grasped": int(obs[i, LAYOUT["cube_grasped"]].item() > 0.5),
              "distance_m": round(float(offset[i, :2].norm()), 4), "height_m": round(float(offset[i, 2]), 4),
              "steps_placed": int(placed_steps[i])} for i in range(episodes)]
