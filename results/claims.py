@@ -823,6 +823,35 @@ def _row_report(row: str, tag: str = "success") -> dict | None:
     return load(found[0]) if found else None
 
 
+
+def manipulation_rows() -> str:
+    """One line per reported row, in the queue's order: the transfer side's gain over no transfer in mean
+    success rate over the budget (the area under the curve per frame, paired by seed), and on the placing
+    targets in lifted rate; the two gains of a row are one family, Holm-adjusted."""
+    lines = []
+    for row in _queue()[0]:
+        reports = {tag: r for tag in ("success", "lifted") if (r := _row_report(row, tag)) is not None}
+        if "success" not in reports:
+            continue
+        adjusted = family(reports)
+        m, st = reports["success"]["metrics"], reports["success"]["settings"]
+        gains = "; ".join(f"{tag} rate {said(r['metrics'], PRIMARY, adjusted.get(tag))}" for tag, r in reports.items())
+        never = [side for side in ("baseline", "transfer") if m[f"total_reward_{side}"] == 0]
+        what = "placed" if st["task"] != "lift" else "lifted"
+        if never:
+            side = {"baseline": "without transfer", "transfer": "with transfer"}
+            who = "on either side" if len(never) == 2 else side[never[0]]
+            gains += f"; no run {who} {what} a cube in any evaluation"
+        lines.append(f"- `{row}` ({st['task']}, {st['transfer_label']} against {st['baseline_label']}, "
+                     f"{m['n_seeds_transfer']} paired seeds × {cl.frames(st['budget'])} frames), mean gain in {gains}.")
+    rows = len(_queue()[0])
+    if not lines:
+        return "No row of the queue is complete yet (the runs finished so far are below).\n"
+    left = rows - len(lines)
+    return "\n".join(lines) + "\n" + (f"{left} of the queue's {rows} rows are not complete yet (the runs finished "
+                                     "so far are below).\n" if left else "")
+
+
 def manipulation_earlier() -> str:
     """The earlier implementation's rows (one run a side, its own reward) beside the study's (3 paired seeds)."""
     out = [("row", "earlier runs: no transfer → transfer", "frames", "final return, B / T", "mean return gain",
@@ -948,6 +977,7 @@ REGIONS = {
         "manipulation-cost": manipulation_cost,
         "manipulation-sources": manipulation_sources,
         "manipulation-critics": critic_scale,
+        "manipulation-rows": manipulation_rows,
         "manipulation-earlier": manipulation_earlier,
         "manipulation-placing": manipulation_placing,
         "manipulation-collapse": manipulation_collapse,
