@@ -575,7 +575,6 @@ def config_table() -> str:
 # ------------------------------------------------------------------------------------- manipulation
 MANIP = RESULTS / "manipulation"
 ROW_SPECS = ROOT / "examples" / "sweeps" / "manipulation-rows"
-RATE_RUNS = RESULTS / "sweep-lift-to-place"
 WORKERS = 2
 
 
@@ -591,12 +590,12 @@ def _queue() -> tuple[list[str], dict[str, tuple[int, int]]]:
     return rows, {"lift-sac-ln-half": (seeds, sac), "lift-soc4": (seeds, soc)}
 
 
-def run_rate(runs: Path = RATE_RUNS) -> tuple[float, int]:
-    """The median frames/s of the finished runs under ``runs`` (default: the committed Lift+Place runs,
-    two at a time on this machine's 2 cores)."""
+def run_rate(runs: Path = MANIP, pattern: str = "*/lift-to-place*/sac/**/seed-*/summary.json") -> tuple[float, int]:
+    """The median frames/s (evaluations included) of the finished runs ``pattern`` finds under ``runs``
+    (default: the rows' SAC runs on the placing targets kept so far, two at a time on this machine's 2 cores)."""
     import statistics
 
-    rates = [load(p)["frames_per_s"] for p in sorted(runs.glob("**/seed-*/summary.json"))]
+    rates = [load(p)["frames_per_s"] for p in sorted(runs.glob(pattern))]
     return statistics.median(rates), len(rates)
 
 
@@ -605,7 +604,7 @@ def manipulation_cost() -> str:
     baselines are trained by the first row that needs them) and its wall time on 2 cores at the measured rate."""
     rows, sources = _queue()
     fps, n = run_rate()
-    soc_fps, soc_n = run_rate(MANIP / "sources" / "lift-soc4")
+    soc_fps, soc_n = run_rate(MANIP / "sources" / "lift-soc4", "seed-*/summary.json")
     rate = {"lift-sac-ln-half": fps, "lift-soc4": soc_fps, "sac": fps, "soc": soc_fps}
     out = [("step", "command", "runs it adds × frames", "wall time on 2 cores")]
     hours = sum(k * f / rate[name] for name, (k, f) in sources.items()) / WORKERS / 3600
@@ -625,9 +624,9 @@ def manipulation_cost() -> str:
         out.append((f"`{row}`", f"`bash results/manipulation/{row}.sh`", f"{k} × {cl.frames(spec['frames'])}",
                     f"{h:.1f} h"))
     return (render(out, "markdown") + f"\nWall time = ⌈runs / {WORKERS}⌉ × frames / rate (sources: all their frames / "
-            f"({WORKERS} × rate)), at {fps:.1f} frames/s per run: the median of the {n} runs of "
-            f"`results/{RATE_RUNS.name}/` (Lift+Place, run two at a time on this machine's 2 cores beside other work, "
-            "evaluated every 2.5k frames on 10 episodes; the rows evaluate every 5k); the soft option-critic's, "
+            f"({WORKERS} × rate)), at {fps:.1f} frames/s per run: the median of the {n} SAC runs of the rows "
+            "kept so far (Lift+Place, two at a time on this machine's 2 cores, some beside other work, evaluations "
+            "included); the soft option-critic's, "
             f"{soc_fps:.1f} frames/s, is the median of the {soc_n} kept `lift-soc4` source run{'s' * (soc_n != 1)} "
             "(Lift, two at a time): its update evaluates K option copies of every next state, and with demonstrations "
             f"the policy over options at each demonstrated state. All steps in the queue: about {total:.0f} h.\n")
