@@ -609,7 +609,7 @@ def manipulation_cost() -> str:
     out = [("step", "command", "runs it adds × frames", "wall time on 2 cores")]
     hours = sum(k * f / rate[name] for name, (k, f) in sources.items()) / WORKERS / 3600
     out.append(("sources: " + ", ".join(f"`{name}` {k} × {cl.frames(f)}" for name, (k, f) in sources.items()),
-                "`bash results/manipulation/queue.sh` (first step)",
+                "`TRAIN_SOURCES=1 bash results/manipulation/queue.sh` (first step)",
                 " + ".join(f"{k} × {cl.frames(f)}" for k, f in sources.values()), f"{hours:.1f} h"))
     total = hours
     seen = set()

@@ -3,6 +3,7 @@ transfer run reusing the kept source run of its own seed, >= 3 paired seeds, <= 
 baseline per target shared by every row on it, and a queue that trains the sources it names first."""
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 from pathlib import Path
@@ -322,3 +323,18 @@ def test_the_kept_measurements_are_the_runs_their_scripts_train():
             assert config_changes(saved, resolve_args(task, line, seed=seed)) == []
             assert (run / "checkpoints" / "best.pt").is_file() and list(run.glob("evaluate-best-*-50ep.json"))
     assert kept_any
+
+
+def test_the_queue_reuses_the_kept_sources_and_trains_none(tmp_path):
+    """With every source kept in results/manipulation/sources/, queue.sh copies them into RUNS and trains,
+    keeps and evaluates nothing (DRLTG=false would fail the script if it were called)."""
+    import filecmp
+
+    runs = tmp_path / "runs"
+    env = {**os.environ, "RUNS": str(runs), "ROWS": " ", "DRLTG": "false", "PYTHON": "false"}
+    subprocess.run(["bash", str(SCRIPTS / "queue.sh")], cwd=ROOT, env=env, check=True, capture_output=True)
+    for name in queue_sources():
+        for seed in (0, 100, 200):
+            kept, run = SCRIPTS / "sources" / name / f"seed-{seed}", runs / "sources" / name / f"seed-{seed}"
+            assert filecmp.cmp(kept / "checkpoints" / "best.pt", run / "checkpoints" / "best.pt", shallow=False)
+            assert (run / "summary.json").read_text() == (kept / "summary.json").read_text()

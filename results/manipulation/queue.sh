@@ -10,6 +10,8 @@
 #    (transfer.source_checkpoint=best), and is evaluated at it on 50 fresh episodes (drltg evaluate).
 #    A complete run is skipped and an interrupted one resumed; WORKERS at a time; their curves, configs,
 #    weights and that evaluation are kept in results/manipulation/sources/ (keep_source.py).
+#    A source kept there is copied into RUNS rather than trained again (the rows then reuse the committed
+#    weights); TRAIN_SOURCES=1 trains every missing source anew.
 # 2. Every row in ROWS order (results/manipulation/ROW.sh); a row already reported is skipped.
 set -euo pipefail
 RUNS=${RUNS:-runs/manipulation}
@@ -30,6 +32,11 @@ export OMP_NUM_THREADS=1 MKL_NUM_THREADS=1
 for name in "${!SOURCE[@]}"; do
   for s in $SEEDS; do
     run=$RUNS/sources/$name/seed-$s
+    kept=results/manipulation/sources/$name/seed-$s
+    if [ -z "${TRAIN_SOURCES:-}" ] && [ ! -e "$run" ] && [ -f "$kept/summary.json" ]; then
+      mkdir -p "$RUNS/sources/$name"
+      cp -r "$kept" "$run"
+    fi
     [ -f "$run/summary.json" ] && continue
     mkdir -p "$RUNS/sources/$name"
     resume=""
