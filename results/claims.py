@@ -776,10 +776,12 @@ def manipulation_collapse() -> str:
     """Where the cube is at the end of each kept measurement's episodes, at ``best.pt`` and at ``last.pt``
     (``results/manipulation/measurements/NAME/collapse.csv``, written by ``collapse.py``)."""
     out = [("run", "checkpoint", "placed at the end", "ever lifted", "held at the end", "off the table",
-            "steps placed (mean)")]
+            "steps placed (mean)", "gap to the demonstrator's action", "min Q at its states")]
     lines = []
     for path in sorted((MANIP / "measurements").glob("*/collapse.csv")):
         rows = list(csv.DictReader(path.open()))
+        demo = path.with_name("demonstrated.csv")
+        gaps = {(int(r["seed"]), r["checkpoint"]): r for r in csv.DictReader(demo.open())} if demo.is_file() else {}
         seeds = sorted({int(r["seed"]) for r in rows})
         fewer, unplaced = [], []
         for seed in seeds:
@@ -792,7 +794,9 @@ def manipulation_collapse() -> str:
                 out.append((f"`measurements/{path.parent.name}` seed {seed}",
                             f"`{checkpoint}.pt` ({cl.frames(int(rs[0]['frames']))})",
                             f"{count['placed']}/{n}", f"{count['lifted']}/{n}", f"{count['grasped']}/{n}",
-                            f"{fallen}/{n}", f"{sum(int(r['steps_placed']) for r in rs) / n:.0f}"))
+                            f"{fallen}/{n}", f"{sum(int(r['steps_placed']) for r in rs) / n:.0f}",
+                            *((f"{float(g['action_gap']):.3f}", f"{float(g['q_demonstrated']):.0f}")
+                              if (g := gaps.get((seed, checkpoint))) else ("—", "—"))))
                 placed[checkpoint] = count["placed"]
                 if checkpoint == "last":
                     unplaced += [r for r in rs if not int(r["placed"])]
@@ -808,9 +812,31 @@ def manipulation_collapse() -> str:
                      + (f" (seed{'s' * (len(fewer) > 1)} {', '.join(map(str, fewer))})" if fewer else "")
                      + f"; of the {len(unplaced)} episodes that end unplaced at `last.pt`, the cube is off the table "
                      f"in {fallen}, held in the gripper in {held} and resting on the table in {len(rest)}{away}.")
+        if gaps:
+            lines.append(f"  - at the demonstrator's own states ({_demo_episodes()} seeded episodes), the actor's mean "
+                         "absolute gap to its action (each dimension in [−1, 1]) is "
+                         + " and ".join(f"{_span(gaps, c, 'action_gap', '.3f')} at `{c}.pt`" for c in ("best", "last"))
+                         + "; the smaller critic values those states at "
+                         + " and ".join(f"{_span(gaps, c, 'q_demonstrated', '.0f')} at `{c}.pt`"
+                                        for c in ("best", "last"))
+                         + " (the ceiling 1 / (1 − γ) is 100).")
     if not lines:
         return "No measurement has a collapse.csv yet.\n"
     return render(out, "markdown") + "\n" + "\n".join(lines) + "\n"
+
+
+def _span(rows: dict, checkpoint: str, key: str, fmt: str) -> str:
+    """``a–b``: the smallest and largest ``key`` over the seeds at ``checkpoint`` (``a`` when they agree)."""
+    values = sorted(float(r[key]) for (_, c), r in rows.items() if c == checkpoint)
+    low, high = format(values[0], fmt), format(values[-1], fmt)
+    return low if low == high else f"{low}–{high}"
+
+
+def _demo_episodes() -> int:
+    import re
+
+    text = (RESULTS / "manipulation" / "measurements" / "collapse.py").read_text()
+    return int(re.search(r"^DEMO_EPISODES = (\d+)$", text, re.M).group(1))
 
 
 EARLIER = MANIP / "earlier"

@@ -181,6 +181,16 @@ def test_the_collapse_lines_count_where_each_unplaced_cube_ends(tmp_path, monkey
         "- `measurements/demo`: at `last.pt` 1 of 2 seeds place in fewer episodes than at `best.pt` (seed 0); of "
         "the 3 episodes that end unplaced at `last.pt`, the cube is off the table in 1, held in the gripper in 1 "
         "and resting on the table in 1 (10 cm from the target's centre on average).\n")
+    (folder / "demonstrated.csv").write_text(
+        "seed,checkpoint,frames,action_gap,q_demonstrated,q_actor\n0,best,40000,0.009,77.3,77.3\n"
+        "0,last,100000,0.013,91.9,92.0\n5,best,45000,0.008,77.7,77.7\n5,last,100000,0.013,92.6,92.1\n")
+    text = claims.manipulation_collapse()
+    assert "| `measurements/demo` seed 5 | `last.pt` (100k) | 1/2 | 2/2 | 1/2 | 0/2 | 205 | 0.013 | 93 |" in text
+    assert text.endswith(
+        f"  - at the demonstrator's own states ({claims._demo_episodes()} seeded episodes), the actor's mean absolute "
+        "gap to its action (each dimension in [\u22121, 1]) is 0.008\u20130.009 at `best.pt` and 0.013 at `last.pt`; "
+        "the smaller critic values those states at 77\u201378 at `best.pt` and 92\u201393 at `last.pt` (the ceiling "
+        "1 / (1 \u2212 \u03b3) is 100).\n")
 
 
 def test_each_reported_row_gets_its_gains_holm_adjusted_within_the_row(tmp_path, monkeypatch):

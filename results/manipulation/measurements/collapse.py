@@ -10,6 +10,11 @@ episode at its last step: placed (the task's success), ever lifted, grasped, the
 distance to the target's centre and its height above it (``cube_pos - target_pos``, m), and the steps
 spent placed (the sparse return). An episode that ends early (``env.terminate_on_success``) is read at
 its own last step, while the others play on. Writes ``NAME/collapse.csv`` (one row per episode) and prints the means.
+
+And where the demonstrations were: at the states of ``DEMO_EPISODES`` seeded episodes of the task's scripted
+demonstrator, the mean absolute gap between the deterministic actor's action and the demonstrator's, and
+the smaller twin critic at both (``NAME/demonstrated.csv``, one row per seed and checkpoint). A policy that
+still acts as the demonstrator there has collapsed in states the demonstrations do not cover.
 """
 from __future__ import annotations
 
@@ -26,20 +31,25 @@ ROOT = Path(__file__).resolve().parents[3]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from drltg.envs.robosuite import LAYOUT  # noqa: E402
+from drltg.collectors.demonstrations import collect_demonstrations  # noqa: E402
+from drltg.envs.robosuite import LAYOUT, demonstrator_for  # noqa: E402
 from drltg.training.loop import make_eval_env  # noqa: E402
 from drltg.training.reevaluate import FRESH_SEED_OFFSET  # noqa: E402
 from drltg.training.rundir import atomic_write  # noqa: E402
 from drltg.transfer.source import rebuild  # noqa: E402
 
+sys.path.insert(0, str(ROOT / "results" / "manipulation" / "sources"))
+from critic_scale import min_q  # noqa: E402
+
+DEMO_EPISODES = 2
+DEMONSTRATED = ("seed", "checkpoint", "frames", "action_gap", "q_demonstrated", "q_actor")
 FIELDS = ("seed", "checkpoint", "frames", "episode", "placed", "lifted", "grasped", "distance_m", "height_m",
           "steps_placed")
 
 
 @torch.no_grad()
-def episodes_end(run: Path, checkpoint: str, episodes: int) -> list[dict]:
+def episodes_end(agent, cfg, frames: int, checkpoint: str, episodes: int) -> list[dict]:
     """One row per episode: where the cube is at the last step, and how long it rested on the target."""
-    agent, _, cfg, frames = rebuild(run, checkpoint=checkpoint)
     env = make_eval_env(cfg, episodes, cfg.seed + FRESH_SEED_OFFSET, agent.env_transforms)
     td = env.reset()
     obs, success = td["observation"].clone(), torch.zeros(episodes, dtype=torch.bool)
@@ -65,19 +75,46 @@ def episodes_end(run: Path, checkpoint: str, episodes: int) -> list[dict]:
              "steps_placed": int(placed_steps[i])} for i in range(episodes)]
 
 
+@torch.no_grad()
+def demonstrated(agent, cfg, frames: int, checkpoint: str, demo) -> dict:
+    """The actor's gap to the demonstrator's actions at its states, and the critics at both actions."""
+    with set_exploration_type(ExplorationType.DETERMINISTIC):
+        mu = agent.actor(demo.exclude("action").clone())["action"]
+    return {"seed": cfg.seed, "checkpoint": checkpoint, "frames": frames,
+            "action_gap": round((mu - demo["action"]).abs().mean().item(), 4),
+            "q_demonstrated": round(min_q(agent.loss, demo).mean().item(), 2),
+            "q_actor": round(min_q(agent.loss, demo.clone().set("action", mu)).mean().item(), 2)}
+
+
+def write(path: Path, fields: tuple[str, ...], rows: list[dict]) -> None:
+    out = io.StringIO()
+    writer = csv.DictWriter(out, fields, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    atomic_write(path, out.getvalue())
+
+
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("name", nargs="?", default="place-reference-ln-half")
     p.add_argument("--episodes", type=int, default=10)
     args = p.parse_args(argv)
     folder = Path(__file__).resolve().parent / args.name
-    rows = [row for run in sorted(folder.glob("seed-*"), key=lambda r: int(r.name.split("-")[1]))
-            for checkpoint in ("best", "last") for row in episodes_end(run, checkpoint, args.episodes)]
-    out = io.StringIO()
-    writer = csv.DictWriter(out, FIELDS, lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
-    atomic_write(folder / "collapse.csv", out.getvalue())
+    rows, gaps, demo = [], [], None
+    for run in sorted(folder.glob("seed-*"), key=lambda r: int(r.name.split("-")[1])):
+        for checkpoint in ("best", "last"):
+            agent, env, cfg, frames = rebuild(run, checkpoint=checkpoint)
+            if demo is None:
+                torch.manual_seed(0)
+                env.set_seed(0)
+                demo = collect_demonstrations(env, demonstrator_for(cfg.task), DEMO_EPISODES)
+            env.close()
+            rows += episodes_end(agent, cfg, frames, checkpoint, args.episodes)
+            gaps.append(demonstrated(agent, cfg, frames, checkpoint, demo))
+    write(folder / "collapse.csv", FIELDS, rows)
+    write(folder / "demonstrated.csv", DEMONSTRATED, gaps)
+    for row in gaps:
+        print(row)
     for seed in sorted({r["seed"] for r in rows}):
         for checkpoint in ("best", "last"):
             rs = [r for r in rows if r["seed"] == seed and r["checkpoint"] == checkpoint]
