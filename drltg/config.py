@@ -273,7 +273,7 @@ BUILTIN_METHOD_OPTIONS: dict[str, dict[str, Any]] = {
     "model-reuse": {"freeze": [], "partial": False},
     "value-shaping": {"value_scale": 1.0},
     "demonstrations": {"demo_episodes": 50, "demo_ratio": 0.25, "bc_weight": 10.0, "bc_q_filter": False,
-                       "bc_anneal_frames": 0},
+                       "bc_anneal_frames": 0, "demo_noise": 0.0},
 }
 """The built-in methods' ``transfer.*`` options at their defaults, as plain data: the method modules
 register them from here, and :func:`config_changes` reads them without importing the methods (and torch),

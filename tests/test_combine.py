@@ -128,8 +128,8 @@ def test_shaping_plus_demonstrations_shapes_the_demonstrated_rewards_too(method,
 
     collected = []
 
-    def keep(env, policy, episodes):
-        collected.append(real(env, policy, episodes))
+    def keep(env, policy, episodes, **options):
+        collected.append(real(env, policy, episodes, **options))
         return collected[-1]
 
     real = collectors.collect_demonstrations

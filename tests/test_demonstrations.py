@@ -25,6 +25,31 @@ def test_collects_at_least_the_asked_episodes_of_the_demonstrator():
     assert moved.all()
 
 
+def test_noisy_demonstrations_execute_and_store_the_clipped_perturbed_action():
+    """noise=0.3 on the always-east policy [1, 0]: every stored action lies in the box, the east component is
+    clipped at 1 where the draw was positive, the north one is 0.3 z with z of unit spread (240 draws: a
+    standard deviation within 0.75-1.25 is 3.8 standard errors wide), the env moved by it, and the same
+    seed collects the same episodes."""
+    east = TensorDictModule(lambda obs: torch.tensor([1.0, 0.0]).expand(*obs.shape[:-1], 2),
+                            in_keys=["observation"], out_keys=["action"])
+
+    def collect(noise):
+        torch.manual_seed(0)
+        return collect_demonstrations(make_env("fourrooms/northeast", batch_size=(3,), seed=0, horizon=20), east,
+                                      episodes=4, steps_per_batch=10, noise=noise)
+
+    data, plain = collect(0.3), collect(0.0)
+    action = data["action"]
+    assert (action >= -1).all() and (action <= 1).all()
+    assert (action[:, 0] == 1).any() and (action[:, 0] < 1).any()
+    assert 0.75 < (action[:, 1] / 0.3).std() < 1.25
+    assert torch.equal(plain["action"], torch.tensor([1.0, 0.0]).expand(120, 2))
+    assert not torch.equal(data["next", "position"], plain["next", "position"])  # the perturbed actions were run
+    assert torch.equal(collect(0.3)["next", "position"], data["next", "position"])
+    with pytest.raises(ValueError, match="standard deviation"):
+        collect_demonstrations(make_env("fourrooms/northeast"), east, episodes=1, noise=-0.1)
+
+
 def test_collecting_leaves_the_callers_env_open():
     from torchrl.envs import SerialEnv
 
@@ -211,12 +236,14 @@ def test_behaviour_cloning_alone_fits_the_demonstrated_actions():
         assert torch.allclose(agent.actor(batch.select("observation").clone())["action"], target, atol=1e-2)
 
 
-def test_behaviour_cloning_refuses_discrete_actions():
+@pytest.mark.parametrize("override, key", [([], "bc_weight"), (["transfer.bc_weight=0", "transfer.demo_noise=0.1"],
+                                                                   "demo_noise")])
+def test_cloning_and_noise_refuse_discrete_actions(override, key):
     from drltg.transfer import get_method
 
-    cfg = config_lib.resolve({}, TINY + ["transfer.method=demonstrations"], task="gridrooms/northeast")
+    cfg = config_lib.resolve({}, TINY + ["transfer.method=demonstrations", *override], task="gridrooms/northeast")
     env = make_env("gridrooms/northeast")
-    with pytest.raises(UsageError, match="bc_weight clones continuous actions"):
+    with pytest.raises(UsageError, match=f"transfer.{key} works on continuous actions; task 'gridrooms/northeast'"):
         get_method("demonstrations").build(cfg, make_agent(env, cfg), env, resuming=False)
 
 

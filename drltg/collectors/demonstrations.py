@@ -25,22 +25,33 @@ import warnings
 
 import torch
 from tensordict import TensorDictBase
+from tensordict.nn import TensorDictModule, TensorDictSequential
 from torchrl.collectors import Collector
-from torchrl.data import LazyTensorStorage, ReplayBuffer
+from torchrl.data import Bounded, LazyTensorStorage, ReplayBuffer
 from torchrl.envs import EnvBase, ExplorationType
 
 __all__ = ["collect_demonstrations", "demonstration_buffer", "mixed_batches"]
 
 
 @torch.no_grad()
-def collect_demonstrations(env: EnvBase, policy, episodes: int, *, steps_per_batch: int = 50) -> TensorDictBase:
+def collect_demonstrations(env: EnvBase, policy, episodes: int, *, steps_per_batch: int = 50,
+                           noise: float = 0.0) -> TensorDictBase:
     """Runs ``policy`` on the batched ``env`` until at least ``episodes`` episodes have ended and
     returns every transition collected, flat (``[frames]``), in the collector's layout (``"next"``
     entries included). A learned policy acts deterministically (its mode), as a demonstrator would.
     Batches of ``steps_per_batch`` steps per environment are collected until the count is reached, so a few
-    transitions of unfinished episodes may follow the last ended one."""
+    transitions of unfinished episodes may follow the last ended one.
+
+    ``noise > 0`` executes ``clip(a + noise * N(0, I))`` in place of each action ``a`` (a continuous
+    action box only), from torch's global generator: the demonstrator then also shows how it recovers
+    from states off its own path (DART, Laskey et al. 2017). The executed action is stored, so the
+    critic learns the transition that happened, and cloning it still targets ``a`` in expectation."""
     if episodes < 1:
         raise ValueError(f"demonstrations need at least one episode, got {episodes}.")
+    if noise < 0:
+        raise ValueError(f"demonstration noise is a standard deviation, got {noise}.")
+    if noise > 0:
+        policy = perturbed(policy, env.full_action_spec_unbatched["action"], noise)
     n_envs = max(env.batch_size.numel(), 1)
     collector = Collector(
         env,
@@ -61,6 +72,18 @@ def collect_demonstrations(env: EnvBase, policy, episodes: int, *, steps_per_bat
     finally:
         collector.shutdown(close_env=False)  # the env is the caller's
     return torch.cat(parts)
+
+
+def perturbed(policy, spec, noise: float) -> TensorDictSequential:
+    """``policy`` followed by ``a <- clip(a + noise * N(0, I), low, high)`` on its ``"action"``."""
+    if not isinstance(spec, Bounded) or not spec.dtype.is_floating_point:
+        raise ValueError(f"demonstration noise perturbs a continuous action box, not a {type(spec).__name__} spec.")
+    low, high = spec.space.low, spec.space.high
+
+    def perturb(action: torch.Tensor) -> torch.Tensor:
+        return (action + noise * torch.randn_like(action)).clamp(low, high)
+
+    return TensorDictSequential(policy, TensorDictModule(perturb, in_keys=["action"], out_keys=["action"]))
 
 
 def demonstration_buffer(demonstrations: TensorDictBase, keys) -> ReplayBuffer:

@@ -24,18 +24,17 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     from drltg.transfer.source import source_actor
 
     t = cfg.transfer
-    if t.bc_weight > 0 and isinstance(env.full_action_spec_unbatched["action"], OneHot):
-        raise UsageError(
-            f"transfer.bc_weight clones continuous actions; task '{cfg.task}' has discrete actions "
-            f"(set -o transfer.bc_weight=0)."
-        )
+    for key, value in (("bc_weight", t.bc_weight), ("demo_noise", t.demo_noise)):
+        if value > 0 and isinstance(env.full_action_spec_unbatched["action"], OneHot):
+            raise UsageError(f"transfer.{key} works on continuous actions; task '{cfg.task}' has discrete actions "
+                             f"(set -o transfer.{key}=0).")
     policy = source_actor(cfg, env)
     demo_env = TransformedEnv(make_env(cfg.task, batch_size=(cfg.collector.num_envs,), device=cfg.device,
                                        seed=cfg.seed + 20_000, **cfg.env))
     for transform in agent.env_transforms:
         demo_env.append_transform(transform.clone())
     try:
-        data = collect_demonstrations(demo_env, policy, t.demo_episodes)
+        data = collect_demonstrations(demo_env, policy, t.demo_episodes, noise=t.demo_noise)
     finally:
         demo_env.close()
     demos = demonstration_buffer(data, agent.loss.in_keys)
@@ -75,5 +74,7 @@ DEMONSTRATIONS = register_method(TransferMethod(
                                                          "Q(s, mu(s))")],
         "bc_anneal_frames": Annotated[Int, Field(ge=0, description="demonstrations: frames over which bc_weight falls "
                                                                    "linearly to 0 (0: constant)")],
+        "demo_noise": Annotated[Float, Field(ge=0, description="demonstrations: std of the Gaussian noise added "
+                                                               "to every demonstrated action, clipped (0: none)")],
     }),
 ))
