@@ -296,8 +296,8 @@ def test_the_committed_critic_scale_describes_the_kept_sources():
 
 def test_the_kept_measurements_are_the_runs_their_scripts_train():
     """Each kept run in results/manipulation/measurements/NAME/ has the config NAME.sh trains for its seed
-    (so the script reproduces it), and its best checkpoint is kept and evaluated; a measurement is kept
-    with all three seeds or not yet at all."""
+    (so the script reproduces it), and its best checkpoint is kept and evaluated; a measurement's seeds
+    (0, 100, 200) are kept as they finish."""
     import yaml
 
     subprocess.run(["bash", "-n", str(SCRIPTS / "measurements" / "measure.sh")], check=True)
@@ -316,7 +316,7 @@ def test_the_kept_measurements_are_the_runs_their_scripts_train():
             continue
         kept_any = True
         kept = sorted(folder.glob("seed-*"))
-        assert [p.name for p in kept] == ["seed-0", "seed-100", "seed-200"]
+        assert kept and {p.name for p in kept} <= {"seed-0", "seed-100", "seed-200"}
         for run in kept:
             seed = int(run.name.split("-")[1])
             saved = yaml.safe_load((run / "config.yaml").read_text())
