@@ -76,6 +76,31 @@ def test_rows_on_one_target_share_its_baselines():
     assert groups == {"lift/sac/baseline", "lift-to-place/sac/baseline", "lift-to-place/soc/baseline",
                       "lift-to-place-barrier/sac/baseline", "reference/lift-to-place/sac/baseline",
                       "reference/lift-to-place-barrier/sac/baseline"}
+    for path, cfg in seen.items():  # the reference rows' baselines are copies of the others' (BASELINES)
+        if path.parent.parent.parent.name == "reference":
+            shared = ROOT / "runs" / "manipulation" / path.relative_to(ROOT / "runs" / "manipulation" / "reference")
+            assert config_changes(seen[shared], cfg) == [], path
+
+
+def test_a_row_with_baselines_elsewhere_copies_the_complete_ones_it_lacks(tmp_path):
+    """row.sh with BASELINES=DIR copies DIR's complete baselines of its group (config, curve, summary) into
+    RUNS before its sweep, and leaves an unfinished one and one RUNS already holds alone."""
+    shared, runs = tmp_path / "shared" / "lift-to-place" / "sac" / "baseline", tmp_path / "runs"
+    for seed in (0, 100, 200):
+        (shared / f"seed-{seed}").mkdir(parents=True)
+        for name in ("config.yaml", "eval.csv", "summary.json"):
+            if not (seed == 200 and name == "summary.json"):  # seed 200 has not finished
+                (shared / f"seed-{seed}" / name).write_text(f"{name} {seed}")
+    mine = runs / "lift-to-place" / "sac" / "baseline" / "seed-100"
+    mine.mkdir(parents=True)
+    env = {**os.environ, "RUNS": str(runs), "BASELINES": str(tmp_path / "shared"), "DRLTG": "false"}
+    done = subprocess.run(["bash", str(SCRIPTS / "row.sh"), "demonstrations-reference-place"], cwd=ROOT, env=env,
+                          capture_output=True)
+    assert done.returncode != 0  # DRLTG=false: the sweep after the copies fails
+    copied = runs / "lift-to-place" / "sac" / "baseline"
+    assert sorted(p.name for p in (copied / "seed-0").iterdir()) == ["config.yaml", "eval.csv", "summary.json"]
+    assert (copied / "seed-0" / "eval.csv").read_text() == "eval.csv 0"
+    assert not list(mine.iterdir()) and not (copied / "seed-200").exists()
 
 
 def test_a_source_written_with_seed_serves_each_transfer_run_from_its_own_seed(tmp_path):

@@ -32,6 +32,16 @@ if [ -z "${FORCE:-}" ] && [ -f "$OUT/$GROUP/$METHOD/report/transfer_metrics.json
   exit 0
 fi
 
+# BASELINES=DIR: the complete baselines of the same config in DIR (trained beside the other rows) serve this
+# row too: their defining files are copied in (the sweep refuses a copy whose config differs).
+if [ -n "${BASELINES:-}" ]; then
+  for run in "$BASELINES/$GROUP/baseline"/seed-*; do
+    copy=$RUNS/$GROUP/baseline/${run##*/}
+    [ -f "$run/summary.json" ] && [ ! -e "$copy" ] || continue
+    mkdir -p "$copy"
+    cp "$run/config.yaml" "$run/eval.csv" "$run/summary.json" "$copy/"
+  done
+fi
 mkdir -p "$RUNS/specs"
 sed "s#runs/manipulation/sources/#$RUNS/sources/#" "$SPEC" > "$RUNS/specs/$ROW.yaml"
 $DRLTG sweep "$RUNS/specs/$ROW.yaml" --out "$RUNS" --workers "$WORKERS" --no-seed-groups  # every run alone, as its pair
