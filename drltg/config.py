@@ -894,7 +894,7 @@ def config_changes(saved: dict | RunConfig, cfg: dict | RunConfig, *, env_defaul
     task's: runs saved before the key existed, or before env settings were saved in full, stay the
     same run (resumable, and comparable in one report). Options of a transfer method that neither
     config uses do not count (a baseline is the same run whatever another method's defaults are), nor
-    do ``ENV_EXECUTION_KEYS``.
+    does ``transfer.source_checkpoint`` where neither has a source, nor do ``ENV_EXECUTION_KEYS``.
 
     ``env_defaults=False`` leaves the task registry (and torch with it) unimported: an ``env.*`` key
     only one config sets is then not compared, its default being unknown (:func:`env_keys_set_once`
@@ -919,7 +919,11 @@ def config_changes(saved: dict | RunConfig, cfg: dict | RunConfig, *, env_defaul
     def missing_as_default(a, b, key):
         return _lookup(a, key) is KeyError and _lookup(b, key) == _lookup(base, key)
 
-    def unused(key):  # an option of a method neither run uses changes nothing they do
+    sourceless = all(_lookup(c, "transfer.source") in (None, KeyError) for c in (saved, cfg))
+
+    def unused(key):  # an option of a method neither run uses changes nothing they do, nor which
+        if key == "transfer.source_checkpoint":  # checkpoint of a source neither run reads
+            return sourceless
         owner = owners.get(key.removeprefix("transfer.")) if key.startswith("transfer.") else None
         return owner is not None and owner not in methods
 

@@ -390,6 +390,10 @@ def test_an_option_of_a_method_the_run_does_not_use_is_not_a_change():
     assert config_changes(a, b) == ["transfer.demo_episodes"]
     parallel = {**b.model_dump(), "env": {**b.env, "parallel": True}}  # how envs are stepped, not what they step
     assert config_changes(b, parallel) == []
+    best = config_lib.resolve(None, ["transfer.source_checkpoint=best"], task="fourrooms/northeast", algo="sac")
+    assert config_changes(baseline, best) == []  # the checkpoint of a source neither run reads
+    assert config_changes(a, {**a.model_dump(), "transfer": {**a.transfer.model_dump(), "source_checkpoint": "best"}}
+                          ) == ["transfer.source_checkpoint"]
 
 
 def test_a_changed_env_default_is_a_changed_run(monkeypatch):

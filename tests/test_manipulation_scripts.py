@@ -76,10 +76,11 @@ def test_rows_on_one_target_share_its_baselines():
     assert groups == {"lift/sac/baseline", "lift-to-place/sac/baseline", "lift-to-place/soc/baseline",
                       "lift-to-place-barrier/sac/baseline", "reference/lift-to-place/sac/baseline",
                       "reference/lift-to-place-barrier/sac/baseline"}
-    for path, cfg in seen.items():  # the reference rows' baselines are copies of the others' (BASELINES)
-        if path.parent.parent.parent.name == "reference":
-            shared = ROOT / "runs" / "manipulation" / path.relative_to(ROOT / "runs" / "manipulation" / "reference")
-            assert config_changes(seen[shared], cfg) == [], path
+    reference = ROOT / "runs" / "manipulation" / "reference"
+    copies = [path for path in seen if path.is_relative_to(reference)]
+    assert len(copies) == 6
+    for path in copies:  # the reference rows' baselines are copies of the others' (BASELINES in row.sh)
+        assert config_changes(seen[ROOT / "runs" / "manipulation" / path.relative_to(reference)], seen[path]) == []
 
 
 def test_a_row_with_baselines_elsewhere_copies_the_complete_ones_it_lacks(tmp_path):
