@@ -921,8 +921,8 @@ def config_changes(saved: dict | RunConfig, cfg: dict | RunConfig, *, env_defaul
 
     sourceless = all(_lookup(c, "transfer.source") in (None, KeyError) for c in (saved, cfg))
 
-    def unused(key):  # an option of a method neither run uses changes nothing they do, nor which
-        if key == "transfer.source_checkpoint":  # checkpoint of a source neither run reads
+    def unused(key):  # an option of a method neither run uses changes nothing they do, nor does the
+        if key == "transfer.source_checkpoint":  # checkpoint of a source neither of them reads
             return sourceless
         owner = owners.get(key.removeprefix("transfer.")) if key.startswith("transfer.") else None
         return owner is not None and owner not in methods
