@@ -854,8 +854,8 @@ def manipulation_rows() -> str:
     """One line per reported row, in the queue's order: the transfer side's gain over no transfer in mean
     success rate over the budget (the area under the curve per frame, paired by seed), and on the placing
     targets in lifted rate; the two gains of a row are one family, Holm-adjusted."""
-    lines = []
-    for row in _queue()[0]:
+    lines, queue = [], _queue()[0]
+    for row in queue:
         reports = {tag: r for tag in ("success", "lifted") if (r := _row_report(row, tag)) is not None}
         if "success" not in reports:
             continue
@@ -870,12 +870,11 @@ def manipulation_rows() -> str:
             gains += f"; no run {who} {what} a cube in any evaluation"
         lines.append(f"- `{row}` ({st['task']}, {st['transfer_label']} against {st['baseline_label']}, "
                      f"{m['n_seeds_transfer']} paired seeds × {cl.frames(st['budget'])} frames), mean gain in {gains}.")
-    rows = len(_queue()[0])
     if not lines:
         return "No row of the queue is complete yet (the runs finished so far are below).\n"
-    left = rows - len(lines)
-    return "\n".join(lines) + "\n" + (f"{left} of the queue's {rows} rows are not complete yet (the runs finished "
-                                     "so far are below).\n" if left else "")
+    left = len(queue) - len(lines)
+    return "\n".join(lines) + "\n" + (f"{left} of the queue's {len(queue)} rows are not complete yet (the runs "
+                                     "finished so far are below).\n" if left else "")
 
 
 def manipulation_earlier() -> str:

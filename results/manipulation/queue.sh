@@ -33,12 +33,11 @@ for name in "${!SOURCE[@]}"; do
   for s in $SEEDS; do
     run=$RUNS/sources/$name/seed-$s
     kept=results/manipulation/sources/$name/seed-$s
+    mkdir -p "$RUNS/sources/$name"
     if [ -z "${TRAIN_SOURCES:-}" ] && [ ! -e "$run" ] && [ -f "$kept/summary.json" ]; then
-      mkdir -p "$RUNS/sources/$name"
       cp -r "$kept" "$run"
     fi
     [ -f "$run/summary.json" ] && continue
-    mkdir -p "$RUNS/sources/$name"
     resume=""
     [ -f "$run/config.yaml" ] && resume=--resume
     echo "$DRLTG train lift --seed $s --run-dir $run $resume --no-progress ${SOURCE[$name]} $EVAL >> $run.log 2>&1"

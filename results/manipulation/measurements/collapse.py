@@ -63,7 +63,7 @@ def episodes_end(agent, cfg, frames: int, checkpoint: str, episodes: int) -> lis
             obs[live] = nxt["observation"][live]
             success[live] = nxt["success"].reshape(-1)[live].bool()
             lifted[live] |= nxt["lifted"].reshape(-1)[live].bool()
-            placed_steps[live] += 1.0 * success[live]
+            placed_steps[live] += success[live].float()
             ended |= nxt["done"].reshape(-1)
             td = nxt.clone()
     env.close()
