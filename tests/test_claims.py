@@ -227,3 +227,20 @@ def test_each_reported_row_gets_its_gains_holm_adjusted_within_the_row(tmp_path,
     shutil.rmtree(tmp_path / "pi-reuse-place")
     shutil.rmtree(tmp_path / "model-reuse-place")
     assert claims.manipulation_rows() == "No row of the queue is complete yet (the runs finished so far are below).\n"
+
+
+def test_the_source_noise_sentence_sums_the_sources_episodes(tmp_path, monkeypatch):
+    """Two sources: 9 + 10 of 20 lifted without noise, 5 + 0 at the largest sigma, where the scripted
+    demonstrator's row of summary.json says it placed 7 of 10."""
+    claims = generator()
+    monkeypatch.setattr(claims, "PLACEMENT", tmp_path)
+    (tmp_path / "source-noise.csv").write_text(
+        "source,sigma,episodes,lifted\nlift/seed-100,0.0,10,10\nlift/seed-100,0.1,10,0\n"
+        "lift/seed-0,0.0,10,9\nlift/seed-0,0.1,10,5\n")
+    (tmp_path / "summary.json").write_text(json.dumps({"noise": [
+        {"task": "lift-place", "sigma": 0.1, "episodes": 10, "placed": 7},
+        {"task": "lift-place-barrier", "sigma": 0.1, "episodes": 10, "placed": 1}]}))
+    text = claims.source_noise()
+    assert text.index("`lift/seed-0` | 9/10 | 5/10 |") < text.index("`lift/seed-100` | 10/10 | 0/10 |")
+    assert text.endswith("lift the cube in 19 of 20 episodes without noise and in 5 of 20 at σ = 0.1, where the "
+                         "scripted demonstrator places in 7 of 10 (the table above).")

@@ -364,3 +364,22 @@ def test_the_queue_reuses_the_kept_sources_and_trains_none(tmp_path):
             kept, run = SCRIPTS / "sources" / name / f"seed-{seed}", runs / "sources" / name / f"seed-{seed}"
             assert filecmp.cmp(kept / "checkpoints" / "best.pt", run / "checkpoints" / "best.pt", shallow=False)
             assert (run / "summary.json").read_text() == (kept / "summary.json").read_text()
+
+
+@pytest.mark.parametrize("row", ["demonstrations-place", "demonstrations-barrier"])
+def test_the_rows_run_the_learned_sources_episodes_without_the_noise_that_stops_them_lifting(row):
+    """The reason the spec gives is the committed measurement: its counts over the sources at sigma 0 and 0.1."""
+    import csv
+
+    with open(SCRIPTS / "placement-diagnostics" / "source-noise.csv") as f:
+        rows = list(csv.DictReader(f))
+
+    def lifted(sigma):
+        cells = [r for r in rows if float(r["sigma"]) == sigma]
+        return sum(int(r["lifted"]) for r in cells), sum(int(r["episodes"]) for r in cells)
+
+    (noisy, n), (clean, m) = lifted(0.1), lifted(0.0)
+    text = " ".join(line.lstrip("# ") for line in (SPECS / f"{row}.yaml").read_text().splitlines())
+    assert f"lift in {noisy} of {n} episodes on lift-place against {clean} of {m} without" in text
+    spec = load_spec(SPECS / f"{row}.yaml")
+    assert "transfer.demo_noise" not in spec.overrides and spec.overrides["transfer.demo_ratio"] == 0.5
