@@ -736,15 +736,33 @@ def critic_scale() -> str:
 PLACE_THRESHOLD = 0.5
 
 
+def _shared_baselines() -> dict[str, tuple[list[str], list[Path]]]:
+    """Per placing target, the rows whose kept baselines are its baselines, and one kept run per seed: the
+    rows on one target share them (``row.sh``), so a seed kept by two rows must be the same curve."""
+    shared: dict[str, tuple[list[str], dict[str, Path]]] = {}
+    for side in sorted(MANIP.glob("*/lift-to-place*/*/baseline")):
+        row, pair = side.relative_to(MANIP).parts[:2]
+        rows, seeds = shared.setdefault(pair, ([], {}))
+        rows.append(row)
+        for run in _seeds(side):
+            first = seeds.setdefault(run.name, run)
+            if (first / "eval.csv").read_bytes() != (run / "eval.csv").read_bytes():
+                raise ValueError(f"{first} and {run} should be one baseline run, kept twice, but their curves differ.")
+    return {pair: (rows, sorted(seeds.values(), key=lambda p: int(p.name.split("-")[1])))
+            for pair, (rows, seeds) in shared.items()}
+
+
 def manipulation_placing() -> str:
     """The study's finished runs on the placing targets, kept so far whether or not their row is complete:
     success rate (the cube resting on the target) over training, and per row and side how many seeds
     hold 0.5 to the end; then the measurements beside the rows (``results/manipulation/measurements/NAME``)."""
     groups = []  # (name in the table, name in its line, seeds)
-    for side in sorted([*MANIP.glob("*/lift-to-place*/*/*/transfer"), *MANIP.glob("*/lift-to-place*/*/baseline")]):
+    for pair, (rows, seeds) in sorted(_shared_baselines().items()):
+        named = ", ".join(f"`{row}`" for row in rows)
+        groups.append((f"`{pair}`, no transfer", f"`{pair}`, no transfer (the baselines of {named})", seeds))
+    for side in sorted(MANIP.glob("*/lift-to-place*/*/*/transfer")):
         row, pair = side.relative_to(MANIP).parts[:2]
-        what = side.parent.name if side.name == "transfer" else "no transfer"
-        groups.append((f"`{row}`, {what}", f"`{row}` ({pair}), {what}", _seeds(side)))
+        groups.append((f"`{row}`, {side.parent.name}", f"`{row}` ({pair}), {side.parent.name}", _seeds(side)))
     for measured in sorted(p for p in (MANIP / "measurements").glob("*") if p.is_dir()):
         seeds = _seeds(measured)
         task = yaml.safe_load((seeds[0] / "config.yaml").read_text())["task"] if seeds else ""

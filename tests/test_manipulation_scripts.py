@@ -94,7 +94,7 @@ def test_a_row_with_baselines_elsewhere_copies_the_complete_ones_it_lacks(tmp_pa
                 (shared / f"seed-{seed}" / name).write_text(f"{name} {seed}")
     mine = runs / "lift-to-place" / "sac" / "baseline" / "seed-100"
     mine.mkdir(parents=True)
-    env = {**os.environ, "RUNS": str(runs), "BASELINES": str(tmp_path / "shared"), "DRLTG": "false"}
+    env = {**os.environ, "RUNS": str(runs), "BASELINES": str(tmp_path / "shared"), "DRLTG": "false", "FORCE": "1"}
     done = subprocess.run(["bash", str(SCRIPTS / "row.sh"), "demonstrations-reference-place"], cwd=ROOT, env=env,
                           capture_output=True)
     assert done.returncode != 0  # DRLTG=false: the sweep after the copies fails
