@@ -871,7 +871,8 @@ def _row_report(row: str, tag: str = "success") -> dict | None:
 def manipulation_rows() -> str:
     """One line per reported row, in the queue's order: the transfer side's gain over no transfer in mean
     success rate over the budget (the area under the curve per frame, paired by seed), and on the placing
-    targets in lifted rate; the two gains of a row are one family, Holm-adjusted."""
+    targets in lifted rate; the two gains of a row are one family, Holm-adjusted. Where any seed holds the
+    report's success threshold to the end (its sustained rule), how many on each side do."""
     lines, queue = [], _queue()[0]
     for row in queue:
         reports = {tag: r for tag in ("success", "lifted") if (r := _row_report(row, tag)) is not None}
@@ -880,6 +881,11 @@ def manipulation_rows() -> str:
         adjusted = family(reports)
         m, st = reports["success"]["metrics"], reports["success"]["settings"]
         gains = "; ".join(f"{tag} rate {said(r['metrics'], PRIMARY, adjusted.get(tag))}" for tag, r in reports.items())
+        held = {side: round(m[f"threshold_reached_{side}"] * m[f"n_seeds_{side}"]) for side in ("transfer", "baseline")}
+        if any(held.values()):
+            gains += (f"; success rate ≥ {st['threshold']:g} held to the end by {held['transfer']} of "
+                      f"{m['n_seeds_transfer']} seeds with transfer and {held['baseline']} of {m['n_seeds_baseline']} "
+                      "without")
         never = [side for side in ("baseline", "transfer") if m[f"total_reward_{side}"] == 0]
         what = "placed" if st["task"] != "lift" else "lifted"
         if never:
