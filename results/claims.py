@@ -935,8 +935,6 @@ def placement_noise() -> str:
 
 def source_noise() -> str:
     """The learned Lift sources as noisy demonstrators on lift-place (``source_noise.py``)."""
-    import csv
-
     with open(PLACEMENT / "source-noise.csv") as f:
         rows = list(csv.DictReader(f))
     sigmas = sorted({float(r["sigma"]) for r in rows})
