@@ -868,6 +868,16 @@ def _row_report(row: str, tag: str = "success") -> dict | None:
 
 
 
+def _ends(report: dict) -> str:
+    """Where a gain over the whole budget comes from: the difference at the first evaluation and at the end
+    (nothing where both are 0.00)."""
+    m, st = report["metrics"], report["settings"]
+    if round(abs(m["jumpstart"]), 2) == 0 and round(abs(m["asymptotic_performance"]), 2) == 0:
+        return ""
+    return (f" (at the first evaluation {m['jumpstart']:+.2f}, over the last {st['asymptote_window']:.0%} of the "
+            f"budget {m['asymptotic_performance']:+.2f})")
+
+
 def manipulation_rows() -> str:
     """One line per reported row, in the queue's order: the transfer side's gain over no transfer in mean
     success rate over the budget (the area under the curve per frame, paired by seed), and on the placing
@@ -880,7 +890,8 @@ def manipulation_rows() -> str:
             continue
         adjusted = family(reports)
         m, st = reports["success"]["metrics"], reports["success"]["settings"]
-        gains = "; ".join(f"{tag} rate {said(r['metrics'], PRIMARY, adjusted.get(tag))}" for tag, r in reports.items())
+        gains = "; ".join(f"{tag} rate {said(r['metrics'], PRIMARY, adjusted.get(tag))}{_ends(r)}"
+                          for tag, r in reports.items())
         held = {side: round(m[f"threshold_reached_{side}"] * m[f"n_seeds_{side}"]) for side in ("transfer", "baseline")}
         if any(held.values()):
             gains += (f"; success rate ≥ {st['threshold']:g} held to the end by {held['transfer']} of "

@@ -197,31 +197,33 @@ def test_each_reported_row_gets_its_gains_holm_adjusted_within_the_row(tmp_path,
     """Two rows of the queue reported: pi-reuse-place, where no run placed and only the lifted rate has a
     p-value (0.02, alone in its family), and model-reuse-place, whose p-values 0.03 and 0.04 become 0.06
     and 0.06 under Holm (2 x 0.03, then the larger of that and 1 x 0.04), and where 2 of 3 transfer seeds
-    hold the success threshold."""
+    hold the success threshold; only pi-reuse-place's lifted rate differs at its ends (+1.00 at the first
+    evaluation, +0.20 at the last), so only its gain says where it comes from."""
     claims = generator()
     monkeypatch.setattr(claims, "MANIP", tmp_path)
     shutil.copy(ROOT / "results" / "manipulation" / "queue.sh", tmp_path / "queue.sh")
 
-    def put(row, method, tag, value, ci, p, totals=(1.0, 1.0), reached=(0.0, 0.0)):
+    def put(row, method, tag, value, ci, p, totals=(1.0, 1.0), reached=(0.0, 0.0), ends=(0.0, 0.0)):
         folder = tmp_path / row / "lift-to-place" / "sac" / method / f"report-{tag}"
         folder.mkdir(parents=True)
         metrics = {"mean_return_gain": value, "mean_return_gain_ci": ci, "mean_return_gain_p_value": p,
                    "n_seeds_transfer": 3, "n_seeds_baseline": 3, "total_reward_baseline": totals[0],
                    "total_reward_transfer": totals[1], "threshold_reached_baseline": reached[0],
-                   "threshold_reached_transfer": reached[1]}
+                   "threshold_reached_transfer": reached[1], "jumpstart": ends[0], "asymptotic_performance": ends[1]}
         settings = {"task": "lift-place", "transfer_label": method, "baseline_label": "no transfer", "budget": 100000,
-                    "threshold": 0.5}
+                    "threshold": 0.5, "asymptote_window": 0.1}
         (folder / "transfer_metrics.json").write_text(json.dumps({"metrics": metrics, "settings": settings}))
 
     put("pi-reuse-place", "policy-reuse", "success", 0.0, None, None, totals=(0.0, 0.0))
-    put("pi-reuse-place", "policy-reuse", "lifted", 0.3, [0.1, 0.5], 0.02)
+    put("pi-reuse-place", "policy-reuse", "lifted", 0.3, [0.1, 0.5], 0.02, ends=(1.0, 0.2))
     put("model-reuse-place", "model-reuse", "success", 0.2, [0.05, 0.35], 0.03, totals=(0.0, 2.0), reached=(0, 2 / 3))
     put("model-reuse-place", "model-reuse", "lifted", 0.4, [0.1, 0.7], 0.04)
     rows = len(claims._queue()[0])
     assert claims.manipulation_rows().splitlines() == [
         "- `pi-reuse-place` (lift-place, policy-reuse against no transfer, 3 paired seeds × 100k frames), mean gain "
         "in success rate +0.00: no evidence of a difference at this budget; lifted rate +0.30 [+0.10, +0.50], higher "
-        "with transfer; no run on either side placed a cube in any evaluation.",
+        "with transfer (at the first evaluation +1.00, over the last 10% of the budget +0.20); no run on either side "
+        "placed a cube in any evaluation.",
         "- `model-reuse-place` (lift-place, model-reuse against no transfer, 3 paired seeds × 100k frames), mean gain "
         "in success rate +0.20 [+0.05, +0.35]: no evidence of a difference at this budget after Holm's adjustment "
         "(adjusted p = 0.06); lifted rate +0.40 [+0.10, +0.70]: no evidence of a difference at this budget after "
