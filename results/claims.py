@@ -327,8 +327,12 @@ def _placed(run: Path, frame: float) -> str:
     return f" ({placed} placed)" if placed else ""
 
 
+def _seed_number(run: Path) -> int:
+    return int(run.name.split("-")[1])
+
+
 def _seeds(folder: Path) -> list[Path]:
-    return sorted(folder.glob("seed-*"), key=lambda p: int(p.name.split("-")[1]))
+    return sorted(folder.glob("seed-*"), key=_seed_number)
 
 
 def lift_dense_curves() -> str:
@@ -748,7 +752,7 @@ def _shared_baselines() -> dict[str, tuple[list[str], list[Path]]]:
             first = seeds.setdefault(run.name, run)
             if (first / "eval.csv").read_bytes() != (run / "eval.csv").read_bytes():
                 raise ValueError(f"{first} and {run} should be one baseline run, kept twice, but their curves differ.")
-    return {pair: (rows, sorted(seeds.values(), key=lambda p: int(p.name.split("-")[1])))
+    return {pair: (rows, sorted(seeds.values(), key=_seed_number))
             for pair, (rows, seeds) in shared.items()}
 
 
@@ -865,7 +869,6 @@ def _row_report(row: str, tag: str = "success") -> dict | None:
     """The study's report of ``row`` on ``tag`` (``results/manipulation/ROW/PAIR/ALGO/METHOD/report-TAG/``)."""
     found = sorted((MANIP / row).glob(f"*/*/*/report-{tag}/transfer_metrics.json"))
     return load(found[0]) if found else None
-
 
 
 def _ends(report: dict) -> str:
