@@ -146,7 +146,8 @@ def test_negative_and_near_zero_baseline_areas():
     flat = Curve(f, [-0.001, 0.001], "b", "b")
     res = report.compute([flat], [better])
     assert res["metrics"]["transfer_ratio"] is None
-    assert any("transfer_ratio is undefined" in w for w in res["settings"]["warnings"])
+    assert any("within 1% of the largest possible area" in w and "transfer_ratio is undefined" in w
+               for w in res["settings"]["warnings"])
 
 
 def test_done_when_command_on_real_sb3_runs(sb3_runs, tmp_path, capsys):

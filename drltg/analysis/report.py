@@ -945,8 +945,8 @@ def _compare(metric: Metric, b: np.ndarray, t: np.ndarray, paired: bool, w: Wind
     out = {metric.name: value}
     if metric.kind == "ratio" and value is None:
         warnings.append(
-            f"the baseline area ({b.mean():.4g}) is within {eps:g} of the largest possible area "
-            f"({w.scale:.4g}) from zero, so transfer_ratio is undefined (null); compare mean_return_gain instead.")
+            f"the baseline area ({b.mean():.4g}) is within {eps * 100:g}% of the largest possible area "
+            f"({w.scale:.4g}) of zero, so transfer_ratio is undefined (null); compare mean_return_gain instead.")
     if enough:
         ci, why = _confidence_interval(metric, value, b, t, paired, w, s)
         if ci is not None:
