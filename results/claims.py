@@ -596,10 +596,12 @@ def _queue() -> tuple[list[str], dict[str, tuple[int, int]]]:
 
 def run_rate(runs: Path = MANIP, pattern: str = "*/lift-to-place*/sac/**/seed-*/summary.json") -> tuple[float, int]:
     """The median frames/s (evaluations included) of the finished runs ``pattern`` finds under ``runs``
-    (default: the rows' SAC runs on the placing targets kept so far, two at a time on this machine's 2 cores)."""
+    (default: the rows' SAC runs on the placing targets kept so far, two at a time on this machine's 2 cores),
+    and how many: a baseline kept by several rows (the same ``summary.json``) is one run."""
     import statistics
 
-    rates = [load(p)["frames_per_s"] for p in sorted(runs.glob(pattern))]
+    runs_once = {p.read_bytes(): p for p in sorted(runs.glob(pattern))}
+    rates = [load(p)["frames_per_s"] for p in runs_once.values()]
     return statistics.median(rates), len(rates)
 
 

@@ -161,6 +161,22 @@ def test_the_report_command_ends_with_the_generated_headline(tmp_path, capsys):
     assert committed["metrics"]["n_seeds_transfer"] == 6 and committed["settings"]["paired"]
 
 
+def test_the_run_rate_counts_a_baseline_kept_by_several_rows_once(tmp_path):
+    """One baseline kept by two rows at 30 frames/s and two transfer runs at 40 and 50: the median of
+    30, 40, 50 is 40 over 3 runs (counting the copy, 4 runs and a median of 35)."""
+    claims = generator()
+
+    def finished(path, fps):
+        path.mkdir(parents=True)
+        (path / "summary.json").write_text(json.dumps({"frames": 100000, "frames_per_s": fps}))
+
+    for row in ("row-a", "row-b"):
+        finished(tmp_path / row / "lift-to-place" / "sac" / "baseline" / "seed-0", 30.0)
+    finished(tmp_path / "row-a" / "lift-to-place" / "sac" / "m" / "transfer" / "seed-0", 40.0)
+    finished(tmp_path / "row-b" / "lift-to-place" / "sac" / "m" / "transfer" / "seed-0", 50.0)
+    assert claims.run_rate(tmp_path) == (40.0, 3)
+
+
 def test_the_collapse_lines_count_where_each_unplaced_cube_ends(tmp_path, monkeypatch):
     """Two seeds, two episodes each per checkpoint: seed 0 places both at best.pt and none at last.pt (one
     cube off the table, one resting 10 cm away); seed 5 places one at both (its other cube held)."""
