@@ -103,6 +103,8 @@ class OptimConfig(Section):
     # (UTD = updates_per_batch / collector.frames_per_batch)
     gamma: Float = Field(0.99, gt=0, le=1, description="discount")
     tau: Float = Field(0.005, gt=0, le=1, description="target-network smoothing")
+    cudagraphs: Bool = Field(False, description="replay each gradient update as a captured CUDA graph "
+                                                "(CUDA devices only)")
 
 
 class NetworkConfig(Section):
@@ -762,6 +764,9 @@ def validate(cfg: RunConfig) -> None:
     are read with the type of the declared default), the method's own rules must hold; and ``frames``
     is rounded up to whole collector batches, so that the budget is exact."""
     _check_device("device", cfg.device)
+    if cfg.optim.cudagraphs and not cfg.device.startswith("cuda"):
+        raise UsageError(f"config key 'optim.cudagraphs' is true but device is '{cfg.device}'; CUDA graphs "
+                         "need device=cuda.")
     cfg.env = _check_env(cfg.task, cfg.env)
     method = cfg.transfer.method
     rule = METHOD_RULES.get(method) or (METHOD_RULES.get("+") if "+" in method else None)

@@ -78,14 +78,15 @@ def _action_spec(env: EnvBase):
 
 
 def _init_lazy(env: EnvBase, *modules: nn.Module, option: bool = False) -> None:
-    """Materialise lazy layers with one fake step, before the loss copies them into target parameters."""
+    """Put the networks on the env's device and materialise their lazy layers there with one fake step,
+    before the loss copies them into target parameters."""
     td = env.fake_tensordict()
     td = td.reshape(-1)[:1] if td.batch_dims else td.unsqueeze(0)
     if option:
         td.set("option", torch.zeros(*td.batch_size, 1, dtype=torch.int64, device=td.device))
     with torch.no_grad():
         for module in modules:
-            module(td)
+            module.to(td.device)(td)
 
 
 def _agent(loss: LossModule, policy: TensorDictModule, cfg: RunConfig, *, actor=None, **fields) -> Agent:

@@ -197,6 +197,13 @@ def test_cuda_when_unavailable_is_one_sentence(monkeypatch):
     assert "no CUDA device is available" in _refused("device", "device=cuda")
 
 
+def test_cuda_graphs_on_the_cpu_are_one_sentence(monkeypatch):
+    assert "need device=cuda" in _refused("optim.cudagraphs", "optim.cudagraphs=true")
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    monkeypatch.setattr(torch.cuda, "device_count", lambda: 1)
+    assert _resolve("optim.cudagraphs=true", "device=cuda").optim.cudagraphs is True
+
+
 def test_cuda_index_beyond_the_devices_is_one_sentence(monkeypatch):
     monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
     monkeypatch.setattr(torch.cuda, "device_count", lambda: 1)
@@ -212,7 +219,7 @@ def test_valid_edge_values_pass():
         "transfer.freeze=[actor_network_params]", "transfer.source=runs/src", "buffer.size=1",
         "transfer.partial=true", "transfer.allow_incomplete=true", seed=0,
     )
-    assert cfg.optim.model_dump() == {"lr": 3e-4, "updates_per_batch": 1, "gamma": 1, "tau": 1}
+    assert cfg.optim.model_dump() == {"lr": 3e-4, "updates_per_batch": 1, "gamma": 1, "tau": 1, "cudagraphs": False}
     assert cfg.network.hidden == [8]
     assert cfg.sac.target_entropy == -2
     assert cfg.transfer.partial is True and cfg.transfer.allow_incomplete is True

@@ -272,7 +272,7 @@ def train(
             if ckpt is not None:
                 torch.set_rng_state(ckpt["rng"])
                 frames, updates = ckpt["frames"], ckpt["updates"]
-            learner = AgentLearner(agent, buffer, eval_env, transfer)
+            learner = AgentLearner(agent, buffer, eval_env, transfer, cudagraphs=cfg.optim.cudagraphs)
             collector = make_collector(cfg, train_env, learner.policy, frames)
             with deferred_signals() as stop_if_signalled, health.on_divergence(run_dir, cfg):
                 run_loop(cfg, collector, learner, [writer], frames=frames, updates=updates, progress=progress,
@@ -344,13 +344,14 @@ class AgentLearner:
 
     seeds = 1
 
-    def __init__(self, agent: Agent, buffer: ReplayBuffer, eval_env: EnvBase, transfer: Transfer):
+    def __init__(self, agent: Agent, buffer: ReplayBuffer, eval_env: EnvBase, transfer: Transfer, *,
+                 cudagraphs: bool = False):
         self.agent, self.buffer, self.eval_env, self.transfer = agent, buffer, eval_env, transfer
         self.actor_delay = agent.actor_delay
         self.policy = agent.policy if transfer.policy is None else transfer.policy
         if transfer.mixer is not None:
             self.policy = TensorDictSequential(self.policy, transfer.mixer)
-        self.step = UpdateStep(agent, loss_terms=transfer.loss_terms)
+        self.step = UpdateStep(agent, loss_terms=transfer.loss_terms, cudagraphs=cudagraphs)
 
     def split(self, data: TensorDictBase) -> list[TensorDictBase]:
         return [data.reshape(-1)]
