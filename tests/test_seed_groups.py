@@ -332,3 +332,14 @@ def test_cli_resumes_a_finished_group_from_its_folder_alone(group_run, capsys):
     assert main(["train", "--seeds", "2", "--seed", "3", "--resume", "--run-dir", str(group_run), "--no-progress"]) == 0
     assert f"{group_run}/seed-3, {group_run}/seed-4" in capsys.readouterr().out
     assert stamps == {p: p.stat().st_mtime_ns for p in stamps}  # complete: nothing trained or written again
+
+
+def test_seeds_with_cuda_graphs_train_one_after_another(monkeypatch):
+    """A group's vmapped update is not captured: ``optim.cudagraphs`` seeds are not grouped, not silently eager."""
+    from drltg.training.seeds import group_support
+
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    monkeypatch.setattr(torch.cuda, "device_count", lambda: 1)
+    cfg = config_lib.resolve({}, TINY + ["device=cuda", "optim.cudagraphs=true"], task="fourrooms/northeast")
+    assert "CUDA graph" in group_support(cfg)
+    assert group_support(config_lib.updated(cfg, {"optim.cudagraphs": False})) is None

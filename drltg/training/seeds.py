@@ -106,6 +106,8 @@ def group_support(cfg: RunConfig) -> str | None:
         return f"--algo {cfg.algo} has no grouped update"
     if not get_method(cfg.transfer.method).grouped:
         return f"transfer method {cfg.transfer.method} has no grouped form"
+    if cfg.optim.cudagraphs:
+        return "a group's vmapped update is not captured as a CUDA graph (optim.cudagraphs)"
     from drltg.envs import get_task
 
     get_task(cfg.task)  # an unknown task is one UsageError sentence
