@@ -37,9 +37,9 @@ def test_model_reuse_a_seed_in_a_group_starts_from_its_own_source_as_alone(sourc
             starts["group"] = self.params.detach().clone()
 
     class RecordedAlone(loop.AgentLearner):  # the parameters a run alone starts from
-        def __init__(self, agent, *args):
+        def __init__(self, agent, *args, **kw):
             starts.setdefault("alone", []).append({k: v.clone() for k, v in agent.loss.state_dict().items()})
-            super().__init__(agent, *args)
+            super().__init__(agent, *args, **kw)
 
     monkeypatch.setattr(seeds, "SeedGroup", Recorded)
     monkeypatch.setattr(loop, "AgentLearner", RecordedAlone)
