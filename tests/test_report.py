@@ -148,6 +148,10 @@ def test_negative_and_near_zero_baseline_areas():
     assert res["metrics"]["transfer_ratio"] is None
     assert any("within 1% of the largest possible area" in w and "transfer_ratio is undefined" in w
                for w in res["settings"]["warnings"])
+    zero = report.compute([Curve(f, [0.0, 0.0], "b", "b")], [Curve(f, [0.0, 0.0], "t", "t")])
+    assert zero["metrics"]["transfer_ratio"] is None
+    assert ("every curve is 0 at every evaluation in the window, so transfer_ratio is undefined (null); compare "
+            "mean_return_gain instead.") in zero["settings"]["warnings"]
 
 
 def test_done_when_command_on_real_sb3_runs(sb3_runs, tmp_path, capsys):

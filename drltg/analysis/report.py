@@ -944,9 +944,10 @@ def _compare(metric: Metric, b: np.ndarray, t: np.ndarray, paired: bool, w: Wind
     value = _estimate(metric, b, t, paired, M.mean, w.scale, eps)
     out = {metric.name: value}
     if metric.kind == "ratio" and value is None:
-        warnings.append(
-            f"the baseline area ({b.mean():.4g}) is within {eps * 100:g}% of the largest possible area "
-            f"({w.scale:.4g}) of zero, so transfer_ratio is undefined (null); compare mean_return_gain instead.")
+        why = ("every curve is 0 at every evaluation in the window" if w.scale == 0 else
+               f"the baseline area ({b.mean():.4g}) is within {eps * 100:g}% of the largest possible area "
+               f"({w.scale:.4g}) of zero")
+        warnings.append(f"{why}, so transfer_ratio is undefined (null); compare mean_return_gain instead.")
     if enough:
         ci, why = _confidence_interval(metric, value, b, t, paired, w, s)
         if ci is not None:
