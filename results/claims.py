@@ -742,20 +742,20 @@ def critic_scale() -> str:
 PLACE_THRESHOLD = 0.5
 
 
-def _shared_baselines() -> dict[str, tuple[list[str], list[Path]]]:
-    """Per placing target, the rows whose kept baselines are its baselines, and one kept run per seed: the
-    rows on one target share them (``row.sh``), so a seed kept by two rows must be the same curve."""
-    shared: dict[str, tuple[list[str], dict[str, Path]]] = {}
+def _shared_baselines() -> dict[tuple[str, str], tuple[list[str], list[Path]]]:
+    """Per placing target and learner, the rows whose kept baselines are its baselines, and one kept run per
+    seed: the rows on one target share them (``row.sh``), so a seed kept by two rows must be the same curve."""
+    shared: dict[tuple[str, str], tuple[list[str], dict[str, Path]]] = {}
     for side in sorted(MANIP.glob("*/lift-to-place*/*/baseline")):
-        row, pair = side.relative_to(MANIP).parts[:2]
-        rows, seeds = shared.setdefault(pair, ([], {}))
+        row, pair, algo = side.relative_to(MANIP).parts[:3]
+        rows, seeds = shared.setdefault((pair, algo), ([], {}))
         rows.append(row)
         for run in _seeds(side):
             first = seeds.setdefault(run.name, run)
             if (first / "eval.csv").read_bytes() != (run / "eval.csv").read_bytes():
                 raise ValueError(f"{first} and {run} should be one baseline run, kept twice, but their curves differ.")
-    return {pair: (rows, sorted(seeds.values(), key=_seed_number))
-            for pair, (rows, seeds) in shared.items()}
+    return {key: (rows, sorted(seeds.values(), key=_seed_number))
+            for key, (rows, seeds) in shared.items()}
 
 
 def manipulation_placing() -> str:
@@ -763,9 +763,10 @@ def manipulation_placing() -> str:
     success rate (the cube resting on the target) over training, and per row and side how many seeds
     hold 0.5 to the end; then the measurements beside the rows (``results/manipulation/measurements/NAME``)."""
     groups = []  # (name in the table, name in its line, seeds)
-    for pair, (rows, seeds) in sorted(_shared_baselines().items()):
+    for (pair, algo), (rows, seeds) in sorted(_shared_baselines().items()):
         named = ", ".join(f"`{row}`" for row in rows)
-        groups.append((f"`{pair}`, no transfer", f"`{pair}`, no transfer (the baselines of {named})", seeds))
+        side = "no transfer" if algo == "sac" else f"{algo}, no transfer"  # SAC: every row but SOC's
+        groups.append((f"`{pair}`, {side}", f"`{pair}`, {side} (the baselines of {named})", seeds))
     for side in sorted(MANIP.glob("*/lift-to-place*/*/*/transfer")):
         row, pair = side.relative_to(MANIP).parts[:2]
         groups.append((f"`{row}`, {side.parent.name}", f"`{row}` ({pair}), {side.parent.name}", _seeds(side)))

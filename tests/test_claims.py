@@ -273,18 +273,21 @@ def test_the_rows_on_one_target_list_their_shared_baselines_once_and_refuse_two_
                                                                                                   monkeypatch):
     """Row a keeps baseline seeds 0 and 100, row b a copy of seed 0 and its own seed 200: the target's
     baselines are seeds 0, 100 and 200 (seed 0 from a), named for both rows; a copy whose curve differs
-    is an error, not a second baseline."""
+    is an error, not a second baseline. Row c's soft option-critic baselines are another learner's, apart."""
     claims = generator()
     monkeypatch.setattr(claims, "MANIP", tmp_path)
     curve = "frames,return_mean,return_std,episodes,success_rate,lifted_rate\n0,0.0,0.0,10,0.0,0.0\n"
-    for row, seed in [("a", 0), ("a", 100), ("b", 0), ("b", 200)]:
-        run = tmp_path / row / "lift-to-place" / "sac" / "baseline" / f"seed-{seed}"
+    for row, algo, seed, text in [("a", "sac", 0, curve), ("a", "sac", 100, curve), ("b", "sac", 0, curve),
+                                  ("b", "sac", 200, curve), ("c", "soc", 0, curve + "5000,1.0,0.0,10,0.0,0.1\n")]:
+        run = tmp_path / row / "lift-to-place" / algo / "baseline" / f"seed-{seed}"
         run.mkdir(parents=True)
-        (run / "eval.csv").write_text(curve)
-    rows, seeds = claims._shared_baselines()["lift-to-place"]
+        (run / "eval.csv").write_text(text)
+    rows, seeds = claims._shared_baselines()[("lift-to-place", "sac")]
     assert rows == ["a", "b"]
     assert [p.relative_to(tmp_path).parts[::4] for p in seeds] == [("a", "seed-0"), ("a", "seed-100"),
                                                                      ("b", "seed-200")]
+    rows, seeds = claims._shared_baselines()[("lift-to-place", "soc")]
+    assert rows == ["c"] and [p.relative_to(tmp_path).parts[::4] for p in seeds] == [("c", "seed-0")]
     copy = tmp_path / "b" / "lift-to-place" / "sac" / "baseline" / "seed-0" / "eval.csv"
     copy.write_text(curve + "5000,1.0,0.0,10,0.1,0.1\n")
     with pytest.raises(ValueError, match="should be one baseline run, kept twice, but their curves differ"):
