@@ -928,7 +928,8 @@ def manipulation_earlier() -> str:
         m, st = whole["metrics"], whole["settings"]
         ours = _row_report(folder.name)
         mine = ("not trained yet" if ours is None else
-                estimate(ours["metrics"]["mean_return_gain"], ours["metrics"].get("mean_return_gain_ci"), "+.2f"))
+                estimate(ours["metrics"]["mean_return_gain"], ours["metrics"].get("mean_return_gain_ci"),
+                         lambda x: format(x if round(x, 2) else 0.0, "+.2f")))  # no "-0.00"
         out.append((f"`{folder.name}`", f"`{Path(st['baseline'][0]).parent.name}` → "
                     f"`{Path(st['transfer'][0]).parent.name}`", cl.frames(st["budget"]),
                     f"{m['final_performance_baseline']:.0f} / {m['final_performance_transfer']:.0f}",
@@ -968,6 +969,32 @@ def source_noise() -> str:
             f"{total[low][1]} episodes without noise and in {total[high][0]} of {total[high][1]} at σ = {high:g}, "
             f"where the scripted demonstrator places in {scripted['placed']} of {scripted['episodes']} "
             "(the table above).")
+
+
+SHAPING = MANIP / "shaping-diagnostics"
+
+
+def shaping_stages() -> str:
+    """The ``lift-shaping`` row's final policies on Lift, stage by stage (``stages.py``)."""
+    with open(SHAPING / "stages.csv") as f:
+        rows = list(csv.DictReader(f))
+    table = [("side", "seed", "start (m)", "closest (m)", "mean (m)", "steps grasped", "grasped", "lifted")]
+    table += [(r["side"], r["seed"], r["start_m"], r["closest_m"], r["mean_m"], r["grasped_share"],
+               f"{r['grasped']}/{r['episodes']}", f"{r['lifted']}/{r['episodes']}") for r in rows]
+    sides: dict[str, list[dict]] = {}
+    for r in rows:
+        sides.setdefault(r["side"], []).append(r)
+    parts = []
+    for side, runs in sides.items():
+        mean = {k: sum(float(r[k]) for r in runs) / len(runs) for k in ("start_m", "closest_m", "mean_m")}
+        episodes = sum(int(r["episodes"]) for r in runs)
+        closer = sum(float(r["closest_m"]) < float(r["start_m"]) - 0.01 for r in runs)
+        parts.append(f"{side} ({len(runs)} seeds), the gripper comes {mean['start_m'] - mean['closest_m']:.3f} m "
+                     f"closer to the cube than where it starts ({mean['start_m']:.3f} m) on average, more than "
+                     f"1 cm closer in {closer} of {len(runs)} runs, and averages {mean['mean_m']:.2f} m from it; "
+                     f"the cube is grasped in {sum(int(r['grasped']) for r in runs)} and lifted in "
+                     f"{sum(int(r['lifted']) for r in runs)} of {episodes} episodes")
+    return render(table, "markdown").rstrip() + "\n\nAt the last checkpoint, " + "; ".join(parts) + ".\n"
 
 
 def placement_verdicts() -> str:
@@ -1048,6 +1075,7 @@ REGIONS = {
         "placement-noise": placement_noise,
         "placement-verdicts": placement_verdicts,
         "source-noise": source_noise,
+        "shaping-stages": shaping_stages,
     },
     "README.md": {
         "demo": demo_sentence,

@@ -292,3 +292,22 @@ def test_the_rows_on_one_target_list_their_shared_baselines_once_and_refuse_two_
     copy.write_text(curve + "5000,1.0,0.0,10,0.1,0.1\n")
     with pytest.raises(ValueError, match="should be one baseline run, kept twice, but their curves differ"):
         claims._shared_baselines()
+
+
+def test_the_shaping_stages_sentence_averages_each_side_over_its_seeds(tmp_path, monkeypatch):
+    """Two runs a side: without shaping the gripper never comes closer than it starts (0.2 m); with shaping
+    one run comes 0.1 m closer and one 0.004 m (under 1 cm: not counted), grasping in 3 + 1 of 20 episodes."""
+    claims = generator()
+    monkeypatch.setattr(claims, "SHAPING", tmp_path)
+    head = "side,seed,episodes,start_m,closest_m,mean_m,grasped_share,grasped,lifted\n"
+    (tmp_path / "stages.csv").write_text(
+        head + "no transfer,0,10,0.200,0.200,0.500,0.000,0,0\nno transfer,100,10,0.200,0.200,0.700,0.000,0,0\n"
+        "reward-shaping,0,10,0.200,0.100,0.150,0.050,3,1\nreward-shaping,100,10,0.200,0.196,0.250,0.010,1,0\n")
+    text = claims.shaping_stages()
+    assert "| reward-shaping | 0 | 0.200 | 0.100 | 0.150 | 0.050 | 3/10 | 1/10 |" in text
+    assert text.endswith(
+        "At the last checkpoint, no transfer (2 seeds), the gripper comes 0.000 m closer to the cube than where it "
+        "starts (0.200 m) on average, more than 1 cm closer in 0 of 2 runs, and averages 0.60 m from it; the cube "
+        "is grasped in 0 and lifted in 0 of 20 episodes; reward-shaping (2 seeds), the gripper comes 0.052 m "
+        "closer to the cube than where it starts (0.200 m) on average, more than 1 cm closer in 1 of 2 runs, and "
+        "averages 0.20 m from it; the cube is grasped in 4 and lifted in 1 of 20 episodes.\n")
