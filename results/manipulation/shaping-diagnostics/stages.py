@@ -81,7 +81,8 @@ def main(argv=None) -> None:
                             for k, v in m.items()}})
             print(rows[-1], flush=True)
     if not rows:
-        sys.exit(f"error: no finished lift-shaping run in {args.runs} ({', '.join(SIDES.values())}).")
+        print(f"error: no finished lift-shaping run in {args.runs} ({', '.join(SIDES.values())}).", file=sys.stderr)
+        sys.exit(2)
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=list(rows[0]))
     writer.writeheader()
