@@ -15,8 +15,6 @@ Seeded; the same runs give the same file.
 from __future__ import annotations
 
 import argparse
-import csv
-import io
 import sys
 from pathlib import Path
 
@@ -27,6 +25,7 @@ ROOT = Path(__file__).resolve().parents[3]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from drltg.analysis.tables import render  # noqa: E402
 from drltg.envs import make_env  # noqa: E402
 from drltg.envs.robosuite import LAYOUT  # noqa: E402
 from drltg.training.rundir import atomic_write  # noqa: E402
@@ -83,11 +82,7 @@ def main(argv=None) -> None:
     if not rows:
         print(f"error: no finished lift-shaping run in {args.runs} ({', '.join(SIDES.values())}).", file=sys.stderr)
         sys.exit(2)
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=list(rows[0]))
-    writer.writeheader()
-    writer.writerows(rows)
-    atomic_write(HERE / "stages.csv", buf.getvalue())
+    atomic_write(HERE / "stages.csv", render([list(rows[0]), *(list(r.values()) for r in rows)], "csv"))
 
 
 if __name__ == "__main__":
