@@ -41,8 +41,8 @@ def episode_stages(obs: torch.Tensor) -> dict[str, float]:
     grasped = obs[..., LAYOUT["cube_grasped"]].squeeze(-1) > 0.5
     lifted = obs[..., LAYOUT["cube_lifted"]].squeeze(-1) > 0.5
     return {"start_m": float(distance[0]), "closest_m": float(distance.min()), "mean_m": float(distance.mean()),
-            "grasped_share": float(grasped.float().mean()), "grasped": float(grasped.any()),
-            "lifted": float(lifted.any())}
+            "grasped_share": float(grasped.float().mean()), "grasped": int(grasped.any()),
+            "lifted": int(lifted.any())}
 
 
 def measure(run: Path, episodes: int) -> dict[str, float]:
@@ -59,9 +59,8 @@ def measure(run: Path, episodes: int) -> dict[str, float]:
             obs = torch.cat([td["observation"][:1], td["next", "observation"]])
             per_episode.append(episode_stages(obs))
     env.close()
-    out = {key: sum(e[key] for e in per_episode) / episodes for key in per_episode[0]}
-    out["grasped"], out["lifted"] = round(out["grasped"] * episodes), round(out["lifted"] * episodes)
-    return out
+    total = {key: sum(e[key] for e in per_episode) for key in per_episode[0]}
+    return {key: v if isinstance(v, int) else v / episodes for key, v in total.items()}  # counts stay counts
 
 
 def main(argv=None) -> None:
