@@ -47,6 +47,9 @@ def test_verdicts_read_higher_lower_or_no_evidence():
     assert cl.verdict(-0.41, (-0.6, -0.21)) == "\u22120.41 [\u22120.60, \u22120.21], lower with transfer"
     assert cl.verdict(0.25, (-0.03, 0.53)) == "+0.25 [\u22120.03, +0.53]: no evidence of a difference at this budget"
     assert cl.verdict(0.0, None) == "+0.00: no evidence of a difference at this budget"
+    # the same +0.89 in every pair: no interval, and neither "higher" nor "no evidence"
+    assert cl.verdict(0.895, None) == "+0.90: no interval, so no verdict"
+    assert cl.verdict(0.004, None) == "+0.00: no evidence of a difference at this budget"
     held_back = cl.verdict(-0.32, (-0.51, -0.13), p_adjusted=0.079, family=20)
     assert held_back == ("\u22120.32 [\u22120.51, \u22120.13]: no evidence of a difference at this budget after Holm's "
                          "adjustment (adjusted p = 0.079 of 20)")

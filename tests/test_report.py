@@ -383,6 +383,17 @@ def test_no_degenerate_intervals():
     m, st = res["metrics"], res["settings"]
     assert m["jumpstart"] == 0 and "jumpstart_ci" not in m
     assert any("jumpstart has no interval: every pair gives the same difference (0)" in w for w in st["warnings"])
+    # the same difference in every pair, from curves whose areas differ only in round-off: no interval
+    # and no p-value (the t test's would be ~1e-32)
+    g = (0, 5, 10, 15)
+    b = [Curve(g, [0, 0, v, 0], f"b{i}", f"b{i}", config={"seed": i}) for i, v in enumerate([0.1, 0.0, 0.0])]
+    t = [Curve(g, [1, 0, v, 0], f"t{i}", f"t{i}", config={"seed": i}) for i, v in enumerate([0.1, 0.0, 0.0])]
+    res = report.compute(b, t, paired=True, threshold=None)
+    m = res["metrics"]
+    assert m["mean_return_gain"] == pytest.approx(1 / 6)
+    assert "mean_return_gain_ci" not in m and "mean_return_gain_p_value" not in m
+    assert "mean_return_gain has no interval: every pair gives the same difference (0.1667)" in \
+        res["settings"]["warnings"][0]
     # every run of each side identical: no spread at all
     same = report.compute(flat([1.0] * 3, prefix="b"), flat([2.0] * 3, prefix="t"))
     assert "mean_return_gain_ci" not in same["metrics"]

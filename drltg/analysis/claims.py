@@ -5,7 +5,8 @@ A researcher quotes sentences, not tables, so every sentence that states a resul
 
 - **a difference** is called higher / lower only when its interval excludes 0 and, where a family of
   intervals is read together, its Holm-adjusted p-value is below ``LEVEL`` too; otherwise the sentence
-  says "no evidence of a difference at this budget";
+  says "no evidence of a difference at this budget" (or, for a non-zero difference that has no interval,
+  "no interval, so no verdict");
 - **best** only when every pairwise difference to the others excludes 0 (after Holm over those pairs);
 - **every seed** only when every seed does; otherwise the count ("3 of 5 seeds") is given;
 - **a threshold** is "first reached" for a first crossing, and "held" (sustained) only under the report's
@@ -26,6 +27,7 @@ from drltg.analysis import metrics as mx
 LEVEL = 0.05
 MINUS = "\u2212"
 NO_EVIDENCE = "no evidence of a difference at this budget"
+NO_INTERVAL = "no interval, so no verdict"
 LABELS = {
     "mean_return_gain": "mean return gain",
     "jumpstart": "jumpstart",
@@ -68,7 +70,8 @@ def verdict(value: float, ci: Sequence | None, p_adjusted: float | None = None, 
             higher: str = "higher with transfer", lower: str = "lower with transfer") -> str:
     """``+1.08 [+0.91, +1.24], higher with transfer`` or ``...: no evidence of a difference at this budget``;
     an interval that excludes 0 but is held back by the family's adjustment says so, naming the adjusted
-    p-value (and the family's size when given)."""
+    p-value (and the family's size when given). A non-zero difference without an interval (every pair
+    gave the same one, or the ratio is unbounded) has no verdict either way."""
     sign = direction(ci, p_adjusted)
     text = estimate(value, ci)
     if sign > 0:
@@ -78,6 +81,8 @@ def verdict(value: float, ci: Sequence | None, p_adjusted: float | None = None, 
     if excludes_zero(ci) and p_adjusted is not None:
         of = "" if family is None else f" of {family}"
         return f"{text}: {NO_EVIDENCE} after Holm's adjustment (adjusted p = {p_text(p_adjusted)}{of})"
+    if signed(value) != signed(0) and (ci is None or None in ci):
+        return f"{text}: {NO_INTERVAL}"
     return f"{text}: {NO_EVIDENCE}"
 
 

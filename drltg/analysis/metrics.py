@@ -335,19 +335,31 @@ def _check_confidence(confidence: float) -> float:
     return (1.0 - confidence) / 2.0
 
 
+def roundoff(*scores: Array) -> Array:
+    """The largest spread that is only round-off of these scores: 16 float32 ulps of their magnitude.
+    Curves are logged in float32 (0.9 reads back as 0.8999999761581421), so pairs with the same
+    difference, summed from different evaluations, differ by ~1e-9: no spread to scale an interval or
+    a test by (a t-test would give p ~ 1e-18)."""
+    return 16 * np.finfo(np.float32).eps * np.max([np.abs(x).max(-1) for x in scores], axis=0)
+
+
 def _difference_and_se(b: Array, t: Array, paired: bool, df: str = "hsu") -> tuple[Array, Array, Array]:
     r"""Mean difference, its standard error and the t degrees of freedom.
 
     Paired: :math:`\bar d`, :math:`s_d/\sqrt n`, :math:`n-1` with :math:`d_i = t_i - b_i`.
     Unpaired: :math:`\bar t - \bar b`, :math:`\sqrt{s_b^2/n_b + s_t^2/n_t}` and either Hsu's
     :math:`\min(n_b, n_t) - 1` degrees of freedom (``df="hsu"``: at least the promised coverage for
-    normal scores whatever the two spreads) or Welch-Satterthwaite's (``df="welch"``)."""
+    normal scores whatever the two spreads) or Welch-Satterthwaite's (``df="welch"``). A spread within
+    :func:`roundoff` of the scores counts as none."""
+    tol = roundoff(b, t)
     if paired:
         d = t - b
         n = d.shape[-1]
-        return d.mean(-1), d.std(-1, ddof=1) / np.sqrt(n), np.full(d.shape[:-1], n - 1.0)
+        se = d.std(-1, ddof=1) / np.sqrt(n)
+        return d.mean(-1), np.where(se > tol, se, 0.0), np.full(d.shape[:-1], n - 1.0)
     nb, nt = b.shape[-1], t.shape[-1]
-    vb, vt = b.var(-1, ddof=1) / nb, t.var(-1, ddof=1) / nt
+    vb = np.where(np.ptp(b, -1) > tol, b.var(-1, ddof=1) / nb, 0.0)
+    vt = np.where(np.ptp(t, -1) > tol, t.var(-1, ddof=1) / nt, 0.0)
     if df == "hsu":
         dof = np.full(vb.shape, min(nb, nt) - 1.0)
     else:

@@ -988,9 +988,9 @@ def _confidence_interval(metric: Metric, value, b, t, paired: bool, w: Window,
     lo, hi = (float(x) for x in M.INTERVALS[s.interval](b, t, paired=paired, confidence=conf, **kw))
     if math.isfinite(lo) and math.isfinite(hi) and hi > lo:
         return _within(lo, hi, w.value_range), None
-    if paired and np.ptp(t - b) == 0:
+    if paired and np.ptp(t - b) <= M.roundoff(b, t):
         why = f"every pair gives the same difference ({float(t[0] - b[0]):.4g}), so there is no spread to scale"
-    elif not paired and np.ptp(b) == 0 and np.ptp(t) == 0:
+    elif not paired and max(np.ptp(b), np.ptp(t)) <= M.roundoff(b, t):
         why = "each side's seeds give identical values, so there is no spread to scale"
     else:
         why = f"the {s.interval} interval is undefined for these scores"
