@@ -205,9 +205,9 @@ def test_t_interval_by_hand():
     # nor where the spread is only round-off: success rates logged in float32 and averaged over
     # different evaluations give the same difference to within ~1e-9
     f32 = [float(np.float32(x)) for x in (0.8, 0.9)]  # 0.800000011920929, 0.8999999761581421
-    b, t = np.zeros(3), np.array([f32[1], (f32[0] + 1.0) / 2, 0.9])
-    assert 0 < np.ptp(t - b) < 1e-7
-    assert np.isnan(M.t_interval(b, t, paired=True)[0]) and np.isnan(M.t_test(b, t, paired=True))
+    zero, same = np.zeros(3), np.array([f32[1], (f32[0] + 1.0) / 2, 0.9])
+    assert 0 < np.ptp(same) < 1e-7
+    assert np.isnan(M.t_interval(zero, same, paired=True)[0]) and np.isnan(M.t_test(zero, same, paired=True))
     assert np.isnan(M.t_interval(np.full(3, 0.3), 0.1 + np.array([0.2, 0.2, 0.1 + 0.1]))[0])
     # a spread of 1e-5 in 0.9 is a spread
     assert np.isfinite(M.t_interval(np.zeros(3), 0.9 + np.array([0, 1e-5, 2e-5]), paired=True)[0])
