@@ -47,13 +47,17 @@ def signed(x: float, digits: int = 2) -> str:
 
 def estimate(value: float, ci: Sequence | None = None, digits: int = 2) -> str:
     """``+1.08 [+0.91, +1.24]``; the value alone where there is no interval."""
-    if ci is None or ci[0] is None or ci[1] is None:
+    if not has_interval(ci):
         return signed(value, digits)
     return f"{signed(value, digits)} [{signed(ci[0], digits)}, {signed(ci[1], digits)}]"
 
 
+def has_interval(ci: Sequence | None) -> bool:
+    return ci is not None and ci[0] is not None and ci[1] is not None
+
+
 def excludes_zero(ci: Sequence | None) -> bool:
-    return ci is not None and ci[0] is not None and ci[1] is not None and (ci[0] > 0 or ci[1] < 0)
+    return has_interval(ci) and (ci[0] > 0 or ci[1] < 0)
 
 
 def direction(ci: Sequence | None, p_adjusted: float | None = None, level: float = LEVEL) -> int:
@@ -81,7 +85,7 @@ def verdict(value: float, ci: Sequence | None, p_adjusted: float | None = None, 
     if excludes_zero(ci) and p_adjusted is not None:
         of = "" if family is None else f" of {family}"
         return f"{text}: {NO_EVIDENCE} after Holm's adjustment (adjusted p = {p_text(p_adjusted)}{of})"
-    if signed(value) != signed(0) and (ci is None or None in ci):
+    if signed(value) != signed(0) and not has_interval(ci):
         return f"{text}: {NO_INTERVAL}"
     return f"{text}: {NO_EVIDENCE}"
 
