@@ -109,7 +109,7 @@ def trial(kind: str, reference: Path, work: Path, rng: random.Random) -> dict:
         if ckpt.is_file() and not rundir.is_complete(run):
             import torch
 
-            checkpoints[name] = torch.load(ckpt, weights_only=False, map_location="cpu")["frames"]
+            checkpoints[name] = torch.load(ckpt, weights_only=True, map_location="cpu")["frames"]
     before = {name: (run / "eval.csv").read_bytes() if (run / "eval.csv").is_file() else None
               for name, run in _runs(out).items() if rundir.is_complete(run)}
     rerun = _drltg(_command(kind, out)).wait()

@@ -75,7 +75,7 @@ def record_saves(monkeypatch, written=None):
 
 
 def load(run, name="best"):
-    return torch.load(run / "checkpoints" / f"{name}.pt", weights_only=False)
+    return torch.load(run / "checkpoints" / f"{name}.pt", weights_only=True)
 
 
 def same(a: dict, b: dict) -> bool:

@@ -120,7 +120,7 @@ def test_demonstrations_of_a_source_run_train_the_target_reproducibly(source_run
     assert read_eval_csv(a / "eval.csv") == read_eval_csv(b / "eval.csv")
     plain = config_lib.resolve({}, TINY, task="fourrooms/northeast-shifted", frames=256, seed=2)
     c = train(plain, tmp_path / "c", progress=False)
-    weights = [torch.load(run / "checkpoints" / "last.pt", weights_only=False)["loss"] for run in (a, b, c)]
+    weights = [torch.load(run / "checkpoints" / "last.pt", weights_only=True)["loss"] for run in (a, b, c)]
     same = [all(torch.equal(w[k], weights[0][k]) for k in w) for w in weights]
     assert same == [True, True, False]  # the same demonstrations each time; the updates saw them
 

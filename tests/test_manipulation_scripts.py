@@ -239,7 +239,7 @@ def test_keep_source_keeps_the_weights_and_refuses_an_unfinished_run(tmp_path):
         keep_source(run, tmp_path / "kept")
     (run / "summary.json").write_text("{}")
     keep_source(run, tmp_path / "kept")
-    kept = torch.load(tmp_path / "kept" / "checkpoints" / "last.pt", weights_only=False)
+    kept = torch.load(tmp_path / "kept" / "checkpoints" / "last.pt", weights_only=True)
     assert set(kept) == {"loss", "frames"} and kept["frames"] == 60000
     assert torch.equal(kept["loss"]["actor.weight"], weights["actor.weight"])
     assert (tmp_path / "kept" / "config.yaml").read_text() == "config.yaml"
@@ -249,10 +249,10 @@ def test_keep_source_keeps_the_weights_and_refuses_an_unfinished_run(tmp_path):
     torch.save({"loss": best, "frames": 25000, "buffer": torch.zeros(1000), "optimizer": {}},
                run / "checkpoints" / "best.pt")
     keep_source(run, tmp_path / "kept-best")
-    kept = torch.load(tmp_path / "kept-best" / "checkpoints" / "best.pt", weights_only=False)
+    kept = torch.load(tmp_path / "kept-best" / "checkpoints" / "best.pt", weights_only=True)
     assert set(kept) == {"loss", "frames"} and kept["frames"] == 25000
     assert torch.equal(kept["loss"]["actor.weight"], best["actor.weight"])
-    last = torch.load(tmp_path / "kept-best" / "checkpoints" / "last.pt", weights_only=False)
+    last = torch.load(tmp_path / "kept-best" / "checkpoints" / "last.pt", weights_only=True)
     assert last["frames"] == 60000 and torch.equal(last["loss"]["actor.weight"], weights["actor.weight"])
 
 
@@ -262,7 +262,7 @@ def test_kept_lift_sources_are_weights_only_and_load_as_actors(seed):
 
     from drltg.transfer import load_actor
     source = SCRIPTS / "sources" / "lift-sac-ln-half" / f"seed-{seed}"
-    assert set(torch.load(source / "checkpoints" / "last.pt", weights_only=False)) == {"loss", "frames"}
+    assert set(torch.load(source / "checkpoints" / "last.pt", weights_only=True)) == {"loss", "frames"}
     actor = load_actor(source)
     assert sum(p.numel() for p in actor.parameters()) > 0
 

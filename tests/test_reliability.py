@@ -75,7 +75,7 @@ def killed(tmp_path_factory):
     finally:
         train_mod._episode_stats = real
     assert [r["frames"] for r in rundir.read_eval_csv(run / "eval.csv")] == [0, 128, 256, 384]
-    assert torch.load(run / "checkpoints" / "last.pt", weights_only=False)["frames"] == 256
+    assert torch.load(run / "checkpoints" / "last.pt", weights_only=True)["frames"] == 256
     return run
 
 
@@ -132,7 +132,7 @@ def test_a_terminated_experiment_stops_its_running_run_which_resumes(tmp_path):
     finally:
         subprocess.run(["pkill", "-KILL", "-f", str(out)])  # nothing left behind if the assertion failed
     assert not (source / rundir.LOCK).exists() and not (out / rundir.LOCK).exists()
-    assert torch.load(source / "checkpoints" / "last.pt", weights_only=False)["frames"] >= 256
+    assert torch.load(source / "checkpoints" / "last.pt", weights_only=True)["frames"] >= 256
     assert not rundir.is_complete(source)
 
 
@@ -691,7 +691,7 @@ def flip_a_tensor_byte(checkpoint: Path) -> None:
 def test_a_bit_flipped_checkpoint_is_refused(copy_of_killed, capsys):
     checkpoint = copy_of_killed / "checkpoints" / "last.pt"
     flip_a_tensor_byte(checkpoint)
-    assert torch.load(checkpoint, weights_only=False)["frames"] == 256  # it still loads
+    assert torch.load(checkpoint, weights_only=True)["frames"] == 256  # it still loads
     before = tree(copy_of_killed)
     one_sentence(capsys, main(["train", "--resume", "--run-dir", str(copy_of_killed), "--no-progress"]), 2,
                  f"cannot read '{checkpoint}': it does not match its SHA-256 in {copy_of_killed / 'manifest.json'}")
@@ -868,7 +868,7 @@ def test_workers_die_with_a_killed_experiment(tmp_path):
             if rundir._alive(w, host):
                 os.kill(w, signal.SIGKILL)
     assert not (source / rundir.LOCK).exists()  # the worker unwound: its run is free to resume
-    assert torch.load(source / "checkpoints" / "last.pt", weights_only=False)["frames"] >= 256
+    assert torch.load(source / "checkpoints" / "last.pt", weights_only=True)["frames"] >= 256
 
 
 def test_a_ray_address_that_stays_silent_is_one_sentence(tmp_path):

@@ -170,7 +170,7 @@ def test_a_seed_in_a_group_draws_as_its_run_alone_and_matches_it(group_run, tmp_
         assert [r["frames"] for r in rows] == [0, 256, 512]
         for row, expected in zip(rows, ref):
             assert row == pytest.approx(expected, abs=1e-5)
-        ckpt, ckpt_alone = (torch.load(d / "checkpoints" / "last.pt", weights_only=False) for d in (grouped, alone))
+        ckpt, ckpt_alone = (torch.load(d / "checkpoints" / "last.pt", weights_only=True) for d in (grouped, alone))
         assert ckpt["updates"] == ckpt_alone["updates"] > 0
         assert torch.equal(ckpt["rng"], ckpt_alone["rng"])  # the same number of draws, in the same order
         for name, value in ckpt_alone["loss"].items():

@@ -415,7 +415,7 @@ def test_soc_agent_trains_in_the_training_loop(tmp_path):
     cfg = config_lib.resolve({}, [*tiny, "soc.num_options=2"], task="fourrooms/northeast", algo="soc", frames=256)
     run = train(cfg, tmp_path / "run", progress=False)
     assert [r["frames"] for r in read_eval_csv(run / "eval.csv")] == [0, 256]
-    state = torch.load(run / "checkpoints" / "last.pt", weights_only=False)["loss"]
+    state = torch.load(run / "checkpoints" / "last.pt", weights_only=True)["loss"]
     assert "log_option_alpha" in state and any(k.startswith("termination_network_params") for k in state)
     assert state["termination_network_params.module.net.4.weight"].shape == (2, 16)  # one beta_o per option
     assert yaml.safe_load((run / "config.yaml").read_text())["soc"]["num_options"] == 2

@@ -1,7 +1,7 @@
 """A run directory on disk: its file names, atomic writes, its owner lock, eval.csv and log truncation.
 
     config.yaml          the resolved config; `drltg train --config config.yaml` reproduces the run
-    eval.csv             frames,return_mean,return_std,episodes[,success_rate,lifted_rate]  (one row per
+    eval.csv             frames,return_mean,return_std,episodes[,success_rate,lifted_rate,pushed_rate]  (one row per
                          evaluation; a rate column the earlier rows of a resumed run lack is empty there)
     logs/csv/, logs/tensorboard/   training scalars (TorchRL CSVLogger + TensorboardLogger)
     checkpoints/last.pt  weights, optimizer, replay buffer and RNG state (for --resume and model reuse)
@@ -22,6 +22,7 @@ import contextlib
 import csv
 import io
 import os
+import pickle
 import socket
 import tempfile
 import time
@@ -42,7 +43,7 @@ CHECKPOINTS = {"last": CHECKPOINT, "best": BEST}
 LOGS = "logs"
 MODEL_REUSE = "model_reuse.txt"
 LOCK = ".drltg.lock"
-EPISODE_FLAGS = ("success", "lifted")
+EPISODE_FLAGS = ("success", "lifted", "pushed")
 """Boolean env outputs an evaluation counts as "ever true in the episode": eval.csv's ``<flag>_rate``."""
 EVAL_COLUMNS = ["frames", "return_mean", "return_std", "episodes", *(f"{flag}_rate" for flag in EPISODE_FLAGS)]
 
@@ -454,20 +455,35 @@ def missing_checkpoint(run_dir: str | Path, name: str = "last") -> str:
     return f"'{run_dir}' holds no {CHECKPOINT.as_posix()}; train the run first or fix the path."
 
 
+def _refused_object(err: Exception) -> str:
+    """What torch's restricted unpickler refused, e.g. ``GLOBAL builtins.exec``."""
+    import re
+
+    found = re.search(r"Unsupported global: (GLOBAL \S+)|Unsupported operand (\S+)", str(err))
+    return next((g for g in found.groups() if g), "") if found else "an object it does not allow"
+
+
 def load_checkpoint(run_dir: str | Path, map_location="cpu", mmap: bool = False, checkpoint: str = "last") -> dict:
     """``checkpoints/last.pt`` (or ``best.pt``: ``checkpoint="best"``) of a run; a missing, truncated or foreign
-    file is one :class:`UsageError` sentence."""
+    file is one :class:`UsageError` sentence.
+
+    A run may come from someone else, so its checkpoint is checked against the manifest's SHA-256 first and
+    then read with ``torch.load(weights_only=True)``: torch's restricted unpickler rebuilds tensors, dicts,
+    lists, numbers and strings only, and refuses any other object, so no code in the file can run."""
     import torch
 
     name = checkpoint_path(checkpoint)
     path = Path(run_dir) / name
     if not path.is_file():
         raise UsageError(missing_checkpoint(run_dir, checkpoint))
+    manifest.verify(run_dir, name.as_posix())
     try:
-        ckpt = torch.load(path, map_location=map_location, weights_only=False, mmap=mmap)
+        ckpt = torch.load(path, map_location=map_location, weights_only=True, mmap=mmap)
+    except pickle.UnpicklingError as err:
+        raise UsageError(f"refused checkpoint '{path}': it holds an object other than tensors and plain data "
+                         f"({_refused_object(err)}), and a checkpoint is never allowed to run code.") from None
     except Exception as err:  # a truncated or foreign file surfaces as one of many library errors
         raise UsageError(f"cannot read checkpoint '{path}' ({type(err).__name__}); is it truncated?") from None
-    manifest.verify(run_dir, name.as_posix())
     if not isinstance(ckpt, dict) or "loss" not in ckpt:
         raise UsageError(f"checkpoint '{path}' has no 'loss' entry; is it a drltg training checkpoint?")
     return ckpt

@@ -22,7 +22,8 @@ def load_from_run(loss_module: nn.Module, run_dir: str | Path, *, checkpoint: st
     """Initialise ``loss_module`` from ``<run_dir>/checkpoints/last.pt`` (``checkpoint="best"``: ``best.pt``),
     its ``"loss"`` entry.
 
-    Keyword arguments go to :func:`load_weights`. The checkpoint is unpickled: load only runs you trust.
+    Keyword arguments go to :func:`load_weights`. The checkpoint is read as data only
+    (:func:`drltg.training.rundir.load_checkpoint`): a run from anyone can be loaded.
     """
     from drltg.modules.weights import load_weights
 

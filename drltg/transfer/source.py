@@ -150,8 +150,8 @@ def _first_mismatch(expected: dict, saved: dict) -> str | None:
 def load_agent(run_dir, *, device: str = "cpu", checkpoint: str = "last"):
     """A trained run's learner (:class:`drltg.learners.Agent`: actor, loss with critics, temperature),
     rebuilt from the run directory's ``config.yaml`` and ``checkpoints/last.pt`` (``checkpoint="best"``:
-    ``best.pt``, kept with ``checkpoint.keep_best``). Prints nothing. The checkpoint is unpickled: load only
-    runs you trust."""
+    ``best.pt``, kept with ``checkpoint.keep_best``). Prints nothing. The checkpoint is read as data only (no
+    code in it runs), so a run from anyone can be loaded."""
     return rebuild(run_dir, device, checkpoint).agent
 
 

@@ -23,7 +23,7 @@ def keep_source(run: Path, dest: Path) -> None:
         shutil.copyfile(run / name, dest / name)
     for name in ("last.pt", "best.pt"):
         if name == "last.pt" or (run / "checkpoints" / name).is_file():
-            ckpt = torch.load(run / "checkpoints" / name, map_location="cpu", weights_only=False, mmap=True)
+            ckpt = torch.load(run / "checkpoints" / name, map_location="cpu", weights_only=True, mmap=True)
             tmp = dest / "checkpoints" / f"{name}.tmp"
             torch.save({"loss": ckpt["loss"], "frames": ckpt["frames"]}, tmp)
             tmp.replace(dest / "checkpoints" / name)
