@@ -248,6 +248,9 @@ def test_pushing_the_cube_onto_the_target_is_not_placing(envs):
     # ... but it was never lifted, so no step counts as a success or earns reward
     assert all(x["observation"][LAYOUT["cube_lifted"]].item() == 0.0 for x in trajectory)
     assert not any(x["success"].item() or x["reward"].item() or x["lifted"].item() for x in trajectory)
+    # ... and the episode flag an evaluation counts as pushed_rate says so, from the step the cube touched the disc
+    touched = [x["pushed"].item() for x in trajectory]
+    assert not touched[0] and touched[-1] and touched.index(True) > 0
     # lifting is the only missing condition
     rs._was_lifted = True
     assert rs._check_success()

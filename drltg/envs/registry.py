@@ -420,6 +420,22 @@ register_task(
     reward_shaping=True,
     train=ROBOSUITE_TRAIN,
 )
+# The earlier implementation's place reward (drltg.envs.robosuite.tasks.SeedReward) on drltg's scenes: dense
+# stages plus a contact bonus that pays pushing like placing; success stays drltg's strict check.
+register_task(
+    "lift-place-seed",
+    "drltg.envs.robosuite.env:robosuite_task",
+    "lift-place with the earlier implementation's dense reward (reach, grasp, lift, place; contact pays 1), horizon 500",
+    task="lift-place-seed",
+    train=ROBOSUITE_TRAIN,
+)
+register_task(
+    "lift-place-barrier-seed",
+    "drltg.envs.robosuite.env:robosuite_task",
+    "lift-place-barrier with the earlier implementation's dense reward (contact pays 1), horizon 500",
+    task="lift-place-barrier-seed",
+    train=ROBOSUITE_TRAIN,
+)
 register_pair("lift-to-place", "lift", "lift-place", "lifting skills reused to lift and place")
 register_pair("lift-to-place-barrier", "lift", "lift-place-barrier", "lifting reused where pushing cannot work")
 register_pair(
@@ -428,6 +444,10 @@ register_pair(
 register_pair(
     "lift-dense-to-place-barrier", "lift-dense", "lift-place-barrier", "a dense-reward Lift policy reused over the wall"
 )
+register_pair("lift-dense-to-place-seed", "lift-dense", "lift-place-seed",
+              "the earlier implementation's pair: dense-reward Lift to its dense place reward")
+register_pair("lift-dense-to-place-barrier-seed", "lift-dense", "lift-place-barrier-seed",
+              "the earlier implementation's pair over the wall, on its dense place reward")
 
 
 # Gymnasium's Pendulum with two gravities (drltg.envs.gym.make_gym_env; Gymnasium is imported when one is built).

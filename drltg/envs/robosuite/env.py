@@ -29,6 +29,8 @@ TASK_CLASSES = {
     "lift": "LiftWithTarget",
     "lift-place": "LiftPlace",
     "lift-place-barrier": "LiftPlaceBarrier",
+    "lift-place-seed": "LiftPlaceSeed",
+    "lift-place-barrier-seed": "LiftPlaceBarrierSeed",
 }
 
 
@@ -74,7 +76,8 @@ class RobosuiteEnv(EnvBase):
     (the controller's box, ``[-1, 1]^7``: OSC position/rotation deltas and the gripper), ``reward``,
     ``success`` (the task's own success check after the step), ``lifted`` (the cube has been lifted in
     this episode; drltg's tasks only: the first stage of every task, so an evaluation can tell a policy
-    that lifts but never places from one that does nothing), ``step_count``, ``done`` /
+    that lifts but never places from one that does nothing), ``pushed`` (the place tasks: the cube touches
+    the target without having been lifted in this episode), ``step_count``, ``done`` /
     ``terminated`` / ``truncated``. One env steps one simulation; use ``ParallelEnv`` for several.
 
     Args:
@@ -145,6 +148,7 @@ class RobosuiteEnv(EnvBase):
             self._lean = LeanStep(self._env, self.observables)
         self._step_count = 0
         self._has_lifted = hasattr(self._env, "cube_lifted")
+        self._has_pushed = hasattr(self._env, "cube_pushed")
         self._make_specs(sum(s.stop - s.start for s in self.layout.values()))
         self._set_seed(seed)
 
@@ -159,6 +163,7 @@ class RobosuiteEnv(EnvBase):
             observation=Unbounded((obs_size,), dtype=torch.float32, device=self.device),
             success=Categorical(2, (1,), dtype=torch.bool, device=self.device),
             **({"lifted": Categorical(2, (1,), dtype=torch.bool, device=self.device)} if self._has_lifted else {}),
+            **({"pushed": Categorical(2, (1,), dtype=torch.bool, device=self.device)} if self._has_pushed else {}),
             step_count=Unbounded((1,), dtype=torch.int64, device=self.device),
         )
         self.action_spec = Bounded(
@@ -180,7 +185,10 @@ class RobosuiteEnv(EnvBase):
         return torch.tensor([bool(value)], device=self.device)
 
     def _stage_flags(self) -> dict:
-        return {"lifted": self._flag(self._env.cube_lifted())} if self._has_lifted else {}
+        flags = {"lifted": self._flag(self._env.cube_lifted())} if self._has_lifted else {}
+        if self._has_pushed:
+            flags["pushed"] = self._flag(self._env.cube_pushed())
+        return flags
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
         raw = self._env.reset()

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 from typing import Mapping
 
-TASKS = ("lift", "lift-place", "lift-place-barrier")
+TASKS = ("lift", "lift-place", "lift-place-barrier", "lift-place-seed", "lift-place-barrier-seed")
 """The manipulation tasks sharing this scene and layout."""
 TABLE_TOP_Z = 0.8
 CUBE_HALF_SIZE = 0.022

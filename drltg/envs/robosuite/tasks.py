@@ -134,6 +134,14 @@ class LiftPlace(LiftWithTarget):
     def reward(self, action=None):
         return float(self._check_success()) * (1.0 if self.reward_scale is None else self.reward_scale)
 
+    def cube_on_target(self) -> bool:
+        return bool(self.check_contact(self.cube, self.target))
+
+    def cube_pushed(self) -> bool:
+        """Whether the cube touches the target without having been lifted in this episode: it got there
+        along the table."""
+        return self.cube_on_target() and not self.cube_lifted()
+
     def _check_success(self):
         cube_pos = self.sim.data.body_xpos[self.cube_body_id]
         resting_z = TABLE_TOP_Z + 2 * TARGET_HALF_HEIGHT + self.cube.size[2]
@@ -167,3 +175,42 @@ class LiftPlaceBarrier(LiftPlace):
 
     def barrier_pos(self) -> np.ndarray:
         return np.array(self.sim.data.body_xpos[self.sim.model.body_name2id(self.barrier.root_body)])
+
+
+class SeedReward:
+    """The earlier implementation's dense place reward (mixed into a place task), per step:
+
+        r = 3.25                                   if the cube touches the target disc,
+        r = reach + grasp + lift + place           otherwise, with
+            reach = 1 - tanh(10 * |gripper - cube|),  grasp = 0.25 while grasped,
+            lift  = 0.5 while the cube centre is more than 4 cm above the table,
+            place = 1 - tanh(10 * |cube - target|);
+
+    returned as ``r / 3.25`` (times ``reward_scale``), so a step pays at most 1 (the non-contact terms sum
+    to at most 2.75). Touching the target pays the same whether the cube was carried or pushed there;
+    ``success`` stays the strict place check, and ``cube_pushed`` tells the two apart.
+    """
+
+    CONTACT = 3.25
+
+    def reward(self, action=None):
+        if self.cube_on_target():
+            reward = self.CONTACT
+        else:
+            cube = self.sim.data.body_xpos[self.cube_body_id]
+            to_cube = self._gripper_to_target(self.robots[0].gripper, self.cube.root_body, "body", return_distance=True)
+            reward = (1 - np.tanh(10.0 * to_cube)
+                      + 0.25 * self.cube_grasped()
+                      + 0.5 * self._cube_lifted_now()
+                      + 1 - np.tanh(10.0 * np.linalg.norm(cube - self.target_pos)))
+        return reward / self.CONTACT * (1.0 if self.reward_scale is None else self.reward_scale)
+
+
+class LiftPlaceSeed(SeedReward, LiftPlace):
+    """``LiftPlace``'s scene, observation, action and strict success, with the earlier implementation's
+    dense reward (:class:`SeedReward`)."""
+
+
+class LiftPlaceBarrierSeed(SeedReward, LiftPlaceBarrier):
+    """``LiftPlaceBarrier``'s scene, observation, action and strict success, with the earlier
+    implementation's dense reward (:class:`SeedReward`)."""
