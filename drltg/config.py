@@ -40,6 +40,7 @@ from pydantic import (
 )
 from pydantic.fields import FieldInfo
 
+from drltg import safe_yaml
 from drltg.errors import UsageError
 
 __all__ = ["RunConfig", "resolve", "build", "validate", "as_config", "updated", "describe", "dump", "keys", "defaults",
@@ -71,6 +72,13 @@ Number = Annotated[Union[int, float], BeforeValidator(_finite_number)]
 """An integer or a float, kept as given (an env keyword whose default is a list of numbers)."""
 
 Probability = Annotated[float, BeforeValidator(_finite_number), Field(ge=0.0, le=1.0)]
+
+MAX_EPISODES = 10_000
+"""Most evaluation episodes a run or ``drltg evaluate`` takes (they step as one env batch)."""
+MAX_THREADS = 512
+"""Most CPU threads a run asks torch for (far more than a machine has is an error, not a request)."""
+MAX_SEEDS = 1_000
+"""Most seeds of one command (``--seeds``, an experiment's seeds)."""
 
 
 def _what(text: str = "", noun: str = "") -> dict:
@@ -149,7 +157,7 @@ class SOCConfig(Section):
 
 class EvalConfig(Section):
     every: Int = Field(5_000, ge=1, description="frames between evaluations")
-    episodes: Int = Field(16, ge=1, description="evaluation episodes")
+    episodes: Int = Field(16, ge=1, le=MAX_EPISODES, description="evaluation episodes")
 
 
 class CheckpointConfig(Section):
@@ -208,7 +216,7 @@ class RunConfig(Section):
     frames: Int = Field(50_000, ge=1, description="environment frames, rounded up to whole collector batches")
     device: Str = Field("cpu", description="torch device",
                         json_schema_extra=_what("a torch device such as cpu, cuda or cuda:0"))
-    threads: Int = Field(1, ge=1, description="CPU threads per run")  # small nets are overhead-bound
+    threads: Int = Field(1, ge=1, le=MAX_THREADS, description="CPU threads per run")  # small nets are overhead-bound
     env: dict[Str, Any] = Field(default_factory=dict, description=ENV_HELP,
                                 json_schema_extra=_what("a mapping of the task's keyword arguments (e.g. "
                                                         "env.horizon=200)"))
@@ -659,26 +667,14 @@ def parse_override(text: str) -> tuple[str, Any]:
         raise UsageError(f"override '{text}' must look like KEY=VALUE, e.g. optim.lr=1e-3.")
     key, raw = text.split("=", 1)
     try:
-        value = yaml.safe_load(raw)
-    except yaml.YAMLError:
+        value = safe_yaml.load(raw, f"the value of override '{key.strip()}'")
+    except UsageError as err:
+        if "not valid YAML" not in str(err):
+            raise
         value = raw
     if isinstance(value, str) and _NUMBER.fullmatch(value.strip()):  # YAML reads "1e-3" as a string
         value = float(value)
     return key.strip(), value
-
-
-class UniqueKeyLoader(yaml.SafeLoader):
-    """``yaml.SafeLoader`` that refuses a mapping with a key twice (plain YAML keeps the last silently)."""
-
-    def construct_mapping(self, node, deep=False):
-        seen = set()
-        for key_node, _ in node.value:
-            key = self.construct_object(key_node, deep=True)
-            if key in seen:
-                raise yaml.constructor.ConstructorError(
-                    None, None, f"key {key!r} appears twice (line {key_node.start_mark.line + 1})", key_node.start_mark)
-            seen.add(key)
-        return super().construct_mapping(node, deep)
 
 
 def load_yaml(path: str | Path, what: str = "config file") -> dict:
@@ -688,15 +684,10 @@ def load_yaml(path: str | Path, what: str = "config file") -> dict:
     if not path.is_file():
         raise UsageError(f"{what} '{path}' does not exist.")
     try:
-        data = yaml.load(path.read_text(encoding="utf-8"), Loader=UniqueKeyLoader) or {}
+        text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as err:
         raise UsageError(f"{what} '{path}' is not UTF-8 text (byte {err.start}).") from None
-    except yaml.constructor.ConstructorError as err:
-        if "appears twice" in str(err.problem):
-            raise UsageError(f"{what} '{path}': {err.problem}; give each key once.") from None
-        raise UsageError(f"{what} '{path}' is not valid YAML ({err.__class__.__name__}).") from None
-    except yaml.YAMLError as err:
-        raise UsageError(f"{what} '{path}' is not valid YAML ({err.__class__.__name__}).") from None
+    data = safe_yaml.load(text, f"{what} '{path}'") or {}
     if not isinstance(data, dict):
         raise UsageError(f"{what} '{path}' must hold a mapping of keys.")
     return data

@@ -49,7 +49,7 @@ def script(monkeypatch, results: dict, *, stop_at=None):
     KeyboardInterrupt at the evaluation of frame ``stop_at``."""
     weights = {}
 
-    def evaluate(self):
+    def evaluate(self, check=lambda: None):
         frames = len(self.buffer)  # every collected frame is stored (buffer.size is larger than the run)
         if frames == stop_at:
             raise KeyboardInterrupt
@@ -269,7 +269,7 @@ def test_the_rate_interval_is_clopper_pearson(k, n, expected):
 @pytest.mark.parametrize("args, message", [
     (["evaluate", "{tmp}/missing"], "run directory '{tmp}/missing' does not exist."),
     (["evaluate", "{tmp}", "--checkpoint", "best"], "holds no checkpoints/best.pt: only a run trained with"),
-    (["evaluate", "{run}", "--episodes", "0"], "--episodes must be at least 1, got 0."),
+    (["evaluate", "{run}", "--episodes", "0"], "--episodes must be between 1 and 10000, got 0."),
     (["evaluate", "{run}", "--seed", "-1"], "--seed must be an integer in [0, 2147483647], got -1."),
     (["evaluate", "{run}/eval.csv"], "eval.csv' is a file, not a directory"),
     (["evaluate", "{run}", "--checkpoint", "first"], "invalid choice: 'first'"),
@@ -357,7 +357,7 @@ def test_each_seed_of_a_group_keeps_its_own_best(tmp_path, monkeypatch):
 
     results = [rows({0: 0.0, 256: 0.5, 512: 0.25}), rows({0: 0.0, 256: 0.0, 512: 0.75})]
     monkeypatch.setattr(seeds_mod.GroupLearner, "evaluate",
-                        lambda self: [dict(r[len(self.buffers[0])]) for r in results])
+                        lambda self, check=None: [dict(r[len(self.buffers[0])]) for r in results])
     saves = []
     real = rundir.atomic_torch_save
 

@@ -47,7 +47,7 @@ def _leaves(d, prefix=""):
         ("device=nonsense", "device", "torch device"),
         ("device=5", "device", "torch device"),
         ("device=meta", "device", "cannot train on"),
-        ("threads=0", "threads", "integer >= 1"),
+        ("threads=0", "threads", "integer in [1, 512]"),
         ("seed=-1", "seed", "integer in [0, 2147483647]"),
         ("frames=0", "frames", "integer >= 1"),
         ("frames=1.5", "frames", "integer >= 1"),

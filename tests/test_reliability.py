@@ -227,7 +227,12 @@ def test_resume_rewrites_the_logs_to_the_checkpoint(copy_of_killed, capsys):
     (lambda run: (run / "eval.csv").unlink(), "eval.csv is missing"),
     (lambda run: (run / "eval.csv").write_bytes((run / "eval.csv").read_bytes()[:-9]), "is truncated or malformed"),
     (lambda run: (run / "checkpoints" / "last.pt").write_bytes((run / "checkpoints" / "last.pt").read_bytes()[:5000]),
-     "cannot read checkpoint"),
+     "does not match its SHA-256"),  # checked against the manifest before a byte is unpickled
+    (lambda run: ((run / "checkpoints" / "last.pt").write_bytes((run / "checkpoints" / "last.pt").read_bytes()[:5000]),
+                  (run / "manifest.json").unlink()), "cannot read checkpoint"),  # no manifest: torch finds it torn
+    (lambda run: (run / "checkpoints" / "last.pt").unlink(), "checkpoints/last.pt is missing though its manifest"),
+    (lambda run: shutil.rmtree(run / "logs" / "csv"), "its logs/csv folder is missing"),
+    (lambda run: shutil.rmtree(run / "logs" / "tensorboard"), "its logs/tensorboard folder is missing"),
 ])
 def test_resume_of_a_damaged_run_is_one_sentence(copy_of_killed, damage, message, capsys):
     damage(copy_of_killed)

@@ -224,7 +224,7 @@ def test_a_method_without_a_grouped_form_trains_its_seeds_one_after_another(grou
     assert [d.name for d in dirs] == ["seed-3", "seed-4"] and all((d / "summary.json").is_file() for d in dirs)
 
 
-@pytest.mark.parametrize("args, message", [(["--seeds", "0"], "--seeds must be at least 1, got 0."),
+@pytest.mark.parametrize("args, message", [(["--seeds", "0"], "--seeds must be between 1 and 1000, got 0."),
                                            (["--no-group"], "--no-group applies to --seeds N; add --seeds.")])
 def test_cli_seed_options_bad_input_is_one_sentence(args, message, tmp_path, capsys):
     from drltg.cli import main

@@ -218,12 +218,9 @@ def _config_of(directory: Path) -> dict | None:
     if not config.is_file():
         return None
     _verify(config)
-    import yaml
+    from drltg import safe_yaml
 
-    try:
-        data = yaml.safe_load(config.read_text())
-    except yaml.YAMLError:
-        raise UsageError(f"'{config}' is not valid YAML.") from None
+    data = safe_yaml.load(config.read_text(), f"'{config}'")
     return data if isinstance(data, dict) else {}
 
 

@@ -473,6 +473,9 @@ def fieller_interval(b, t, paired: bool = False, confidence: float = 0.95) -> tu
     (:math:`\bar b^2 > q^2 v_b`); otherwise ``(nan, nan)``: no honest bounded interval exists."""
     alpha = _check_confidence(confidence)
     b, t = _pairs(b, t, paired)
+    size = max(float(np.abs(b).max()), float(np.abs(t).max()))
+    if size > 0:  # the ratio is scale-free; squares of large areas would overflow
+        b, t = b / size, t / size
     nb, nt = b.shape[-1], t.shape[-1]
     mb, mt = b.mean(), t.mean()
     vb, vt = b.var(ddof=1) / nb, t.var(ddof=1) / nt

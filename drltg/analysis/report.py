@@ -83,6 +83,7 @@ from typing import Callable, Sequence
 import numpy as np
 import pandas as pd
 
+from drltg import safe_yaml
 from drltg.analysis import metrics as M
 from drltg.analysis import tables
 from drltg.analysis.curves import FORMATS, Curve, read_curves
@@ -638,8 +639,12 @@ def align(sides: Sides, s: ReportSettings, warnings: list[str]) -> Window:
     source_frames, source_basis = _source_frames(sides.transfer, s)
     if source_frames is not None and not any(source_frames):
         source_basis += "; no source training, so the total-time view equals the target-only one"
-    scale = (budget - start) * max(
-        float(np.abs(c.values[(c.frames >= start) & (c.frames <= budget)]).max()) for c in runs)
+    grid = _grid(runs, start, budget)
+    largest = max(float(np.abs(np.interp(grid, c.frames, c.values)).max()) for c in runs)
+    scale = (budget - start) * largest
+    if not math.isfinite(scale * len(grid)):
+        raise UsageError(f"values up to {largest:.3g} over {number(budget - start)} frames overflow the areas' "
+                         "float64 range; rescale the curves (e.g. report them in other units).")
     _check_grids(sides, start, budget, warnings)
     return Window(start, budget, budget_source, threshold, basis, source_frames, source_basis, scale,
                   _value_range(runs, s, warnings))
@@ -783,15 +788,14 @@ def _source_frames(transfer: Sequence[Curve], s: ReportSettings) -> tuple[list[f
 
 
 def _frames_of_run(run_dir: Path, source: str) -> float | None:
-    import yaml
 
     path = Path(source).expanduser()
     for candidate in ([path] if path.is_absolute() else [Path.cwd() / path, run_dir / path, run_dir.parent / path]):
         config = candidate / "config.yaml"
         if config.is_file():
             try:
-                frames = (yaml.safe_load(config.read_text()) or {}).get("frames")
-            except (yaml.YAMLError, AttributeError):
+                frames = (safe_yaml.load(config.read_text(), f"'{config}'") or {}).get("frames")
+            except (UsageError, AttributeError):
                 return None
             return float(frames) if isinstance(frames, (int, float)) else None
     return None
@@ -1355,7 +1359,14 @@ def fresh_dir(name: str, parent: Path | None = None) -> Path:
 
 
 def check_out_dir(out: Path, option: str = "--out") -> None:
-    """An output folder must be a folder (or creatable as one) that this process can write."""
+    """An output folder must be a folder (or creatable as one) that this process can write, and never a
+    run directory or a folder inside one (a report's files would mix with the run's own)."""
+    rundir.refuse_special(out, option)
+    runs = [p for p in [out, *out.resolve().parents] if (p / rundir.EVAL).is_file() or (p / rundir.SUMMARY).is_file()]
+    run = runs[0] if runs else None
+    if run is not None:
+        raise UsageError(f"{option} '{out}' is {'' if run == out else 'inside '}the run directory '{run}'; write the "
+                         "report to a folder of its own.")
     if out.exists() and not out.is_dir():
         raise UsageError(f"{option} '{out}' is a file, not a folder.")
     existing = next((p for p in [out, *out.parents] if p.exists()), None)

@@ -23,13 +23,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from drltg.training.reevaluate import evaluate_run
-    from drltg.training.rundir import atomic_write, check_directory
+    from drltg.training.rundir import atomic_write, check_directory, refuse_special
 
     check_directory(args.run_dir, "RUN_DIR")
     if not args.run_dir.expanduser().is_dir():
         raise UsageError(f"run directory '{args.run_dir}' does not exist.")
-    if args.out is not None and args.out.is_dir():
-        raise UsageError(f"--out '{args.out}' is a directory; name a JSON file.")
+    if args.out is not None:
+        refuse_special(args.out, "--out")
+        if args.out.is_dir():
+            raise UsageError(f"--out '{args.out}' is a directory; name a JSON file.")
     result = evaluate_run(args.run_dir, checkpoint=args.checkpoint, episodes=args.episodes, seed=args.seed,
                           device=args.device)
     out = args.out or args.run_dir / f"evaluate-{args.checkpoint}-seed{result['seed']}-{args.episodes}ep.json"

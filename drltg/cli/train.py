@@ -34,8 +34,6 @@ def run(args: argparse.Namespace) -> int:
 
     if args.resume and args.run_dir is None:
         raise UsageError("--resume needs --run-dir, the run directory to continue.")
-    if args.seeds is not None and args.seeds < 1:
-        raise UsageError(f"--seeds must be at least 1, got {args.seeds}.")
     if args.no_group and args.seeds is None:
         raise UsageError("--no-group applies to --seeds N; add --seeds.")
     if args.run_dir is not None:

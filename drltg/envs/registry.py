@@ -425,7 +425,8 @@ register_task(
 register_task(
     "lift-place-seed",
     "drltg.envs.robosuite.env:robosuite_task",
-    "lift-place with the earlier implementation's dense reward (reach, grasp, lift, place; contact pays 1), horizon 500",
+    "lift-place with the earlier implementation's dense reward (reach, grasp, lift, place; contact pays 1), "
+    "horizon 500",
     task="lift-place-seed",
     train=ROBOSUITE_TRAIN,
 )

@@ -411,6 +411,21 @@ class RayBackend:
 
 
 # --------------------------------------------------------------------------------------- schedule
+def check_order(runs: list[Run]) -> None:
+    """Refuse a plan in which a run needs itself, directly or through other runs (its source would never
+    finish): one sentence before anything runs, instead of a wait without end."""
+    by_path = {r.path: r for r in runs}
+    for run in runs:
+        chain, current = [run.path], run
+        while current.needs is not None and current.needs in by_path:
+            if current.needs in chain:
+                loop = " -> ".join(f"'{p}'" for p in [*chain[chain.index(current.needs):], current.needs])
+                raise UsageError(f"run '{run.path}' needs its own output as transfer.source ({loop}); name a source "
+                                 "that is not one of the runs it feeds.")
+            chain.append(current.needs)
+            current = by_path[current.needs]
+
+
 def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs",
             group_seeds: bool = True) -> dict[Path, tuple[str, str]]:
     """Run every incomplete run (each after the run it needs) and return ``{path: (status, detail)}``
@@ -418,6 +433,7 @@ def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs",
     runs that differ only in their seed train as one seed group (:func:`seed_groups`)."""
     from tqdm.auto import tqdm
 
+    check_order(runs)
     status: dict[Path, tuple[str, str]] = {}
     for r in runs:
         finished = rundir.summary_status(r.path)
@@ -452,6 +468,10 @@ def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs",
                     handle = backend.submit(unit[0]) if len(unit) == 1 else backend.submit_group(unit)
                     running[handle] = unit
                     units.remove(unit)
+            if units and not running:  # nothing runs and nothing can start: never wait on that
+                for run in (run for unit in units for run in unit):
+                    status[run.path] = ("failed", f"not run: the run it needs ({run.needs}) cannot run before it")
+                units.clear()
             postfix()
             for handle, result in backend.wait(list(running), poll) if running else ():
                 unit = running.pop(handle)

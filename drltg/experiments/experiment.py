@@ -31,6 +31,7 @@ from pathlib import Path
 import yaml
 
 from drltg import config as config_lib
+from drltg import safe_yaml
 from drltg.config import RunConfig
 from drltg.errors import UsageError
 from drltg.training import rundir
@@ -57,7 +58,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--threshold", help="report threshold: a value, or a fraction of the best baseline like 80%%")
 
 
-MAX_SEEDS = 1000
+MAX_SEEDS = config_lib.MAX_SEEDS
 """The most runs a side one experiment plans (a larger count is a typo, and planning it would take long)."""
 SEED_MAX = 2**31 - 1
 PLAN_KEYS = {"task": "the PAIR argument", "algo": "--algo", "seed": "--seed", "frames": "--frames or --source-frames",
@@ -209,10 +210,7 @@ def check_existing(runs: list) -> None:
     for run in runs:
         saved = rundir.check_directory(run.path, "run directory") / rundir.CONFIG
         if saved.is_file():
-            try:
-                old = rundir.read_config(run.path)
-            except yaml.YAMLError:
-                raise UsageError(f"'{saved}' is not valid YAML; move the run away or use another --out.") from None
+            old = rundir.read_config(run.path)
             keys = config_changes(old if isinstance(old, dict) else {}, run.cfg)
             if keys:
                 raise UsageError(f"'{run.path}' holds a run with another config (differs in {', '.join(keys)}); "
@@ -230,10 +228,7 @@ def _settings(args: argparse.Namespace) -> dict:
 def _check_settings(path: Path, settings: dict) -> None:
     if not path.is_file():
         return
-    try:
-        saved = yaml.safe_load(path.read_text())
-    except yaml.YAMLError:
-        raise UsageError(f"'{path}' is not valid YAML; choose another --out.") from None
+    saved = safe_yaml.load(path.read_text(), f"'{path}'")
     saved = {k: v for k, v in saved.items() if k != "out"} if isinstance(saved, dict) else saved
     if saved != settings:
         raise UsageError(f"'{path.parent}' holds an experiment with other settings; choose another --out.")
@@ -242,7 +237,7 @@ def _check_settings(path: Path, settings: dict) -> None:
 def run(args: argparse.Namespace) -> int:
     from drltg.analysis.claims import headline
     from drltg.analysis.report import format_table, parse_threshold, transfer_report
-    from drltg.experiments.executor import LocalBackend, execute
+    from drltg.experiments.executor import LocalBackend, check_order, execute
 
     if args.workers < 1:
         raise UsageError("--workers must be at least 1.")
@@ -253,6 +248,7 @@ def run(args: argparse.Namespace) -> int:
     check_runs(runs)
     settings, saved = _settings(args), out / "experiment.yaml"
     _check_settings(saved, settings)
+    check_order(as_runs(runs, out))
     check_existing(as_runs(runs, out))
     try:
         out.mkdir(parents=True, exist_ok=True)

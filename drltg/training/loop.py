@@ -14,6 +14,7 @@ import contextlib
 import math
 import shutil
 import signal
+import sys
 import threading
 import time
 from collections import defaultdict
@@ -21,7 +22,6 @@ from pathlib import Path
 from typing import Callable
 
 import torch
-import yaml
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictSequential
 from torchrl.collectors import Collector
@@ -34,7 +34,7 @@ from drltg.config import RunConfig, config_changes
 from drltg.envs import make_env
 from drltg.errors import UsageError
 from drltg.learners import Agent, UpdateStep, make_agent, sample_batches
-from drltg.training import best, health, preflight, rundir
+from drltg.training import best, health, manifest, preflight, rundir
 from drltg.training.rundir import CHECKPOINT, CONFIG, EPISODE_FLAGS, EVAL, RunWriter, is_complete, read_eval_csv
 from drltg.transfer import Transfer, get_method
 from drltg.transfer.source import check as check_source
@@ -92,19 +92,22 @@ def check_config(cfg: RunConfig):
     return probe, agent
 
 
-def evaluate(env: EnvBase, actor: Callable, max_steps: int = 100_000) -> dict:
+def evaluate(env: EnvBase, actor: Callable, max_steps: int = 100_000, check: Callable[[], None] = lambda: None) -> dict:
     """Run one episode in every batch element of ``env`` with the deterministic actor.
 
     Returns the mean/std of the undiscounted episode return and, for each ``rundir.EPISODE_FLAGS``
     entry the env reports (``success``; ``lifted`` on the manipulation tasks), the fraction of episodes
     in which it was ever true (``success_rate``, ``lifted_rate``), counting each element's first
-    episode only.
+    episode only. An episode still running after ``max_steps`` steps is counted with its partial return,
+    said on stderr and in the row's ``unfinished`` entry. ``check`` is called at every step (a deferred
+    Ctrl-C or SIGTERM stops an evaluation there).
     """
-    return evaluate_seeds(env, actor, 1, max_steps)[0]
+    return evaluate_seeds(env, actor, 1, max_steps, check)[0]
 
 
 @torch.no_grad()
-def evaluate_seeds(env: EnvBase, actor: Callable, seeds: int, max_steps: int = 100_000) -> list[dict]:
+def evaluate_seeds(env: EnvBase, actor: Callable, seeds: int, max_steps: int = 100_000,
+                   check: Callable[[], None] = lambda: None) -> list[dict]:
     """:func:`evaluate` of a seed group's env: one row per block of ``batch / seeds`` elements (seed k's
     episodes), each computed as its seed's own evaluation would be."""
     td = env.reset()
@@ -115,6 +118,7 @@ def evaluate_seeds(env: EnvBase, actor: Callable, seeds: int, max_steps: int = 1
     ever = {key: torch.zeros_like(alive) for key in flags}
     with set_exploration_type(ExplorationType.DETERMINISTIC):
         for _ in range(max_steps):
+            check()
             td = env.step(actor(td))
             nxt = td["next"]
             ret += nxt["reward"] * alive
@@ -133,6 +137,11 @@ def evaluate_seeds(env: EnvBase, actor: Callable, seeds: int, max_steps: int = 1
         }
         for key in flags:
             row[f"{key}_rate"] = ever[key].flatten().chunk(seeds)[k].float().mean().item()
+        unfinished = int(alive.flatten().chunk(seeds)[k].sum())
+        if unfinished:
+            row["unfinished"] = unfinished
+            print(f"warning: {unfinished} of {row['episodes']} evaluation episodes did not end within {max_steps} "
+                  "steps; their partial returns are counted (eval.csv's unfinished column).", file=sys.stderr)
         rows.append(row)
     return rows
 
@@ -146,10 +155,7 @@ def _refuse_existing(run_dir: Path) -> None:
 
 
 def _check_saved_config(cfg: RunConfig, run_dir: Path) -> None:
-    try:
-        saved = rundir.read_config(run_dir)
-    except yaml.YAMLError:
-        raise UsageError(f"cannot resume: '{run_dir / CONFIG}' is not valid YAML.") from None
+    saved = rundir.read_config(run_dir)
     changed = config_changes(saved if isinstance(saved, dict) else {},
                              rundir.absolute_source(cfg.model_dump(), Path.cwd()))
     if changed:
@@ -159,6 +165,10 @@ def _check_saved_config(cfg: RunConfig, run_dir: Path) -> None:
 def _resume_state(cfg: RunConfig, run_dir: Path) -> tuple[dict | None, list[dict]]:
     """The checkpoint to continue from (``None``: start over) and the evaluations up to it."""
     if not (run_dir / CHECKPOINT).is_file():
+        if CHECKPOINT.as_posix() in manifest.read(run_dir):
+            raise UsageError(f"cannot resume '{run_dir}': its {CHECKPOINT.as_posix()} is missing though its manifest "
+                             "lists it, so the run would start over from frame 0; restore the checkpoint or start the "
+                             "run again in another --run-dir.")
         return None, []
     ckpt = rundir.load_checkpoint(run_dir, map_location=cfg.device)
     if not {"frames", "updates", "optimizer", "buffer", "rng"} <= set(ckpt):
@@ -256,7 +266,7 @@ def train(
 
         created = False
         if resume:
-            rundir.truncate_logs(run_dir, ckpt["frames"] if ckpt is not None else -1)
+            rundir.truncate_logs(run_dir, ckpt["frames"] if ckpt is not None else -1, cfg.log.tensorboard)
         else:
             created = not run_dir.exists()
             try:
@@ -367,8 +377,8 @@ class AgentLearner:
     def update(self, batch: TensorDictBase, update_actor: bool) -> TensorDictBase:
         return self.step(batch, update_actor=update_actor).unsqueeze(0)
 
-    def evaluate(self) -> list[dict]:
-        return [evaluate(self.eval_env, self.agent.actor)]
+    def evaluate(self, check: Callable[[], None] = lambda: None) -> list[dict]:
+        return [evaluate(self.eval_env, self.agent.actor, check=check)]
 
     def state(self) -> list[dict]:
         return [{
@@ -396,7 +406,7 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
     saved = frames  # the frame of the latest last.pt (a resumed run's checkpoint; none yet at frame 0)
 
     def run_eval() -> None:
-        for writer, row in zip(writers, learner.evaluate()):
+        for writer, row in zip(writers, learner.evaluate(stop_if_signalled)):
             writer.evaluation({"frames": frames, **row})
         bar.set_postfix(eval_return=f"{writers[0].rows[-1]['return_mean']:.3f}", refresh=False)
         if cfg.checkpoint.keep_best:

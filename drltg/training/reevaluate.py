@@ -49,11 +49,12 @@ def evaluate_run(run_dir: str | Path, *, checkpoint: str = "last", episodes: int
     held at once: 10 robosuite envs, not 100), batch i seeded ``seed + i`` (default ``seed``: the run's
     seed + ``FRESH_SEED_OFFSET``), the rows :func:`pooled`. Returns the evaluation's numbers with the
     checkpoint, its frame, the seed and a 95% interval ``<flag>_rate_ci95`` for every rate."""
+    from drltg.config import MAX_EPISODES
     from drltg.training.loop import evaluate, make_eval_env
     from drltg.transfer.source import rebuild
 
-    if episodes < 1:
-        raise UsageError(f"--episodes must be at least 1, got {episodes}.")
+    if not 1 <= episodes <= MAX_EPISODES:
+        raise UsageError(f"--episodes must be between 1 and {MAX_EPISODES}, got {episodes}.")
     if seed is not None and not 0 <= seed <= 2**31 - 1:
         raise UsageError(f"--seed must be an integer in [0, 2147483647], got {seed}.")
     agent, _, cfg, frames = rebuild(run_dir, device, checkpoint)

@@ -45,10 +45,13 @@ MODEL_REUSE = "model_reuse.txt"
 LOCK = ".drltg.lock"
 EPISODE_FLAGS = ("success", "lifted", "pushed")
 """Boolean env outputs an evaluation counts as "ever true in the episode": eval.csv's ``<flag>_rate``."""
-EVAL_COLUMNS = ["frames", "return_mean", "return_std", "episodes", *(f"{flag}_rate" for flag in EPISODE_FLAGS)]
+EVAL_COLUMNS = ["frames", "return_mean", "return_std", "episodes", *(f"{flag}_rate" for flag in EPISODE_FLAGS),
+                "unfinished"]
+"""eval.csv's columns, those a run has in this order; ``unfinished``: episodes cut at the evaluation's step limit."""
+
 
 __all__ = ["atomic_write", "atomic_torch_save", "atomic_path", "write_files", "read_eval_csv", "write_eval_csv",
-           "read_config", "write_config", "absolute_source", "is_complete", "check_directory", "lock",
+           "read_config", "write_config", "absolute_source", "is_complete", "check_directory", "refuse_special", "lock",
            "load_checkpoint", "checkpoint_path", "missing_checkpoint", "truncate_logs", "RunWriter"]
 
 
@@ -65,11 +68,11 @@ def absolute_source(cfg: dict, base: Path) -> dict:
 
 
 def read_config(run_dir: str | Path):
-    """A run's ``config.yaml``, its ``transfer.source`` as an absolute path (raises ``yaml.YAMLError``)."""
-    import yaml
+    """A run's ``config.yaml``, its ``transfer.source`` as an absolute path (bad YAML: :class:`UsageError`)."""
+    from drltg import safe_yaml
 
     run_dir = Path(run_dir)
-    return absolute_source(yaml.safe_load((run_dir / CONFIG).read_text()), run_dir)
+    return absolute_source(safe_yaml.load((run_dir / CONFIG).read_text(), f"'{run_dir / CONFIG}'"), run_dir)
 
 
 def write_config(run_dir: str | Path, cfg: Any) -> None:
@@ -111,6 +114,7 @@ def atomic_path(path: str | Path) -> Iterator[str]:
     read-only folder) becomes one :class:`UsageError` sentence.
     """
     path = Path(path)
+    refuse_special(path, "output")
     tmp = None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -126,6 +130,22 @@ def atomic_path(path: str | Path) -> Iterator[str]:
         if isinstance(err, OSError):
             raise UsageError(f"cannot write '{path}' ({err.strerror or err}).") from None
         raise
+
+
+def refuse_special(path: str | Path, option: str) -> None:
+    """Refuse an output path that exists as something other than a regular file or folder (a device, a
+    FIFO, a socket): drltg writes regular files only, and a rename would replace the special file."""
+    import stat
+
+    try:
+        mode = os.stat(path).st_mode
+    except (FileNotFoundError, NotADirectoryError):
+        return
+    except OSError as err:
+        raise UsageError(f"{option} '{path}' cannot be read ({err.strerror or err}).") from None
+    if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+        kind = "a FIFO" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else "a device"
+        raise UsageError(f"{option} '{path}' is {kind}; drltg writes only regular files, so choose a file path.")
 
 
 def atomic_write(path: str | Path, data: str | bytes) -> None:
@@ -248,14 +268,19 @@ def read_eval_csv(path: str | Path) -> list[dict]:
         for row in reader:
             if None in row or None in row.values():
                 raise ValueError
-            rows.append({k: _cell(k, v) for k, v in row.items() if not (v == "" and k.endswith("_rate"))})
+            rows.append({k: _cell(k, v) for k, v in row.items() if not (v == "" and _optional(k))})
     except ValueError:
         raise UsageError(f"'{path}' is truncated or malformed at line {max(reader.line_num, 1)}.") from None
     return rows
 
 
+def _optional(column: str) -> bool:
+    """A column a row may leave empty (written before the run reported it, or nothing to report)."""
+    return column.endswith("_rate") or column == "unfinished"
+
+
 def _cell(column: str, text: str) -> int | float:
-    return int(text) if column in ("frames", "episodes") else float(text)
+    return int(text) if column in ("frames", "episodes", "unfinished") else float(text)
 
 
 def is_complete(run_dir: str | Path) -> bool:
@@ -294,6 +319,7 @@ def check_directory(path: str | Path, option: str) -> Path:
         shown = os.fsencode(str(path)).decode("utf-8", "backslashreplace")
         raise UsageError(f"{option} '{shown}' is not valid UTF-8; choose a name in UTF-8.") from None
     path = Path(path).expanduser().resolve()
+    refuse_special(path, option)
     if path.exists() and not path.is_dir():
         raise UsageError(f"{option} '{path}' is a file, not a directory; choose another {option}.")
     return path
@@ -490,17 +516,22 @@ def load_checkpoint(run_dir: str | Path, map_location="cpu", mmap: bool = False,
 
 
 # -------------------------------------------------------------------------------------------- logs
-def truncate_logs(run_dir: str | Path, frame: int) -> None:
+def truncate_logs(run_dir: str | Path, frame: int, tensorboard: bool = False) -> None:
     """Drop every logged scalar after ``frame`` (CSVLogger files and TensorBoard event files).
 
     A resumed run logs again from its checkpoint's frame; without this the logs would hold those
-    steps twice and their curves would run backwards.
+    steps twice and their curves would run backwards. A resume from a checkpoint (``frame >= 0``) whose
+    logs are gone (``logs/csv``, or ``logs/tensorboard`` where the run writes it) is refused: its logs
+    would start mid-run.
     """
     logs = Path(run_dir) / LOGS
-    if frame >= 0 and not logs.is_dir():
-        raise UsageError(f"cannot resume '{run_dir}': its {LOGS}/ folder is missing, so the training scalars up to "
-                         f"the checkpoint at frame {frame} are lost; restore it or start the run again in another "
-                         "--run-dir.")
+    needed = [logs / "csv", *[logs / "tensorboard"] * tensorboard]
+    lost = [f"{LOGS}/"] if not logs.is_dir() else [p.relative_to(run_dir).as_posix() for p in needed if not p.is_dir()]
+    if frame >= 0 and lost:
+        folders = f"{' and '.join(lost)} folder{'s are' if len(lost) > 1 else ' is'}"
+        raise UsageError(f"cannot resume '{run_dir}': its {folders} missing, so the training "
+                         f"scalars up to the checkpoint at frame {frame} are lost; restore it or start the run again "
+                         "in another --run-dir.")
     for path in sorted((logs / "csv").rglob("*.csv")):
         _truncate_csv(path, frame)
     for path in sorted((logs / "tensorboard").rglob("*tfevents*")):

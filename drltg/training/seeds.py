@@ -44,6 +44,7 @@ import contextlib
 import functools
 import sys
 from pathlib import Path
+from typing import Callable
 
 import torch
 from tensordict import TensorDictBase
@@ -127,8 +128,8 @@ def train_seeds(cfg: RunConfig, run_dir: str | Path, seeds: int, *, resume: bool
     """Train seeds ``cfg.seed`` … ``cfg.seed + seeds - 1`` of ``cfg`` into ``run_dir/seed-<k>/``;
     as one group where :func:`group_support` allows and ``group`` is true, else one after another (with
     a note on stderr saying why). Returns the run directories."""
-    if seeds < 1:
-        raise UsageError(f"--seeds must be at least 1, got {seeds}.")
+    if not 1 <= seeds <= config.MAX_SEEDS:
+        raise UsageError(f"--seeds must be between 1 and {config.MAX_SEEDS}, got {seeds}.")
     cfg, run_dir = config.as_config(cfg), rundir.check_directory(run_dir, "--run-dir")
     cfgs = [config.updated(cfg, {"seed": cfg.seed + k}) for k in range(seeds)]
     dirs = seed_dirs(run_dir, cfg.seed, seeds)
@@ -180,8 +181,8 @@ class GroupLearner:
     def update(self, batch: TensorDictBase, update_actor: bool) -> TensorDictBase:
         return self.group.update(batch, update_actor)
 
-    def evaluate(self) -> list[dict]:
-        return evaluate_seeds(self.eval_env, self.actor, self.seeds)
+    def evaluate(self, check: Callable[[], None] = lambda: None) -> list[dict]:
+        return evaluate_seeds(self.eval_env, self.actor, self.seeds, check=check)
 
     def state(self) -> list[dict]:
         self.group.sync()
@@ -366,7 +367,7 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
         created = [not d.exists() for d in dirs]
         if resume:
             for d, ckpt in zip(dirs, ckpts):
-                rundir.truncate_logs(d, ckpt["frames"] if ckpt is not None else -1)
+                rundir.truncate_logs(d, ckpt["frames"] if ckpt is not None else -1, cfg.log.tensorboard)
         else:
             for d in dirs:
                 try:

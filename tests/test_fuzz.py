@@ -1,0 +1,99 @@
+"""Property-based checks of what a user types or hands over: every ``-o`` override, sweep spec and report
+input either gives a result or one :class:`UsageError` sentence — never another exception.
+
+The profile here is short (it runs in ``make test``); ``python -m benchmarks.fuzz`` runs the same
+properties with many more examples.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from drltg import config as config_lib
+from drltg.analysis.curves import Curve
+from drltg.analysis.report import compute, render
+from drltg.errors import UsageError
+
+EXAMPLES = int(os.environ.get("DRLTG_FUZZ_EXAMPLES", "60"))
+FUZZ = settings(max_examples=EXAMPLES, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+texts = st.text(st.characters(codec="utf-8"), max_size=30)
+scalars = st.one_of(st.none(), st.booleans(), st.integers(-(2**70), 2**70), texts,
+                    st.floats(allow_nan=True, allow_infinity=True))
+values = st.recursive(scalars, lambda inner: st.one_of(st.lists(inner, max_size=4),
+                                                       st.dictionaries(texts, inner, max_size=4)), max_leaves=12)
+keys = st.one_of(st.sampled_from(config_lib.keys()), texts,
+                 st.sampled_from(config_lib.keys()).map(lambda k: k + ".x"))
+
+
+def one_sentence(err: UsageError) -> None:
+    text = str(err)
+    assert text and "\n" not in text.strip() and "Traceback" not in text, text
+
+
+@FUZZ
+@given(key=keys, value=st.one_of(texts, values.map(lambda v: yaml.safe_dump(v, default_flow_style=True).strip())))
+def test_any_override_is_a_config_or_one_sentence(key, value):
+    try:
+        cfg = config_lib.resolve(None, [f"{key}={value}"], task="fourrooms/northeast")
+    except UsageError as err:
+        one_sentence(err)
+    else:
+        assert isinstance(cfg, config_lib.RunConfig)
+
+
+@FUZZ
+@given(data=st.dictionaries(st.sampled_from(["pairs", "methods", "algos", "seeds", "frames", "threshold", "grid",
+                                             "overrides", "tasks", "source_frames"]) | texts, values, max_size=6))
+def test_any_sweep_spec_is_a_plan_or_one_sentence(data):
+    from drltg.experiments.sweep import parse_spec
+
+    try:
+        parse_spec(data)
+    except UsageError as err:
+        one_sentence(err)
+
+
+finite = st.floats(min_value=-1e307, max_value=1e307, allow_nan=False, allow_infinity=False)
+
+
+@st.composite
+def curves(draw, side: str):
+    """A set of runs on a shared or drawn frame grid, with any finite returns (huge, equal, constant)."""
+    n_runs = draw(st.integers(1, 4))
+    grid = draw(st.lists(st.integers(0, 10**7), min_size=1, max_size=6, unique=True).map(sorted))
+    runs = []
+    for k in range(n_runs):
+        ys = draw(st.one_of(st.lists(finite, min_size=len(grid), max_size=len(grid)),
+                            st.just([float(k)] * len(grid)), st.just([0.0] * len(grid))))
+        runs.append(Curve(grid, ys, Path(f"/{side}/seed-{k}"), f"{side}/seed-{k}"))
+    return runs
+
+
+@FUZZ
+@given(baseline=curves("baseline"), transfer=curves("transfer"), same=st.booleans())
+def test_any_curves_give_a_report_or_one_sentence(baseline, transfer, same):
+    if same:  # a method with no effect: the transfer runs equal their paired baselines
+        transfer = [Curve(c.frames, c.values, Path(f"/transfer/{c.source.name}"), f"transfer/{c.source.name}")
+                    for c in baseline]
+    try:
+        result = compute(baseline, transfer)
+        files = render(result)
+    except UsageError as err:
+        one_sentence(err)
+        return
+    def refuse(token):
+        raise AssertionError(f"{token} in a report's JSON")
+
+    for name, data in files.items():
+        if name.endswith(".json"):
+            json.loads(data, parse_constant=refuse)  # strict JSON: no NaN or Infinity tokens
+    for key, value in result["metrics"].items():
+        for v in value if isinstance(value, (list, tuple)) else [value]:
+            assert v is None or isinstance(v, (bool, str)) or math.isfinite(v), (key, value)

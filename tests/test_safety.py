@@ -1,0 +1,170 @@
+"""Outputs are regular files, every count a user gives is bounded, a stop is prompt, and an evaluation
+that cuts an episode says so."""
+import os
+import signal
+import socket
+
+import pytest
+import torch
+
+import drltg.training.loop as train_mod
+from drltg.cli import main
+from drltg.envs import make_env
+from drltg.training import rundir
+from tests.test_reliability import one_sentence, train_args
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    run = tmp_path_factory.mktemp("finished") / "sac"
+    assert main(train_args(run, frames=64)) == 0
+    return run
+
+
+# ------------------------------------------------------------------------ outputs are regular files
+def test_evaluate_refuses_a_device_as_out(finished, capsys):
+    one_sentence(capsys, main(["evaluate", str(finished), "--episodes", "2", "--out", os.devnull]), 2, "is a device")
+    assert os.path.exists(os.devnull) and not os.path.isfile(os.devnull)
+
+
+def test_evaluate_refuses_a_fifo_as_out(finished, tmp_path, capsys):
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    one_sentence(capsys, main(["evaluate", str(finished), "--episodes", "2", "--out", str(fifo)]), 2, "is a FIFO")
+    assert fifo.is_fifo()
+
+
+def test_a_socket_is_neither_a_run_dir_nor_an_out_folder(tmp_path, capsys):
+    path = tmp_path / "sock"
+    with socket.socket(socket.AF_UNIX) as s:
+        s.bind(str(path))
+        one_sentence(capsys, main(train_args(path)), 2, "is a socket")
+        one_sentence(capsys, main(["report", "--baseline", str(tmp_path), "--transfer", str(tmp_path),
+                                   "--out", str(path)]), 2, "is a socket")
+    assert not path.exists() or path.is_socket()
+
+
+def test_a_report_is_never_written_into_a_run(finished, capsys):
+    before = sorted(p.name for p in finished.iterdir())
+    for out in (finished, finished / "report"):
+        one_sentence(capsys, main(["report", "--baseline", str(finished), "--transfer", str(finished),
+                                   "--out", str(out)]), 2, "the run directory", "a folder of its own")
+    assert sorted(p.name for p in finished.iterdir()) == before
+
+
+def test_atomic_writes_refuse_special_files(tmp_path):
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    with pytest.raises(Exception, match="is a FIFO"):
+        rundir.atomic_write(fifo, "data")
+    assert fifo.is_fifo() and [p.name for p in tmp_path.iterdir()] == ["fifo"]
+
+
+# ------------------------------------------------------------------------------------------- bounds
+@pytest.mark.parametrize("args, message", [
+    (["-o", "threads=100000"], "'threads' must be an integer in [1, 512], got 100000"),
+    (["-o", "eval.episodes=1000000000"], "'eval.episodes' must be an integer in [1, 10000], got 1000000000"),
+])
+def test_counts_in_the_config_are_bounded(args, message, tmp_path, capsys):
+    one_sentence(capsys, main(train_args(tmp_path / "r", *args)), 2, message)
+    assert not (tmp_path / "r").exists()
+
+
+def test_seeds_and_episodes_on_the_command_line_are_bounded(finished, tmp_path, capsys):
+    one_sentence(capsys, main(train_args(tmp_path / "r", "--seeds", "100000")), 2, "--seeds must be between 1 and")
+    one_sentence(capsys, main(["evaluate", str(finished), "--episodes", "1000000000"]), 2,
+                 "--episodes must be between 1 and")
+    one_sentence(capsys, main(["evaluate", str(finished), "--episodes", "0"]), 2, "--episodes must be between 1 and")
+    assert not (tmp_path / "r").exists()
+
+
+def test_an_experiment_whose_transfer_run_is_its_own_source_is_refused(tmp_path, capsys):
+    out = tmp_path / "x"
+    code = main(["experiment", "fourrooms/northeast", "--method", "model-reuse", "--seeds", "1", "--frames", "64",
+                 "--out", str(out), "-o", f"transfer.source={out / 'transfer' / 'seed-0'}"])
+    one_sentence(capsys, code, 2, "needs its own output as transfer.source")
+    assert not out.exists()
+
+
+def test_the_executor_never_waits_on_runs_that_cannot_start(tmp_path):
+    from drltg.experiments.executor import Run, execute
+
+    class NoBackend:
+        capacity = 1
+
+    a, b = tmp_path / "a", tmp_path / "b"
+    runs = [Run("transfer", None, a, tmp_path / "a.log", needs=b),
+            Run("transfer", None, b, tmp_path / "b.log", needs=a)]
+    with pytest.raises(Exception, match="needs its own output"):
+        execute(runs, NoBackend())
+
+
+@pytest.mark.parametrize("text, message", [
+    ("a: &a [x, x, x, x, x, x, x, x, x, x]\n" + "".join(
+        f"{n}: &{n} [{', '.join(['*' + p] * 10)}]\n" for p, n in zip("abcdefg", "bcdefgh")) + "network: {hidden: *h}\n",
+     "more than 100,000 values once its aliases are expanded"),
+    ("network: " + "[" * 3000 + "]" * 3000 + "\n", "more than 64 levels deep"),
+    ("network: " + "[" * 65 + "]" * 65 + "\n", "more than 64 levels deep"),
+])
+def test_a_config_file_that_expands_or_nests_without_bound_is_one_sentence(text, message, tmp_path, capsys):
+    path = tmp_path / "config.yaml"
+    path.write_text(text)
+    one_sentence(capsys, main(train_args(tmp_path / "r", "--config", str(path))), 2, message)
+    assert not (tmp_path / "r").exists()
+
+
+def test_an_override_value_that_expands_without_bound_is_one_sentence(tmp_path, capsys):
+    value = "[" + ", ".join(["&a [[1, 1, 1, 1, 1, 1, 1, 1, 1, 1]]"] + ["*a"] * 9) + "]"
+    bomb = "[" + ", ".join([f"&b {value}"] + ["*b"] * 9) + "]"
+    from drltg.safe_yaml import MAX_NODES, load
+
+    assert len(str(load(bomb, "x"))) > 0  # 100 lists of 10: within the bound
+    deeper = "[" + ", ".join([f"&c {bomb}"] + ["*c"] * 999) + "]"
+    one_sentence(capsys, main(train_args(tmp_path / "r", "-o", f"network.hidden={deeper}")), 2,
+                 f"more than {MAX_NODES:,} values")
+
+
+# ------------------------------------------------------------------------------- a prompt stop
+def test_ctrl_c_during_an_evaluation_stops_it_at_the_next_step(tmp_path, monkeypatch):
+    """SIGINT arriving in the middle of the second evaluation ends the run there (exit 130), with the
+    checkpoint kept and the lock released; a resume then finishes the run."""
+    real, steps = train_mod.evaluate, {"evaluations": 0, "after_signal": 0}
+
+    def evaluate(env, actor, max_steps=100_000, check=lambda: None):
+        steps["evaluations"] += 1
+        calls = {"n": 0}
+
+        def act(td):
+            calls["n"] += 1
+            if steps["evaluations"] == 3 and calls["n"] == 3:
+                os.kill(os.getpid(), signal.SIGINT)
+            elif steps["evaluations"] == 3 and calls["n"] > 3:
+                steps["after_signal"] += 1
+            return actor(td)
+
+        return real(env, act, max_steps, check)
+
+    monkeypatch.setattr(train_mod, "evaluate", evaluate)
+    run = tmp_path / "run"
+    assert main(train_args(run, "-o", "checkpoint.every=128", frames=512)) == 130
+    assert steps["after_signal"] == 0
+    assert not (run / rundir.LOCK).exists()
+    assert [r["frames"] for r in rundir.read_eval_csv(run / "eval.csv")] == [0, 128]
+    assert rundir.load_checkpoint(run)["frames"] == 128
+    monkeypatch.setattr(train_mod, "evaluate", real)
+    assert main(["train", "--resume", "--run-dir", str(run), "--no-progress"]) == 0
+    assert [r["frames"] for r in rundir.read_eval_csv(run / "eval.csv")] == [0, 128, 256, 384, 512]
+
+
+# ------------------------------------------------------------------------- a cut episode is said
+def test_an_evaluation_cut_at_its_step_limit_says_so(capsys, tmp_path):
+    env = make_env("fourrooms/northeast", batch_size=(4,), seed=0)
+    still = lambda td: td.set("action", torch.zeros(4, 2))  # noqa: E731  (never reaches the goal)
+    row = train_mod.evaluate(env, still, max_steps=5)
+    assert row["unfinished"] == 4 and row["episodes"] == 4
+    assert "4 of 4 evaluation episodes did not end within 5 steps" in capsys.readouterr().err
+    finished = train_mod.evaluate(env, still)  # the horizon (100) ends every episode
+    assert "unfinished" not in finished
+    rows = [{"frames": 0, **finished}, {"frames": 10, **row}]
+    rundir.write_eval_csv(tmp_path / "eval.csv", rows)
+    assert rundir.read_eval_csv(tmp_path / "eval.csv") == rows
