@@ -39,6 +39,9 @@ def load(modules=()) -> list[str]:
     for ep in entry_points(group=GROUP):
         try:
             ep.load()
+        except SystemExit as err:
+            raise UsageError(f"the drltg plugin '{ep.name}' ({ep.value}) called sys.exit({err.code!r}) while it "
+                             "was imported; a plugin module must only define and register.") from None
         except Exception as err:
             raise UsageError(f"the drltg plugin '{ep.name}' ({ep.value}) failed to load: {err}") from None
         loaded.append(ep.value)
@@ -52,6 +55,9 @@ def load(modules=()) -> list[str]:
             raise UsageError(f"plugin module '{name}' failed to import: {err}") from None
         except UsageError:
             raise
+        except SystemExit as err:
+            raise UsageError(f"plugin module '{name}' called sys.exit({err.code!r}) while it was imported; a plugin "
+                             "module must only define and register.") from None
         except Exception as err:
             raise UsageError(f"plugin module '{name}' failed to import: {type(err).__name__}: {err}") from None
         loaded.append(name)

@@ -205,6 +205,19 @@ def test_multi_seed_plot_with_band(two_by_two, tmp_path):
     assert "reuse vs scratch" in (tmp_path / "o" / "transfer_plot.svg").read_text()
 
 
+def test_labels_with_dollar_signs_are_drawn_as_text(two_by_two, tmp_path):
+    """A pair of ``$`` would be read as mathematics: ``cost$5 vs $10`` drawn in italics, and an unbalanced
+    ``\\frac{`` between two of them fails to parse."""
+    import matplotlib
+
+    b, t = two_by_two
+    report.transfer_report(b, t, tmp_path / "o", threshold=9, baseline_label="cost$5 vs $10",
+                           transfer_label="reuse $\\frac{1}{$")
+    _assert_real_plot(tmp_path / "o" / "transfer_plot.png")
+    assert "reuse $\\frac{1}{$ vs cost$5 vs $10" in (tmp_path / "o" / "transfer_plot.svg").read_text()
+    assert matplotlib.rcParams["text.parse_math"]  # the user's own settings are left as they were
+
+
 def test_the_plot_names_the_tag_it_compares(tmp_path):
     for side, rate in (("baseline", 0.0), ("transfer", 0.5)):
         for seed in range(3):

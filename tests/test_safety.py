@@ -124,6 +124,58 @@ def test_an_override_value_that_expands_without_bound_is_one_sentence(tmp_path, 
                  f"more than {MAX_NODES:,} values")
 
 
+def test_a_source_the_method_would_ignore_is_refused(finished, tmp_path, capsys):
+    for method in ("none", "reward-shaping"):
+        one_sentence(capsys, main(train_args(tmp_path / "r", "-o", f"transfer.method={method}",
+                                             "-o", f"transfer.source={finished}")), 2, "reads no source")
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_plugin_that_exits_at_import_is_one_sentence(tmp_path, monkeypatch, capsys):
+    (tmp_path / "exits_at_import.py").write_text("import sys\nsys.exit(0)\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    code = main(["train", "--import", "exits_at_import", "fourrooms/northeast", "--run-dir", str(tmp_path / "r")])
+    one_sentence(capsys, code, 2, "plugin module 'exits_at_import' called sys.exit(0)")
+    assert not (tmp_path / "r").exists()
+
+
+# ------------------------------------------------------------------------------------ report inputs
+def test_a_copied_run_is_not_another_seed(tmp_path, capsys):
+    import shutil
+
+    from tests.test_reliability import fake_run
+
+    base = [fake_run(tmp_path / "b" / f"seed-{s}", [0, 1, 2], seed=s) for s in (0, 1)]
+    shutil.copytree(base[0], tmp_path / "b" / "copy")
+    trans = [fake_run(tmp_path / "t" / f"seed-{s}", [1, 2, 3], seed=s) for s in (0, 1)]
+    code = main(["report", "--baseline", str(tmp_path / "b"), "--transfer", *map(str, trans),
+                 "--out", str(tmp_path / "r")])
+    one_sentence(capsys, code, 2, "are the same run (same config, seed 0, same curve)")
+    assert main(["report", "--baseline", *map(str, base), "--transfer", *map(str, trans),
+                 "--out", str(tmp_path / "r")]) == 0
+
+
+def test_drltg_runs_and_config_less_logs_are_not_pooled_on_one_side(tmp_path, capsys):
+    from tests.test_reliability import fake_run
+
+    base = [fake_run(tmp_path / "b" / f"seed-{s}", [0, 1, 2], seed=s) for s in (0, 1)]
+    sb3 = tmp_path / "sb3" / "progress.csv"
+    sb3.parent.mkdir()
+    sb3.write_text("time/total_timesteps,eval/mean_reward\n0,0.5\n100,1.5\n200,2.5\n")
+    trans = [fake_run(tmp_path / "t" / f"seed-{s}", [1, 2, 3], seed=s) for s in (0, 1)]
+    code = main(["report", "--baseline", *map(str, base), str(sb3), "--transfer", *map(str, trans),
+                 "--out", str(tmp_path / "r")])
+    one_sentence(capsys, code, 2, "pool drltg runs", "carry no config", "--allow-mixed")
+
+
+def test_negative_frame_counts_are_refused(tmp_path, capsys):
+    sb3 = tmp_path / "sb3" / "progress.csv"
+    sb3.parent.mkdir()
+    sb3.write_text("time/total_timesteps,eval/mean_reward\n-100,0.5\n100,1.5\n200,2.5\n")
+    code = main(["report", "--baseline", str(sb3), "--transfer", str(sb3), "--out", str(tmp_path / "r")])
+    one_sentence(capsys, code, 2, "counts a negative number of frames")
+
+
 # ------------------------------------------------------------------------------- a prompt stop
 def test_ctrl_c_during_an_evaluation_stops_it_at_the_next_step(tmp_path, monkeypatch):
     """SIGINT arriving in the middle of the second evaluation ends the run there (exit 130), with the

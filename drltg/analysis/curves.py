@@ -360,6 +360,10 @@ def _checked(path: Path, frames, values, where: Sequence | None = None, what: st
         i = bad[0]
         at = f" at {what} {where[i]}" if where is not None else ""
         raise UsageError(f"'{path}' holds a non-finite value{at} (frame {frames[i]:g}, value {values[i]:g}).")
+    if frames[0] < 0:
+        at = f" at {what} {where[0]}" if where is not None else ""
+        raise UsageError(f"'{path}' counts a negative number of frames{at} ({frames[0]:g}); a learning curve "
+                         "starts at frame 0 or later.")
     steps = np.diff(frames)
     if (steps <= 0).any():
         i = int(np.flatnonzero(steps <= 0)[0]) + 1

@@ -2,6 +2,7 @@
 transfer-matrix heatmap. Rendered off-screen (Agg) to PNG and SVG bytes."""
 from __future__ import annotations
 
+import functools
 import io
 
 import numpy as np
@@ -16,6 +17,20 @@ def _figure(*args, **kwargs):
     import matplotlib.pyplot as plt
 
     return plt, plt.subplots(*args, **kwargs)
+
+
+def _plain_text(draw):
+    """Draw with every label as plain text: run names and labels are the user's, and matplotlib would read
+    a pair of ``$`` in them as mathematics (``cost$5 vs $10``), or fail on a lone one."""
+
+    @functools.wraps(draw)
+    def drawn(*args, **kwargs):
+        import matplotlib
+
+        with matplotlib.rc_context({"text.parse_math": False}):
+            return draw(*args, **kwargs)
+
+    return drawn
 
 
 def _save(plt, fig) -> tuple[bytes, bytes]:
@@ -41,6 +56,7 @@ def _signed(x) -> str:
     return "n/a" if x is None else f"{x:+.3g}"
 
 
+@_plain_text
 def plot_transfer(result: dict) -> tuple[bytes, bytes]:
     """Mean curve per side (t-interval band over seeds where there are >= 3), faint raw runs, the
     threshold line with each run's crossing and the median crossing, jumpstart and asymptotic gaps as
@@ -198,6 +214,7 @@ def _gap(ax, x, y_from, y_to, text, side):
                 bbox=dict(boxstyle="round,pad=0.25", fc="white", ec="0.6", alpha=0.9))
 
 
+@_plain_text
 def plot_matrix(
     table: np.ndarray,
     sources,

@@ -448,6 +448,7 @@ def check_runs(baseline: Sequence[Curve], transfer: Sequence[Curve], s: ReportSe
                              f"({', '.join(r for runs in left.values() for r in runs)}); finish them, or pass "
                              "--include-unfinished.")
     _check_duplicates(baseline, transfer)
+    _check_copies(baseline, transfer, bool(s.allow_mixed or s.include_unfinished))
     task = _check_tasks(baseline, transfer)
     for side, runs in (("baseline", baseline), ("transfer", transfer)):
         _check_configs(side, runs, bool(s.allow_mixed), warnings)
@@ -475,6 +476,29 @@ def _check_duplicates(baseline: Sequence[Curve], transfer: Sequence[Curve]) -> N
                 raise UsageError(f"'{c.source}' is both a baseline and a transfer run; compare two "
                                  "different run sets.")
             seen[key] = side
+
+
+def _check_copies(baseline: Sequence[Curve], transfer: Sequence[Curve], allow_pooled: bool) -> None:
+    """Two drltg runs with the same config, seed included, and the same curve are one run copied (or
+    trained twice from one seed: the same run again); counted twice they would fake a seed. A side that
+    pools drltg runs with logs that carry no config cannot be checked for one configuration: refused
+    unless ``allow_pooled`` (``--allow-mixed``, or ``--include-unfinished`` for config-less drltg runs)."""
+    for side, curves in (("baseline", baseline), ("transfer", transfer)):
+        seen: dict[str, Curve] = {}
+        for c in curves:
+            if not c.config or c.config.get("seed") is None:
+                continue
+            key = json.dumps([c.config, c.frames.tolist(), c.values.tolist()], sort_keys=True, default=str)
+            if key in seen:
+                raise UsageError(f"{_name(c)} and {_name(seen[key])} are the same run (same config, seed "
+                                 f"{c.config.get('seed')}, same curve); a run counts as one seed, so give it once.")
+            seen[key] = c
+        with_config = [c for c in curves if c.config]
+        if with_config and len(with_config) < len(curves) and not allow_pooled:
+            other = next(c for c in curves if not c.config)
+            raise UsageError(f"the {side} runs pool drltg runs ({_name(with_config[0])}) with logs that carry no "
+                             f"config ({_name(other)}), so one configuration a side cannot be checked; report "
+                             "each kind apart, or pass --allow-mixed.")
 
 
 def _check_tasks(baseline: Sequence[Curve], transfer: Sequence[Curve]) -> str | None:

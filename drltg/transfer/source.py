@@ -32,6 +32,9 @@ def check(cfg: RunConfig) -> None:
     """Fail early, before anything is trained or written, on a source the method cannot use."""
     method, t = get_method(cfg.transfer.method), cfg.transfer
     if method.source is None:
+        if t.source:
+            raise UsageError(f"transfer.source is set, but transfer.method={method.name} reads no source; choose a "
+                             "method that reuses it, or drop transfer.source.")
         return
     if not t.source:
         raise UsageError(f"transfer.method={method.name} needs transfer.source, the source run directory.")
