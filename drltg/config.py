@@ -754,7 +754,7 @@ def validate(cfg: RunConfig) -> None:
     ``device`` must be usable here, ``env`` keys must be keywords of the task's factory (their values
     are read with the type of the declared default), the method's own rules must hold; and ``frames``
     is rounded up to whole collector batches, so that the budget is exact."""
-    _check_device("device", cfg.device)
+    check_device("device", cfg.device)
     if cfg.optim.cudagraphs and not cfg.device.startswith("cuda"):
         raise UsageError(f"config key 'optim.cudagraphs' is true but device is '{cfg.device}'; CUDA graphs "
                          "need device=cuda.")
@@ -783,7 +783,7 @@ def _task_spec(task: Any):
 _DEVICE = _expected(RunConfig.model_fields["device"])
 
 
-def _check_device(key: str, value: str) -> str:
+def check_device(key: str, value: str) -> str:
     if value == "cpu":  # always there: no need to import torch to know it
         return value
     import torch
@@ -791,23 +791,28 @@ def _check_device(key: str, value: str) -> str:
     try:
         device = torch.device(value)
     except (RuntimeError, TypeError, ValueError):
-        raise UsageError(f"config key '{key}' must be {_DEVICE}, got {_short(value)}.") from None
+        raise UsageError(f"{_named(key)} must be {_DEVICE}, got {_short(value)}.") from None
     backend = getattr(torch, device.type, None)
     available = getattr(backend, "is_available", None)
     if available is None:
-        raise UsageError(f"config key '{key}' is '{value}', a device type drltg cannot train on; use cpu or cuda.")
+        raise UsageError(f"{_named(key)} is '{value}', a device type drltg cannot train on; use cpu or cuda.")
     if not available():
         raise UsageError(
-            f"config key '{key}' is '{value}' but no {device.type.upper()} device is available on this "
+            f"{_named(key)} is '{value}' but no {device.type.upper()} device is available on this "
             "machine; use device=cpu."
         )
     count = getattr(backend, "device_count", None)
     if device.index is not None and device.type != "cpu" and count is not None and device.index >= count():
         raise UsageError(
-            f"config key '{key}' is '{value}' but this machine has {count()} {device.type.upper()} "
+            f"{_named(key)} is '{value}' but this machine has {count()} {device.type.upper()} "
             f"device(s), numbered from 0."
         )
     return value
+
+
+def _named(key: str) -> str:
+    """A config key as a sentence names it; a command-line option (``--device``) as it is."""
+    return key if key.startswith("--") else f"config key '{key}'"
 
 
 # ----------------------------------------------------------------------------------------- env options

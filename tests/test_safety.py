@@ -139,6 +139,49 @@ def test_a_plugin_that_exits_at_import_is_one_sentence(tmp_path, monkeypatch, ca
     assert not (tmp_path / "r").exists()
 
 
+def test_a_lock_that_is_a_folder_is_one_sentence(finished, tmp_path, capsys):
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(finished, run)
+    (run / rundir.SUMMARY).unlink()  # an unfinished run, so that the resume takes its lock
+    (run / rundir.LOCK).mkdir()
+    one_sentence(capsys, main(["train", "--resume", "--run-dir", str(run), "--no-progress"]), 2,
+                 "is not drltg's lock file")
+
+
+def test_evaluate_on_a_device_this_machine_lacks_is_one_sentence(finished, capsys):
+    if torch.cuda.is_available():
+        pytest.skip("this machine has a CUDA device")
+    one_sentence(capsys, main(["evaluate", str(finished), "--episodes", "2", "--device", "cuda"]), 2,
+                 "--device is 'cuda' but no CUDA device is available")
+
+
+def test_gymnasium_ids_check_options_and_actions():
+    import gymnasium as gym
+    import numpy as np
+
+    import drltg  # noqa: F401  (registers the ids)
+
+    with pytest.raises(ValueError, match="option 'horizon' must be of type int"):
+        gym.make("drltg/fourrooms-northeast-v0", horizon="abc")
+    with pytest.raises(ValueError, match="num_envs must be a positive integer"):
+        gym.make_vec("drltg/fourrooms-northeast-v0", num_envs=0)
+    grid = gym.make("drltg/gridrooms-northeast-v0")
+    grid.reset(seed=0)
+    for action in (7, 1.7, np.array([1, 2])):  # out of range, not an integer (was taken as 1), two actions
+        with pytest.raises(ValueError, match="is not in the action space Discrete"):
+            grid.step(action)
+    grid.step(1)
+    rooms = gym.make("drltg/fourrooms-northeast-v0")
+    rooms.reset(seed=0)
+    for action in (np.array([np.nan, 0.0], dtype=np.float32), np.zeros(3, dtype=np.float32)):
+        with pytest.raises(ValueError, match="is not in the action space Box"):
+            rooms.step(action)
+    obs, *_ = rooms.step([0.1, 0.2])
+    assert np.isfinite(obs).all()
+
+
 # ------------------------------------------------------------------------------------ report inputs
 def test_a_copied_run_is_not_another_seed(tmp_path, capsys):
     import shutil

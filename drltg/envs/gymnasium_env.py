@@ -12,6 +12,7 @@ env, not ``num_envs`` copies) and resets a finished element in the same step
 """
 from __future__ import annotations
 
+import numbers
 from typing import Any
 
 import gymnasium
@@ -49,6 +50,13 @@ def action_space(spec) -> gymnasium.spaces.Space:
     return observation_space(spec)
 
 
+def _is_number_array(action, space) -> bool:
+    """A list or array of numbers for a Box (Box.contains wants its own dtype); a Discrete action is
+    checked as given, so that 1.7 is not read as 1."""
+    return isinstance(space, gymnasium.spaces.Box) and isinstance(action, (list, tuple, np.ndarray)) and \
+        np.asarray(action).dtype.kind in "biuf"
+
+
 class _Adapter:
     """What both adapters share: the specs, action encoding and the flags read into ``info``."""
 
@@ -61,7 +69,9 @@ class _Adapter:
         self._flags = [key for key in EPISODE_FLAGS if key in unbatched.keys()]
         self._td = None
 
-    def _action(self, action) -> torch.Tensor:
+    def _action(self, action, space: gymnasium.spaces.Space) -> torch.Tensor:
+        if not space.contains(np.asarray(action, dtype=space.dtype) if _is_number_array(action, space) else action):
+            raise ValueError(f"action {action!r} is not in the action space {space} of task {self.task!r}.")
         action = torch.as_tensor(np.asarray(action), device=self._env.device)
         if isinstance(self._action_spec, OneHot):
             return torch.nn.functional.one_hot(action.long(), self._act_space.n).to(self._action_spec.dtype)
@@ -108,7 +118,7 @@ class DrltgEnv(_Adapter, gymnasium.Env):
     def step(self, action):
         if self._td is None:
             raise gymnasium.error.ResetNeeded("call reset() before step().")
-        td = self._env.step(self._td.set("action", self._action(action)))
+        td = self._env.step(self._td.set("action", self._action(action, self.action_space)))
         nxt = td["next"]
         info = {key: bool(nxt[key].item()) for key in self._flags}
         self._td = step_mdp(td, keep_other=True)
@@ -134,6 +144,8 @@ class DrltgVectorEnv(_Adapter, VectorEnv):
 
     def __init__(self, task: str, num_envs: int = 1, **options: Any):
         self.task = task
+        if not isinstance(num_envs, numbers.Integral) or num_envs < 1:
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}.")
         self.num_envs = int(num_envs)
         self._bind(make_env(task, batch_size=(self.num_envs,), **options))
         self.single_observation_space = self._obs_space
@@ -153,7 +165,7 @@ class DrltgVectorEnv(_Adapter, VectorEnv):
     def step(self, actions):
         if self._td is None:
             raise gymnasium.error.ResetNeeded("call reset() before step().")
-        td, self._td = self._env.step_and_maybe_reset(self._td.set("action", self._action(actions)))
+        td, self._td = self._env.step_and_maybe_reset(self._td.set("action", self._action(actions, self.action_space)))
         nxt = td["next"]
         done = nxt["done"].reshape(self.num_envs).cpu().numpy()
         info = self._info(nxt)

@@ -20,6 +20,7 @@ import functools
 import importlib
 import importlib.util
 import inspect
+import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Sequence
@@ -199,6 +200,17 @@ def _check_options(spec: TaskSpec, options: dict[str, Any]) -> None:
     if unknown:
         known = ", ".join(sorted(set(params) - {"self", "batch_size", "device", "seed"}))
         raise UsageError(f"task {spec.name!r} has no option {unknown[0]!r}; its options are: {known}.")
+    for name, value in options.items():
+        default = params[name].default
+        kinds = _SCALAR_KINDS.get(type(default))
+        if kinds and value is not None and (not isinstance(value, kinds) or
+                                            (isinstance(value, bool) and not isinstance(default, bool))):
+            raise UsageError(f"task {spec.name!r}: option {name!r} must be of type {type(default).__name__} (its "
+                             f"default is {default!r}), got {value!r}.")
+
+
+_SCALAR_KINDS = {bool: (bool,), int: (numbers.Integral,), float: (numbers.Real,), str: (str,)}
+"""What a factory's scalar keyword accepts, by the type of its default (an int where a float is declared)."""
 
 
 def make_env(

@@ -49,7 +49,7 @@ def evaluate_run(run_dir: str | Path, *, checkpoint: str = "last", episodes: int
     held at once: 10 robosuite envs, not 100), batch i seeded ``seed + i`` (default ``seed``: the run's
     seed + ``FRESH_SEED_OFFSET``), the rows :func:`pooled`. Returns the evaluation's numbers with the
     checkpoint, its frame, the seed and a 95% interval ``<flag>_rate_ci95`` for every rate."""
-    from drltg.config import MAX_EPISODES
+    from drltg.config import MAX_EPISODES, check_device
     from drltg.training.loop import evaluate, make_eval_env
     from drltg.transfer.source import rebuild
 
@@ -57,6 +57,7 @@ def evaluate_run(run_dir: str | Path, *, checkpoint: str = "last", episodes: int
         raise UsageError(f"--episodes must be between 1 and {MAX_EPISODES}, got {episodes}.")
     if seed is not None and not 0 <= seed <= 2**31 - 1:
         raise UsageError(f"--seed must be an integer in [0, 2147483647], got {seed}.")
+    check_device("--device", device)
     agent, _, cfg, frames = rebuild(run_dir, device, checkpoint)
     cfg = cfg.model_copy(update={"device": device})
     seed = cfg.seed + FRESH_SEED_OFFSET if seed is None else seed

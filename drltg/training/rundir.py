@@ -386,6 +386,9 @@ def _holder(path: Path) -> tuple[str, int, str, str | None] | None:
         text = path.read_text()
     except FileNotFoundError:
         return None
+    except (IsADirectoryError, UnicodeDecodeError):
+        raise UsageError(f"'{path}' is not drltg's lock file (a folder, or not text); remove it if no drltg process "
+                         f"is writing '{path.parent}'.") from None
     parts = text.split()
     try:
         return text, int(parts[0]), parts[1], parts[3] if len(parts) > 3 else None
