@@ -182,6 +182,35 @@ def test_gymnasium_ids_check_options_and_actions():
     assert np.isfinite(obs).all()
 
 
+def sweep_spec(tmp_path, **extra):
+    import yaml
+
+    path = tmp_path / "spec.yaml"
+    path.write_text(yaml.safe_dump({"pairs": ["fourrooms-near"], "methods": ["model-reuse"], "seeds": 1,
+                                    "frames": 64, **extra}))
+    return str(path)
+
+
+def test_a_sweep_grid_of_a_million_points_is_refused_before_it_is_planned(tmp_path, capsys):
+    grid = {"optim.lr": [1e-4 * (i + 1) for i in range(100)], "optim.updates_per_batch": list(range(1, 101)),
+            "buffer.batch_size": list(range(16, 116))}
+    code = main(["sweep", sweep_spec(tmp_path, grid=grid), "--out", str(tmp_path / "s"), "--dry-run"])
+    one_sentence(capsys, code, 2, "expands to 1,000,000 transfer runs", "more than the 10,000")
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--num-cpus", "-1"], "--num-cpus must be a finite number >= 0, got -1"),
+    (["--num-cpus", "nan"], "--num-cpus must be a finite number >= 0, got nan"),
+    (["--num-gpus", "1"], "asks for 1 GPU(s) but this machine has 0"),
+])
+def test_ray_resources_that_cannot_be_met_are_refused_before_ray_starts(args, message, tmp_path, capsys):
+    if args[0] == "--num-gpus" and torch.cuda.is_available():
+        pytest.skip("this machine has a CUDA device")
+    code = main(["sweep", sweep_spec(tmp_path), "--out", str(tmp_path / "s"), "--backend", "ray", *args])
+    one_sentence(capsys, code, 2, message)
+    assert not (tmp_path / "s").exists()
+
+
 # ------------------------------------------------------------------------------------ report inputs
 def test_a_copied_run_is_not_another_seed(tmp_path, capsys):
     import shutil

@@ -48,6 +48,7 @@ import argparse
 import difflib
 import itertools
 import json
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -61,6 +62,8 @@ from drltg.training import rundir
 KEYS = ("pairs", "methods", "algos", "seeds", "seed", "frames", "source_frames", "overrides", "grid",
         "threshold", "primary_metric", "resources")
 RESOURCES = ("num_cpus", "num_gpus")
+MAX_RUNS = 10_000
+"""The most transfer runs one sweep spec may expand to (counted before anything is planned)."""
 SET_BY_SWEEP = {"task": "'pairs'", "algo": "'algos'", "seed": "'seed' and 'seeds'",
                 "frames": "'frames' or 'source_frames'", "transfer.method": "'methods'"}
 """The config keys the sweep sets per run, and the spec key that sets them."""
@@ -203,6 +206,11 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or value < 0:
             raise UsageError(f"{where}: resource '{key}' must be a non-negative number, got {value!r}.")
         spec.resources[key] = value
+    runs = math.prod([len(spec.pairs), len(spec.methods), len(spec.algos), spec.seeds, len(spec.frames),
+                      len(spec.source_frames or [None]), *map(len, spec.grid.values())])
+    if runs > MAX_RUNS:
+        raise UsageError(f"{where} expands to {runs:,} transfer runs (pairs x methods x algos x seeds x frames x grid "
+                         f"values), more than the {MAX_RUNS:,} one sweep plans; split it into smaller sweeps.")
     return spec
 
 
@@ -440,6 +448,7 @@ def run(args: argparse.Namespace) -> int:
     spec = load_spec(args.spec)
     resources = {**spec.resources, **{k: v for k, v in (("num_cpus", args.num_cpus),
                                                          ("num_gpus", args.num_gpus)) if v is not None}}
+    _check_resources(resources, args)
     out = rundir.check_directory(args.out, "--out")
     rundir.refuse_run_directory(out, "--out")
     runs, cells = plan(spec, out)
@@ -459,6 +468,21 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"cannot create --out '{out}' ({err.strerror}).") from None
     with rundir.lock(out, "sweep folder"):
         return _execute_and_report(args, spec, out, runs, cells, resources)
+
+
+def _check_resources(resources: dict, args: argparse.Namespace) -> None:
+    """Per-run resources must be finite and not negative; on the local Ray instance (no ``--address``) a
+    run may not ask for more GPUs than this machine has, or Ray would wait for them forever."""
+    for key, value in resources.items():
+        if not math.isfinite(value) or value < 0:
+            raise UsageError(f"--{key.replace('_', '-')} must be a finite number >= 0, got {value}.")
+    if args.backend == "ray" and args.address is None and resources.get("num_gpus", 0) > 0:
+        import torch
+
+        if resources["num_gpus"] > torch.cuda.device_count():
+            raise UsageError(f"each run asks for {resources['num_gpus']:g} GPU(s) but this machine has "
+                             f"{torch.cuda.device_count()}; the local Ray instance could never start one. Use "
+                             "--num-gpus 0, or --address of a cluster with GPUs.")
 
 
 def _execute_and_report(args, spec: Spec, out: Path, runs: list[Run], cells: list[Cell], resources: dict) -> int:
