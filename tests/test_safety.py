@@ -157,6 +157,12 @@ def test_evaluate_on_a_device_this_machine_lacks_is_one_sentence(finished, capsy
                  "--device is 'cuda' but no CUDA device is available")
 
 
+def test_a_render_size_that_cannot_be_drawn_is_one_sentence(tmp_path, capsys):
+    one_sentence(capsys, main(train_args(tmp_path / "r", "-o", "env.render_size=0")), 2,
+                 "render_size is the side of a rendered frame in pixels, from 16 to 4096; got 0")
+    assert not (tmp_path / "r").exists()
+
+
 def test_gymnasium_ids_check_options_and_actions():
     import gymnasium as gym
     import numpy as np

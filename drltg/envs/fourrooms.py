@@ -193,6 +193,9 @@ class FourRoomsEnv(EnvBase):
             raise UsageError(f"start_room {start_room!r} is not one of {', '.join(ROOM_NAMES)}.")
         if goal_radius <= 0 or max_step <= 0 or horizon < 1:
             raise UsageError("goal_radius and max_step must be positive and horizon at least 1.")
+        if not 16 <= render_size <= 4096:
+            raise UsageError(f"render_size is the side of a rendered frame in pixels, from 16 to 4096; got "
+                             f"{render_size}.")
         self.goal_radius = float(goal_radius)
         self.max_step = float(max_step)
         self.step_cost = float(step_cost)

@@ -154,6 +154,8 @@ class GridFourRoomsEnv(EnvBase):
             raise UsageError(f"observation {observation!r} is not 'onehot' or 'coords'.")
         if not 0.0 <= slip <= 1.0 or horizon < 1:
             raise UsageError("slip must lie in [0, 1] and horizon be at least 1.")
+        if not 1 <= cell_pixels <= 256:
+            raise UsageError(f"cell_pixels is the side of a rendered cell in pixels, from 1 to 256; got {cell_pixels}.")
         self.slip = float(slip)
         self.step_cost = float(step_cost)
         self.horizon = int(horizon)
