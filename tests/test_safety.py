@@ -10,6 +10,7 @@ import torch
 import drltg.training.loop as train_mod
 from drltg.cli import main
 from drltg.envs import make_env
+from drltg.envs.fourrooms import FourRoomsEnv
 from drltg.training import rundir
 from tests.test_reliability import one_sentence, train_args
 
@@ -160,6 +161,28 @@ def test_evaluate_on_a_device_this_machine_lacks_is_one_sentence(finished, capsy
 def test_a_render_size_that_cannot_be_drawn_is_one_sentence(tmp_path, capsys):
     one_sentence(capsys, main(train_args(tmp_path / "r", "-o", "env.render_size=0")), 2,
                  "render_size is the side of a rendered frame in pixels, from 16 to 4096; got 0")
+    assert not (tmp_path / "r").exists()
+
+
+class Float64Rooms(FourRoomsEnv):
+    def _make_spec(self):
+        super()._make_spec()
+        self.observation_spec["observation"] = self.observation_spec["observation"].to(torch.float64)
+
+
+@pytest.mark.parametrize("factory, message", [
+    (lambda **kw: None, "its factory returned NoneType, not a TorchRL EnvBase"),
+    (lambda **kw: __import__("gymnasium").make("Pendulum-v1"), "not a TorchRL EnvBase; for a Gymnasium environment"),
+    (Float64Rooms, "reports its observation as torch.float64; drltg's networks take torch.float32"),
+])
+def test_a_task_drltg_cannot_train_is_one_sentence(factory, message, tmp_path, capsys):
+    from drltg.envs import TASKS, register_task
+
+    register_task("test/broken", factory, "a task drltg cannot train", goal=(8.0, 8.0))
+    try:
+        one_sentence(capsys, main(train_args(tmp_path / "r", task="test/broken")), 2, message)
+    finally:
+        del TASKS["test/broken"]
     assert not (tmp_path / "r").exists()
 
 

@@ -226,6 +226,11 @@ def make_env(
     options = {**spec.defaults, **overrides}
     _check_options(spec, options)
     env = spec.factory(batch_size=batch_size, device=device, **options)
+    from torchrl.envs import EnvBase
+
+    if not isinstance(env, EnvBase):
+        raise UsageError(f"task {spec.name!r}: its factory returned {type(env).__name__}, not a TorchRL EnvBase; for a "
+                         "Gymnasium environment register it with drltg.envs.gym.register_gym_task.")
     if seed is not None:
         env.set_seed(seed)
     return env

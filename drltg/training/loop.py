@@ -86,6 +86,7 @@ def check_config(cfg: RunConfig):
     """Build the task's env and the learner of ``cfg`` (writing nothing): the checks a config can
     fail before any run directory is created. Returns the env and the agent."""
     probe = build_env(cfg, seed=cfg.seed)
+    preflight.check_task(cfg, probe)
     preflight.check_network(cfg, probe)
     agent = make_agent(probe, cfg)
     preflight.check_buffer(cfg, probe, agent.loss.in_keys)

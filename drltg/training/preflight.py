@@ -34,6 +34,17 @@ def _gib(n: float) -> str:
     return f"{n / 2**30:,.1f} GiB"
 
 
+def check_task(cfg: RunConfig, env: EnvBase) -> None:
+    """The observation drltg's learners read, as they read it: a float32 ``observation`` (the networks'
+    dtype; a float64 one fails inside the first matrix product)."""
+    obs = env.full_observation_spec.get("observation", None)
+    if obs is None:
+        raise UsageError(f"task '{cfg.task}' reports no 'observation' entry; drltg's learners read it.")
+    if obs.dtype != torch.float32:
+        raise UsageError(f"task '{cfg.task}' reports its observation as {obs.dtype}; drltg's networks take "
+                         "torch.float32 (append torchrl.envs.DoubleToFloat() in the task's factory).")
+
+
 def check_network(cfg: RunConfig, env: EnvBase) -> None:
     """Refuse ``network.hidden`` widths whose weights alone exceed the device's memory.
 
