@@ -269,6 +269,23 @@ def test_drltg_runs_and_config_less_logs_are_not_pooled_on_one_side(tmp_path, ca
     one_sentence(capsys, code, 2, "pool drltg runs", "carry no config", "--allow-mixed")
 
 
+def test_a_run_that_skips_evaluations_is_named(tmp_path):
+    from pathlib import Path
+
+    from drltg.analysis.curves import Curve
+    from drltg.analysis.report import compute
+
+    grid = list(range(0, 1100, 100))
+    full = [Curve(grid, [i / 10 for i in range(11)], Path(f"/b/seed-{s}"), f"b/seed-{s}") for s in range(3)]
+    skipping = Curve([0, 100, 900, 1000], [0, 0.1, 0.9, 1.0], Path("/t/seed-0"), "t/seed-0")  # 7 of 11 missing
+    transfer = [skipping] + [Curve(grid, [i / 10 for i in range(11)], Path(f"/t/seed-{s}"), f"t/seed-{s}")
+                             for s in (1, 2)]
+    warnings = compute(full, transfer)["settings"]["warnings"]
+    assert any("1 run(s) skip evaluations: 't/seed-0' (/t/seed-0) has a gap of 800 frames where it is evaluated "
+               "every 100" in w for w in warnings), warnings
+    assert not any("skip evaluations" in w for w in compute(full, full[:2])["settings"]["warnings"])
+
+
 def test_negative_frame_counts_are_refused(tmp_path, capsys):
     sb3 = tmp_path / "sb3" / "progress.csv"
     sb3.parent.mkdir()

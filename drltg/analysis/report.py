@@ -711,6 +711,12 @@ def _check_grids(sides: Sides, start: float, budget: float, warnings: list[str])
                 f"the runs are evaluated on different grids: {_name(a)} every {number(sa)} frames, {_name(b)} "
                 f"every {number(sb)}; areas are taken on the real frame axis, but initial and final "
                 "performance average different numbers of evaluations.")
+    gapped = [(c, gap, x) for c, x in spaced
+              for gap in [float(np.diff(c.frames[(c.frames >= start) & (c.frames <= budget)]).max())] if gap > 2.5 * x]
+    if gapped:
+        c, gap, x = max(gapped, key=lambda g: g[1] / g[2])
+        warnings.append(f"{len(gapped)} run(s) skip evaluations: {_name(c)} has a gap of {number(gap)} frames where it "
+                        f"is evaluated every {number(x)}; the curve is interpolated across it.")
     counted = [(c, _episodes(c)) for c in sides.runs if isinstance(_episodes(c), int)]
     if counted and len({e for _, e in counted}) > 1:
         (a, ea), (b, eb) = min(counted, key=lambda x: x[1]), max(counted, key=lambda x: x[1])
