@@ -56,3 +56,14 @@ def test_every_committed_run_keeps_its_curve_and_config(folder, count):
     assert len(runs) == count
     for run in runs:
         assert (run / "eval.csv").is_file() and (run / "config.yaml").is_file()
+
+
+def test_the_seed_tasks_progress_table_is_generated_from_its_kept_curves():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("progress", RESULTS / "seed-tasks" / "progress.py")
+    progress = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(progress)
+    text = (RESULTS / "seed-tasks" / "README.md").read_text()
+    assert progress.filled(text) == text, "run python results/seed-tasks/progress.py"
+    assert "earlier SAC (1 run)" in text and "| 10,000 |" in text
