@@ -85,7 +85,7 @@ def _running(pid: int) -> bool:
 
 
 def trial(kind: str, reference: Path, work: Path, rng: random.Random) -> dict:
-    from drltg.training import manifest, rundir
+    from drltg.store import manifest, rundir
 
     ref_runs = _runs(reference)
     target, rows = rng.choice(sorted(ref_runs)), rng.randint(1, 6)

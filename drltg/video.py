@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from drltg.errors import UsageError
-from drltg.training import rundir
+from drltg.store import rundir
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

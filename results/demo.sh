@@ -20,7 +20,7 @@ sys.path.insert(0, "results")
 from rebuild import keep_curves
 from drltg.analysis.report import transfer_report
 from drltg.cli.demo import DEMO
-from drltg.training import rundir
+from drltg.store import rundir
 
 machine, before, after, install, note = sys.argv[1:]
 dest = Path("results/demo")

@@ -22,7 +22,7 @@ import yaml
 
 from drltg.analysis.report import transfer_report
 from drltg.experiments.sweep import plot_transfer_matrix, summary_tables
-from drltg.training import rundir
+from drltg.store import rundir
 
 KEPT = ("config.yaml", "eval.csv", "summary.json")
 

@@ -14,7 +14,7 @@ import drltg.training.loop as loop
 from drltg import config as config_lib
 from drltg.cli import main
 from drltg.errors import UsageError
-from drltg.training import rundir
+from drltg.store import rundir
 from drltg.training.loop import read_eval_csv, train
 
 TINY = [

@@ -263,7 +263,7 @@ def test_quoted_cells_and_duplicate_columns(tmp_path):
 
 
 def test_a_rate_column_added_on_resume_is_empty_in_earlier_rows(tmp_path):
-    from drltg.training import rundir
+    from drltg.store import rundir
 
     run = tmp_path / "run"
     run.mkdir()

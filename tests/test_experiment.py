@@ -43,7 +43,7 @@ def test_rerun_reuses_completed_runs(experiment, capsys):
 
 
 def test_a_moved_experiment_finds_its_sources_and_reuses_its_runs(experiment, tmp_path):
-    from drltg.training import rundir
+    from drltg.store import rundir
 
     out, args = experiment
     assert yaml.safe_load((out / "transfer" / "seed-0" / "config.yaml").read_text())["transfer"]["source"] == \

@@ -19,7 +19,7 @@ import pytest
 
 from drltg.cli import main
 from drltg.errors import UsageError
-from drltg.training import manifest, rundir
+from drltg.store import manifest, rundir
 
 TINY = ["network.hidden=[16,16]", "collector.num_envs=4", "collector.frames_per_batch=16",
         "collector.init_random_frames=32", "optim.updates_per_batch=1", "buffer.batch_size=16",

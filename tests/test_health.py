@@ -5,7 +5,8 @@ import pytest
 import torch
 
 from drltg.cli import main
-from drltg.training import health, rundir
+from drltg.store import rundir
+from drltg.training import health
 from tests.test_reliability import nan_reward_task, one_sentence, train_args  # noqa: F401  (fixture)
 
 NAN = "test/nan-reward"  # the task the fixture registers

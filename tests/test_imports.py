@@ -4,8 +4,8 @@ The layers, lowest first (a module may import its own package and lower layers o
 layer import nothing from each other)::
 
     errors       drltg.errors
-    manifest     drltg.training.manifest (checksums of run files: read and checked)
-    base         drltg.plugins | drltg.training.rundir (the run-directory format)
+    yaml         drltg.safe_yaml (bounded YAML from files and command lines)
+    base         drltg.plugins | drltg.store (a run directory on disk: files, manifest, checkpoints, lock)
     envs         drltg.envs
     parts        drltg.transforms | drltg.collectors | drltg.losses | drltg.modules
     config       drltg.config
@@ -30,8 +30,8 @@ PACKAGE = ROOT / "drltg"
 
 LAYERS = [
     ["drltg.errors"],
-    ["drltg.training.manifest"],
-    ["drltg.plugins", "drltg.training.rundir"],
+    ["drltg.safe_yaml"],
+    ["drltg.plugins", "drltg.store"],
     ["drltg.envs"],
     ["drltg.gymnasium_ids"],
     ["drltg.transforms", "drltg.collectors", "drltg.losses", "drltg.modules"],
@@ -116,7 +116,7 @@ def test_imports_point_down_the_pipeline():
 
 
 def test_packages_that_hold_a_lower_layer_import_nothing_above_it():
-    # importing drltg.training.rundir runs drltg/training/__init__.py first: it must not pull the loop in
+    # importing a low module runs its packages' __init__.py files first: they must not pull a higher layer in
     for name in MODULES:
         rank, _ = layer(name) if name != "drltg" else (0, "")
         parent = name.rpartition(".")[0]

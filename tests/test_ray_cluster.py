@@ -26,7 +26,7 @@ import yaml
 from drltg.cli import _terminate
 from drltg.experiments import sweep
 from drltg.experiments.executor import RayBackend, run_group, run_one, seed_groups
-from drltg.training import rundir
+from drltg.store import rundir
 
 REPO = Path(__file__).resolve().parents[1]
 TINY = {"network.hidden": [16, 16], "collector.num_envs": 4, "collector.frames_per_batch": 16,

@@ -20,7 +20,7 @@ from drltg import config as config_lib
 from drltg.analysis.curves import read_csvlogger, read_tensorboard
 from drltg.cli import main
 from drltg.errors import UsageError
-from drltg.training import rundir
+from drltg.store import rundir
 
 TINY = ["network.hidden=[16,16]", "collector.num_envs=4", "collector.frames_per_batch=16",
         "collector.init_random_frames=32", "optim.updates_per_batch=1", "buffer.batch_size=16",
@@ -704,7 +704,7 @@ def test_a_bit_flipped_checkpoint_is_refused(copy_of_killed, capsys):
 
 
 def test_the_manifest_of_a_finished_run_covers_every_file(source):
-    from drltg.training import manifest
+    from drltg.store import manifest
 
     files = manifest.read(source)
     on_disk = {p.relative_to(source).as_posix() for p in source.rglob("*") if p.is_file()}

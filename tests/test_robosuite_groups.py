@@ -14,8 +14,8 @@ from torchrl.data import LazyTensorStorage, ReplayBuffer
 pytest.importorskip("robosuite")
 
 from drltg import config as config_lib  # noqa: E402
+from drltg.store.rundir import load_checkpoint  # noqa: E402
 from drltg.training.loop import build_env, make_envs, train  # noqa: E402
-from drltg.training.rundir import load_checkpoint  # noqa: E402
 from drltg.training.seeds import _group_env, group_support, in_process, train_seeds  # noqa: E402
 
 TINY = ["network.hidden=[16,16]", "env.horizon=50", "env.parallel=false", "env.mp_start_method=fork",

@@ -11,7 +11,7 @@ import drltg.training.loop as train_mod
 from drltg.cli import main
 from drltg.envs import make_env
 from drltg.envs.fourrooms import FourRoomsEnv
-from drltg.training import rundir
+from drltg.store import rundir
 from tests.test_reliability import one_sentence, train_args
 
 

@@ -136,8 +136,8 @@ def test_a_group_writes_one_ordinary_run_directory_per_seed(group_run):
 
     import yaml
 
+    from drltg.store.rundir import read_eval_csv
     from drltg.training.loop import evaluate, make_envs
-    from drltg.training.rundir import read_eval_csv
 
     assert sorted(p.name for p in group_run.iterdir()) == ["seed-3", "seed-4"]
     for seed in (3, 4):
@@ -160,8 +160,8 @@ def test_a_seed_in_a_group_draws_as_its_run_alone_and_matches_it(group_run, tmp_
     """SAC on the CPU: each seed draws from its own stream (warm-up actions, exploration, replay sampling,
     the losses' noise), so a seed's generator state is that of its run alone, and its curve and parameters
     match its run alone's to rounding over a short run."""
+    from drltg.store.rundir import read_eval_csv
     from drltg.training.loop import train
-    from drltg.training.rundir import read_eval_csv
 
     for seed in (3, 4):
         alone = train(tiny_cfg(seed=seed), tmp_path / f"alone-{seed}", progress=False)
@@ -188,7 +188,7 @@ def test_a_group_is_reproduced_by_the_same_group(group_run, tmp_path):
 
 def test_a_group_resumes_from_its_seeds_checkpoints(group_run, tmp_path, monkeypatch):
     import drltg.training.loop as loop
-    from drltg.training.rundir import read_eval_csv
+    from drltg.store.rundir import read_eval_csv
     from drltg.training.seeds import train_seeds
 
     real, calls = loop._episode_stats, {"n": 0}
@@ -237,7 +237,7 @@ def test_cli_seed_options_bad_input_is_one_sentence(args, message, tmp_path, cap
 
 def test_a_seed_of_an_interrupted_group_resumes_alone(group_run, tmp_path, monkeypatch, capsys):
     import drltg.training.loop as loop
-    from drltg.training.rundir import read_eval_csv
+    from drltg.store.rundir import read_eval_csv
     from drltg.training.seeds import train_seeds
 
     real = loop._episode_stats
@@ -309,8 +309,8 @@ def test_run_group_trains_an_experiments_seeds_together(tmp_path):
 @pytest.mark.parametrize("task, algo", [("gridrooms/northeast", "sac"), ("fourrooms/northeast", "td3"),
                                        ("fourrooms/northeast", "soc")])
 def test_every_grouped_learner_trains_its_seeds_from_their_runs_alone(task, algo, tmp_path, capsys):
+    from drltg.store.rundir import read_eval_csv
     from drltg.training.loop import evaluate, make_envs
-    from drltg.training.rundir import read_eval_csv
     from drltg.training.seeds import train_seeds
 
     cfg = tiny_cfg(task=task, algo=algo, frames=192, **({"soc.num_options": 2} if algo == "soc" else {}))

@@ -4,8 +4,8 @@ import torch
 
 from drltg import config as config_lib
 from drltg.experiments.executor import Run, execute, seed_groups
+from drltg.store.rundir import MODEL_REUSE, load_checkpoint
 from drltg.training import loop, seeds
-from drltg.training.rundir import MODEL_REUSE, load_checkpoint
 from drltg.transfer import get_method
 from tests.test_seed_groups import TINY, _fixed_policy, tiny_cfg
 
@@ -85,7 +85,7 @@ def test_policy_reuse_a_seed_in_a_group_mixes_in_its_own_source_as_alone(sources
 
 
 def test_a_model_reuse_group_resumes_with_its_frozen_parameters_still_its_sources(sources, tmp_path, monkeypatch):
-    from drltg.training.rundir import read_eval_csv
+    from drltg.store.rundir import read_eval_csv
 
     real = loop._episode_stats
 

@@ -13,7 +13,7 @@ import yaml
 from drltg import config as config_lib
 from drltg.cli import main
 from drltg.experiments import sweep
-from drltg.training import rundir
+from drltg.store import rundir
 from drltg.training.loop import train
 
 TINY = {"network.hidden": [16, 16], "collector.num_envs": 4, "collector.frames_per_batch": 16,

@@ -11,7 +11,7 @@ import torch
 
 from drltg.cli import main
 from drltg.errors import UsageError
-from drltg.training import manifest, rundir
+from drltg.store import manifest, rundir
 from tests.test_reliability import one_sentence, train_args
 
 

@@ -248,7 +248,7 @@ def _lines(path: Path) -> list[tuple[int, str]]:
 
 def _verify(path: Path) -> None:
     """Refuse a file of a drltg run whose ``manifest.json`` records another digest for it."""
-    from drltg.training import manifest
+    from drltg.store import manifest
 
     folder = path.resolve().parent
     for run in [folder, *folder.parents][:6]:  # logs/csv/scalars/<group>/<tag>.csv lies 4 folders down

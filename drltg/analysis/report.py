@@ -90,7 +90,7 @@ from drltg.analysis.curves import FORMATS, Curve, read_curves
 from drltg.analysis.run_state import partition
 from drltg.analysis.tables import number
 from drltg.errors import UsageError
-from drltg.training import rundir
+from drltg.store import rundir
 
 SIDES = ("baseline", "transfer")
 MAX_LENGTH_RATIO = 2.0  # longest / shortest run beyond which a default budget would hide too much

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Sequence
 
 from drltg.analysis.curves import Curve
-from drltg.training import rundir
+from drltg.store import rundir
 
 CONFIG_LESS = "without config.yaml"
 LEFT_OUT = ("diverged", "incomplete", CONFIG_LESS)

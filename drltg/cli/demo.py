@@ -18,7 +18,7 @@ import yaml
 
 from drltg import config as config_lib
 from drltg.errors import UsageError
-from drltg.training import rundir
+from drltg.store import rundir
 
 DEMO = dict(pair="fourrooms-near", method="model-reuse", algo="sac", seeds=6, seed=0, frames=10_000,
             source_frames=30_000, source_seed=50, eval_every=1000, source_eval_every=5000, threshold=0.5)

@@ -22,8 +22,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from drltg.store.rundir import atomic_write, check_directory, refuse_special
     from drltg.training.reevaluate import evaluate_run
-    from drltg.training.rundir import atomic_write, check_directory, refuse_special
 
     check_directory(args.run_dir, "RUN_DIR")
     if not args.run_dir.expanduser().is_dir():

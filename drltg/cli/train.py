@@ -6,7 +6,7 @@ from pathlib import Path
 
 from drltg import config as config_lib
 from drltg.errors import RunFailed, UsageError
-from drltg.training.rundir import CONFIG, absolute_source, check_directory
+from drltg.store.rundir import CONFIG, absolute_source, check_directory
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -88,7 +88,7 @@ def _first_seed(run_dir: Path) -> Path | None:
 
 def _refuse_diverged(dirs: list[Path]) -> None:
     """A resumed run that had diverged is finished without a result: say so, exit non-zero."""
-    from drltg.training.rundir import summary_status
+    from drltg.store.rundir import summary_status
 
     diverged = [d for d in dirs if (summary_status(d) or ("",))[0] == "diverged"]
     if diverged:

@@ -24,7 +24,7 @@ from torchrl.data import Categorical, OneHot
 from torchrl.envs.utils import step_mdp
 
 from drltg.envs.registry import make_env
-from drltg.training.rundir import EPISODE_FLAGS
+from drltg.store.rundir import EPISODE_FLAGS
 
 __all__ = ["DrltgEnv", "DrltgVectorEnv", "observation_space", "action_space"]
 

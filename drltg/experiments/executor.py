@@ -25,7 +25,7 @@ from typing import Any
 import drltg.transfer  # noqa: F401  (the methods' transfer.* keys: a worker unpickles configs with them)
 from drltg.config import RunConfig
 from drltg.errors import UsageError
-from drltg.training import rundir
+from drltg.store import rundir
 
 __all__ = ["Run", "run_one", "run_group", "LocalBackend", "RayBackend", "execute", "seed_groups"]
 

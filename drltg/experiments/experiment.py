@@ -19,7 +19,7 @@ interrupted one resumes from its checkpoint, so re-running the same command fini
 
 Every run's config is built and checked (its task, env settings and learner) and the report settings
 are parsed before anything is written; the folder is then owned by one ``drltg experiment`` at a time
-(:func:`drltg.training.rundir.lock`). Runs are trained by :func:`drltg.experiments.executor.execute`, as a
+(:func:`drltg.store.rundir.lock`). Runs are trained by :func:`drltg.experiments.executor.execute`, as a
 sweep's are; each run's output and, if it fails, its traceback go to ``DIR/logs/<role>/seed-<s>.log``.
 """
 from __future__ import annotations
@@ -34,7 +34,7 @@ from drltg import config as config_lib
 from drltg import safe_yaml
 from drltg.config import RunConfig
 from drltg.errors import UsageError
-from drltg.training import rundir
+from drltg.store import rundir
 
 SEED = "{seed}"  # in a given transfer.source: the transfer run's seed
 

@@ -40,7 +40,7 @@ Re-running is safe: complete runs (``summary.json`` in place, written last) are 
 ones resume from ``checkpoints/last.pt``, a failed run is reported with its log and the others go on.
 The same spec gives the same run directories and, run by run, the same numbers on both backends.
 Every run's task, env settings and learner are built once and the threshold parsed before anything is
-written, and one sweep at a time owns DIR (:func:`drltg.training.rundir.lock`).
+written, and one sweep at a time owns DIR (:func:`drltg.store.rundir.lock`).
 """
 from __future__ import annotations
 
@@ -57,7 +57,7 @@ from typing import Any
 from drltg.config import RunConfig
 from drltg.errors import UsageError
 from drltg.experiments.executor import LocalBackend, RayBackend, Run, execute, seed_groups
-from drltg.training import rundir
+from drltg.store import rundir
 
 KEYS = ("pairs", "methods", "algos", "seeds", "seed", "frames", "source_frames", "overrides", "grid",
         "threshold", "primary_metric", "resources")

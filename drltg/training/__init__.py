@@ -1,1 +1,2 @@
-"""One training run: the loop (:mod:`~drltg.training.loop`) and its run directory (:mod:`~drltg.training.rundir`)."""
+"""One training run: the loop (:mod:`~drltg.training.loop`), its evaluation, checks and seed groups; the
+run directory it writes is :mod:`drltg.store`."""

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from drltg.config import RunConfig
 from drltg.errors import UsageError
-from drltg.training.rundir import BEST, CHECKPOINT, EPISODE_FLAGS, load_checkpoint, write_tracked
+from drltg.store.rundir import BEST, CHECKPOINT, EPISODE_FLAGS, load_checkpoint, write_tracked
 
 __all__ = ["metric", "score", "best_row", "improves", "summary", "check_metric", "check_resume"]
 

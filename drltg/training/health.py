@@ -16,7 +16,7 @@ import torch
 
 from drltg.config import RunConfig
 from drltg.errors import RunFailed
-from drltg.training import rundir
+from drltg.store import rundir
 
 DIVERGED = "diverged"
 COMPLETE = "complete"

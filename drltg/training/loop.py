@@ -3,8 +3,8 @@
 Evaluation runs at frame 0 (before any update) and every ``eval.every`` frames, with the deterministic
 actor on a separate evaluation env that measures the task's own reward (never a shaped one) and
 success. :func:`run_loop` is the loop over parts (a collector, a learner, one
-:class:`~drltg.training.rundir.RunWriter` per seed) and writes no file itself; what a run directory holds
-and how it is written is :mod:`drltg.training.rundir`. :func:`train` builds the parts, owns the directory (its
+:class:`~drltg.store.rundir.RunWriter` per seed) and writes no file itself; what a run directory holds
+and how it is written is :mod:`drltg.store.rundir`. :func:`train` builds the parts, owns the directory (its
 lock) while it runs, checks everything it can before creating it, and removes what a failed start
 wrote before its first checkpoint, so a retry is never blocked.
 """
@@ -34,8 +34,9 @@ from drltg.config import RunConfig, config_changes
 from drltg.envs import make_env
 from drltg.errors import UsageError
 from drltg.learners import Agent, UpdateStep, make_agent, sample_batches
-from drltg.training import best, health, manifest, preflight, rundir
-from drltg.training.rundir import CHECKPOINT, CONFIG, EPISODE_FLAGS, EVAL, RunWriter, is_complete, read_eval_csv
+from drltg.store import manifest, rundir
+from drltg.store.rundir import CHECKPOINT, CONFIG, EPISODE_FLAGS, EVAL, RunWriter, is_complete, read_eval_csv
+from drltg.training import best, health, preflight
 from drltg.transfer import Transfer, get_method
 from drltg.transfer.source import check as check_source
 
@@ -396,7 +397,7 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
     """Collect, store, update, evaluate and checkpoint until ``cfg.frames`` frames per seed.
 
     ``learner`` trains one or several seeds in step (see :class:`AgentLearner`); ``writers`` gets one
-    :class:`~drltg.training.rundir.RunWriter` per seed and receives every evaluation, logged scalar,
+    :class:`~drltg.store.rundir.RunWriter` per seed and receives every evaluation, logged scalar,
     checkpoint and the summary (with ``extra_summary``, one for every writer or a list of one per writer):
     the loop itself writes no file. ``frames`` counts one seed's frames.
     """

@@ -61,7 +61,9 @@ from drltg.learners import sample_batches
 from drltg.losses import SoftOptionCriticLoss
 from drltg.modules import make_option_policy
 from drltg.seed_group import GroupPolicy, SeedBlocks, SeedGroup, SeedLoopPolicy, SeedStreams
-from drltg.training import best, health, rundir
+from drltg.store import rundir
+from drltg.store.rundir import CHECKPOINT, CONFIG, RunWriter, is_complete
+from drltg.training import best, health
 from drltg.training.loop import (
     _check_saved_config,
     _refuse_existing,
@@ -76,7 +78,6 @@ from drltg.training.loop import (
     run_loop,
     train,
 )
-from drltg.training.rundir import CHECKPOINT, CONFIG, RunWriter, is_complete
 from drltg.transfer import Transfer, get_method
 from drltg.transfer.source import check as check_source
 

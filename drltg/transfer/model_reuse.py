@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Annotated
 from pydantic import Field
 
 from drltg.config import Bool, RunConfig, Str, builtin_options
-from drltg.training.rundir import MODEL_REUSE, load_checkpoint
+from drltg.store.rundir import MODEL_REUSE, load_checkpoint
 from drltg.transfer.registry import Transfer, TransferMethod, register_method
 
 if TYPE_CHECKING:
@@ -23,7 +23,7 @@ def load_from_run(loss_module: nn.Module, run_dir: str | Path, *, checkpoint: st
     its ``"loss"`` entry.
 
     Keyword arguments go to :func:`load_weights`. The checkpoint is read as data only
-    (:func:`drltg.training.rundir.load_checkpoint`): a run from anyone can be loaded.
+    (:func:`drltg.store.rundir.load_checkpoint`): a run from anyone can be loaded.
     """
     from drltg.modules.weights import load_weights
 

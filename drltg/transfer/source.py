@@ -18,7 +18,7 @@ from drltg.config import RunConfig, TransferConfig
 from drltg.envs import make_env
 from drltg.envs.robosuite.layout import TASKS as MANIPULATION
 from drltg.errors import UsageError
-from drltg.training.rundir import CONFIG, SUMMARY, checkpoint_path, is_complete, load_checkpoint, missing_checkpoint
+from drltg.store.rundir import CONFIG, SUMMARY, checkpoint_path, is_complete, load_checkpoint, missing_checkpoint
 from drltg.transfer.registry import get_method
 
 if TYPE_CHECKING:

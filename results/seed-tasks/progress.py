@@ -14,7 +14,7 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from drltg.analysis.curves import read_curves  # noqa: E402
-from drltg.training.rundir import atomic_write, read_eval_csv  # noqa: E402
+from drltg.store.rundir import atomic_write, read_eval_csv  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 BASELINES = HERE / "lift-place-seed" / "sac" / "baseline"

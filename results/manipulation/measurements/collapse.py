@@ -33,9 +33,9 @@ if str(ROOT) not in sys.path:
 
 from drltg.collectors.demonstrations import collect_demonstrations  # noqa: E402
 from drltg.envs.robosuite import LAYOUT, demonstrator_for  # noqa: E402
+from drltg.store.rundir import atomic_write  # noqa: E402
 from drltg.training.loop import make_eval_env  # noqa: E402
 from drltg.training.reevaluate import FRESH_SEED_OFFSET  # noqa: E402
-from drltg.training.rundir import atomic_write  # noqa: E402
 from drltg.transfer.source import rebuild  # noqa: E402
 
 sys.path.insert(0, str(ROOT / "results" / "manipulation" / "sources"))

@@ -37,7 +37,7 @@ if str(ROOT) not in sys.path:
 from drltg.config import OptimConfig  # noqa: E402
 from drltg.envs import make_env  # noqa: E402
 from drltg.envs.robosuite import LAYOUT, demonstrator_for, potential_for  # noqa: E402
-from drltg.training.rundir import atomic_write  # noqa: E402
+from drltg.store.rundir import atomic_write  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 SIGMAS = (0.0, 0.1, 0.3, 0.5)

@@ -25,7 +25,7 @@ if str(ROOT) not in sys.path:
 
 from drltg.collectors.demonstrations import perturbed  # noqa: E402
 from drltg.envs import make_env  # noqa: E402
-from drltg.training.rundir import atomic_write  # noqa: E402
+from drltg.store.rundir import atomic_write  # noqa: E402
 from drltg.transfer.source import load_agent  # noqa: E402
 
 HERE = Path(__file__).resolve().parent

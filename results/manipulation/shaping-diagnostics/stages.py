@@ -28,7 +28,7 @@ if str(ROOT) not in sys.path:
 from drltg.analysis.tables import render  # noqa: E402
 from drltg.envs import make_env  # noqa: E402
 from drltg.envs.robosuite import LAYOUT  # noqa: E402
-from drltg.training.rundir import atomic_write  # noqa: E402
+from drltg.store.rundir import atomic_write  # noqa: E402
 from drltg.transfer.source import load_agent  # noqa: E402
 
 HERE = Path(__file__).resolve().parent

@@ -33,7 +33,7 @@ from torchrl.envs import ExplorationType, set_exploration_type  # noqa: E402
 
 from drltg.collectors.demonstrations import collect_demonstrations  # noqa: E402
 from drltg.envs.robosuite import demonstrator_for  # noqa: E402
-from drltg.training.rundir import atomic_write  # noqa: E402
+from drltg.store.rundir import atomic_write  # noqa: E402
 from drltg.transfer.source import rebuild  # noqa: E402
 
 HERE = Path(__file__).resolve().parent

@@ -6,8 +6,8 @@ tracked file's SHA-256 is recorded in ``manifest.json``. While a run replaces a 
 accepts both the old and the new digest (written before the rename, narrowed after it), so a kill at
 any moment leaves a file the manifest accepts; when the run ends, the manifest is written last and
 covers every file of the run, its logs included. A run without a manifest (written before drltg
-kept one) is read as it is. The writing is :func:`drltg.training.rundir.write_tracked` and
-:func:`~drltg.training.rundir.finalize_manifest`; this module only reads and checks.
+kept one) is read as it is. The writing is :func:`drltg.store.rundir.write_tracked` and
+:func:`~drltg.store.rundir.finalize_manifest`; this module only reads and checks.
 """
 from __future__ import annotations
 
@@ -47,7 +47,7 @@ def read(run_dir: str | Path) -> dict[str, list[str]]:
 
 
 def dumps(files: dict[str, list[str]]) -> str:
-    """The manifest's text for ``{relative path: [accepted digests]}`` (written by :mod:`drltg.training.rundir`)."""
+    """The manifest's text for ``{relative path: [accepted digests]}`` (written by :mod:`drltg.store.rundir`)."""
     return json.dumps({"sha256": files}, indent=1, sort_keys=True) + "\n"
 
 

@@ -9,7 +9,7 @@
     model_reuse.txt      what model reuse loaded (model-reuse runs)
     summary.json         the run is finished when it exists: status complete (or diverged, with the reason)
     manifest.json        SHA-256 of the checkpoints and eval.csv, and when the run ends (written last) of
-                         every file: a changed or damaged file is refused (drltg.training.manifest)
+                         every file: a changed or damaged file is refused (drltg.store.manifest)
     .drltg.lock          pid, host and start time of the process writing the directory, while it runs
 
 Every file is written through a temporary file in the same folder and a rename, so a reader never sees
@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any, Iterator
 
 from drltg.errors import UsageError
-from drltg.training import manifest
+from drltg.store import manifest
 
 CONFIG = "config.yaml"
 EVAL = "eval.csv"
