@@ -52,8 +52,9 @@ def _check_size(root: yaml.Node, what: str) -> None:
 def load(text: str, what: str) -> Any:
     """The value of the YAML document ``text`` (``None`` when empty); ``what`` names it in the sentence of a
     :class:`UsageError` (bad YAML, a key twice, too deep, too large)."""
-    loader = UniqueKeyLoader(text)
+    loader = None
     try:
+        loader = UniqueKeyLoader(text)  # reads the first characters: a control character is refused here
         node = loader.get_single_node()
         if node is None:
             return None
@@ -68,4 +69,5 @@ def load(text: str, what: str) -> Any:
     except yaml.YAMLError as err:
         raise UsageError(f"{what} is not valid YAML ({err.__class__.__name__}).") from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()

@@ -158,6 +158,12 @@ def test_evaluate_on_a_device_this_machine_lacks_is_one_sentence(finished, capsy
                  "--device is 'cuda' but no CUDA device is available")
 
 
+@pytest.mark.parametrize("task", ["fourrooms/northeast", "gridrooms/northeast"])
+def test_a_horizon_longer_than_an_evaluation_runs_is_one_sentence(task, tmp_path, capsys):
+    one_sentence(capsys, main(train_args(tmp_path / "r", "-o", "env.horizon=1000000", task=task)), 2,
+                 "horizon 1000000 is more than the 100,000 steps an evaluation runs an episode")
+
+
 def test_a_render_size_that_cannot_be_drawn_is_one_sentence(tmp_path, capsys):
     one_sentence(capsys, main(train_args(tmp_path / "r", "-o", "env.render_size=0")), 2,
                  "render_size is the side of a rendered frame in pixels, from 16 to 4096; got 0")
@@ -170,7 +176,15 @@ class Float64Rooms(FourRoomsEnv):
         self.observation_spec["observation"] = self.observation_spec["observation"].to(torch.float64)
 
 
+class NoTerminatedRooms(FourRoomsEnv):
+    def _step(self, td):
+        out = super()._step(td)
+        del out["terminated"]
+        return out
+
+
 @pytest.mark.parametrize("factory, message", [
+    (NoTerminatedRooms, "cannot take a step (RuntimeError: Cannot infer the value of terminated"),
     (lambda **kw: None, "its factory returned NoneType, not a TorchRL EnvBase"),
     (lambda **kw: __import__("gymnasium").make("Pendulum-v1"), "not a TorchRL EnvBase; for a Gymnasium environment"),
     (Float64Rooms, "reports its observation as torch.float64; drltg's networks take torch.float32"),

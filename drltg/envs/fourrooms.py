@@ -50,6 +50,7 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
+from drltg.envs.limits import MAX_HORIZON
 from drltg.envs.seeding import block_generators, blocks
 from drltg.errors import UsageError
 
@@ -193,6 +194,8 @@ class FourRoomsEnv(EnvBase):
             raise UsageError(f"start_room {start_room!r} is not one of {', '.join(ROOM_NAMES)}.")
         if goal_radius <= 0 or max_step <= 0 or horizon < 1:
             raise UsageError("goal_radius and max_step must be positive and horizon at least 1.")
+        if horizon > MAX_HORIZON:
+            raise UsageError(f"horizon {horizon} is more than the {MAX_HORIZON:,} steps an evaluation runs an episode.")
         if not 16 <= render_size <= 4096:
             raise UsageError(f"render_size is the side of a rendered frame in pixels, from 16 to 4096; got "
                              f"{render_size}.")

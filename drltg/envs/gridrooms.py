@@ -47,6 +47,7 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, OneHot, Unbounded
 from torchrl.envs import EnvBase
 
+from drltg.envs.limits import MAX_HORIZON
 from drltg.envs.seeding import block_generators, blocks
 from drltg.errors import UsageError
 
@@ -154,6 +155,8 @@ class GridFourRoomsEnv(EnvBase):
             raise UsageError(f"observation {observation!r} is not 'onehot' or 'coords'.")
         if not 0.0 <= slip <= 1.0 or horizon < 1:
             raise UsageError("slip must lie in [0, 1] and horizon be at least 1.")
+        if horizon > MAX_HORIZON:
+            raise UsageError(f"horizon {horizon} is more than the {MAX_HORIZON:,} steps an evaluation runs an episode.")
         if not 1 <= cell_pixels <= 256:
             raise UsageError(f"cell_pixels is the side of a rendered cell in pixels, from 1 to 256; got {cell_pixels}.")
         self.slip = float(slip)

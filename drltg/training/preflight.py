@@ -9,6 +9,7 @@ factory that ignores the batch size it is given trains on 1 env and evaluates 1 
 from __future__ import annotations
 
 import os
+from typing import Callable
 
 import torch
 from torchrl.envs import EnvBase
@@ -34,15 +35,27 @@ def _gib(n: float) -> str:
     return f"{n / 2**30:,.1f} GiB"
 
 
-def check_task(cfg: RunConfig, env: EnvBase) -> None:
+def check_task(cfg: RunConfig, env: EnvBase, fresh: Callable[[], EnvBase] | None = None) -> None:
     """The observation drltg's learners read, as they read it: a float32 ``observation`` (the networks'
-    dtype; a float64 one fails inside the first matrix product)."""
+    dtype; a float64 one fails inside the first matrix product); and, with ``fresh`` (a builder of a
+    throwaway env of the task: a user's task, not one of drltg's, which the suite checks), one step."""
     obs = env.full_observation_spec.get("observation", None)
     if obs is None:
         raise UsageError(f"task '{cfg.task}' reports no 'observation' entry; drltg's learners read it.")
     if obs.dtype != torch.float32:
         raise UsageError(f"task '{cfg.task}' reports its observation as {obs.dtype}; drltg's networks take "
                          "torch.float32 (append torchrl.envs.DoubleToFloat() in the task's factory).")
+    if fresh is None:
+        return
+    trial = fresh()  # not the probe, which methods reuse: stepping it would change what they draw
+    try:
+        trial.step(trial.reset().set("action", trial.full_action_spec["action"].zero()))
+    except Exception as err:  # a user's env fails inside TorchRL or itself: name the task and the cause
+        cause = (str(err).strip().splitlines() or [""])[0]
+        raise UsageError(f"task '{cfg.task}' cannot take a step ({type(err).__name__}: {cause}); check its "
+                         "_reset and _step against its specs (torchrl.envs.utils.check_env_specs).") from None
+    finally:
+        trial.close()
 
 
 def check_network(cfg: RunConfig, env: EnvBase) -> None:

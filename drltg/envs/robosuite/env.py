@@ -22,6 +22,7 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
+from drltg.envs.limits import MAX_HORIZON
 from drltg.envs.robosuite.layout import OBSERVABLES, layout_of
 from drltg.errors import UsageError
 
@@ -115,6 +116,9 @@ class RobosuiteEnv(EnvBase):
         **task_kwargs,
     ):
         super().__init__(device=device, batch_size=torch.Size([]))
+        if not 1 <= horizon <= MAX_HORIZON:
+            raise UsageError(f"horizon {horizon} must be between 1 and {MAX_HORIZON:,}, the steps an evaluation runs "
+                             "an episode.")
         _quiet_import_robosuite()
         self.task = task
         self.horizon = int(horizon)
