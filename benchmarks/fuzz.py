@@ -18,12 +18,13 @@ def main() -> int:
     p.add_argument("--examples", type=int, default=2000, help="examples per property (make test runs 60)")
     args = p.parse_args()
     start = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "tests/test_fuzz.py"],
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "tests/test_fuzz.py"],
                           cwd=REPO, env={**os.environ, "DRLTG_FUZZ_EXAMPLES": str(args.examples)},
                           capture_output=True, text=True)
     print(json.dumps({"suite": "fuzz", "examples_per_property": args.examples, "passed": proc.returncode == 0,
                       "wall_s": round(time.perf_counter() - start, 1),
-                      "summary": (proc.stdout.strip().splitlines() or [""])[-1]}, indent=2))
+                      "summary": next((line for line in reversed(proc.stdout.splitlines())
+                                       if " passed" in line or " failed" in line), "")}, indent=2))
     if proc.returncode:
         print(proc.stdout[-4000:], file=sys.stderr)
     return proc.returncode
