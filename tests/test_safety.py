@@ -241,6 +241,12 @@ def test_a_sweep_grid_of_a_million_points_is_refused_before_it_is_planned(tmp_pa
     one_sentence(capsys, code, 2, "expands to 1,000,000 transfer runs", "more than the 10,000")
 
 
+def test_a_grid_value_with_a_nul_byte_is_one_sentence(tmp_path, capsys):
+    spec = sweep_spec(tmp_path, grid={"env.start_room": ["northeast\x00x", "southwest"]})
+    one_sentence(capsys, main(["sweep", spec, "--out", str(tmp_path / "s"), "--dry-run"]), 2,
+                 "holds a control character; grid values name the runs' folders")
+
+
 @pytest.mark.parametrize("args, message", [
     (["--num-cpus", "-1"], "--num-cpus must be a finite number >= 0, got -1"),
     (["--num-cpus", "nan"], "--num-cpus must be a finite number >= 0, got nan"),

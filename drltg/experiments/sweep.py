@@ -179,6 +179,10 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
         if not isinstance(values, list) or not values:
             raise UsageError(f"{where}: grid key '{key}' must be a non-empty list of values.")
         _no_repeats(values, f"grid: {key}", where)
+        named = next((v for v in values if any(ord(c) < 32 or c == "\x7f" for c in str(v))), None)
+        if named is not None:
+            raise UsageError(f"{where}: grid value {named!r} of '{key}' holds a control character; grid values name "
+                             "the runs' folders, so give printable values.")
     threshold = data.get("threshold")
     if threshold is not None and (isinstance(threshold, bool) or not isinstance(threshold, (int, float, str))):
         raise UsageError(f"{where}: 'threshold' must be a number or a percentage like \"80%\".")
