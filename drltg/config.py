@@ -661,6 +661,22 @@ def merge(cfg: dict, overrides: dict, prefix: str = "") -> None:
 _NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
 
+_FRAMES = re.compile(r"\s*(\d+(?:\.\d*)?|\.\d+)(?:[eE]\+?(\d+))?\s*([kKmM]?)\s*")
+
+
+def frame_count(text: str) -> int:
+    """``"50000"``, ``"50k"``, ``"1e4"``, ``"1.5M"`` as a whole number of frames: the argparse ``type`` of every
+    ``--frames`` option (an ``argparse.ArgumentTypeError`` names what is wrong)."""
+    import argparse
+
+    m = _FRAMES.fullmatch(str(text))
+    value = float(m.group(1)) * 10 ** int(m.group(2) or 0) * {"": 1, "k": 1e3, "m": 1e6}[m.group(3).lower()] if m \
+        else None
+    if value is None or not 1 <= value <= 1e12 or value != int(value):
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number of frames >= 1 (e.g. 50000, 50k, 1e4, 1.5M)")
+    return int(value)
+
+
 def parse_override(text: str) -> tuple[str, Any]:
     """``"optim.lr=1e-3"`` -> ``("optim.lr", 0.001)``; values are parsed as YAML scalars/lists."""
     if "=" not in text:

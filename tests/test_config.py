@@ -565,3 +565,18 @@ def test_a_methods_plain_types_read_values_as_the_builtin_keys(registries):
         with pytest.raises(UsageError) as err:
             _resolve(override)
         assert str(err.value) == message
+
+
+@pytest.mark.parametrize("text, frames", [("50000", 50000), ("50k", 50000), ("1e4", 10000), ("1.5M", 1500000),
+                                          ("2K", 2000), (" 64 ", 64)])
+def test_frame_counts_read_as_every_command_writes_them(text, frames):
+    assert config_lib.frame_count(text) == frames
+
+
+@pytest.mark.parametrize("text", ["0", "-5", "2.5", "1.5k7", "abc", "1e13", "nan", ""])
+def test_a_frame_count_that_is_not_a_whole_positive_number_is_refused(text, capsys):
+    from drltg.cli import main
+
+    assert main(["train", "fourrooms/northeast", "--frames", text, "--run-dir", "/nonexistent/never"]) == 2  # no exit
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "is not a whole number of frames >= 1" in err, err

@@ -469,7 +469,7 @@ SPEC = "pairs: [gridrooms-near]\nmethods: [reward-shaping]\nseeds: 1\nframes: 64
     (["--threshold", "nan"], "--threshold 'nan' must be a finite number"),
     (["--threshold", "inf%"], "--threshold 'inf%' must be a finite percentage"),
     (["--threshold", "1.7e308"], "--threshold '1.7e308' must be a finite number of magnitude at most 1e+15"),
-    (["--source-frames", "0"], "--source-frames must be positive, got 0"),
+    (["--source-frames", "0"], "argument --source-frames: '0' is not a whole number of frames >= 1"),
     (["--seeds", str(10**9)], "more than the 1000 runs a side"),
     (["--seed", "-1"], "--seed -1 with --seeds 1 gives run seeds outside [0, 2147483647]"),
 ])

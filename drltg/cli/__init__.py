@@ -26,9 +26,13 @@ SUBCOMMANDS = {
 }
 
 
+class _BadArguments(Exception):
+    """What argparse refused: :func:`main` prints it as one sentence and returns 2 (argparse's convention)."""
+
+
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # one sentence, exit code 2 (argparse's own convention)
-        self.exit(2, f"drltg: error: {message}\n")
+    def error(self, message: str):
+        raise _BadArguments(message)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -45,7 +49,11 @@ def main(argv: list[str] | None = None) -> int:
         p.set_defaults(_module=module)
         if argv[:1] == [name]:  # import only the module that runs (keeps `drltg tasks` fast)
             importlib.import_module(module).add_arguments(p)
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except _BadArguments as err:
+        print(f"drltg: error: {err}", file=sys.stderr)
+        return 2
     previous = signal.signal(signal.SIGTERM, _terminate)
     messages = logging.StreamHandler(sys.stdout)  # what the library logs (e.g. model reuse's summary) shows here
     messages.setFormatter(logging.Formatter("%(message)s"))

@@ -13,7 +13,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("task", nargs="?", help="registered task name (see `drltg tasks`)")
     p.add_argument("--algo", help="learning algorithm: sac (discrete SAC on discrete tasks), td3, ...")
     p.add_argument("--options", type=int, metavar="K", help="number of options for --algo soc (soc.num_options)")
-    p.add_argument("--frames", type=int, help="environment frames to train for")
+    p.add_argument("--frames", type=config_lib.frame_count,
+                   help="environment frames to train for (50000, 50k, 1e4, 1.5M)")
     p.add_argument("--seed", type=int, help="random seed (envs, networks, sampling)")
     p.add_argument("--seeds", type=int, metavar="N",
                    help="train seeds S..S+N-1 (S: --seed) in one process, into RUN_DIR/seed-<k>/ (one vmapped "

@@ -46,8 +46,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--algo", default="sac", help="learner (default sac)")
     p.add_argument("--seeds", type=int, default=5, help="runs per side (default 5)")
     p.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
-    p.add_argument("--frames", type=int, required=True, help="frame budget of each target run")
-    p.add_argument("--source-frames", type=int, help="frame budget of each source run (default --frames)")
+    p.add_argument("--frames", type=config_lib.frame_count, required=True,
+                   help="frame budget of each target run (50000, 50k, 1e4, 1.5M)")
+    p.add_argument("--source-frames", type=config_lib.frame_count,
+                   help="frame budget of each source run (default --frames)")
     p.add_argument("--out", type=Path, required=True, help="experiment directory")
     p.add_argument("--workers", type=int, default=1, help="runs trained in parallel processes (default 1)")
     p.add_argument("--no-seed-groups", action="store_true",
