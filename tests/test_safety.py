@@ -79,6 +79,19 @@ def test_seeds_and_episodes_on_the_command_line_are_bounded(finished, tmp_path, 
     assert not (tmp_path / "r").exists()
 
 
+def test_no_progress_bar_where_no_one_watches(tmp_path, capsys):
+    """stderr here is not a terminal: no bar from train or experiment, with or without --no-progress."""
+    tiny = [a for o in ("network.hidden=[16,16]", "collector.num_envs=4", "collector.frames_per_batch=16",
+                        "collector.init_random_frames=32", "eval.every=32", "eval.episodes=2") for a in ("-o", o)]
+    assert main(["train", "fourrooms/northeast", "--frames", "64", "--run-dir", str(tmp_path / "r"), *tiny]) == 0
+    assert main(["experiment", "fourrooms/northeast", "--method", "reward-shaping", "--seeds", "1", "--frames", "64",
+                 "--out", str(tmp_path / "x"), *tiny]) == 0
+    assert main(["experiment", "fourrooms/northeast", "--method", "reward-shaping", "--seeds", "1", "--frames", "64",
+                 "--out", str(tmp_path / "x"), "--no-progress", *tiny]) == 0  # the same experiment: all skipped
+    err = capsys.readouterr().err
+    assert "frame/s" not in err and "%|" not in err, err
+
+
 def test_an_experiment_whose_transfer_run_is_its_own_source_is_refused(tmp_path, capsys):
     out = tmp_path / "x"
     code = main(["experiment", "fourrooms/northeast", "--method", "model-reuse", "--seeds", "1", "--frames", "64",

@@ -426,7 +426,7 @@ def check_order(runs: list[Run]) -> None:
             current = by_path[current.needs]
 
 
-def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs",
+def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs", progress: bool = True,
             group_seeds: bool = True) -> dict[Path, tuple[str, str]]:
     """Run every incomplete run (each after the run it needs) and return ``{path: (status, detail)}``
     with status ``skipped`` (complete before), ``done``, ``diverged`` or ``failed``. With ``group_seeds``,
@@ -443,7 +443,7 @@ def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs",
     reached = {r.path: _frames_done(r) for r in todo}
     units = seed_groups(todo) if group_seeds else [[r] for r in todo]
     bar = tqdm(total=sum(r.frames for r in todo), initial=sum(reached.values()), unit="frame",
-               desc=desc, dynamic_ncols=True, smoothing=0.05)
+               desc=desc, dynamic_ncols=True, smoothing=0.05, disable=None if progress else True)
     running: dict[Any, list[Run]] = {}
 
     def postfix() -> None:

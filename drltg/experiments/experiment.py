@@ -58,6 +58,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="config override applied to every run, e.g. -o transfer.upsilon=0.9")
     p.add_argument("--threshold", help="report threshold: a value, or a fraction of the best baseline like 80%%")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar (none is drawn when stderr is not "
+                   "a terminal)")
 
 
 MAX_SEEDS = config_lib.MAX_SEEDS
@@ -224,7 +226,7 @@ def check_existing(runs: list) -> None:
 def _settings(args: argparse.Namespace) -> dict:
     """What must match to continue an experiment (the folder itself may be named any way)."""
     return {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()
-            if k not in ("out", "workers", "threshold", "_module", "command", "no_seed_groups")}
+            if k not in ("out", "workers", "threshold", "_module", "command", "no_seed_groups", "no_progress")}
 
 
 def _check_settings(path: Path, settings: dict) -> None:
@@ -261,7 +263,8 @@ def run(args: argparse.Namespace) -> int:
         rundir.atomic_write(saved, yaml.safe_dump(settings, sort_keys=False))
         backend = LocalBackend(args.workers)
         try:
-            status = execute(as_runs(runs, out), backend, desc="experiment", group_seeds=not args.no_seed_groups)
+            status = execute(as_runs(runs, out), backend, desc="experiment", group_seeds=not args.no_seed_groups,
+                             progress=not args.no_progress)
         finally:
             backend.close()
         failures = [f"{path}: {detail}" for path, (state, detail) in status.items() if state == "failed"]

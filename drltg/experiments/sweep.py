@@ -440,6 +440,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--metric", default="mean_return_gain",
                    help="the metric of the transfer-matrix heatmap (default: mean_return_gain)")
     p.add_argument("--dry-run", action="store_true", help="list the runs and reports, run nothing")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar (none is drawn when stderr is not "
+                   "a terminal)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -500,7 +502,8 @@ def _execute_and_report(args, spec: Spec, out: Path, runs: list[Run], cells: lis
         backend = LocalBackend(args.workers)
     try:
         rundir.write_files(out, {"sweep.yaml": Path(args.spec).read_bytes()})
-        status = execute(runs, backend, desc="sweep", group_seeds=not args.no_seed_groups)
+        status = execute(runs, backend, desc="sweep", group_seeds=not args.no_seed_groups,
+                         progress=not args.no_progress)
     finally:
         backend.close()
 

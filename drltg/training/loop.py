@@ -426,7 +426,8 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
             writer.checkpoint(state, frames, updates, last=last, best=bool(improved and improved[k]))
         saved = frames if last else saved
 
-    bar = tqdm(total=cfg.frames, initial=frames, unit="frame", disable=not progress, dynamic_ncols=True)
+    bar = tqdm(total=cfg.frames, initial=frames, unit="frame", disable=None if progress else True,  # None: a TTY only
+               dynamic_ncols=True)
     try:
         if not writers[0].rows:
             run_eval()
