@@ -248,6 +248,14 @@ def test_mixer_progress_is_saved_in_its_state_dict():
     assert restored.schedule.horizon == 5
 
 
+def test_step_advances_by_collected_frames_as_torchrl_exploration_modules_do():
+    stepped = PolicyReuse(constant(PAST), schedule=JumpStart(10, stages=2, frames_per_stage=5))
+    stepped.step(3)
+    assert stepped.schedule.horizon == 10 and int(stepped.schedule.frames) == 3
+    stepped.step(4)  # 7 frames in all: the second stage, as set_progress(7) gives
+    assert stepped.schedule.horizon == 5 and int(stepped.schedule.frames) == 7
+
+
 def test_bad_arguments_are_usage_errors():
     with pytest.raises(UsageError):
         PolicyReuse([constant(PAST), constant(0.25)])  # a library needs PRQL

@@ -316,6 +316,11 @@ class PolicyReuse(TensorDictModuleBase):
         """Set the schedule's training progress to ``frames`` collected frames."""
         self.schedule.set_progress(frames)
 
+    def step(self, frames: int = 1) -> None:
+        """Advance the schedule by ``frames`` newly collected frames, as TorchRL's exploration modules
+        (``EGreedyModule.step``) are advanced after each collected batch."""
+        self.schedule.set_progress(int(self.schedule.frames) + frames)
+
     def observe(self, batch: TensorDictBase) -> None:
         """Learn from a collected batch (time is its last dimension), e.g. PRQL's reuse gains."""
         self.schedule.observe(
