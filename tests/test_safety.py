@@ -79,6 +79,18 @@ def test_seeds_and_episodes_on_the_command_line_are_bounded(finished, tmp_path, 
     assert not (tmp_path / "r").exists()
 
 
+def test_a_budget_that_cannot_learn_is_said_before_training(tmp_path, capsys):
+    import json
+
+    assert main(train_args(tmp_path / "r", "-o", "collector.init_random_frames=128", frames=64)) == 0
+    err = capsys.readouterr().err
+    assert "warning: 64 frames lie within the 128 random warm-up frames" in err, err
+    summary = json.loads((tmp_path / "r" / "summary.json").read_text())
+    assert summary["updates"] == 0 and summary["note"].startswith("no update was made")
+    assert main(train_args(tmp_path / "s", "-o", "eval.every=5000", frames=2000)) == 0
+    assert "give evaluations at frame 0 and 2,000 only" in capsys.readouterr().err
+
+
 def test_no_progress_bar_where_no_one_watches(tmp_path, capsys):
     """stderr here is not a terminal: no bar from train or experiment, with or without --no-progress."""
     tiny = [a for o in ("network.hidden=[16,16]", "collector.num_envs=4", "collector.frames_per_batch=16",

@@ -631,6 +631,8 @@ class RunWriter:
             "wall_time_s": round(wall, 2),
             "frames_per_s": round(frames_per_s, 1),
             "final_eval": self.rows[-1],
+            **({"note": "no update was made: every frame lay within the random warm-up "
+                        "(collector.init_random_frames)"} if updates == 0 else {}),
             **(extra or {}),
         }
         atomic_write(self.run_dir / SUMMARY, json.dumps(summary, indent=2) + "\n")

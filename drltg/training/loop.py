@@ -87,6 +87,7 @@ def make_eval_env(cfg: RunConfig, episodes: int, seed: int, agent_transforms=())
 def check_config(cfg: RunConfig):
     """Build the task's env and the learner of ``cfg`` (writing nothing): the checks a config can
     fail before any run directory is created. Returns the env and the agent."""
+    preflight.warn_budget(cfg)
     probe = build_env(cfg, seed=cfg.seed)
     own = str(get_task(cfg.task).entry).startswith("drltg.")  # drltg's tasks: stepped by the suite, not here
     preflight.check_task(cfg, probe, None if own else lambda: build_env(cfg, seed=cfg.seed))
