@@ -513,7 +513,11 @@ def _unknown(dotted: str) -> str:
     if owner is not None and owner not in METHOD_RULES:  # a built-in method, not imported yet
         return (f"config key '{dotted}' is an option of the transfer method {owner}, which this process has not "
                 "registered; import drltg.transfer first.")
-    return f"unknown config key '{dotted}'" + _suggest(dotted, _flat_keys(_model(), _section_models()))
+    known = _flat_keys(_model(), _section_models())
+    section = [k for k in known if k.startswith(dotted.split(".")[0] + ".")]
+    if "." in dotted and section and not difflib.get_close_matches(dotted, known, n=1):  # no close key: list them
+        return f"unknown config key '{dotted}'; the keys of {dotted.split('.')[0]} are {', '.join(section)}."
+    return f"unknown config key '{dotted}'" + _suggest(dotted, known)
 
 
 def _sentence(err: ValidationError, data: Any, model: type[BaseModel], prefix: str = "") -> str:

@@ -580,3 +580,14 @@ def test_a_frame_count_that_is_not_a_whole_positive_number_is_refused(text, caps
     assert main(["train", "fourrooms/northeast", "--frames", text, "--run-dir", "/nonexistent/never"]) == 2  # no exit
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "is not a whole number of frames >= 1" in err, err
+
+
+def test_an_unknown_key_of_a_known_section_is_answered_with_its_keys(capsys):
+    from drltg.cli import main
+
+    with pytest.raises(UsageError, match=r"^unknown config key 'optim.learning_rate'; the keys of optim are optim.lr, "
+                                         r"optim.updates_per_batch, .*optim.cudagraphs.$"):
+        config_lib.resolve(None, ["optim.learning_rate=1e-3"])
+    assert main(["train", "fourrooms/northeast", "-o", "optim.lr", "1e-3"]) == 2
+    assert capsys.readouterr().err == ("drltg: error: unrecognized arguments: 1e-3; -o takes KEY=VALUE as one "
+                                       "argument, e.g. -o optim.lr=VALUE\n")

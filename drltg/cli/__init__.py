@@ -52,7 +52,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         args = parser.parse_args(argv)
     except _BadArguments as err:
-        print(f"drltg: error: {err}", file=sys.stderr)
+        bare = [argv[i + 1] for i, a in enumerate(argv[:-1]) if a in ("-o", "--set") and "=" not in argv[i + 1]]
+        hint = f"; -o takes KEY=VALUE as one argument, e.g. -o {bare[0]}=VALUE" if bare else ""
+        print(f"drltg: error: {err}{hint}", file=sys.stderr)
         return 2
     previous = signal.signal(signal.SIGTERM, _terminate)
     messages = logging.StreamHandler(sys.stdout)  # what the library logs (e.g. model reuse's summary) shows here
