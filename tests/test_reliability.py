@@ -276,7 +276,9 @@ def test_a_full_disk_leaves_no_temporary_file_and_the_old_content(tmp_path, monk
 
 def test_a_full_disk_during_train_is_one_sentence_and_leaves_nothing(tmp_path, monkeypatch, capsys):
     full_disk(monkeypatch)
-    one_sentence(capsys, main(train_args(tmp_path / "run")), 2, "cannot write", "No space left on device")
+    # eval.every=32: a budget with a learning curve, so no warning precedes the sentence
+    one_sentence(capsys, main(train_args(tmp_path / "run", "-o", "eval.every=32")), 2, "cannot write",
+                 "No space left on device")
     assert os.listdir(tmp_path) == []
 
 
@@ -588,7 +590,7 @@ def test_a_diverging_run_stops_non_zero_with_status_diverged(nan_reward_task, tm
     import json
 
     run = tmp_path / "run"
-    err = one_sentence(capsys, main(train_args(run, task=nan_reward_task, frames=128)), 1,
+    err = one_sentence(capsys, main(train_args(run, "-o", "eval.every=64", task=nan_reward_task, frames=128)), 1,
                        "the run diverged: the loss term '", "' became nan at frame 32")
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     summary = json.loads((run / "summary.json").read_text())

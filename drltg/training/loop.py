@@ -87,7 +87,6 @@ def make_eval_env(cfg: RunConfig, episodes: int, seed: int, agent_transforms=())
 def check_config(cfg: RunConfig):
     """Build the task's env and the learner of ``cfg`` (writing nothing): the checks a config can
     fail before any run directory is created. Returns the env and the agent."""
-    preflight.warn_budget(cfg)
     probe = build_env(cfg, seed=cfg.seed)
     own = str(get_task(cfg.task).entry).startswith("drltg.")  # drltg's tasks: stepped by the suite, not here
     preflight.check_task(cfg, probe, None if own else lambda: build_env(cfg, seed=cfg.seed))
@@ -281,6 +280,7 @@ def train(
                 raise UsageError(f"cannot create --run-dir '{run_dir}' ({err.strerror}).") from None
             owned.enter_context(rundir.lock(run_dir))
             _refuse_existing(run_dir)  # another process started it first
+        preflight.warn_budget(cfg)  # every check passed and the directory is ours: training starts now
         try:
             writer = RunWriter(run_dir, cfg, rows)
             writer.start(transfer.files)

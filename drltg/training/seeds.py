@@ -63,7 +63,7 @@ from drltg.modules import make_option_policy
 from drltg.seed_group import GroupPolicy, SeedBlocks, SeedGroup, SeedLoopPolicy, SeedStreams
 from drltg.store import rundir
 from drltg.store.rundir import CHECKPOINT, CONFIG, RunWriter, is_complete
-from drltg.training import best, health
+from drltg.training import best, health, preflight
 from drltg.training.loop import (
     _check_saved_config,
     _refuse_existing,
@@ -377,6 +377,7 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
                     raise UsageError(f"cannot create '{d}' ({err.strerror}).") from None
                 owned.enter_context(rundir.lock(d))
                 _refuse_existing(d)
+        preflight.warn_budget(cfg)  # every check passed and the directories are ours: training starts now
         try:
             writers = [RunWriter(d, c, rows) for d, c, (_, rows) in zip(dirs, cfgs, states)]
             for writer, transfer in zip(writers, transfers):
