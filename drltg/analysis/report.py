@@ -711,8 +711,8 @@ def _check_grids(sides: Sides, start: float, budget: float, warnings: list[str])
                 f"the runs are evaluated on different grids: {_name(a)} every {number(sa)} frames, {_name(b)} "
                 f"every {number(sb)}; areas are taken on the real frame axis, but initial and final "
                 "performance average different numbers of evaluations.")
-    gapped = [(c, gap, x) for c, x in spaced
-              for gap in [float(np.diff(c.frames[(c.frames >= start) & (c.frames <= budget)]).max())] if gap > 2.5 * x]
+    gaps = [(c, float(np.diff(c.frames[(c.frames >= start) & (c.frames <= budget)]).max()), x) for c, x in spaced]
+    gapped = [(c, gap, x) for c, gap, x in gaps if gap > 2.5 * x]  # x: the run's median spacing
     if gapped:
         c, gap, x = max(gapped, key=lambda g: g[1] / g[2])
         warnings.append(f"{len(gapped)} run(s) skip evaluations: {_name(c)} has a gap of {number(gap)} frames where it "

@@ -8,7 +8,9 @@ factory that ignores the batch size it is given trains on 1 env and evaluates 1 
 """
 from __future__ import annotations
 
+import math
 import os
+import sys
 from typing import Callable
 
 import torch
@@ -38,9 +40,6 @@ def _gib(n: float) -> str:
 def warn_budget(cfg: RunConfig) -> None:
     """Say on stderr, before training, that a budget cannot learn or cannot be followed: every frame within
     the random warm-up (no update at all), or fewer than two evaluations after frame 0."""
-    import math
-    import sys
-
     col = cfg.collector
     warm_up = math.ceil(col.init_random_frames / col.frames_per_batch) * col.frames_per_batch
     if cfg.frames < warm_up:
