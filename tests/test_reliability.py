@@ -20,6 +20,7 @@ from drltg import config as config_lib
 from drltg.analysis.curves import read_csvlogger, read_tensorboard
 from drltg.cli import main
 from drltg.errors import UsageError
+from drltg.store import lock as lock_mod
 from drltg.store import rundir
 
 TINY = ["network.hidden=[16,16]", "collector.num_envs=4", "collector.frames_per_batch=16",
@@ -828,7 +829,9 @@ def test_a_report_that_fails_midway_leaves_the_old_report_whole(tmp_path, monkey
 # ------------------------------------------------------------------------------ 18: processes and locks
 def test_a_lock_whose_pid_was_reused_is_taken_over(tmp_path):
     host = os.uname().nodename
-    started = rundir._started(os.getpid())
+    from drltg.store.lock import _started
+
+    started = _started(os.getpid())
     (tmp_path / rundir.LOCK).write_text(f"{os.getpid()} {host} x {started}\n")  # this process: alive
     with pytest.raises(UsageError, match=f"is in use by process {os.getpid()}"):
         with rundir.lock(tmp_path):
@@ -867,12 +870,12 @@ def test_workers_die_with_a_killed_experiment(tmp_path):
         proc.kill()  # kill -9: no handler runs in the parent
         proc.wait(timeout=30)
         deadline = time.monotonic() + 60
-        while any(rundir._alive(w, host) for w in workers) and time.monotonic() < deadline:
+        while any(lock_mod._alive(w, host) for w in workers) and time.monotonic() < deadline:
             time.sleep(0.1)
-        assert [w for w in workers if rundir._alive(w, host)] == []
+        assert [w for w in workers if lock_mod._alive(w, host)] == []
     finally:
         for w in workers:
-            if rundir._alive(w, host):
+            if lock_mod._alive(w, host):
                 os.kill(w, signal.SIGKILL)
     assert not (source / rundir.LOCK).exists()  # the worker unwound: its run is free to resume
     assert torch.load(source / "checkpoints" / "last.pt", weights_only=True)["frames"] >= 256
