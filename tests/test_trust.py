@@ -12,7 +12,11 @@ import torch
 from drltg.cli import main
 from drltg.errors import UsageError
 from drltg.store import manifest, rundir
-from tests.test_reliability import one_sentence, train_args
+from tests.test_reliability import (
+    one_sentence,
+    source,  # noqa: F401  (fixture: a finished tiny SAC run)
+    train_args,
+)
 
 
 class Payload:
@@ -39,13 +43,6 @@ def poison(run, marker, name="last"):
 
 
 @pytest.fixture(scope="module")
-def finished(tmp_path_factory):
-    run = tmp_path_factory.mktemp("finished") / "sac"
-    assert main(train_args(run, frames=128)) == 0
-    return run
-
-
-@pytest.fixture(scope="module")
 def unfinished(tmp_path_factory):
     """A run whose checkpoint is at frame 128 of a 256-frame budget (summary.json removed)."""
     run = tmp_path_factory.mktemp("unfinished") / "sac"
@@ -63,9 +60,9 @@ def marker(tmp_path):
 
 
 @pytest.fixture
-def evil(finished, tmp_path, marker):
+def evil(source, tmp_path, marker):  # noqa: F811
     run = tmp_path / "evil"
-    shutil.copytree(finished, run)
+    shutil.copytree(source, run)
     poison(run, marker)
     return run
 
@@ -82,9 +79,9 @@ def test_load_checkpoint_refuses_it(evil):
         rundir.load_checkpoint(evil)
 
 
-def test_a_changed_checkpoint_is_refused_by_its_digest_before_it_is_read(finished, tmp_path, marker):
+def test_a_changed_checkpoint_is_refused_by_its_digest_before_it_is_read(source, tmp_path, marker):  # noqa: F811
     run = tmp_path / "changed"
-    shutil.copytree(finished, run)
+    shutil.copytree(source, run)
     ckpt = torch.load(run / "checkpoints" / "last.pt", weights_only=True)
     torch.save({**ckpt, "payload": Payload(marker)}, run / "checkpoints" / "last.pt")  # manifest left as it was
     with pytest.raises(UsageError, match="does not match its SHA-256"):
@@ -118,10 +115,10 @@ def test_load_actor_refuses_it(evil):
 
 
 def test_the_preflight_of_an_unfinished_source_refuses_it(unfinished, tmp_path, marker, capsys):
-    source = tmp_path / "source"
-    shutil.copytree(unfinished, source)
-    poison(source, marker)
-    reuse = ["-o", "transfer.method=policy-reuse", "-o", f"transfer.source={source}"]
+    reused = tmp_path / "source"
+    shutil.copytree(unfinished, reused)
+    poison(reused, marker)
+    reuse = ["-o", "transfer.method=policy-reuse", "-o", f"transfer.source={reused}"]
     one_sentence(capsys, main(train_args(tmp_path / "t", *reuse)), 2, "never allowed to run code")
 
 
