@@ -1,16 +1,16 @@
-# Quickstart:  make demo   |   make test
+# Quickstart:  make demo   |   make test   |   make docs (the site, into site/)
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.drltg-installed
 
-.PHONY: demo test install clean
+.PHONY: demo test docs install clean
 
 # (Re)install only when the dependency pins change; a second run starts in seconds.
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[robosuite,test]"
+	$(BIN)/python -m pip install --quiet -e ".[robosuite,test,docs]"
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -21,5 +21,8 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest
 
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
+
 clean:
-	rm -rf $(VENV)
+	rm -rf $(VENV) site

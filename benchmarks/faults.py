@@ -9,7 +9,7 @@ the same command to its end and checks:
 * the command then exits 0 and every run is complete, its ``manifest.json`` matching every file;
 * each run's ``eval.csv`` has the undisturbed run's frames; a run the kill did not touch (complete
   before it, or not started) is byte for byte the undisturbed one, and a resumed run equals it up to
-  the checkpoint it resumed from (after it, the training envs start fresh episodes: README, resume);
+  the checkpoint it resumed from (after it, the training envs start fresh episodes: docs/training.md, resume);
 * no worker outlived the kill.
 
 Prints one JSON object and writes it to ``benchmarks/faults_result.json`` (slow: minutes; not a test).

@@ -1,4 +1,4 @@
-"""Rewrite the generated regions of results/README.md and README.md from the committed numbers.
+"""Rewrite the generated regions of README.md, docs/ and results/ from the committed numbers.
 
     python results/claims.py           # rewrite every region between <!-- claims:NAME --> and <!-- /claims:NAME -->
     python results/claims.py --check   # change nothing; name the regions that differ and exit 1
@@ -149,7 +149,7 @@ TARGETS = {"near": "near (1.0, same room)", "inner": "inner (2.1, same room)",
 
 
 def results_table() -> str:
-    """README's table: the graded sweep's mean return gain per target and method; bold where the gain is a
+    """docs/results.md's table: the graded sweep's mean return gain per target and method; bold where the gain is a
     finding within the sweep's family (interval excludes 0, Holm-adjusted p < 0.05)."""
     reports = sweep_reports(GRADED)
     adjusted = family(reports)
@@ -170,7 +170,7 @@ def results_table() -> str:
 
 
 def readme_others() -> str:
-    """README's one paragraph on the other studies, each sentence from its reports."""
+    """docs/results.md's paragraph on the other studies, each sentence from its reports."""
     grid = sweep_reports(RESULTS / "sweep-gridrooms")
     adj_g = family(grid)
     g = {k: said(r["metrics"], PRIMARY, adj_g.get(k)) for k, r in grid.items()}
@@ -191,7 +191,7 @@ def readme_others() -> str:
 
 
 def readme_lift() -> str:
-    """README's sentences on the manipulation studies, each from its reports."""
+    """docs/tasks.md's sentences on the manipulation studies, each from its reports."""
     demo = load(LIFT / "demonstrations" / "report-success" / "transfer_metrics.json")
     place = {pair: load(PLACE / pair / "sac" / "demonstrations" / "report-lifted" / "transfer_metrics.json")
              for pair in ("lift-to-place", "lift-to-place-barrier")}
@@ -606,8 +606,9 @@ def run_rate(runs: Path = MANIP, pattern: str = "*/lift-to-place*/sac/**/seed-*/
 
 
 def manipulation_cost() -> str:
-    """README's table of the study's one-command rows: what each adds in the queue's order (a target's
-    baselines are trained by the first row that needs them) and its wall time on 2 cores at the measured rate."""
+    """results/manipulation/README.md's table of the study's one-command rows: what each adds in the queue's
+    order (a target's baselines are trained by the first row that needs them) and its wall time on 2 cores at the
+    measured rate."""
     rows, sources = _queue()
     fps, n = run_rate()
     soc_fps, soc_n = run_rate(MANIP / "sources" / "lift-soc4", "seed-*/summary.json")
@@ -1077,18 +1078,22 @@ REGIONS = {
         "source-noise": source_noise,
         "shaping-stages": shaping_stages,
     },
-    "README.md": {
-        "demo": demo_sentence,
+    "README.md": {"demo": demo_sentence},
+    "docs/tasks.md": {
         "tasks": lambda: tasks_table("rooms"),
         "tasks-robosuite": lambda: tasks_table("robosuite"),
         "tasks-gym": lambda: tasks_table("gym"),
-        "methods": methods_table,
-        "config": config_table,
+        "lift-summary": readme_lift,
+    },
+    "docs/training.md": {"config": config_table},
+    "docs/methods.md": {"methods": methods_table},
+    "docs/results.md": {
         "results-table": results_table,
         "results-verdicts": lambda: sweep_verdicts(GRADED, ["model-reuse", "value-shaping", "policy-reuse",
                                                             "reward-shaping"]),
         "results-others": readme_others,
-        "lift-summary": readme_lift,
+    },
+    "results/manipulation/README.md": {
         "manipulation-cost": manipulation_cost,
         "manipulation-sources": manipulation_sources,
         "manipulation-critics": critic_scale,

@@ -1,9 +1,10 @@
-"""README.md's Python blocks are complete programs: each runs on its own, with a tiny budget.
+"""The Python blocks of README.md and the docs site are complete programs: each runs on its own, with a
+tiny budget.
 
-Every ```python block runs in a fresh namespace, all in one subprocess (torch imported once), in a
-scratch folder, in README order; ``FRAMES = ...`` lines are set to a tiny budget. A block that reads
-runs a user would have (``drltg report``'s ``runs/exp``) finds Stable-Baselines3 logs shipped with the
-suite there (tests/data/README.md).
+Every ```python block (README's, then the pages' in the site's order; a block shown on two pages runs once)
+runs in a fresh namespace, all in one subprocess (torch imported once), in a scratch folder, in that order;
+``FRAMES = ...`` lines are set to a tiny budget. A block that reads runs a user would have (``drltg
+report``'s ``runs/exp``) finds Stable-Baselines3 logs shipped with the suite there (tests/data/README.md).
 """
 import json
 import os
@@ -14,10 +15,14 @@ import sys
 from pathlib import Path
 
 import pytest
+import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).resolve().parent / "data"
-BLOCKS = re.findall(r"^```python\n(.*?)^```", (ROOT / "README.md").read_text(), flags=re.S | re.M)
+PAGES = [ROOT / "README.md"] + [ROOT / "docs" / next(iter(entry.values()))
+                                for entry in yaml.safe_load((ROOT / "mkdocs.yml").read_text())["nav"]]
+BLOCKS = list(dict.fromkeys(block for page in PAGES
+                            for block in re.findall(r"^```python\n(.*?)^```", page.read_text(), flags=re.S | re.M)))
 FRAMES = 320
 RUNNER = """
 import contextlib, io, json, sys, traceback
@@ -27,7 +32,7 @@ for code in blocks:
     stdout = io.StringIO()
     try:
         with contextlib.redirect_stdout(stdout):
-            exec(compile(code, "README.md", "exec"), {"__name__": "__main__"})
+            exec(compile(code, "docs", "exec"), {"__name__": "__main__"})
         results.append({"stdout": stdout.getvalue(), "error": None})
     except BaseException:
         results.append({"stdout": stdout.getvalue(), "error": traceback.format_exc()})

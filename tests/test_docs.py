@@ -1,0 +1,40 @@
+"""The docs site builds strictly (every page in the navigation, every link and API reference resolved), and
+README stays the front door: short, with the site's composed example."""
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+NAV = [next(iter(entry.values())) for entry in yaml.safe_load((ROOT / "mkdocs.yml").read_text())["nav"]]
+
+
+def test_the_site_builds_strictly(tmp_path):
+    done = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(tmp_path / "site")],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300,
+                          env={**os.environ, "NO_MKDOCS_2_WARNING": "1"})
+    assert done.returncode == 0, done.stderr[-3000:]
+    api = (tmp_path / "site" / "api" / "index.html").read_text()
+    for name in ("FourRoomsEnv", "PotentialShaping", "PolicyReuse", "SoftOptionCriticLoss", "load_weights"):
+        assert f"{name}" in api, name
+    home = (tmp_path / "site" / "index.html").read_text()
+    assert "Quickstart" in home and "One composed example" in home  # README's front, included
+
+
+def test_every_page_is_in_the_navigation():
+    assert sorted(NAV) == sorted(p.name for p in (ROOT / "docs").glob("*.md"))
+
+
+def test_the_readme_is_short_and_its_example_is_the_methods_page_one():
+    readme = (ROOT / "README.md").read_text()
+    assert len(readme.splitlines()) <= 300
+    example = re.search(r"## One composed example\n.*?(```python\n.*?^```)", readme, flags=re.S | re.M).group(1)
+    assert example in (ROOT / "docs" / "methods.md").read_text()
+
+
+def test_the_readme_links_to_every_page():
+    readme = (ROOT / "README.md").read_text()
+    assert [p for p in NAV if f"(docs/{p})" not in readme] == []
