@@ -151,7 +151,7 @@ def test_the_registry_tables_list_every_builtin_task_method_and_key():
 
 
 def test_the_report_command_ends_with_the_generated_headline(tmp_path, capsys):
-    from drltg.analysis import report
+    from drltg.cli import report
 
     demo = ROOT / "results" / "demo"
     code = report.main(["--baseline", str(demo / "baseline"), "--transfer", str(demo / "transfer"),

@@ -9,8 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from drltg.analysis import metrics as M
 from drltg.analysis import report
 from drltg.analysis.curves import Curve
+from drltg.analysis.report import catalogue, outputs
+from drltg.cli import report as report_cli
 from drltg.errors import UsageError
 
 FILES = {"transfer_metrics.json", "transfer_metrics.csv", "transfer_plot.png", "transfer_plot.svg"}
@@ -156,7 +159,7 @@ def test_negative_and_near_zero_baseline_areas():
 
 def test_done_when_command_on_real_sb3_runs(sb3_runs, tmp_path, capsys):
     out = tmp_path / "rep"
-    code = report.main(["--baseline", str(sb3_runs / "liftplace_sac"),
+    code = report_cli.main(["--baseline", str(sb3_runs / "liftplace_sac"),
                         "--transfer", str(sb3_runs / "liftplace_sac_policyreuse"),
                         "--threshold", "150", "--out", str(out)])
     assert code == 0
@@ -289,10 +292,10 @@ def test_fraction_threshold_needs_a_positive_best(tmp_path):
 
 
 def test_cli_errors_exit_2_with_one_sentence(tmp_path, capsys):
-    assert report.main(["--baseline", str(tmp_path / "nope"), "--transfer", str(tmp_path)]) == 2
+    assert report_cli.main(["--baseline", str(tmp_path / "nope"), "--transfer", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("drltg report: error: ") and "does not exist" in err and "\n" not in err
-    assert report.main(["--baseline", str(tmp_path)]) == 2
+    assert report_cli.main(["--baseline", str(tmp_path)]) == 2
 
 
 def test_transfer_matrix(sb3_runs, tmp_path, capsys):
@@ -307,7 +310,7 @@ def test_transfer_matrix(sb3_runs, tmp_path, capsys):
         (cell / "baseline").symlink_to(sb3_runs / base)
         (cell / "transfer").symlink_to(sb3_runs / tran)
     out = tmp_path / "matrix"
-    assert report.main(["--matrix", str(grid), "--metric", "jumpstart", "--out", str(out)]) == 0
+    assert report_cli.main(["--matrix", str(grid), "--metric", "jumpstart", "--out", str(out)]) == 0
     assert set(os.listdir(out)) == {f"transfer_matrix.{e}" for e in ("png", "svg", "csv", "json")}
     rows = list(csv.reader(io.StringIO((out / "transfer_matrix.csv").read_text())))
     assert rows[0] == ["source", "liftplace", "liftplacebarrier"]
@@ -565,7 +568,7 @@ def test_out_that_is_a_file_exits_2(two_by_two, tmp_path, capsys):
     afile = tmp_path / "afile"
     afile.write_text("keep")
     for out in (afile, afile / "sub"):
-        assert report.main(["--baseline", str(b), "--transfer", str(t), "--out", str(out)]) == 2
+        assert report_cli.main(["--baseline", str(b), "--transfer", str(t), "--out", str(out)]) == 2
         err = capsys.readouterr().err.strip()
         assert "is a file, not a folder" in err and "\n" not in err
     assert afile.read_text() == "keep"
@@ -575,7 +578,7 @@ def test_settings_define_the_cli_options(capsys):
     import argparse
 
     parser = argparse.ArgumentParser()
-    report.add_arguments(parser)
+    report_cli.add_arguments(parser)
     args = parser.parse_args(["--baseline", "b", "--transfer", "t", "--paired", "--source-frames", "40k",
                               "--sustain", "3"])
     s = report.ReportSettings.from_args(args)
@@ -584,7 +587,7 @@ def test_settings_define_the_cli_options(capsys):
     for bad, text in ((["--sustain", "1"], "--sustain must be at least 2"),
                       (["--trend-window", "2"], "--trend-window must lie in (0, 1]"),
                       (["--source-frames", "lots"], "--source-frames 'lots' is not a number")):
-        assert report.main(["--baseline", "b", "--transfer", "t", *bad]) == 2
+        assert report_cli.main(["--baseline", "b", "--transfer", "t", *bad]) == 2
         assert text in capsys.readouterr().err
 
 
@@ -609,8 +612,8 @@ def test_out_that_cannot_be_written_exits_2(two_by_two, tmp_path, capsys, monkey
     b, t = two_by_two
     locked = tmp_path / "locked"
     locked.mkdir()
-    monkeypatch.setattr(report.os, "access", lambda path, mode: Path(path) != locked)
-    assert report.main(["--baseline", str(b), "--transfer", str(t), "--out", str(locked / "rep")]) == 2
+    monkeypatch.setattr(outputs.os, "access", lambda path, mode: Path(path) != locked)
+    assert report_cli.main(["--baseline", str(b), "--transfer", str(t), "--out", str(locked / "rep")]) == 2
     err = capsys.readouterr().err.strip()
     assert "cannot be written" in err and "read-only" in err and "\n" not in err
     assert list(locked.iterdir()) == []
@@ -634,7 +637,7 @@ def test_per_seed_scores_are_one_frame_with_side_and_pair():
 def test_a_new_metric_is_one_entry(monkeypatch):
     """An entry of METRICS reaches the JSON metrics, the CSV rows and the text table."""
     entry = report.Metric("total_reward_gain", "difference", "total_reward", iqm=True, note="area, not mean")
-    monkeypatch.setattr(report, "METRICS", report.METRICS + (entry,))
+    monkeypatch.setattr(catalogue, "METRICS", catalogue.METRICS + (entry,))
     res = report.compute(flat([1.0, 2.0, 3.0], prefix="b"), flat([2.0, 4.0, 6.0], prefix="t"))
     m = res["metrics"]
     assert m["total_reward_gain"] == pytest.approx(60.0)  # areas 30, 60, 90 vs 60, 120, 180
@@ -671,11 +674,11 @@ def test_runs_of_two_methods_under_one_side_need_allow_mixed(tmp_path, capsys):
         run = write_run(tmp_path / "t" / f"seed-{i}", [0, 10, 20], [1, 2, 3])
         (run / "config.yaml").write_text(f"task: x\nseed: {i}\ntransfer:\n  method: {method}\n")
     args = ["--baseline", str(tmp_path / "b"), "--transfer", str(tmp_path / "t"), "--out", str(tmp_path / "r")]
-    assert report.main(args) == 2
+    assert report_cli.main(args) == 2
     err = capsys.readouterr().err.strip()
     assert "the transfer runs mix configurations" in err and "transfer.method=model-reuse" in err
     assert "\n" not in err and not (tmp_path / "r").exists()
-    assert report.main(args + ["--allow-mixed"]) == 0
+    assert report_cli.main(args + ["--allow-mixed"]) == 0
     assert "accepted by --allow-mixed" in capsys.readouterr().err
 
 
@@ -721,7 +724,7 @@ def test_every_metric_with_an_interval_has_a_p_value_adjusted_over_the_report_s_
     with_ci = [k.removesuffix("_ci") for k in m if k.endswith("_ci")]
     assert family["metrics"] == with_ci and family["size"] == len(with_ci) > 5
     ps = [m[f"{k}_p_value"] for k in with_ci]
-    assert [m[f"{k}_p_adjusted"] for k in with_ci] == pytest.approx(report.M.holm(ps))
+    assert [m[f"{k}_p_adjusted"] for k in with_ci] == pytest.approx(M.holm(ps))
     assert all(m[f"{k}_p_adjusted"] >= m[f"{k}_p_value"] for k in with_ci)
     # 5 pairs all improving: the sign test cannot reach 0.05 (p = 1/16), nor can the exact permutation test
     assert m["probability_of_improvement_p_value"] == pytest.approx(1 / 16)
@@ -756,7 +759,7 @@ def test_a_success_rate_s_intervals_stay_in_their_range(tmp_path):
     m = res["metrics"]
     assert res["settings"]["value_range"] == [0, 1]
     assert m["asymptotic_performance_ci"][1] == 1.0 and m["asymptotic_performance_ci"][0] == -1.0  # cut to range
-    unbounded = report.M.t_interval(np.array([0.0, 0.0, 1.0]), np.array([1.0, 1.0, 0.0]))
+    unbounded = M.t_interval(np.array([0.0, 0.0, 1.0]), np.array([1.0, 1.0, 0.0]))
     assert unbounded[1] > 1 and unbounded[0] < -1  # what the plain t interval would say
     for key, (lo, hi) in ((k, v) for k, v in m.items() if k.endswith("_ci")):
         assert (0.0 if "probability" in key else -1.0) <= lo <= hi <= 1.0, key
@@ -812,7 +815,8 @@ def test_the_earlier_rows_in_results_are_the_report_of_their_logs(row, tmp_path,
     for sub, budget in (("", []), ("at-100k", ["--budget", "100000"])):
         kept = json.loads((root / "results/manipulation/earlier" / row / sub / "transfer_metrics.json").read_text())
         logs = [str(root / Path(kept["settings"][side][0]).parent) for side in ("baseline", "transfer")]
-        assert report.main(["--baseline", logs[0], "--transfer", logs[1], *budget, "--out", str(tmp_path / row)]) == 0
+        args = ["--baseline", logs[0], "--transfer", logs[1], *budget, "--out", str(tmp_path / row)]
+        assert report_cli.main(args) == 0
         fresh = json.loads((tmp_path / row / "transfer_metrics.json").read_text())
         assert fresh["settings"]["budget"] == kept["settings"]["budget"]
         for key in ("mean_return_gain", "final_performance_baseline", "final_performance_transfer"):

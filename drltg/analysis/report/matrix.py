@@ -1,0 +1,80 @@
+"""``drltg report --matrix``: one metric over every source/target cell, as a heatmap."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from drltg.analysis import tables
+from drltg.analysis.report.catalogue import table_rows
+from drltg.analysis.report.outputs import check_out_dir, fresh_dir, json_text
+from drltg.analysis.report.pipeline import compute, read_runs
+from drltg.analysis.report.settings import settings_of
+from drltg.errors import UsageError
+from drltg.store import rundir
+
+
+def find_matrix_cells(directory: str | Path) -> dict[tuple[str, str], tuple[Path, Path]]:
+    """``DIR/<source>/<target>/{baseline,transfer}`` -> ``{(source, target): (baseline, transfer)}``."""
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise UsageError(f"--matrix '{directory}' is not a directory.")
+    cells = {}
+    for source in sorted(p for p in directory.iterdir() if p.is_dir()):
+        for target in sorted(p for p in source.iterdir() if p.is_dir()):
+            b, t = target / "baseline", target / "transfer"
+            if b.is_dir() and t.is_dir():
+                cells[(source.name, target.name)] = (b, t)
+            elif b.is_dir() or t.is_dir():
+                missing = "transfer" if b.is_dir() else "baseline"
+                raise UsageError(f"'{target}' has no '{missing}' folder beside its other run set.")
+    if not cells:
+        raise UsageError(
+            f"--matrix '{directory}' holds no <source>/<target>/baseline + transfer run folders."
+        )
+    return cells
+
+
+def check_metric(metric: str, option: str = "--metric") -> None:
+    """``metric`` must be one the report computes."""
+    if metric not in table_rows():
+        raise UsageError(f"unknown {option} '{metric}'; choose one of {', '.join(table_rows())}.")
+
+
+def transfer_matrix(
+    cells: dict[tuple[str, str], tuple],
+    out_dir: str | Path | None = None,
+    metric: str = "mean_return_gain",
+    **settings,
+) -> dict:
+    """One report per (source, target) cell, summarised as a heatmap of ``metric`` plus CSV and JSON."""
+    check_metric(metric)
+    s = settings_of(settings)
+    if out_dir is not None:
+        check_out_dir(Path(out_dir))
+    results = {cell: compute(read_runs(b, s), read_runs(t, s), **settings) for cell, (b, t) in sorted(cells.items())}
+    sources = sorted({s for s, _ in results})
+    targets = sorted({t for _, t in results})
+    table = np.full((len(sources), len(targets)), np.nan)
+    for (source, target), r in results.items():
+        v = r["metrics"][metric]
+        table[sources.index(source), targets.index(target)] = np.nan if v is None else v
+    from drltg.analysis.plot import plot_matrix
+
+    png, svg = plot_matrix(table, sources, targets, metric)
+    grid_csv = tables.render([("source", *targets)] + [
+        (source, *(None if np.isnan(v) else float(v) for v in row)) for source, row in zip(sources, table)
+    ], "csv")
+    obj = {
+        "metric": metric,
+        "cells": [{"source": source, "target": target, "metrics": r["metrics"], "settings": r["settings"]}
+                  for (source, target), r in results.items()],
+    }
+    out = Path(out_dir) if out_dir is not None else fresh_dir(f"matrix-{metric}")
+    rundir.write_files(out, {
+        "transfer_matrix.csv": grid_csv.encode(),
+        "transfer_matrix.json": json_text(obj).encode(),
+        "transfer_matrix.png": png,
+        "transfer_matrix.svg": svg,
+    })
+    return {**obj, "out_dir": str(out), "table": table.tolist(), "sources": sources, "targets": targets}

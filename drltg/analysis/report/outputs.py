@@ -1,0 +1,122 @@
+"""Stage 6, write: the text table, JSON, CSV and plot files, written atomically."""
+from __future__ import annotations
+
+import json
+import os
+import re
+from pathlib import Path
+
+from drltg.analysis import tables
+from drltg.analysis.report.catalogue import table_rows
+from drltg.analysis.tables import number
+from drltg.errors import UsageError
+from drltg.store import rundir
+
+
+def metrics_rows(metrics: dict) -> list[tuple[str, object, object, object, object, object]]:
+    """``(metric, value, ci_low, ci_high, p_value, p_adjusted)`` rows in the table's order (the metrics the
+    report gave)."""
+    rows = []
+    for name in table_rows():
+        if name in metrics:
+            ci = metrics.get(f"{name}_ci") or (None, None)
+            rows.append((name, metrics[name], ci[0], ci[1], metrics.get(f"{name}_p_value"),
+                         metrics.get(f"{name}_p_adjusted")))
+    return rows
+
+
+def _note(name: str, st: dict) -> str:
+    metric, side, iqm = table_rows()[name]
+    if iqm:
+        return ""
+    return metric.note(st, side) if callable(metric.note) else metric.note
+
+
+def _shown(name: str, value, threshold) -> str:
+    if name.startswith(("time_to_threshold", "threshold_reached")) and threshold is None:
+        return "-"
+    if value is None:
+        return "not reached" if name.startswith("time_to") else "null"
+    return number(value)
+
+
+def format_table(result: dict) -> str:
+    """The metrics as an aligned text table (intervals only where they exist; notes on the right)."""
+    m, st = result["metrics"], result["settings"]
+    head = (
+        f"{st['transfer_label']} (transfer, {m['n_seeds_transfer']} seed(s)) vs "
+        f"{st['baseline_label']} (baseline, {m['n_seeds_baseline']} seed(s))"
+        + (f" on {st['task']}" if st["task"] else "") + "\n"
+        + f"budget {number(st['budget'])} frames from frame {number(st['start'])}"
+        + ("" if st["threshold"] is None else f"; threshold {st['threshold']:.4g}")
+        + f"; {st.get('pairing', 'unpaired').split(':')[0]}\n"
+        + _family_line(st) + "\n\n"
+    )
+    rows = [("metric", "value", f"{round(100 * st['confidence'])}% CI", "p", "p (Holm)", "note")]
+    rows += [(name, _shown(name, value, st["threshold"]), tables.interval((lo, hi)), _p(p), _p(adjusted),
+              _note(name, st)) for name, value, lo, hi, p, adjusted in metrics_rows(m)]
+    return head + tables.render(rows, "text", align="lrlrrl").rstrip("\n")
+
+
+def _p(p) -> str:
+    return "" if p is None else "<0.001" if p < 0.001 else f"{p:.3f}"
+
+
+def _family_line(st: dict) -> str:
+    family = st.get("family") or {}
+    if not family.get("size"):
+        return "family: no p-values (too few seeds or no spread)"
+    return (f"family: {family['size']} intervals read together; p (Holm) adjusts each p-value over all "
+            f"{family['size']}")
+
+
+def render(result: dict) -> dict[str, bytes]:
+    """The report's files as bytes (nothing is written here)."""
+    from drltg.analysis.plot import plot_transfer
+
+    m, st = result["metrics"], result["settings"]
+    public = {"metrics": m, "settings": st, "per_seed": result["per_seed"]}
+    png, svg = plot_transfer(result)
+    return {
+        "transfer_metrics.json": json_text(public).encode(),
+        "transfer_metrics.csv": tables.render(
+            [("metric", "value", "ci_low", "ci_high", "p_value", "p_adjusted"), *metrics_rows(m)], "csv").encode(),
+        "transfer_plot.png": png,
+        "transfer_plot.svg": svg,
+    }
+
+
+def json_text(obj) -> str:
+    return json.dumps(obj, indent=2, allow_nan=False) + "\n"
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]+", "-", text).strip("-.") or "runs"
+
+
+def fresh_dir(name: str, parent: Path | None = None) -> Path:
+    """``parent/name``, or ``name-2``, ``name-3``, ... if it exists (never the working directory itself)."""
+    parent = Path.cwd() if parent is None else Path(parent)
+    base = parent / _slug(name)
+    path, i = base, 2
+    while path.exists():
+        path, i = base.with_name(f"{base.name}-{i}"), i + 1
+    return path
+
+
+def check_out_dir(out: Path, option: str = "--out") -> None:
+    """An output folder must be a folder (or creatable as one) that this process can write, and never a
+    run directory or a folder inside one (a report's files would mix with the run's own)."""
+    rundir.refuse_special(out, option)
+    runs = [p for p in [out, *out.resolve().parents] if (p / rundir.EVAL).is_file() or (p / rundir.SUMMARY).is_file()]
+    run = runs[0] if runs else None
+    if run is not None:
+        raise UsageError(f"{option} '{out}' is {'' if run == out else 'inside '}the run directory '{run}'; write the "
+                         "report to a folder of its own.")
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"{option} '{out}' is a file, not a folder.")
+    existing = next((p for p in [out, *out.parents] if p.exists()), None)
+    if existing is not None and not existing.is_dir():
+        raise UsageError(f"{option} '{out}' lies inside '{existing}', which is a file, not a folder.")
+    if existing is not None and not os.access(existing, os.W_OK | os.X_OK):
+        raise UsageError(f"{option} '{out}' cannot be written: '{existing}' is read-only for this user.")

@@ -1,0 +1,71 @@
+"""The pipeline: read both sides, check, align, score, compute the metrics, describe, write."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Sequence
+
+from drltg.analysis.curves import Curve, read_curves
+from drltg.analysis.report.align import align
+from drltg.analysis.report.checks import check_runs
+from drltg.analysis.report.describe import describe, plot_curves
+from drltg.analysis.report.inference import metric_values, records_of, trend
+from drltg.analysis.report.outputs import check_out_dir, fresh_dir, render
+from drltg.analysis.report.scores import score_runs, stack
+from drltg.analysis.report.settings import ReportSettings, settings_of
+from drltg.store import rundir
+
+
+def transfer_report(
+    baseline: str | Path | Sequence[str | Path] | Sequence[Curve],
+    transfer: str | Path | Sequence[str | Path] | Sequence[Curve],
+    out_dir: str | Path | None = None,
+    **settings,
+) -> dict:
+    """Read both run sets, compute the metrics, write the four report files; return the JSON object.
+
+    ``baseline`` and ``transfer`` are paths (runs, directories of runs, globs) or lists of
+    :class:`~drltg.analysis.curves.Curve`. ``out_dir`` defaults to a fresh folder named after the runs in the
+    working directory. Keyword settings are those of ``drltg report`` (``threshold=150`` or ``"80%"``,
+    ``budget``, ``crossing``, ``paired``, ``source_frames``, ...: the fields of :class:`ReportSettings`).
+    The returned dict also holds ``"scores"`` (the per-seed DataFrame) and ``"out_dir"``.
+    """
+    s = settings_of(settings)
+    if out_dir is not None:
+        check_out_dir(Path(out_dir))
+    result = compute(read_runs(baseline, s), read_runs(transfer, s), **settings)
+    files = render(result)
+    st = result["settings"]
+    out = Path(out_dir) if out_dir is not None else fresh_dir(
+        f"report-{st['transfer_label']}-vs-{st['baseline_label']}")
+    rundir.write_directory(out, files)
+    return {"metrics": result["metrics"], "settings": st, "per_seed": result["per_seed"],
+            "scores": result["scores"], "out_dir": str(out)}
+
+
+def compute(baseline: Sequence[Curve], transfer: Sequence[Curve], **settings) -> dict:
+    """Metrics of ``transfer`` against ``baseline`` (lists of curves, one per seed), without writing.
+
+    Returns ``{"metrics", "settings", "per_seed", "scores", "curves"}``: ``scores`` is the per-seed
+    DataFrame (one row per run), ``per_seed`` the same as JSON rows per side, ``curves`` the arrays the
+    plot draws. Keyword settings: the fields of :class:`ReportSettings`."""
+    s = settings_of(settings)
+    warnings: list[str] = []
+    sides = check_runs(baseline, transfer, s, warnings)
+    window = align(sides, s, warnings)
+    by_side = score_runs(sides, window, s, warnings)
+    scores = stack(by_side, sides.paired)
+    trends = {side: trend(runs, window, s) for side, runs in sides.items()}
+    metrics = metric_values(scores, trends, sides.paired, window, s, warnings)
+    described = describe(s, sides, window, trends, warnings, metrics)
+    per_seed = {side: records_of(df) for side, df in by_side.items()}
+    return {"metrics": metrics, "settings": described, "per_seed": per_seed,
+            "scores": scores, "curves": plot_curves(sides, window, scores, described)}
+
+
+def read_runs(runs, s: ReportSettings) -> list[Curve]:
+    """Curves as given, or read from paths with the settings' log format and tag."""
+    if isinstance(runs, Curve):
+        return [runs]
+    if isinstance(runs, (list, tuple)) and runs and all(isinstance(r, Curve) for r in runs):
+        return list(runs)
+    return read_curves(runs, format=s.format, tag=s.tag)
