@@ -1,0 +1,84 @@
+"""Run configuration: typed sections (pydantic models), resolved in a fixed order and saved with the run.
+
+    defaults (the models below) <- the task's own overrides (registry) <- a YAML file (--config) <- KEY=VALUE overrides
+
+:func:`resolve` returns a :class:`RunConfig` (``cfg.optim.lr``, ``cfg.transfer.method``); the resolved
+config, the task's env settings included, is written to ``<run_dir>/config.yaml`` (:func:`dump`) and
+``drltg train --config <run_dir>/config.yaml`` reproduces the run. Every key has a declared type and
+range in its section's model (``describe()`` lists them); a typo or a value out of range is one
+:class:`~drltg.errors.UsageError` sentence naming the key (pydantic's errors are translated), before
+anything is built or written.
+
+Two parts are open-ended: the ``transfer`` section holds, besides ``method``, ``source``,
+``allow_incomplete`` and ``source_checkpoint``, the options of every registered transfer method (each
+method's options are a model of their own, built when it is registered, :func:`add_method`), and ``env``
+is a mapping of the task's keyword arguments, checked against the keywords its factory declares
+(:func:`validate`).
+"""
+from drltg.config.checks import check_device, validate
+from drltg.config.diff import config_changes, describe, dump, env_keys_set_once
+from drltg.config.env_options import env_defaults, env_model, task_env
+from drltg.config.methods import BUILTIN_METHOD_OPTIONS, builtin_options
+from drltg.config.overrides import (
+    ENV_EXECUTION_KEYS,
+    as_config,
+    frame_count,
+    load_yaml,
+    merge,
+    parse_override,
+    refuse_conflicts,
+    resolve,
+    set_key,
+)
+from drltg.config.registered import METHOD_MODELS, METHOD_OPTIONS, METHOD_RULES, method_names
+from drltg.config.run import (
+    TRANSFER_KEYS,
+    RunConfig,
+    TransferConfig,
+    _model,
+    add_method,
+    build,
+    defaults,
+    keys,
+    options_model,
+    remove_method,
+    transfer_model,
+    updated,
+)
+from drltg.config.sections import (
+    ALGOS,
+    OPTION_POLICIES,
+    BufferConfig,
+    CheckpointConfig,
+    CollectorConfig,
+    EvalConfig,
+    LogConfig,
+    NetworkConfig,
+    OptimConfig,
+    SACConfig,
+    SOCConfig,
+    TD3Config,
+)
+from drltg.config.values import (
+    MAX_EPISODES,
+    MAX_SEEDS,
+    MAX_THREADS,
+    Bool,
+    Float,
+    Int,
+    Number,
+    Probability,
+    Section,
+    Str,
+)
+
+__all__ = [
+    "RunConfig", "resolve", "build", "validate", "as_config", "updated", "describe", "dump", "keys", "defaults",
+    "config_changes", "env_keys_set_once", "refuse_conflicts", "parse_override", "frame_count", "load_yaml",
+    "merge", "set_key", "task_env", "env_defaults", "env_model", "check_device",
+    "Int", "Float", "Bool", "Str", "Number", "Probability", "Section", "MAX_EPISODES", "MAX_SEEDS", "MAX_THREADS",
+    "CollectorConfig", "BufferConfig", "OptimConfig", "NetworkConfig", "SACConfig", "TD3Config", "SOCConfig",
+    "EvalConfig", "CheckpointConfig", "LogConfig", "TransferConfig", "ALGOS", "OPTION_POLICIES",
+    "METHOD_RULES", "METHOD_OPTIONS", "METHOD_MODELS", "TRANSFER_KEYS", "BUILTIN_METHOD_OPTIONS", "ENV_EXECUTION_KEYS",
+    "method_names", "builtin_options", "options_model", "add_method", "remove_method", "transfer_model", "_model",
+]

@@ -1,0 +1,95 @@
+"""The sections of a run config, one pydantic model each: every key with its type, range and help."""
+from __future__ import annotations
+
+from typing import Annotated, Literal, Optional, Union
+
+from pydantic import (
+    Field,
+)
+
+from drltg.config.values import MAX_EPISODES, Bool, Float, Int, Probability, Section, _what
+
+
+class CollectorConfig(Section):
+    num_envs: Int = Field(8, ge=1, description="training envs stepped as one batch")
+    frames_per_batch: Int = Field(32, ge=1, description="frames per collector batch, a multiple of num_envs")
+    init_random_frames: Int = Field(1024, ge=0, description="random-action warm-up frames")
+
+
+class BufferConfig(Section):
+    size: Int = Field(100_000, ge=1, description="replay capacity (transitions)")
+    batch_size: Int = Field(256, ge=1, description="minibatch size")
+
+
+class OptimConfig(Section):
+    lr: Float = Field(3.0e-4, gt=0, description="Adam learning rate")
+    updates_per_batch: Int = Field(8, ge=1, description="gradient steps per collected batch")
+    # (UTD = updates_per_batch / collector.frames_per_batch)
+    gamma: Float = Field(0.99, gt=0, le=1, description="discount")
+    tau: Float = Field(0.005, gt=0, le=1, description="target-network smoothing")
+    cudagraphs: Bool = Field(False, description="replay each gradient update as a captured CUDA graph "
+                                                "(CUDA devices only)")
+
+
+class NetworkConfig(Section):
+    hidden: list[Annotated[Int, Field(ge=1)]] = Field(
+        [256, 256], min_length=1, description="MLP widths of actor and critics",
+        json_schema_extra=_what("a non-empty list of positive integers (e.g. [64, 64])"))
+    layer_norm: Literal["none", "critics", "all"] = Field(
+        "none", description="LayerNorm after every hidden layer of the critics, of every network, or none")
+
+
+class SACConfig(Section):
+    alpha_init: Float = Field(1.0, gt=0, description="initial entropy temperature")
+    fixed_alpha: Bool = Field(False, description="keep the temperature at alpha_init")
+    target_entropy: Union[Literal["auto"], Float] = Field("auto", description="entropy the temperature is tuned to")
+
+
+class TD3Config(Section):
+    exploration_noise: Float = Field(0.1, ge=0, description="std of the exploration noise")
+    policy_noise: Float = Field(0.2, ge=0, description="std of the target policy smoothing noise")
+    noise_clip: Float = Field(0.5, ge=0, description="clip of the target policy noise")
+    policy_delay: Int = Field(2, ge=1, description="critic updates per actor update")
+
+
+OPTION_POLICIES = ("soft", "egreedy")
+
+
+class SOCConfig(Section):
+    """The soft option-critic (drltg.losses.soc); its action temperature comes from the ``sac`` section."""
+
+    num_options: Int = Field(4, ge=1, description="options of the soft option-critic (--options)")
+    option_policy: Literal[OPTION_POLICIES] = Field(
+        "soft", description="policy over options", json_schema_extra=_what(noun="option policy"))
+    option_alpha_init: Optional[Annotated[Float, Field(gt=0)]] = Field(
+        None, description="initial option temperature; null: sac.alpha_init")
+    fixed_option_alpha: Bool = Field(False, description="keep the option temperature fixed")
+    option_target_entropy: Union[Literal["auto"], Float] = Field(
+        "auto", description="entropy over options; auto: 0.5 log(num_options)")
+    option_epsilon: Probability = Field(0.1, description="exploration of the egreedy option policy")
+    deliberation_cost: Float = Field(0.01, ge=0, description="xi, added to the termination advantage")
+    option_entropy_bonus: Bool = Field(False, description="the option choice's entropy enters V_Omega")
+
+
+class EvalConfig(Section):
+    every: Int = Field(5_000, ge=1, description="frames between evaluations")
+    episodes: Int = Field(16, ge=1, le=MAX_EPISODES, description="evaluation episodes")
+
+
+class CheckpointConfig(Section):
+    every: Int = Field(10_000, ge=1, description="frames between checkpoints")
+    keep_best: Bool = Field(False, description="also keep checkpoints/best.pt, the checkpoint of the best evaluation")
+    best_metric: Literal["auto", "success_rate", "lifted_rate", "return_mean"] = Field(
+        "auto", description="the evaluation score best.pt maximises; auto: success_rate where the task reports it, "
+                            "else return_mean")
+
+
+class LogConfig(Section):
+    tensorboard: Bool = Field(True, description="also log to TensorBoard")
+    every: Int = Field(1_000, ge=1, description="frames between logged training scalars")
+
+
+ALGOS = ("sac", "td3", "soc")
+
+
+ENV_HELP = "keyword arguments of the task's env factory, checked against its declared defaults"
