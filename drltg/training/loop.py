@@ -4,15 +4,14 @@ Evaluation runs at frame 0 (before any update) and every ``eval.every`` frames, 
 actor on a separate evaluation env that measures the task's own reward (never a shaped one) and
 success. :func:`run_loop` is the loop over parts (a collector, a learner, one
 :class:`~drltg.store.rundir.RunWriter` per seed) and writes no file itself; what a run directory holds
-and how it is written is :mod:`drltg.store.rundir`. :func:`train` builds the parts, owns the directory (its
-lock) while it runs, checks everything it can before creating it, and removes what a failed start
-wrote before its first checkpoint, so a retry is never blocked.
+and how it is written is :mod:`drltg.store.rundir`. :func:`train` builds the parts of one run; its
+directory's lifecycle (checks, lock, resume, cleanup of a failed start) is
+:class:`~drltg.training.session.RunSession`'s, as for a seed group's runs (:mod:`drltg.training.seeds`).
 """
 from __future__ import annotations
 
 import contextlib
 import math
-import shutil
 import signal
 import sys
 import threading
@@ -30,14 +29,15 @@ from torchrl.envs import EnvBase, ExplorationType, RewardSum, TransformedEnv, se
 from tqdm.auto import tqdm
 
 from drltg import config
-from drltg.config import RunConfig, config_changes
+from drltg.config import RunConfig
 from drltg.envs import get_task, make_env
 from drltg.envs.limits import MAX_HORIZON
 from drltg.errors import UsageError
 from drltg.learners import Agent, UpdateStep, make_agent, sample_batches
-from drltg.store import manifest, rundir
-from drltg.store.rundir import CHECKPOINT, CONFIG, EPISODE_FLAGS, EVAL, RunWriter, is_complete, read_eval_csv
+from drltg.store import rundir
+from drltg.store.rundir import EPISODE_FLAGS, RunWriter, is_complete, read_eval_csv
 from drltg.training import best, health, preflight
+from drltg.training.session import RunSession
 from drltg.transfer import Transfer, get_method
 from drltg.transfer.source import check as check_source
 
@@ -151,68 +151,6 @@ def evaluate_seeds(env: EnvBase, actor: Callable, seeds: int, max_steps: int = M
     return rows
 
 
-# ----------------------------------------------------------------------------- run directory
-def _refuse_existing(run_dir: Path) -> None:
-    if rundir.entries(run_dir):
-        raise UsageError(
-            f"run directory '{run_dir}' already exists; pass --resume to continue it or choose another --run-dir."
-        )
-
-
-def _check_saved_config(cfg: RunConfig, run_dir: Path) -> None:
-    saved = rundir.read_config(run_dir)
-    changed = config_changes(saved if isinstance(saved, dict) else {},
-                             rundir.absolute_source(cfg.model_dump(), Path.cwd()))
-    if changed:
-        raise UsageError(f"cannot resume '{run_dir}': the config differs from the saved one in {', '.join(changed)}.")
-
-
-def _resume_state(cfg: RunConfig, run_dir: Path) -> tuple[dict | None, list[dict]]:
-    """The checkpoint to continue from (``None``: start over) and the evaluations up to it."""
-    if not (run_dir / CHECKPOINT).is_file():
-        if CHECKPOINT.as_posix() in manifest.read(run_dir):
-            raise UsageError(f"cannot resume '{run_dir}': its {CHECKPOINT.as_posix()} is missing though its manifest "
-                             "lists it, so the run would start over from frame 0; restore the checkpoint or start the "
-                             "run again in another --run-dir.")
-        return None, []
-    ckpt = rundir.load_checkpoint(run_dir, map_location=cfg.device)
-    if not {"frames", "updates", "optimizer", "buffer", "rng"} <= set(ckpt):
-        raise UsageError(f"cannot resume '{run_dir}': its checkpoint is not a training checkpoint of drltg train.")
-    frames = ckpt["frames"]
-    if not (run_dir / EVAL).is_file():
-        raise UsageError(
-            f"cannot resume '{run_dir}': its {EVAL} is missing, so the curve up to the checkpoint at frame "
-            f"{frames} is lost; start the run again in another --run-dir."
-        )
-    rows = [r for r in read_eval_csv(run_dir / EVAL) if r["frames"] <= frames]
-    found, expected = [r["frames"] for r in rows], ckpt.get("evaluations", [0])
-    missing = sorted(set(expected) - set(found))
-    if missing:
-        raise UsageError(
-            f"cannot resume '{run_dir}': {EVAL} lacks the evaluations at frames {missing} before the checkpoint "
-            f"at frame {frames}; restore it or start the run again in another --run-dir."
-        )
-    if len(found) != len(set(found)):
-        raise UsageError(
-            f"cannot resume '{run_dir}': {EVAL} repeats frames before the checkpoint at frame {frames}; restore "
-            "it or start the run again in another --run-dir."
-        )
-    best.check_resume(cfg, run_dir, ckpt, rows)
-    return ckpt, rows
-
-
-def _remove_start(run_dir: Path, created: bool) -> None:
-    """Remove what a failed start wrote, so that the same command can be run again."""
-    if created:
-        shutil.rmtree(run_dir, ignore_errors=True)
-        return
-    for path in rundir.entries(run_dir):
-        if path.is_dir() and not path.is_symlink():
-            shutil.rmtree(path, ignore_errors=True)
-        else:
-            path.unlink(missing_ok=True)
-
-
 # ----------------------------------------------------------------------------- loop
 def train(
     cfg: RunConfig | dict,
@@ -231,72 +169,32 @@ def train(
     """
     cfg = config.as_config(cfg)
     run_dir = rundir.check_directory(run_dir, "--run-dir")
-    with contextlib.ExitStack() as owned:
-        if resume:
-            if not (run_dir / CONFIG).is_file():
-                raise UsageError(f"cannot resume: '{run_dir}' holds no {CONFIG} (is it a drltg run directory?).")
-            _check_saved_config(cfg, run_dir)
-            if is_complete(run_dir):  # nothing to write: a finished run may sit in a read-only archive
-                return run_dir
-            owned.enter_context(rundir.lock(run_dir))
-            if is_complete(run_dir):  # finished by its previous owner meanwhile
-                return run_dir
-            ckpt, rows = _resume_state(cfg, run_dir)
-        else:
-            _refuse_existing(run_dir)
-            ckpt, rows = None, []
-
+    with RunSession([cfg], [run_dir], resume=resume) as session:
+        if session.finished:
+            return run_dir
         torch.set_num_threads(cfg.threads)
         torch.manual_seed(cfg.seed)
         # Build everything before writing anything: a bad config fails with nothing on disk.
         check_source(cfg)
         probe, agent = check_config(cfg)
         train_env, eval_env = make_envs(cfg, agent.env_transforms)
-        transfer = get_method(cfg.transfer.method).build(cfg, agent, probe, resuming=ckpt is not None)
+        transfer = get_method(cfg.transfer.method).build(cfg, agent, probe, resuming=session.checkpoints[0] is not None)
         for t in transfer.train_transforms:  # after RewardSum: train/episode_return stays the task's return
             train_env.append_transform(t)
         buffer = ReplayBuffer(
             storage=LazyTensorStorage(cfg.buffer.size, device=cfg.device),
             batch_size=cfg.buffer.batch_size,
         )
-        if ckpt is not None:
-            try:
-                agent.loss.load_state_dict(ckpt["loss"])
-                agent.optimizer.load_state_dict(ckpt["optimizer"])
-                buffer.load_state_dict(ckpt["buffer"])
-            except (KeyError, RuntimeError, ValueError) as err:
-                raise UsageError(
-                    f"checkpoint '{run_dir / CHECKPOINT}' does not fit the run's config ({type(err).__name__})."
-                ) from None
-
-        created = False
-        if resume:
-            rundir.truncate_logs(run_dir, ckpt["frames"] if ckpt is not None else -1, cfg.log.tensorboard)
-        else:
-            created = not run_dir.exists()
-            try:
-                run_dir.mkdir(parents=True, exist_ok=True)
-            except OSError as err:
-                raise UsageError(f"cannot create --run-dir '{run_dir}' ({err.strerror}).") from None
-            owned.enter_context(rundir.lock(run_dir))
-            _refuse_existing(run_dir)  # another process started it first
+        session.restore([agent], [buffer])
+        session.claim()
         preflight.warn_budget(cfg)  # every check passed and the directory is ours: training starts now
-        try:
-            writer = RunWriter(run_dir, cfg, rows)
-            writer.start(transfer.files)
-            frames, updates = 0, 0
-            if ckpt is not None:
-                torch.set_rng_state(ckpt["rng"])
-                frames, updates = ckpt["frames"], ckpt["updates"]
-            learner = AgentLearner(agent, buffer, eval_env, transfer, cudagraphs=cfg.optim.cudagraphs)
-            collector = make_collector(cfg, train_env, learner.policy, frames)
-            with deferred_signals() as stop_if_signalled, health.on_divergence(run_dir, cfg):
-                run_loop(cfg, collector, learner, [writer], frames=frames, updates=updates, progress=progress,
-                         stop_if_signalled=stop_if_signalled, extra_summary=transfer.summary)
-        except BaseException as err:
-            if not resume and not (run_dir / CHECKPOINT).is_file() and not isinstance(err, health.Diverged):
-                _remove_start(run_dir, created)
-            raise
+        writers = session.writers([transfer])
+        frames, updates = session.position()
+        learner = AgentLearner(agent, buffer, eval_env, transfer, cudagraphs=cfg.optim.cudagraphs)
+        collector = make_collector(cfg, train_env, learner.policy, frames)
+        with deferred_signals() as stop_if_signalled, health.on_divergence(run_dir, cfg):
+            run_loop(cfg, collector, learner, writers, frames=frames, updates=updates, progress=progress,
+                     stop_if_signalled=stop_if_signalled, extra_summary=transfer.summary)
     return run_dir
 
 

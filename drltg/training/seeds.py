@@ -62,13 +62,8 @@ from drltg.losses import SoftOptionCriticLoss
 from drltg.modules import make_option_policy
 from drltg.seed_group import GroupPolicy, SeedBlocks, SeedGroup, SeedLoopPolicy, SeedStreams
 from drltg.store import rundir
-from drltg.store.rundir import CHECKPOINT, CONFIG, RunWriter, is_complete
 from drltg.training import best, health, preflight
 from drltg.training.loop import (
-    _check_saved_config,
-    _refuse_existing,
-    _remove_start,
-    _resume_state,
     build_env,
     check_config,
     deferred_signals,
@@ -78,6 +73,7 @@ from drltg.training.loop import (
     run_loop,
     train,
 )
+from drltg.training.session import RunSession
 from drltg.transfer import Transfer, get_method
 from drltg.transfer.source import check as check_source
 
@@ -302,32 +298,19 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
     :func:`group_support` true) as one seed group into ``dirs``, one run directory each; ``resume``
     continues them from their checkpoints."""
     cfg, count = cfgs[0], len(cfgs)
-    with contextlib.ExitStack() as owned:
-        if resume:
-            for c, d in zip(cfgs, dirs):
-                if not (d / CONFIG).is_file():
-                    raise UsageError(f"cannot resume: '{d}' holds no {CONFIG} (is it a seed of this group?).")
-                _check_saved_config(c, d)
-            if all(is_complete(d) for d in dirs):
-                return dirs
-            for d in dirs:
-                owned.enter_context(rundir.lock(d))
-            states = [_resume_state(c, d) for c, d in zip(cfgs, dirs)]
-            frames = {None if ckpt is None else ckpt["frames"] for ckpt, _ in states}
-            if any(is_complete(d) for d in dirs) or len(frames) > 1:
-                owned.close()
-                print("note: the group's seeds stopped at different points; resuming them one after another.",
-                      file=sys.stderr)
-                return [train(c, d, resume=True, progress=progress) for c, d in zip(cfgs, dirs)]
-        else:
-            for d in dirs:
-                _refuse_existing(d)
-            states = [(None, []) for _ in dirs]
+    with RunSession(cfgs, dirs, resume=resume) as session:
+        if session.finished:
+            return dirs
+        if session.mixed:
+            session.close()
+            print("note: the group's seeds stopped at different points; resuming them one after another.",
+                  file=sys.stderr)
+            return [train(c, d, resume=True, progress=progress) for c, d in zip(cfgs, dirs)]
 
         torch.set_num_threads(cfg.threads)
         method = get_method(cfg.transfer.method)
         agents, transfers, rng_states = [], [], []
-        for c, (ckpt, _) in zip(cfgs, states):
+        for c, ckpt in zip(cfgs, session.checkpoints):
             # each seed's networks and transfer as its run alone builds them (model reuse loads the seed's
             # own source into them, before they are stacked), and its random stream from there on
             torch.manual_seed(c.seed)
@@ -341,17 +324,8 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
         torch.manual_seed(cfg.seed)
         buffers = [ReplayBuffer(storage=LazyTensorStorage(cfg.buffer.size, device=cfg.device),
                                 batch_size=cfg.buffer.batch_size) for _ in cfgs]
-        ckpts = [ckpt for ckpt, _ in states]
-        if ckpts[0] is not None:
-            for agent, buffer, ckpt, d in zip(agents, buffers, ckpts, dirs):
-                try:
-                    agent.loss.load_state_dict(ckpt["loss"])
-                    agent.optimizer.load_state_dict(ckpt["optimizer"])
-                    buffer.load_state_dict(ckpt["buffer"])
-                except (KeyError, RuntimeError, ValueError) as err:
-                    raise UsageError(
-                        f"checkpoint '{d / CHECKPOINT}' does not fit the run's config ({type(err).__name__})."
-                    ) from None
+        session.restore(agents, buffers)
+        ckpts = session.checkpoints
         streams = None
         if streams_supported(agents[0], cfg):
             streams = SeedStreams(rng_states if ckpts[0] is None else [ckpt["rng"] for ckpt in ckpts])
@@ -359,47 +333,24 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
         seeds = [c.seed for c in cfgs]
         transforms = agents[0].env_transforms  # what the policy needs the env to carry (SOC's option)
         train_env = group_train_env(cfgs, transforms, transfers, streams)
-        owned.callback(train_env.close, raise_if_closed=False)  # worker processes, where the task has them
+        session.callback(train_env.close, raise_if_closed=False)  # worker processes, where the task has them
         eval_env = _group_env(cfg, seeds, cfg.eval.episodes, 10_000, transforms)
         best.check_metric(cfg, eval_env)
-        owned.callback(eval_env.close, raise_if_closed=False)
+        session.callback(eval_env.close, raise_if_closed=False)
         learner = GroupLearner(group, buffers, eval_env, transfers)
 
-        created = [not d.exists() for d in dirs]
-        if resume:
-            for d, ckpt in zip(dirs, ckpts):
-                rundir.truncate_logs(d, ckpt["frames"] if ckpt is not None else -1, cfg.log.tensorboard)
-        else:
-            for d in dirs:
-                try:
-                    d.mkdir(parents=True, exist_ok=True)
-                except OSError as err:
-                    raise UsageError(f"cannot create '{d}' ({err.strerror}).") from None
-                owned.enter_context(rundir.lock(d))
-                _refuse_existing(d)
+        session.claim()
         preflight.warn_budget(cfg)  # every check passed and the directories are ours: training starts now
-        try:
-            writers = [RunWriter(d, c, rows) for d, c, (_, rows) in zip(dirs, cfgs, states)]
-            for writer, transfer in zip(writers, transfers):
-                writer.start(transfer.files)
-            frames, updates = 0, 0
-            if ckpts[0] is not None:
-                torch.set_rng_state(ckpts[0]["rng"])
-                frames, updates = ckpts[0]["frames"], ckpts[0]["updates"]
-            collector = make_collector(cfg, train_env, learner.policy, frames, seeds=count)
-            summaries = [{**transfer.summary, "seed_group": {"seeds": seeds}} for transfer in transfers]
-            with deferred_signals() as stop_if_signalled:
-                try:
-                    run_loop(cfg, collector, learner, writers, frames=frames, updates=updates, progress=progress,
-                             stop_if_signalled=stop_if_signalled, extra_summary=summaries)
-                except health.Diverged as err:  # a diverged seed is finished; the others resume from their checkpoints
-                    for k in range(count) if err.seeds is None else err.seeds:
-                        health.write_diverged(dirs[k], cfgs[k], err)
-                    raise
-        except BaseException as err:
-            if not resume and not isinstance(err, health.Diverged):
-                for d, new in zip(dirs, created):
-                    if not (d / CHECKPOINT).is_file():
-                        _remove_start(d, new)
-            raise
+        writers = session.writers(transfers)
+        frames, updates = session.position()
+        collector = make_collector(cfg, train_env, learner.policy, frames, seeds=count)
+        summaries = [{**transfer.summary, "seed_group": {"seeds": seeds}} for transfer in transfers]
+        with deferred_signals() as stop_if_signalled:
+            try:
+                run_loop(cfg, collector, learner, writers, frames=frames, updates=updates, progress=progress,
+                         stop_if_signalled=stop_if_signalled, extra_summary=summaries)
+            except health.Diverged as err:  # a diverged seed is finished; the others resume from their checkpoints
+                for k in range(count) if err.seeds is None else err.seeds:
+                    health.write_diverged(dirs[k], cfgs[k], err)
+                raise
     return dirs

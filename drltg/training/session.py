@@ -1,0 +1,191 @@
+"""The lifecycle of the run directories that train together: one run, or the runs of a seed group.
+
+    with RunSession(cfgs, dirs, resume=resume) as session:
+        if session.finished: ...                  # every run is complete: nothing to write
+        ... build agents, envs, transfers (nothing is written yet: a bad config leaves no trace) ...
+        session.restore(agents, buffers)          # the checkpoints' networks, optimizers and replay
+        session.claim()                           # new folders made and locked, or logs cut back
+        writers = session.writers(transfers)
+        frames, updates = session.position()      # where the loop starts, the random state restored
+        ... run_loop(...) ...
+
+Checks come first: a new run refuses a folder that holds anything; a resumed one needs its saved
+config to match and its checkpoint, evaluations and logs to agree. Each directory is locked while the
+session writes it. If a new run fails before its first checkpoint, what it wrote is removed, so the same
+command can be run again; a run that diverged keeps its record.
+"""
+from __future__ import annotations
+
+import contextlib
+import shutil
+from pathlib import Path
+
+import torch
+
+from drltg.config import RunConfig, config_changes
+from drltg.errors import UsageError
+from drltg.store import manifest, rundir
+from drltg.store.rundir import CHECKPOINT, CONFIG, EVAL, RunWriter, is_complete, read_eval_csv
+from drltg.training import best, health
+
+TRAINING_STATE = {"frames", "updates", "optimizer", "buffer", "rng"}
+
+
+class RunSession(contextlib.ExitStack):
+    """Owns ``dirs`` (one per config of ``cfgs``) from the first check to the last write."""
+
+    def __init__(self, cfgs: list[RunConfig], dirs: list[Path], *, resume: bool):
+        super().__init__()
+        self.cfgs, self.dirs, self.resume = cfgs, dirs, resume
+        self.states: list[tuple[dict | None, list[dict]]] = [(None, []) for _ in dirs]
+        self.created: list[bool] = []
+        self.finished = self.mixed = False
+
+    def __enter__(self) -> RunSession:
+        super().__enter__()
+        try:
+            self._open()
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def __exit__(self, kind, err, tb) -> bool:
+        if err is not None and not self.resume and not isinstance(err, health.Diverged):
+            for d, new in zip(self.dirs, self.created):
+                if not (d / CHECKPOINT).is_file():
+                    remove_start(d, new)
+        return super().__exit__(kind, err, tb)
+
+    def _open(self) -> None:
+        if not self.resume:
+            for d in self.dirs:
+                refuse_existing(d)
+            return
+        for c, d in zip(self.cfgs, self.dirs):
+            if not (d / CONFIG).is_file():
+                raise UsageError(f"cannot resume: '{d}' holds no {CONFIG} (is it a drltg run directory?).")
+            check_saved_config(c, d)
+        if all(is_complete(d) for d in self.dirs):  # nothing to write: finished runs may sit in a read-only archive
+            self.finished = True
+            return
+        for d in self.dirs:
+            self.enter_context(rundir.lock(d))
+        if all(is_complete(d) for d in self.dirs):  # finished by their previous owner meanwhile
+            self.finished = True
+            return
+        self.states = [resume_state(c, d) for c, d in zip(self.cfgs, self.dirs)]
+        frames = {None if ckpt is None else ckpt["frames"] for ckpt, _ in self.states}
+        self.mixed = any(is_complete(d) for d in self.dirs) or len(frames) > 1
+
+    @property
+    def checkpoints(self) -> list[dict | None]:
+        return [ckpt for ckpt, _ in self.states]
+
+    def restore(self, agents, buffers) -> None:
+        """Load each run's checkpoint (if resuming from one) into its agent's loss and optimizer and its
+        replay buffer; a checkpoint of another config is one sentence."""
+        for agent, buffer, ckpt, d in zip(agents, buffers, self.checkpoints, self.dirs):
+            if ckpt is None:
+                continue
+            try:
+                agent.loss.load_state_dict(ckpt["loss"])
+                agent.optimizer.load_state_dict(ckpt["optimizer"])
+                buffer.load_state_dict(ckpt["buffer"])
+            except (KeyError, RuntimeError, ValueError) as err:
+                raise UsageError(
+                    f"checkpoint '{d / CHECKPOINT}' does not fit the run's config ({type(err).__name__})."
+                ) from None
+
+    def claim(self) -> None:
+        """Make and lock the new runs' folders (refusing one another process started meanwhile), or cut a
+        resumed run's logs back to its checkpoint."""
+        if self.resume:
+            for d, ckpt in zip(self.dirs, self.checkpoints):
+                rundir.truncate_logs(d, ckpt["frames"] if ckpt is not None else -1, self.cfgs[0].log.tensorboard)
+            return
+        for d in self.dirs:
+            new = not d.exists()
+            try:
+                d.mkdir(parents=True, exist_ok=True)
+            except OSError as err:
+                raise UsageError(f"cannot create --run-dir '{d}' ({err.strerror}).") from None
+            self.enter_context(rundir.lock(d))
+            refuse_existing(d)  # another process started it first: none of its files are ours to remove
+            self.created.append(new)
+
+    def writers(self, transfers) -> list[RunWriter]:
+        """One writer per run, its evaluations up to the checkpoint kept, its transfer's files written."""
+        writers = [RunWriter(d, c, rows) for d, c, (_, rows) in zip(self.dirs, self.cfgs, self.states)]
+        for writer, transfer in zip(writers, transfers):
+            writer.start(transfer.files)
+        return writers
+
+    def position(self) -> tuple[int, int]:
+        """The frames and updates the loop starts from; on resume, torch's random state is the checkpoint's."""
+        ckpt = self.checkpoints[0]
+        if ckpt is None:
+            return 0, 0
+        torch.set_rng_state(ckpt["rng"])
+        return ckpt["frames"], ckpt["updates"]
+
+
+def refuse_existing(run_dir: Path) -> None:
+    if rundir.entries(run_dir):
+        raise UsageError(
+            f"run directory '{run_dir}' already exists; pass --resume to continue it or choose another --run-dir."
+        )
+
+
+def check_saved_config(cfg: RunConfig, run_dir: Path) -> None:
+    saved = rundir.read_config(run_dir)
+    changed = config_changes(saved if isinstance(saved, dict) else {},
+                             rundir.absolute_source(cfg.model_dump(), Path.cwd()))
+    if changed:
+        raise UsageError(f"cannot resume '{run_dir}': the config differs from the saved one in {', '.join(changed)}.")
+
+
+def resume_state(cfg: RunConfig, run_dir: Path) -> tuple[dict | None, list[dict]]:
+    """The checkpoint to continue from (``None``: start over) and the evaluations up to it."""
+    if not (run_dir / CHECKPOINT).is_file():
+        if CHECKPOINT.as_posix() in manifest.read(run_dir):
+            raise UsageError(f"cannot resume '{run_dir}': its {CHECKPOINT.as_posix()} is missing though its manifest "
+                             "lists it, so the run would start over from frame 0; restore the checkpoint or start the "
+                             "run again in another --run-dir.")
+        return None, []
+    ckpt = rundir.load_checkpoint(run_dir, map_location=cfg.device)
+    if not TRAINING_STATE <= set(ckpt):
+        raise UsageError(f"cannot resume '{run_dir}': its checkpoint is not a training checkpoint of drltg train.")
+    frames = ckpt["frames"]
+    if not (run_dir / EVAL).is_file():
+        raise UsageError(
+            f"cannot resume '{run_dir}': its {EVAL} is missing, so the curve up to the checkpoint at frame "
+            f"{frames} is lost; start the run again in another --run-dir."
+        )
+    rows = [r for r in read_eval_csv(run_dir / EVAL) if r["frames"] <= frames]
+    found, expected = [r["frames"] for r in rows], ckpt.get("evaluations", [0])
+    missing = sorted(set(expected) - set(found))
+    if missing:
+        raise UsageError(
+            f"cannot resume '{run_dir}': {EVAL} lacks the evaluations at frames {missing} before the checkpoint "
+            f"at frame {frames}; restore it or start the run again in another --run-dir."
+        )
+    if len(found) != len(set(found)):
+        raise UsageError(
+            f"cannot resume '{run_dir}': {EVAL} repeats frames before the checkpoint at frame {frames}; restore "
+            "it or start the run again in another --run-dir."
+        )
+    best.check_resume(cfg, run_dir, ckpt, rows)
+    return ckpt, rows
+
+
+def remove_start(run_dir: Path, created: bool) -> None:
+    """Remove what a failed start wrote, so that the same command can be run again."""
+    if created:
+        shutil.rmtree(run_dir, ignore_errors=True)
+        return
+    for path in rundir.entries(run_dir):
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            path.unlink(missing_ok=True)
