@@ -29,6 +29,7 @@ if str(ROOT) not in sys.path:
 
 from drltg.analysis import claims as cl  # noqa: E402
 from drltg.analysis import metrics as mx  # noqa: E402
+from drltg.analysis import stats  # noqa: E402
 from drltg.analysis.tables import estimate, render  # noqa: E402
 
 PRIMARY = "mean_return_gain"
@@ -61,7 +62,7 @@ def _rank(pair: str) -> int:
 def family(reports: dict, metric: str = PRIMARY) -> dict:
     """Holm-adjusted p-values of ``metric`` over every report given (those with a p-value)."""
     keys = [k for k in reports if reports[k]["metrics"].get(f"{metric}_p_value") is not None]
-    adjusted = mx.holm([reports[k]["metrics"][f"{metric}_p_value"] for k in keys])
+    adjusted = stats.holm([reports[k]["metrics"][f"{metric}_p_value"] for k in keys])
     return dict(zip(keys, adjusted))
 
 
@@ -462,7 +463,7 @@ def lift_to_place_verdicts() -> str:
         total += len(b)
     pooled_b = [v for r in lifted.values() for v in cl.per_seed_scores(r, "baseline").values()]
     pooled_t = [v for r in lifted.values() for v in cl.per_seed_scores(r, "transfer").values()]
-    p = mx.sign_test(pooled_b, pooled_t)
+    p = stats.sign_test(pooled_b, pooled_t)
     lines.append(f"- Over both targets' pairs, {wins} of {total} transfer runs lift the cube more often than their "
                  f"paired baseline (exact two-sided sign test p = {cl.p_text(p)}; a test chosen after the results "
                  "were seen, so read it as a description, not a confirmed finding).")

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from drltg.analysis import metrics as M
+from drltg.analysis import stats
 
 TRUE_DIFFERENCE = 1.0
 
@@ -44,7 +45,7 @@ def coverage(method: str, shape: str, design: str, n: int, experiments: int = 40
     rng = np.random.default_rng(seed)
     b, t = draw(shape, design, n, experiments, rng)
     kw = {} if method in ("t", "welch") else dict(n_resamples=n_resamples, seed=seed + 1)
-    lo, hi = M.INTERVALS[method](b, t, paired=design == "paired", confidence=confidence, **kw)
+    lo, hi = stats.INTERVALS[method](b, t, paired=design == "paired", confidence=confidence, **kw)
     return float(((lo <= TRUE_DIFFERENCE) & (TRUE_DIFFERENCE <= hi)).mean())
 
 
@@ -87,8 +88,8 @@ def poi_coverage(shape: str, design: str, n: int, experiments: int = 2000, seed:
     paired = design == "paired"
     hits = 0
     for bi, ti in zip(b, t):
-        p = M.paired_probability_of_improvement(bi, ti) if paired else M.probability_of_improvement(bi, ti)
-        lo, hi = M.poi_interval(p, n, n, paired)
+        p = stats.paired_probability_of_improvement(bi, ti) if paired else M.probability_of_improvement(bi, ti)
+        lo, hi = stats.poi_interval(p, n, n, paired)
         hits += lo <= truth <= hi
     return hits / experiments
 
@@ -102,7 +103,7 @@ def ratio_coverage(shape: str, design: str, n: int, experiments: int = 2000, see
     truth = TRUE_DIFFERENCE / baseline_mean
     hits = nulls = 0
     for bi, ti in zip(b, t):
-        lo, hi = M.ratio_interval(bi, ti, design == "paired")
+        lo, hi = stats.ratio_interval(bi, ti, design == "paired")
         if np.isnan(lo):
             nulls += 1
         else:
@@ -130,21 +131,21 @@ def test_tests_of_no_effect_keep_their_false_positive_rate(n):
     reject at 0.05 in at most 5 % of experiments (plus two standard errors of the estimate)."""
     rng = np.random.default_rng(n)
     b, t = rng.normal(0, 1, (4000, n)), rng.normal(0, 1, (4000, n))
-    sign = np.mean([M.sign_test(bi, ti) < 0.05 for bi, ti in zip(b, t)])
+    sign = np.mean([stats.sign_test(bi, ti) < 0.05 for bi, ti in zip(b, t)])
     assert sign <= 0.05  # exact: at most the level (5 pairs: 0, since p >= 1/16)
-    assert (M.t_test(b, t, paired=True) < 0.05).mean() <= 0.05 + 2 * np.sqrt(0.05 * 0.95 / 4000)
-    wilson_like = np.mean([M.poi_interval(M.paired_probability_of_improvement(bi, ti), n, n, True)[0] > 0.5
+    assert (stats.t_test(b, t, paired=True) < 0.05).mean() <= 0.05 + 2 * np.sqrt(0.05 * 0.95 / 4000)
+    wilson_like = np.mean([stats.poi_interval(stats.paired_probability_of_improvement(bi, ti), n, n, True)[0] > 0.5
                            for bi, ti in zip(b, t)])
     assert wilson_like <= 0.05  # the interval over pairs excludes 1/2 no more often than the sign test rejects
 
 
 def table(experiments: int = 4000) -> str:
-    rows = ["| scores | design | seeds | " + " | ".join(M.INTERVALS) + " |",
-            "|---|---|---|" + "---|" * len(M.INTERVALS)]
+    rows = ["| scores | design | seeds | " + " | ".join(stats.INTERVALS) + " |",
+            "|---|---|---|" + "---|" * len(stats.INTERVALS)]
     for shape in ("normal", "skewed"):
         for design in ("paired", "unpaired"):
             for n in (3, 5, 10):
-                cells = [f"{coverage(m, shape, design, n, experiments):.3f}" for m in M.INTERVALS]
+                cells = [f"{coverage(m, shape, design, n, experiments):.3f}" for m in stats.INTERVALS]
                 rows.append(f"| {shape} | {design} | {n} | " + " | ".join(cells) + " |")
     rows += ["", "| scores | design | seeds | transfer_ratio (Fieller; null share) | P(T > B) (score) |",
              "|---|---|---|---|---|"]

@@ -3,6 +3,7 @@ import pytest
 import torch
 
 from drltg.analysis import metrics as M
+from drltg.analysis import stats
 
 # An uneven grid: steps of 10, 20 and 30 frames.
 F = [0, 10, 30, 60]
@@ -110,52 +111,6 @@ def test_censored_median():
     assert M.censored_median([10, 20, None, None]) is None
 
 
-def test_bootstrap_ci_is_seeded_and_brackets_the_estimate():
-    b, t = np.array([1.0, 2.0, 4.0, 3.0]), np.array([3.0, 5.0, 4.0, 6.0, 7.0])
-    stat = M.difference_statistic()
-    ci = M.bootstrap_ci(stat, b, t, n_resamples=2000, seed=3)
-    assert ci == M.bootstrap_ci(stat, b, t, n_resamples=2000, seed=3)
-    assert ci != M.bootstrap_ci(stat, b, t, n_resamples=2000, seed=4)
-    assert ci[0] < t.mean() - b.mean() < ci[1]
-    wide = M.bootstrap_ci(stat, b, t, n_resamples=2000, seed=3, confidence=0.99)
-    assert wide[0] <= ci[0] and ci[1] <= wide[1]
-
-
-def test_bootstrap_ci_hits_the_extremes_it_can_reach():
-    # two seeds per side: the resampled mean difference is one of 2,3,4,5,6; the extremes each have
-    # probability 1/16 > 2.5 %, so the 95 % interval is exactly [2, 6]
-    lo, hi = M.bootstrap_ci(M.difference_statistic(), [0.0, 2.0], [4.0, 6.0], seed=0)
-    assert (lo, hi) == (2.0, 6.0)
-    # constant samples give a zero-width interval
-    assert M.bootstrap_ci(M.difference_statistic(), [1.0, 1.0], [3.0, 3.0]) == (2.0, 2.0)
-
-
-def test_bootstrap_ci_matches_a_direct_resampling():
-    b, t = np.array([1.0, 5.0, 2.0]), np.array([4.0, 2.0, 9.0, 3.0])
-    lo, hi = M.bootstrap_ci(M.difference_statistic(), b, t, n_resamples=500, seed=7)
-    rng = np.random.default_rng(7)
-    ib = rng.integers(0, 3, size=(500, 3))
-    it = rng.integers(0, 4, size=(500, 4))
-    d = t[it].mean(1) - b[ib].mean(1)
-    assert (lo, hi) == pytest.approx(tuple(np.quantile(d, [0.025, 0.975])))
-
-
-def test_ratio_and_poi_statistics_match_the_scalar_functions():
-    b, t = np.array([[100.0, 300.0], [0.1, 0.1]]), np.array([[250.0, 350.0], [5.0, 6.0]])
-    r = M.ratio_statistic(scale=1000, eps=0.01)(b, t)
-    assert r[0] == pytest.approx(M.transfer_ratio(b[0], t[0]))
-    assert np.isnan(r[1])
-    p = M.poi_statistic(b, t)
-    assert p.tolist() == [M.probability_of_improvement(b[0], t[0]), 1.0]
-
-
-def test_bootstrap_of_a_curve_band_has_one_interval_per_point():
-    runs = np.array([[0.0, 1.0, 2.0], [2.0, 3.0, 4.0]])
-    lo, hi = M.bootstrap_ci(lambda x: x.mean(axis=1), runs, seed=0)
-    np.testing.assert_allclose(lo, [0, 1, 2])
-    np.testing.assert_allclose(hi, [2, 3, 4])
-
-
 def test_sustained_time_to_threshold():
     f, y = np.arange(6) * 100, [0, 9, 0, 5, 6, 7]
     assert M.sustained_time_to_threshold(f, y, 5) == 300  # the spike at 100 is followed by a 0
@@ -180,91 +135,84 @@ def test_upper_median_is_one_of_the_frames():
 
 
 def test_t_quantiles():
-    assert M.t_quantile(0.975, 1) == pytest.approx(12.7062047, abs=1e-6)
-    assert M.t_quantile(0.975, 4) == pytest.approx(2.7764451, abs=1e-6)
-    assert M.t_quantile(0.95, 10) == pytest.approx(1.8124611, abs=1e-6)
-    assert M.t_quantile(0.975, 1e6) == pytest.approx(1.959966, abs=1e-5)
-    np.testing.assert_allclose(M.t_quantile(0.975, np.array([[4.0], [1.0]])), [[2.7764451], [12.7062047]],
+    assert stats.t_quantile(0.975, 1) == pytest.approx(12.7062047, abs=1e-6)
+    assert stats.t_quantile(0.975, 4) == pytest.approx(2.7764451, abs=1e-6)
+    assert stats.t_quantile(0.95, 10) == pytest.approx(1.8124611, abs=1e-6)
+    assert stats.t_quantile(0.975, 1e6) == pytest.approx(1.959966, abs=1e-5)
+    np.testing.assert_allclose(stats.t_quantile(0.975, np.array([[4.0], [1.0]])), [[2.7764451], [12.7062047]],
                                atol=1e-6)
 
 
 def test_t_interval_by_hand():
     b, t = np.array([1.0, 2.0, 3.0]), np.array([2.0, 4.0, 6.0])
     # paired: d = 1, 2, 3; mean 2, s_d = 1, t_{0.975, 2} = 4.302653
-    lo, hi = M.t_interval(b, t, paired=True)
+    lo, hi = stats.t_interval(b, t, paired=True)
     assert (lo, hi) == pytest.approx((2 - 4.302653 / np.sqrt(3), 2 + 4.302653 / np.sqrt(3)), abs=1e-6)
     # unpaired: se = sqrt(1/3 + 4/3); Hsu df 2; Welch df = (5/3)^2 / ((1/3)^2/2 + (4/3)^2/2) = 2.941
-    lo, hi = M.t_interval(b, t)
+    lo, hi = stats.t_interval(b, t)
     assert hi - 2 == pytest.approx(4.302653 * np.sqrt(5 / 3), abs=1e-6)
-    lo_w, hi_w = M.welch_interval(b, t)
-    assert hi_w - 2 == pytest.approx(M.t_quantile(0.975, (5 / 3) ** 2 / ((1 / 9 + 16 / 9) / 2)) * np.sqrt(5 / 3))
+    lo_w, hi_w = stats.welch_interval(b, t)
+    assert hi_w - 2 == pytest.approx(stats.t_quantile(0.975, (5 / 3) ** 2 / ((1 / 9 + 16 / 9) / 2)) * np.sqrt(5 / 3))
     assert hi_w < hi
     # no spread: no interval
-    assert np.isnan(M.t_interval([1.0, 1.0, 1.0], [2.0, 2.0, 2.0])[0])
-    assert np.isnan(M.t_interval([1.0, 2.0, 3.0], [2.0, 3.0, 4.0], paired=True)[0])
+    assert np.isnan(stats.t_interval([1.0, 1.0, 1.0], [2.0, 2.0, 2.0])[0])
+    assert np.isnan(stats.t_interval([1.0, 2.0, 3.0], [2.0, 3.0, 4.0], paired=True)[0])
     # nor where the spread is only round-off: success rates logged in float32 and averaged over
     # different evaluations give the same difference to within ~1e-9
     f32 = [float(np.float32(x)) for x in (0.8, 0.9)]  # 0.800000011920929, 0.8999999761581421
     zero, same = np.zeros(3), np.array([f32[1], (f32[0] + 1.0) / 2, 0.9])
     assert 0 < np.ptp(same) < 1e-7
-    assert np.isnan(M.t_interval(zero, same, paired=True)[0]) and np.isnan(M.t_test(zero, same, paired=True))
-    assert np.isnan(M.t_interval(np.full(3, 0.3), 0.1 + np.array([0.2, 0.2, 0.1 + 0.1]))[0])
+    assert np.isnan(stats.t_interval(zero, same, paired=True)[0]) and np.isnan(stats.t_test(zero, same, paired=True))
+    assert np.isnan(stats.t_interval(np.full(3, 0.3), 0.1 + np.array([0.2, 0.2, 0.1 + 0.1]))[0])
     # a spread of 1e-5 in 0.9 is a spread
-    assert np.isfinite(M.t_interval(np.zeros(3), 0.9 + np.array([0, 1e-5, 2e-5]), paired=True)[0])
+    assert np.isfinite(stats.t_interval(np.zeros(3), 0.9 + np.array([0, 1e-5, 2e-5]), paired=True)[0])
     # vectorised over experiments
-    lo, hi = M.t_interval(np.zeros((4, 3)) + b, np.zeros((4, 3)) + t, paired=True)
+    lo, hi = stats.t_interval(np.zeros((4, 3)) + b, np.zeros((4, 3)) + t, paired=True)
     assert lo.shape == (4,)
 
 
 def test_bootstrap_candidates_are_seeded_and_bracket_the_estimate():
     b, t = np.array([1.0, 2.0, 4.0, 3.0, 2.5]), np.array([3.0, 5.0, 4.0, 6.0, 7.0])
     for method in ("bca", "studentized", "percentile"):
-        fn = M.INTERVALS[method]
+        fn = stats.INTERVALS[method]
         lo, hi = fn(b, t, seed=3)
         assert (lo, hi) == fn(b, t, seed=3)
         assert lo < t.mean() - b.mean() < hi
 
 
-def test_bootstrap_ci_keeps_undefined_resamples():
-    # a resample of only the first seed has a NaN statistic: the interval is undefined, not shrunk
-    stat = lambda x: np.where(x.min(axis=1) > 0, x.mean(axis=1), np.nan)  # noqa: E731
-    lo, hi = M.bootstrap_ci(stat, np.array([0.0, 1.0, 2.0]), n_resamples=500)
-    assert np.isnan(lo) and np.isnan(hi)
-
-
 def test_fieller_ratio_interval():
     b, t = np.array([10.0, 11.0, 12.0, 10.5]), np.array([20.0, 23.0, 21.0, 22.0])
-    lo, hi = M.fieller_interval(b, t)
-    q2 = M.t_quantile(0.975, 3) ** 2
+    lo, hi = stats.fieller_interval(b, t)
+    q2 = stats.t_quantile(0.975, 3) ** 2
     vb, vt = b.var(ddof=1) / 4, t.var(ddof=1) / 4
     for rho in (lo, hi):  # the bounds solve (t - rho b)^2 = q^2 (v_t + rho^2 v_b)
         assert (t.mean() - rho * b.mean()) ** 2 == pytest.approx(q2 * (vt + rho ** 2 * vb))
     assert lo < t.mean() / b.mean() < hi
-    r_lo, r_hi = M.ratio_interval(b, t)
+    r_lo, r_hi = stats.ratio_interval(b, t)
     assert (r_lo, r_hi) == pytest.approx((lo - 1, hi - 1))
     # negative areas: r = -(rho - 1), so the interval flips
-    assert M.ratio_interval(-b, -t) == pytest.approx((1 - hi, 1 - lo))
+    assert stats.ratio_interval(-b, -t) == pytest.approx((1 - hi, 1 - lo))
     # the baseline mean's interval contains 0: no bounded interval
-    assert np.isnan(M.ratio_interval([-1.0, 0.5, 1.0], [2.0, 3.0, 4.0])[0])
+    assert np.isnan(stats.ratio_interval([-1.0, 0.5, 1.0], [2.0, 3.0, 4.0])[0])
 
 
 def test_probability_of_improvement_score_intervals():
     # Clopper-Pearson over pairs: 5 of 5 gives [0.025^(1/5), 1], which holds 1/2 (the sign test's p is 1/16)
-    assert M.poi_interval(1.0, 5, 5, paired=True) == pytest.approx((0.025 ** (1 / 5), 1.0), abs=1e-6)
-    assert M.poi_interval(1.0, 5, 5, paired=True)[0] < 0.5 and M.sign_test([0] * 5, [1] * 5) == 0.0625
-    assert M.poi_interval(0.6, 5, 5, paired=True) == pytest.approx((0.1466, 0.9473), abs=1e-4)  # 3 of 5
-    lo, hi = M.poi_interval(0.5, 5, 5, paired=True)  # 2 wins and a tie: k = 2.5
+    assert stats.poi_interval(1.0, 5, 5, paired=True) == pytest.approx((0.025 ** (1 / 5), 1.0), abs=1e-6)
+    assert stats.poi_interval(1.0, 5, 5, paired=True)[0] < 0.5 and stats.sign_test([0] * 5, [1] * 5) == 0.0625
+    assert stats.poi_interval(0.6, 5, 5, paired=True) == pytest.approx((0.1466, 0.9473), abs=1e-4)  # 3 of 5
+    lo, hi = stats.poi_interval(0.5, 5, 5, paired=True)  # 2 wins and a tie: k = 2.5
     assert 0 < lo < 0.5 < hi < 1
-    lo, hi = M.poi_interval(1.0, 5, 5)
+    lo, hi = stats.poi_interval(1.0, 5, 5)
     assert 0.5 < lo < 1.0 and hi == 1.0  # never [1, 1]
-    assert M.paired_probability_of_improvement([1, 2, 3], [2, 2, 1]) == pytest.approx(1.5 / 3)
+    assert stats.paired_probability_of_improvement([1, 2, 3], [2, 2, 1]) == pytest.approx(1.5 / 3)
 
 
 def test_trend_by_hand():
-    slope, se, df = M.trend([0, 1, 2, 3], [0, 1, 1, 3])
+    slope, se, df = stats.trend([0, 1, 2, 3], [0, 1, 1, 3])
     # centred frames -1.5, -.5, .5, 1.5; slope 4.5 / 5; residuals .1, .2, -.7, .4
     assert (slope, se, df) == pytest.approx((0.9, np.sqrt(0.7 / 2 / 5), 2))
-    assert M.trend([0, 1, 2], [1, 1, 1]) == (0.0, 0.0, 1)
+    assert stats.trend([0, 1, 2], [1, 1, 1]) == (0.0, 0.0, 1)
 
 
 def test_newcombe_method_5_against_its_published_example():
@@ -273,55 +221,55 @@ def test_newcombe_method_5_against_its_published_example():
     b, t = [20, 20, 26, 25, 22, 23], [28, 25, 24, 27, 30, 30, 29]
     p = M.probability_of_improvement(b, t)
     assert p == pytest.approx(0.9167, abs=1e-4)
-    assert M.poi_interval(p, 6, 7) == pytest.approx((0.5973, 0.9860), abs=1e-4)
+    assert stats.poi_interval(p, 6, 7) == pytest.approx((0.5973, 0.9860), abs=1e-4)
 
 
 def test_probability_intervals_stay_in_their_range():
     for n in (2, 3, 5, 10):
         for k in np.arange(0, 2 * n + 1) / 2:
             for paired in (True, False):
-                lo, hi = M.poi_interval(k / n, n, n, paired)
+                lo, hi = stats.poi_interval(k / n, n, n, paired)
                 assert 0.0 <= lo <= k / n <= hi <= 1.0 and lo < hi
 
 
 def test_exact_tests_by_hand():
     # 3 vs 3, completely separated: 2 of the C(6, 3) = 20 relabellings are as extreme
-    assert M.permutation_test([1, 2, 3], [4, 5, 6]) == pytest.approx(2 / 20)
-    assert M.permutation_test([1, 2, 3], [4, 5, 6], statistic="poi") == pytest.approx(2 / 20)
+    assert stats.permutation_test([1, 2, 3], [4, 5, 6]) == pytest.approx(2 / 20)
+    assert stats.permutation_test([1, 2, 3], [4, 5, 6], statistic="poi") == pytest.approx(2 / 20)
     # 4 pairs, all improving: 2 of the 2^4 sign patterns as extreme
-    assert M.permutation_test([0, 0, 0, 0], [1, 2, 3, 4], paired=True) == pytest.approx(2 / 16)
-    assert M.permutation_test([1, 1], [1, 1]) == 1.0
-    assert M.sign_test([0, 0, 0, 0, 0, 0], [1, 1, 1, 1, 1, 0]) == pytest.approx(2 / 32)  # the tie is dropped
-    assert M.sign_test([0, 0], [0, 0]) == 1.0
+    assert stats.permutation_test([0, 0, 0, 0], [1, 2, 3, 4], paired=True) == pytest.approx(2 / 16)
+    assert stats.permutation_test([1, 1], [1, 1]) == 1.0
+    assert stats.sign_test([0, 0, 0, 0, 0, 0], [1, 1, 1, 1, 1, 0]) == pytest.approx(2 / 32)  # the tie is dropped
+    assert stats.sign_test([0, 0], [0, 0]) == 1.0
 
 
 def test_t_test_is_the_interval_s_dual():
     rng = np.random.default_rng(3)
     b, t = rng.normal(0, 1, (200, 4)), rng.normal(1, 1, (200, 4))
     for paired in (True, False):
-        lo, hi = M.t_interval(b, t, paired)
-        p = M.t_test(b, t, paired)
+        lo, hi = stats.t_interval(b, t, paired)
+        p = stats.t_test(b, t, paired)
         np.testing.assert_array_equal(p < 0.05, (lo > 0) | (hi < 0))
     # pairs (1, 2), (2, 4), (3, 6): d = 1, 2, 3, t = 2 / (1 / sqrt 3) = 3.4641 on 2 df: p = 0.07418
-    assert M.t_test([1, 2, 3], [2, 4, 6], paired=True) == pytest.approx(0.07418, abs=1e-5)
+    assert stats.t_test([1, 2, 3], [2, 4, 6], paired=True) == pytest.approx(0.07418, abs=1e-5)
 
 
 def test_holm_by_hand():
     # sorted 0.005, 0.01, 0.03, 0.04 (k = 4): 0.02, 0.03, 0.06, 0.06 (monotone)
-    assert M.holm([0.01, 0.04, None, 0.03, 0.005]) == pytest.approx([0.03, 0.06, None, 0.06, 0.02])
-    assert M.holm([0.5, 0.9]) == [1.0, 1.0]
-    assert M.holm([]) == []
+    assert stats.holm([0.01, 0.04, None, 0.03, 0.005]) == pytest.approx([0.03, 0.06, None, 0.06, 0.02])
+    assert stats.holm([0.5, 0.9]) == [1.0, 1.0]
+    assert stats.holm([]) == []
 
 
 def test_equivalence_test_by_hand():
     # change 0.1 +- se 0.05 on 5 df, margin 0.3: max(P(T >= 8), P(T <= -4)) = P(T <= -4) on 5 df
-    assert M.equivalence_test(0.1, 0.05, 5, 0.3) == pytest.approx(0.0051617, abs=1e-6)
-    assert M.equivalence_test(0.0, 0.0, 5, 0.3) == 0.0 and M.equivalence_test(0.4, 0.0, 5, 0.3) == 1.0
-    assert M.equivalence_test(0.1, 0.05, 5, 0.0) == 1.0  # no margin: never equivalent
+    assert stats.equivalence_test(0.1, 0.05, 5, 0.3) == pytest.approx(0.0051617, abs=1e-6)
+    assert stats.equivalence_test(0.0, 0.0, 5, 0.3) == 0.0 and stats.equivalence_test(0.4, 0.0, 5, 0.3) == 1.0
+    assert stats.equivalence_test(0.1, 0.05, 5, 0.0) == 1.0  # no margin: never equivalent
 
 
 def test_shape_of_per_seed_scores():
-    assert M.shape_of([1, 2, 3, 4, 5]) is None  # too few seeds to see a shape
-    assert M.shape_of([0, 0, 0, 0, 0, 0, 0, 0, 0, 10]) == "skewed"
-    assert M.shape_of([0, 0, 0, 0, 0, 10, 10, 10, 10, 10]) == "bimodal"
-    assert M.shape_of([-1.2, -0.8, -0.4, -0.2, 0.0, 0.1, 0.3, 0.5, 0.9, 1.1]) is None
+    assert stats.shape_of([1, 2, 3, 4, 5]) is None  # too few seeds to see a shape
+    assert stats.shape_of([0, 0, 0, 0, 0, 0, 0, 0, 0, 10]) == "skewed"
+    assert stats.shape_of([0, 0, 0, 0, 0, 10, 10, 10, 10, 10]) == "bimodal"
+    assert stats.shape_of([-1.2, -0.8, -0.4, -0.2, 0.0, 0.1, 0.3, 0.5, 0.9, 1.1]) is None

@@ -9,8 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from drltg.analysis import metrics as M
-from drltg.analysis import report
+from drltg.analysis import report, stats
 from drltg.analysis.curves import Curve
 from drltg.analysis.report import catalogue, outputs
 from drltg.cli import report as report_cli
@@ -724,7 +723,7 @@ def test_every_metric_with_an_interval_has_a_p_value_adjusted_over_the_report_s_
     with_ci = [k.removesuffix("_ci") for k in m if k.endswith("_ci")]
     assert family["metrics"] == with_ci and family["size"] == len(with_ci) > 5
     ps = [m[f"{k}_p_value"] for k in with_ci]
-    assert [m[f"{k}_p_adjusted"] for k in with_ci] == pytest.approx(M.holm(ps))
+    assert [m[f"{k}_p_adjusted"] for k in with_ci] == pytest.approx(stats.holm(ps))
     assert all(m[f"{k}_p_adjusted"] >= m[f"{k}_p_value"] for k in with_ci)
     # 5 pairs all improving: the sign test cannot reach 0.05 (p = 1/16), nor can the exact permutation test
     assert m["probability_of_improvement_p_value"] == pytest.approx(1 / 16)
@@ -759,7 +758,7 @@ def test_a_success_rate_s_intervals_stay_in_their_range(tmp_path):
     m = res["metrics"]
     assert res["settings"]["value_range"] == [0, 1]
     assert m["asymptotic_performance_ci"][1] == 1.0 and m["asymptotic_performance_ci"][0] == -1.0  # cut to range
-    unbounded = M.t_interval(np.array([0.0, 0.0, 1.0]), np.array([1.0, 1.0, 0.0]))
+    unbounded = stats.t_interval(np.array([0.0, 0.0, 1.0]), np.array([1.0, 1.0, 0.0]))
     assert unbounded[1] > 1 and unbounded[0] < -1  # what the plain t interval would say
     for key, (lo, hi) in ((k, v) for k, v in m.items() if k.endswith("_ci")):
         assert (0.0 if "probability" in key else -1.0) <= lo <= hi <= 1.0, key

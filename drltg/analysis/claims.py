@@ -22,7 +22,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from drltg.analysis import metrics as mx
+from drltg.analysis import stats
 
 LEVEL = 0.05
 MINUS = "\u2212"
@@ -180,8 +180,8 @@ def pairwise(a: Mapping, b: Mapping, score: str = "mean_return") -> tuple[float,
     if len(shared) < 2:
         raise ValueError("two methods share fewer than 2 seeds: no paired comparison")
     x, y = np.array([sb[s] for s in shared]), np.array([sa[s] for s in shared])
-    lo, hi = mx.t_interval(x, y, paired=True)
-    p = mx.t_test(x, y, paired=True)
+    lo, hi = stats.t_interval(x, y, paired=True)
+    p = stats.t_test(x, y, paired=True)
     ci = None if math.isnan(float(lo)) else (float(lo), float(hi))
     return float((y - x).mean()), ci, (1.0 if math.isnan(p) else float(p))
 
@@ -196,7 +196,7 @@ def best_sentence(reports: Mapping[str, Mapping], where: str, score: str = "mean
     means = {n: float(np.mean(list(per_seed_scores(reports[n], "transfer", score).values()))) for n in names}
     leader = max(names, key=means.get)
     pairs = [(leader, other, *pairwise(reports[leader], reports[other], score)) for other in names if other != leader]
-    adjusted = mx.holm([p for *_, p in pairs])
+    adjusted = stats.holm([p for *_, p in pairs])
     weakest = None
     for (_, other, diff, ci, _p), p_adj in zip(pairs, adjusted):
         if direction(ci, p_adj) <= 0 and (weakest is None or diff < weakest[1]):

@@ -339,7 +339,7 @@ def sweep_family(rows: list[dict], primary_metric: str | None = None) -> tuple[d
 
     The family is the primary metric's p-value in every report when the spec named one in advance, else
     every p-value the summary shows (each report's own adjustment covers only that report)."""
-    from drltg.analysis.metrics import holm
+    from drltg.analysis.stats import holm
 
     metrics = [primary_metric] if primary_metric else [m for m in SUMMARY_COLUMNS if not m.startswith("time_to")]
     members = [(i, name) for i, r in enumerate(rows) for name in metrics

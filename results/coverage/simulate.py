@@ -24,6 +24,7 @@ import time
 import numpy as np
 
 from drltg.analysis import metrics as M
+from drltg.analysis import stats
 
 SHAPES = ("normal", "lognormal", "bimodal", "rate")
 MEANS = {"normal": (0.0, 1.0), "lognormal": (float(np.exp(0.625)), float(np.exp(0.925))), "bimodal": (2.0, 3.0),
@@ -77,10 +78,10 @@ def difference_coverage(shape, design, n, experiments, seed) -> tuple[float, flo
     interval (no spread in the sample) counts as a miss."""
     b, t, truth = draw(shape, design, n, experiments, np.random.default_rng(seed))
     paired = design == "paired"
-    lo, hi = M.t_interval(b, t, paired=paired, confidence=LEVEL)
+    lo, hi = stats.t_interval(b, t, paired=paired, confidence=LEVEL)
     if shape == "rate":
         lo, hi = np.maximum(lo, -1.0), np.minimum(hi, 1.0)
-    boot = [covered(*M.INTERVALS[name](b, t, paired=paired, confidence=LEVEL, n_resamples=1000, seed=seed + 1),
+    boot = [covered(*stats.INTERVALS[name](b, t, paired=paired, confidence=LEVEL, n_resamples=1000, seed=seed + 1),
                     truth) for name in ("studentized", "bca")]
     return covered(lo, hi, truth), float(np.nanmax(np.abs(np.concatenate([lo, hi])))), *boot
 
@@ -94,7 +95,7 @@ def ratio_coverage(shape, design, n, experiments, seed, offset: float = 5.0) -> 
     ratio = (mean_t + offset) / (mean_b + offset) - 1
     hits = nulls = 0
     for bi, ti in zip(b, t):
-        lo, hi = M.ratio_interval(bi, ti, design == "paired", LEVEL)
+        lo, hi = stats.ratio_interval(bi, ti, design == "paired", LEVEL)
         if np.isnan(lo):
             nulls += 1
         else:
@@ -118,8 +119,8 @@ def poi_coverage(shape, design, n, experiments, seed) -> tuple[float, float, flo
     truth, paired = true_poi(shape, design), design == "paired"
     ends = []
     for bi, ti in zip(b, t):
-        p = M.paired_probability_of_improvement(bi, ti) if paired else M.probability_of_improvement(bi, ti)
-        ends.append(M.poi_interval(p, n, n, paired, LEVEL))
+        p = stats.paired_probability_of_improvement(bi, ti) if paired else M.probability_of_improvement(bi, ti)
+        ends.append(stats.poi_interval(p, n, n, paired, LEVEL))
     lo, hi = np.array(ends).T
     return covered(lo, hi, truth), float(lo.min()), float(hi.max())
 
@@ -130,13 +131,14 @@ def false_positives(shape, design, n, experiments, seed) -> tuple[float, float]:
     p_value (sign test over pairs, permutation test of the Mann-Whitney estimate) are below 0.05."""
     b, t, _ = draw(shape, design, n, experiments, np.random.default_rng(seed), null=True)
     paired = design == "paired"
-    p_t = M.t_test(b, t, paired)
+    p_t = stats.t_test(b, t, paired)
     mean_hits = poi_hits = 0
     for i, (bi, ti) in enumerate(zip(b, t)):
-        shaped = M.shape_of(ti - bi) if paired else (M.shape_of(bi) or M.shape_of(ti))
-        p = M.permutation_test(bi, ti, paired, seed=i, n_resamples=999) if shaped else p_t[i]
+        shaped = stats.shape_of(ti - bi) if paired else (stats.shape_of(bi) or stats.shape_of(ti))
+        p = stats.permutation_test(bi, ti, paired, seed=i, n_resamples=999) if shaped else p_t[i]
         mean_hits += bool(p < 0.05)
-        q = M.sign_test(bi, ti) if paired else M.permutation_test(bi, ti, statistic="poi", seed=i, n_resamples=999)
+        q = (stats.sign_test(bi, ti) if paired
+             else stats.permutation_test(bi, ti, statistic="poi", seed=i, n_resamples=999))
         poi_hits += q < 0.05
     return mean_hits / experiments, poi_hits / experiments
 

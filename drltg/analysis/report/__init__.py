@@ -20,7 +20,8 @@ The report is one pipeline (:func:`transfer_report`, :func:`compute`):
 
 The per-seed scores are aggregated (B = baseline, T = transfer, A = area, span = budget - start, L = the
 mean of each side's seeds, which for pairs equals the mean of ``d_i = T_i - B_i``; ``*_iqm``: L = the
-interquartile mean of each side; formulas in :mod:`drltg.analysis.metrics`):
+interquartile mean of each side; formulas in :mod:`drltg.analysis.metrics`, intervals and tests in
+:mod:`drltg.analysis.stats`):
 
 ``mean_return_gain``          L(A_T / span) - L(A_B / span): return gained per frame on average over the
                               budget; unchanged when a constant is added to every reward (the headline)

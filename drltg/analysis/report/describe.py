@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from drltg.analysis import metrics as M
+from drltg.analysis import stats
 from drltg.analysis.curves import Curve
 from drltg.analysis.report.align import Window, eval_grid, on_grid
 from drltg.analysis.report.checks import Sides
@@ -125,7 +126,7 @@ def _p_value_rule(paired: bool) -> str:
         "the exact permutation test of the Mann-Whitney estimate"
     return (f"two-sided, of no effect: {test} behind each mean difference's interval (transfer_ratio's too, "
             f"whose Fieller interval excludes 0 exactly where it rejects), unless the per-seed scores look skewed "
-            f"or bimodal (from {M.SHAPE_MIN_SEEDS} seeds: D'Agostino's skewness test at 0.05, Sarle's "
+            f"or bimodal (from {stats.SHAPE_MIN_SEEDS} seeds: D'Agostino's skewness test at 0.05, Sarle's "
             "bimodality coefficient above 5/9), where the exact permutation test's p-value is used (given in "
             f"*_p_exact for every mean difference); {poi} for P(T > B); the slope's t test for final_trend_*")
 
@@ -147,7 +148,7 @@ def plot_curves(sides: Sides, w: Window, scores: pd.DataFrame, described: dict) 
         ys = on_grid(runs, grid, width)
         band = None
         if len(runs) >= MIN_SEEDS:
-            half = M.t_quantile(0.5 + confidence / 2, len(runs) - 1) * ys.std(0, ddof=1) / math.sqrt(len(runs))
+            half = stats.t_quantile(0.5 + confidence / 2, len(runs) - 1) * ys.std(0, ddof=1) / math.sqrt(len(runs))
             band = (ys.mean(0) - half, ys.mean(0) + half)
             if w.value_range is not None:  # a rate's mean lies in its range
                 band = tuple(np.clip(x, *w.value_range) for x in band)

@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from drltg.analysis import metrics as M
+from drltg.analysis import stats
 from drltg.analysis.curves import Curve
 from drltg.analysis.report.align import Window, eval_grid, on_grid
 from drltg.analysis.report.catalogue import COMPARISONS, Metric, of_kind
@@ -48,7 +49,7 @@ def _with_holm(m: dict) -> dict:
     """``<name>_p_adjusted`` after each ``<name>_p_value``: Holm's adjustment over every p-value of the
     report, the family of intervals read together."""
     family = [k for k in m if k.endswith("_p_value")]
-    adjusted = dict(zip(family, M.holm([m[k] for k in family])))
+    adjusted = dict(zip(family, stats.holm([m[k] for k in family])))
     out = {}
     for key, value in m.items():
         out[key] = value
@@ -92,7 +93,7 @@ def _estimate(metric: Metric, b: np.ndarray, t: np.ndarray, paired: bool, locati
         return float(location(t) - location(b))
     if metric.kind == "ratio":
         return M.transfer_ratio(b, t, location=location, scale=scale, eps=eps)
-    return M.paired_probability_of_improvement(b, t) if paired else M.probability_of_improvement(b, t)
+    return stats.paired_probability_of_improvement(b, t) if paired else M.probability_of_improvement(b, t)
 
 
 def _confidence_interval(metric: Metric, value, b, t, paired: bool, w: Window,
@@ -100,22 +101,22 @@ def _confidence_interval(metric: Metric, value, b, t, paired: bool, w: Window,
     """``([low, high], None)``, or ``(None, reason)`` where no honest interval exists."""
     conf = float(s.confidence)
     if metric.kind == "poi":
-        return list(M.poi_interval(value, len(b), len(t), paired, conf)), None
+        return list(stats.poi_interval(value, len(b), len(t), paired, conf)), None
     if metric.kind == "ratio":
         if value is None:
             return None, None
-        lo, hi = M.ratio_interval(b, t, paired, conf)
+        lo, hi = stats.ratio_interval(b, t, paired, conf)
         if math.isnan(lo):
             return None, (f"{metric.name} has no interval: the interval of the baseline's mean area "
                           "contains 0, so the ratio's would be unbounded.")
         return [lo, hi], None
     kw = {} if s.interval in ("t", "welch") else dict(n_resamples=int(s.bootstrap), seed=int(s.seed))
-    lo, hi = (float(x) for x in M.INTERVALS[s.interval](b, t, paired=paired, confidence=conf, **kw))
+    lo, hi = (float(x) for x in stats.INTERVALS[s.interval](b, t, paired=paired, confidence=conf, **kw))
     if math.isfinite(lo) and math.isfinite(hi) and hi > lo:
         return _within(lo, hi, w.value_range), None
-    if paired and np.ptp(t - b) <= M.roundoff(b, t):
+    if paired and np.ptp(t - b) <= stats.roundoff(b, t):
         why = f"every pair gives the same difference ({float(t[0] - b[0]):.4g}), so there is no spread to scale"
-    elif not paired and max(np.ptp(b), np.ptp(t)) <= M.roundoff(b, t):
+    elif not paired and max(np.ptp(b), np.ptp(t)) <= stats.roundoff(b, t):
         why = "each side's seeds give identical values, so there is no spread to scale"
     else:
         why = f"the {s.interval} interval is undefined for these scores"
@@ -135,13 +136,13 @@ def _p_values(metric: Metric, b, t, paired: bool, s: ReportSettings, warnings: l
     """``<name>_p_value`` (and ``<name>_p_exact`` for a mean difference): see ``settings.p_values``."""
     name = f"{metric.name}_p_value"
     if metric.kind == "poi":
-        p = M.sign_test(b, t) if paired else M.permutation_test(b, t, statistic="poi", seed=int(s.seed))
+        p = stats.sign_test(b, t) if paired else stats.permutation_test(b, t, statistic="poi", seed=int(s.seed))
         return {name: p}
-    t_p = float(M.t_test(b, t, paired))
+    t_p = float(stats.t_test(b, t, paired))
     if metric.kind == "ratio":  # Fieller's interval contains 0 exactly where this test accepts
         return {name: t_p}
-    exact = M.permutation_test(b, t, paired, seed=int(s.seed))
-    shapes = [x for x in ([M.shape_of(t - b)] if paired else [M.shape_of(b), M.shape_of(t)]) if x]
+    exact = stats.permutation_test(b, t, paired, seed=int(s.seed))
+    shapes = [x for x in ([stats.shape_of(t - b)] if paired else [stats.shape_of(b), stats.shape_of(t)]) if x]
     if shapes:
         scores = "per-pair differences" if paired else "per-seed scores"
         warnings.append(f"{metric.name}: the {scores} look {shapes[0]}, so its p_value is the exact permutation "
@@ -183,12 +184,12 @@ def trend(curves: Sequence[Curve], w: Window, s: ReportSettings) -> dict:
                 "verdict": f"undetermined (too few evaluations: {frames.size} in the window, "
                            f"{MIN_TREND_POINTS} needed)"}
     mean = on_grid(curves, frames).mean(axis=0)
-    slope, se, df = M.trend(frames, mean)
+    slope, se, df = stats.trend(frames, mean)
     span = budget - lo
     change, se_change = slope * span, se * span
-    half = M.t_quantile(0.5 + float(s.confidence) / 2, df) * se_change
+    half = stats.t_quantile(0.5 + float(s.confidence) / 2, df) * se_change
     alpha = 1.0 - float(s.confidence)
-    p_equivalence = M.equivalence_test(change, se_change, df, margin)
+    p_equivalence = stats.equivalence_test(change, se_change, df, margin)
     if progress == 0:  # a constant mean curve has nothing left to change
         p_equivalence = 0.0
     if se_change > 0:
@@ -208,9 +209,9 @@ def trend(curves: Sequence[Curve], w: Window, s: ReportSettings) -> dict:
 
 
 def _t_sf(x: float, df: float) -> float:
-    from scipy import stats
+    from scipy.stats import t as student_t
 
-    return float(stats.t.sf(x, df))
+    return float(student_t.sf(x, df))
 
 
 def _trend_values(metric: Metric, side: str, tr: dict, s: ReportSettings, warnings: list[str]) -> dict:

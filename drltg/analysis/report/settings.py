@@ -6,6 +6,7 @@ import re
 from dataclasses import dataclass, field, fields
 
 from drltg.analysis import metrics as M
+from drltg.analysis import stats
 from drltg.analysis.curves import FORMATS
 from drltg.errors import UsageError
 
@@ -80,7 +81,7 @@ class ReportSettings:
     source_frames: object = _option(None, "--source-frames", metavar="N",
                                     help="frames of source training per transfer run, for the total-time "
                                     "metrics (default: read from drltg runs' transfer.source)")
-    interval: str = _option("t", "--interval", choices=tuple(M.INTERVALS),
+    interval: str = _option("t", "--interval", choices=tuple(stats.INTERVALS),
                             help="interval of the mean differences (default: t, the one whose coverage "
                             "holds in simulation; the bootstrap ones use --bootstrap and --seed)")
     confidence: float = _option(0.95, "--confidence", type=float, help="confidence level (default: 0.95)")
@@ -119,8 +120,8 @@ class ReportSettings:
         need(0.0 < float(self.confidence) < 1.0, f"--confidence must lie in (0, 1), got {self.confidence}.")
         need(int(self.bootstrap) >= 100, f"--bootstrap needs at least 100 resamples, got {self.bootstrap}.")
         need(0 <= int(self.seed) < 2**32, f"--seed must be an integer in [0, 2**32 - 1], got {self.seed}.")
-        need(self.interval in M.INTERVALS,
-             f"unknown --interval '{self.interval}'; choose one of {', '.join(M.INTERVALS)}.")
+        need(self.interval in stats.INTERVALS,
+             f"unknown --interval '{self.interval}'; choose one of {', '.join(stats.INTERVALS)}.")
         need(self.format in FORMATS, f"unknown log format '{self.format}'; choose one of {', '.join(FORMATS)}.")
         if self.source_frames is not None:
             frames = parse_frames(self.source_frames, "--source-frames")
