@@ -46,12 +46,12 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 import torch
-from tensordict import TensorDict, TensorDictBase
-from torchrl.data import Bounded, Categorical, Composite, Unbounded
-from torchrl.envs import EnvBase
+from tensordict import TensorDictBase
+from torchrl.data import Bounded
 
+from drltg.envs.goal_env import GoalEnv
 from drltg.envs.limits import MAX_HORIZON
-from drltg.envs.seeding import block_generators, blocks
+from drltg.envs.seeding import blocks
 from drltg.errors import UsageError
 
 ARENA_SIZE = 10.0
@@ -145,7 +145,7 @@ def move(pos: torch.Tensor, displacement: torch.Tensor, walls: torch.Tensor | No
     return torch.stack((x, y), -1)
 
 
-class FourRoomsEnv(EnvBase):
+class FourRoomsEnv(GoalEnv):
     """Continuous FourRooms (see the module docstring for geometry, dynamics and rewards).
 
     With no arguments it is the registered task ``fourrooms/northeast`` (``make_env("fourrooms/northeast")``).
@@ -169,6 +169,7 @@ class FourRoomsEnv(EnvBase):
         torch.Size([16, 100, 1])
     """
 
+    state_key = "position"
     _supports_set_state = True
 
     def __init__(
@@ -218,40 +219,15 @@ class FourRoomsEnv(EnvBase):
         self.set_seed(seed)
 
     def _make_spec(self):
-        obs_dim = 4 if self.observe_goal else 2
-        flag = Categorical(2, (1,), dtype=torch.bool, device=self.device)
-        state = Composite(
-            position=Bounded(0.0, ARENA_SIZE, (2,), dtype=torch.float32, device=self.device),
-            step_count=Bounded(0, self.horizon, (1,), dtype=torch.int64, device=self.device),
-            device=self.device,
-        )
-        observation = state.clone()
-        observation["observation"] = Bounded(-1.0, 1.0, (obs_dim,), dtype=torch.float32, device=self.device)
-        observation["success"] = flag.clone()
-        self.observation_spec = observation.expand(self.batch_size)
-        self.state_spec = state.expand(self.batch_size)
+        position = Bounded(0.0, ARENA_SIZE, (2,), dtype=torch.float32, device=self.device)
+        self._state_specs(position, obs_dim=4 if self.observe_goal else 2)
         self.action_spec = Bounded(-1.0, 1.0, (*self.batch_size, 2), dtype=torch.float32, device=self.device)
-        self.reward_spec = Unbounded((*self.batch_size, 1), dtype=torch.float32, device=self.device)
-        self.done_spec = Composite(
-            done=flag.clone(), terminated=flag.clone(), truncated=flag.clone(), device=self.device
-        ).expand(self.batch_size)
-
-    def _set_seed(self, seed: int | None) -> None:
-        self.block_rngs = None
-        self.rng = torch.Generator()
-        if seed is not None:
-            self.rng.manual_seed(seed)
 
     def _observe(self, position: torch.Tensor) -> torch.Tensor:
         obs = position * (2.0 / ARENA_SIZE) - 1.0
         if self.observe_goal:
             obs = torch.cat((obs, (self.goal * (2.0 / ARENA_SIZE) - 1.0).expand_as(obs)), -1)
         return obs
-
-    def set_block_seeds(self, seeds: Sequence[int]) -> None:
-        """See :func:`drltg.envs.seeding.set_block_seeds`: block ``k`` of the batch draws its starts as
-        this env with ``1/len(seeds)`` of the batch, seeded ``seeds[k]``, would."""
-        self.block_rngs = block_generators(self.batch_size, seeds)
 
     def _starts(self, mask: torch.Tensor) -> torch.Tensor:
         """Starts for the flat batch elements where ``mask`` is true, in order."""
@@ -283,38 +259,14 @@ class FourRoomsEnv(EnvBase):
             mask = reset.squeeze(-1)
             position = torch.zeros((*shape, 2), device=self.device)
             position[mask] = self._starts(mask.reshape(-1).cpu())
-        return TensorDict(
-            {
-                "observation": self._observe(position),
-                "position": position,
-                "step_count": torch.zeros((*shape, 1), dtype=torch.int64, device=self.device),
-                "success": torch.zeros((*shape, 1), dtype=torch.bool, device=self.device),
-            },
-            batch_size=shape,
-            device=self.device,
-        )
+        return self._first(position)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         action = tensordict["action"].clamp(-1.0, 1.0)
         position = move(tensordict["position"], action * self.max_step, self._walls)
         step_count = tensordict["step_count"] + 1
         success = (position - self.goal).norm(dim=-1, keepdim=True) <= self.goal_radius
-        reward = torch.where(success, 1.0, -self.step_cost)
-        truncated = (step_count >= self.horizon) & ~success
-        return TensorDict(
-            {
-                "observation": self._observe(position),
-                "position": position,
-                "step_count": step_count,
-                "success": success,
-                "reward": reward,
-                "done": success | truncated,
-                "terminated": success,
-                "truncated": truncated,
-            },
-            batch_size=tensordict.batch_size,
-            device=self.device,
-        )
+        return self._next(position, step_count, success)
 
     def render(self, tensordict: TensorDictBase | None = None) -> np.ndarray:
         """An RGB ``uint8`` image ``[render_size, render_size, 3]``: walls, goal disc and agents.

@@ -43,12 +43,12 @@ from typing import Sequence
 
 import numpy as np
 import torch
-from tensordict import TensorDict, TensorDictBase
-from torchrl.data import Bounded, Categorical, Composite, OneHot, Unbounded
-from torchrl.envs import EnvBase
+from tensordict import TensorDictBase
+from torchrl.data import Bounded, OneHot
 
+from drltg.envs.goal_env import GoalEnv
 from drltg.envs.limits import MAX_HORIZON
-from drltg.envs.seeding import block_generators, blocks
+from drltg.envs.seeding import blocks
 from drltg.errors import UsageError
 
 LAYOUT = (
@@ -110,7 +110,7 @@ def transition_matrix(slip: float = 0.0) -> torch.Tensor:
     return (1 - slip) * onehot + slip * others
 
 
-class GridFourRoomsEnv(EnvBase):
+class GridFourRoomsEnv(GoalEnv):
     """The classic grid FourRooms (see the module docstring for layout, dynamics and rewards).
 
     With no arguments it is the registered task ``gridrooms/northeast`` (``make_env("gridrooms/northeast")``).
@@ -128,6 +128,7 @@ class GridFourRoomsEnv(EnvBase):
         seed: seed of the start and slip generator; ``None`` draws one from torch's global RNG.
     """
 
+    state_key = "cell"
     _supports_set_state = True
 
     def __init__(
@@ -183,34 +184,9 @@ class GridFourRoomsEnv(EnvBase):
 
     def _make_spec(self):
         cell_dim = N_CELLS if self.observation == "onehot" else 2
-        obs_dim = cell_dim * (2 if self.observe_goal else 1)
-        flag = Categorical(2, (1,), dtype=torch.bool, device=self.device)
-        state = Composite(
-            cell=Bounded(0, 12, (2,), dtype=torch.int64, device=self.device),
-            step_count=Bounded(0, self.horizon, (1,), dtype=torch.int64, device=self.device),
-            device=self.device,
-        )
-        observation = state.clone()
-        observation["observation"] = Bounded(-1.0, 1.0, (obs_dim,), dtype=torch.float32, device=self.device)
-        observation["success"] = flag.clone()
-        self.observation_spec = observation.expand(self.batch_size)
-        self.state_spec = state.expand(self.batch_size)
+        cell = Bounded(0, 12, (2,), dtype=torch.int64, device=self.device)
+        self._state_specs(cell, obs_dim=cell_dim * (2 if self.observe_goal else 1))
         self.action_spec = OneHot(4, (*self.batch_size, 4), device=self.device)
-        self.reward_spec = Unbounded((*self.batch_size, 1), dtype=torch.float32, device=self.device)
-        self.done_spec = Composite(
-            done=flag.clone(), terminated=flag.clone(), truncated=flag.clone(), device=self.device
-        ).expand(self.batch_size)
-
-    def set_block_seeds(self, seeds: Sequence[int]) -> None:
-        """See :func:`drltg.envs.seeding.set_block_seeds`: block ``k`` of the batch draws its starts and
-        slips as this env with ``1/len(seeds)`` of the batch, seeded ``seeds[k]``, would."""
-        self.block_rngs = block_generators(self.batch_size, seeds)
-
-    def _set_seed(self, seed: int | None) -> None:
-        self.block_rngs = None
-        self.rng = torch.Generator()
-        if seed is not None:
-            self.rng.manual_seed(seed)
 
     def _encode(self, cell: torch.Tensor) -> torch.Tensor:
         if self.observation == "onehot":
@@ -237,16 +213,7 @@ class GridFourRoomsEnv(EnvBase):
                 for m, rng in blocks(self, mask)
             ])
             cell = self._starts[pick.reshape(shape)].to(self.device)
-        return TensorDict(
-            {
-                "observation": self._observe(cell),
-                "cell": cell,
-                "step_count": torch.zeros((*shape, 1), dtype=torch.int64, device=self.device),
-                "success": torch.zeros((*shape, 1), dtype=torch.bool, device=self.device),
-            },
-            batch_size=shape,
-            device=self.device,
-        )
+        return self._first(cell)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         action = tensordict["action"].long().argmax(-1)
@@ -260,22 +227,7 @@ class GridFourRoomsEnv(EnvBase):
         cell = next_cell(tensordict["cell"], action, self._walls)
         step_count = tensordict["step_count"] + 1
         success = (cell == self.goal).all(-1, keepdim=True)
-        reward = torch.where(success, 1.0, -self.step_cost)
-        truncated = (step_count >= self.horizon) & ~success
-        return TensorDict(
-            {
-                "observation": self._observe(cell),
-                "cell": cell,
-                "step_count": step_count,
-                "success": success,
-                "reward": reward,
-                "done": success | truncated,
-                "terminated": success,
-                "truncated": truncated,
-            },
-            batch_size=tensordict.batch_size,
-            device=self.device,
-        )
+        return self._next(cell, step_count, success)
 
     def render(self, tensordict: TensorDictBase | None = None) -> np.ndarray:
         """An RGB ``uint8`` image ``[13 * cell_pixels, 13 * cell_pixels, 3]``: walls, goal, agents.

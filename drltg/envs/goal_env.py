@@ -1,0 +1,90 @@
+"""The skeleton both FourRooms envs share: reach a goal in a batch of independent episodes.
+
+A step pays ``+1`` and terminates on reaching the goal (``success``), costs ``step_cost`` otherwise, and
+is truncated (never terminated) after ``horizon`` steps. The state is one entry (``state_key``: the
+continuous ``position`` or the grid ``cell``) plus ``step_count``; starts and noise come from a CPU
+generator, one per block of the batch where a seed group sets them (:mod:`drltg.envs.seeding`).
+Subclasses build their specs with :meth:`_state_specs` and write :meth:`_observe`, the start draw and the
+move; :meth:`_first` and :meth:`_next` assemble what ``_reset`` and ``_step`` return.
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import torch
+from tensordict import TensorDict
+from torchrl.data import Bounded, Categorical, Composite, TensorSpec, Unbounded
+from torchrl.envs import EnvBase
+
+from drltg.envs.seeding import block_generators
+
+
+class GoalEnv(EnvBase):
+    state_key: str
+    horizon: int
+    step_cost: float
+
+    def _state_specs(self, state: TensorSpec, obs_dim: int) -> None:
+        """Set every spec from the state entry's spec and the observation's size."""
+        flag = Categorical(2, (1,), dtype=torch.bool, device=self.device)
+        full_state = Composite(
+            {self.state_key: state,
+             "step_count": Bounded(0, self.horizon, (1,), dtype=torch.int64, device=self.device)},
+            device=self.device,
+        )
+        observation = full_state.clone()
+        observation["observation"] = Bounded(-1.0, 1.0, (obs_dim,), dtype=torch.float32, device=self.device)
+        observation["success"] = flag.clone()
+        self.observation_spec = observation.expand(self.batch_size)
+        self.state_spec = full_state.expand(self.batch_size)
+        self.reward_spec = Unbounded((*self.batch_size, 1), dtype=torch.float32, device=self.device)
+        self.done_spec = Composite(
+            done=flag.clone(), terminated=flag.clone(), truncated=flag.clone(), device=self.device
+        ).expand(self.batch_size)
+
+    def _observe(self, state: torch.Tensor) -> torch.Tensor:
+        raise NotImplementedError
+
+    def _set_seed(self, seed: int | None) -> None:
+        self.block_rngs = None
+        self.rng = torch.Generator()
+        if seed is not None:
+            self.rng.manual_seed(seed)
+
+    def set_block_seeds(self, seeds: Sequence[int]) -> None:
+        """See :func:`drltg.envs.seeding.set_block_seeds`: block ``k`` of the batch draws its starts (and
+        any noise) as this env with ``1/len(seeds)`` of the batch, seeded ``seeds[k]``, would."""
+        self.block_rngs = block_generators(self.batch_size, seeds)
+
+    def _first(self, state: torch.Tensor) -> TensorDict:
+        """What ``_reset`` returns for the start states ``state``."""
+        shape = self.batch_size
+        return TensorDict(
+            {
+                "observation": self._observe(state),
+                self.state_key: state,
+                "step_count": torch.zeros((*shape, 1), dtype=torch.int64, device=self.device),
+                "success": torch.zeros((*shape, 1), dtype=torch.bool, device=self.device),
+            },
+            batch_size=shape,
+            device=self.device,
+        )
+
+    def _next(self, state: torch.Tensor, step_count: torch.Tensor, success: torch.Tensor) -> TensorDict:
+        """What ``_step`` returns for the next states: +1 and terminated at the goal, else the step cost;
+        truncated at the horizon."""
+        truncated = (step_count >= self.horizon) & ~success
+        return TensorDict(
+            {
+                "observation": self._observe(state),
+                self.state_key: state,
+                "step_count": step_count,
+                "success": success,
+                "reward": torch.where(success, 1.0, -self.step_cost),
+                "done": success | truncated,
+                "terminated": success,
+                "truncated": truncated,
+            },
+            batch_size=self.batch_size,
+            device=self.device,
+        )
