@@ -14,8 +14,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import yaml
-
 from drltg import config as config_lib
 from drltg.errors import UsageError
 from drltg.store import rundir
@@ -51,10 +49,7 @@ def plan(out: Path, d: dict = DEMO) -> list[tuple[str, dict, Path]]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drltg.analysis import claims
-    from drltg.analysis.report import format_table, transfer_report
-    from drltg.experiments.executor import LocalBackend, execute
-    from drltg.experiments.experiment import _check_settings, as_runs, check_runs
+    from drltg.experiments.experiment import _check_settings, check_runs, execute_and_report
 
     d = DEMO
     if args.workers < 1:
@@ -70,21 +65,5 @@ def run(args: argparse.Namespace) -> int:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise UsageError(f"cannot create --out '{out}' ({err.strerror}).") from None
-    with rundir.lock(out, "demo folder"):
-        rundir.atomic_write(saved, yaml.safe_dump(d, sort_keys=False))
-        backend = LocalBackend(args.workers)
-        try:
-            status = execute(as_runs(runs, out), backend, desc="demo")
-        finally:
-            backend.close()
-        failures = [f"{path}: {detail}" for path, (state, detail) in status.items() if state == "failed"]
-        if failures:
-            print("failed runs:\n  " + "\n  ".join(failures))
-            return 1
-        result = transfer_report([p for role, _, p in runs if role == "baseline"],
-                                 [p for role, _, p in runs if role == "transfer"], out / "report",
-                                 threshold=d["threshold"], baseline_label="no transfer", transfer_label=d["method"])
-    print(format_table(result))
-    print("\n" + claims.headline(result))
-    print(f"\nreport: {out / 'report'}")
-    return 0
+    return execute_and_report(runs, out, saved, d, workers=args.workers, name="demo", threshold=d["threshold"],
+                              method=d["method"])

@@ -239,9 +239,8 @@ def _check_settings(path: Path, settings: dict) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drltg.analysis.claims import headline
-    from drltg.analysis.report import format_table, parse_threshold, transfer_report
-    from drltg.experiments.executor import LocalBackend, check_order, execute
+    from drltg.analysis.report import parse_threshold
+    from drltg.experiments.executor import check_order
 
     if args.workers < 1:
         raise UsageError("--workers must be at least 1.")
@@ -258,13 +257,26 @@ def run(args: argparse.Namespace) -> int:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise UsageError(f"cannot create --out '{out}' ({err.strerror}).") from None
-    with rundir.lock(out, "experiment folder"):
+    return execute_and_report(runs, out, saved, settings, workers=args.workers, name="experiment",
+                              threshold=args.threshold, method=args.method, group_seeds=not args.no_seed_groups,
+                              progress=not args.no_progress)
+
+
+def execute_and_report(runs, out: Path, saved: Path, settings: dict, *, workers: int, name: str, threshold,
+                       method: str, group_seeds: bool = True, progress: bool = True) -> int:
+    """Under the folder's lock: save the settings, train every run not finished yet on ``workers``
+    processes, then report the transfer runs against the baselines and print the table and headline.
+    Returns 1 if a run failed (no report) or diverged (left out of the report), else 0."""
+    from drltg.analysis.claims import headline
+    from drltg.analysis.report import format_table, transfer_report
+    from drltg.experiments.executor import LocalBackend, execute
+
+    with rundir.lock(out, f"{name} folder"):
         _check_settings(saved, settings)  # another process may have started it meanwhile
         rundir.atomic_write(saved, yaml.safe_dump(settings, sort_keys=False))
-        backend = LocalBackend(args.workers)
+        backend = LocalBackend(workers)
         try:
-            status = execute(as_runs(runs, out), backend, desc="experiment", group_seeds=not args.no_seed_groups,
-                             progress=not args.no_progress)
+            status = execute(as_runs(runs, out), backend, desc=name, group_seeds=group_seeds, progress=progress)
         finally:
             backend.close()
         failures = [f"{path}: {detail}" for path, (state, detail) in status.items() if state == "failed"]
@@ -278,9 +290,9 @@ def run(args: argparse.Namespace) -> int:
             [d for role, _, d in runs if role == "baseline"],
             [d for role, _, d in runs if role == "transfer"],
             out / "report",
-            threshold=args.threshold,
+            threshold=threshold,
             baseline_label="no transfer",
-            transfer_label=args.method,
+            transfer_label=method,
         )
     print(format_table(result))
     print("\n" + headline(result))
