@@ -206,3 +206,22 @@ def test_the_top_level_surface_is_documented_and_resolves():
     for name, module in drltg._WHERE.items():
         assert name in drltg.__doc__, f"drltg's docstring does not list {name}"
         assert getattr(drltg, name) is getattr(importlib.import_module(module), name)
+
+
+# ------------------------------------------------------------------------------------------ sizes
+MAX_MODULE_LINES, MAX_FUNCTION_LINES = 600, 80
+
+
+def test_every_module_and_function_stays_readable_in_one_sitting():
+    """One idea a module: no module over 600 lines, no function over 80."""
+    too_long = []
+    for name, path in sorted(MODULES.items()):
+        text = path.read_text()
+        if len(text.splitlines()) > MAX_MODULE_LINES:
+            too_long.append(f"{name}: {len(text.splitlines())} lines")
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                length = node.end_lineno - node.lineno + 1
+                if length > MAX_FUNCTION_LINES:
+                    too_long.append(f"{name}.{node.name}: {length} lines")
+    assert too_long == []

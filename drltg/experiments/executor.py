@@ -61,47 +61,22 @@ def _output_to(log):
 
 
 def run_one(cfg: RunConfig, run_dir: str, log_path: str) -> tuple[str, str]:
-    """Train (or resume) one run with its output in ``log_path``; ``("done" | "failed", detail)``.
+    """Train (or resume) one run with its output in ``log_path``; ``("done" | "failed" | "diverged", detail)``.
 
     Never raises for a broken run: the traceback goes to the log, the sweep goes on.
     """
-    from drltg import plugins
-    from drltg.training.health import DIVERGED, Diverged
-    from drltg.training.loop import train
-
-    plugins.load()  # a worker process registers the user's tasks too
-    run_dir, log_path = Path(run_dir), Path(log_path)
-    log_path.parent.mkdir(parents=True, exist_ok=True)
-    resume = (run_dir / rundir.CONFIG).is_file()
-    with open(log_path, "a", buffering=1) as log, _output_to(log):
-        print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] {'resume' if resume else 'start'} {run_dir} "
-              f"(pid {os.getpid()})", flush=True)
-        try:
-            train(cfg, run_dir, resume=resume, progress=False)
-        except UsageError as err:
-            print(f"error: {err}", flush=True)
-            return "failed", str(err)
-        except Diverged as err:
-            print(f"{err}.", flush=True)
-            return DIVERGED, str(err)
-        except KeyboardInterrupt:  # Ctrl-C, or a cancelled Ray task
-            print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] interrupted; a rerun continues it", flush=True)
-            raise
-        except Exception as err:
-            traceback.print_exc()
-            return "failed", f"{type(err).__name__}: {err}"
-        print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] complete", flush=True)
-    return "done", ""
+    return run_group([cfg], [run_dir], [log_path])[0]
 
 
 def run_group(cfgs: list[RunConfig], run_dirs: list[str], log_paths: list[str]) -> list[tuple[str, str]]:
     """:func:`run_one` for a seed group: the runs train (or resume) together, their output in the first
-    run's log (each other log says where); one ``(status, detail)`` per run."""
+    run's log (each other log says where); one ``(status, detail)`` per run. One config trains alone."""
     from drltg import plugins
     from drltg.training.health import DIVERGED, Diverged
+    from drltg.training.loop import train
     from drltg.training.seeds import train_group
 
-    plugins.load()
+    plugins.load()  # a worker process registers the user's tasks too
     dirs, logs = [Path(d) for d in run_dirs], [Path(p) for p in log_paths]
     for log_path in logs:
         log_path.parent.mkdir(parents=True, exist_ok=True)
@@ -109,11 +84,15 @@ def run_group(cfgs: list[RunConfig], run_dirs: list[str], log_paths: list[str]) 
         with open(log_path, "a") as log:
             print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] trains in a seed group; output in {logs[0]}", file=log)
     resume = all((d / rundir.CONFIG).is_file() for d in dirs)
+    what = str(dirs[0]) if len(dirs) == 1 else f"seed group {', '.join(str(d) for d in dirs)}"
     with open(logs[0], "a", buffering=1) as log, _output_to(log):
-        print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] {'resume' if resume else 'start'} seed group "
-              f"{', '.join(str(d) for d in dirs)} (pid {os.getpid()})", flush=True)
+        print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] {'resume' if resume else 'start'} {what} "
+              f"(pid {os.getpid()})", flush=True)
         try:
-            train_group(cfgs, dirs, resume=resume, progress=False)
+            if len(cfgs) == 1:
+                train(cfgs[0], dirs[0], resume=resume, progress=False)
+            else:
+                train_group(cfgs, dirs, resume=resume, progress=False)
         except UsageError as err:
             print(f"error: {err}", flush=True)
             return [("failed", str(err))] * len(dirs)
@@ -122,7 +101,7 @@ def run_group(cfgs: list[RunConfig], run_dirs: list[str], log_paths: list[str]) 
             which = range(len(dirs)) if err.seeds is None else err.seeds
             stopped = ("failed", f"stopped with its seed group ({err}); a rerun resumes it")
             return [(DIVERGED, str(err)) if k in which else stopped for k in range(len(dirs))]
-        except KeyboardInterrupt:
+        except KeyboardInterrupt:  # Ctrl-C, or a cancelled Ray task
             print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] interrupted; a rerun continues it", flush=True)
             raise
         except Exception as err:

@@ -127,10 +127,6 @@ def _config_keys(mapping, key: str, where: str) -> dict:
 
 def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
     """Validate a loaded spec; every mistake is one :class:`UsageError` sentence."""
-    from drltg.analysis.report import check_metric, parse_threshold
-    from drltg.envs import TASKS, get_pair
-    from drltg.learners import ALGOS
-    from drltg.transfer import METHODS, get_method
 
     if not isinstance(data, dict):
         raise UsageError(f"{where} must be a YAML mapping with keys like pairs, methods, seeds, frames.")
@@ -142,6 +138,39 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
             raise UsageError(f"{where}: the key '{key}' is required.")
     spec = Spec(pairs=_axis(data, "pairs", str, where), methods=_axis(data, "methods", str, where),
                 frames=_axis(data, "frames", int, where))
+    _check_names(spec, data, where)
+    for key in ("seeds", "seed"):
+        if key in data:
+            value = data[key]
+            if not isinstance(value, int) or isinstance(value, bool):
+                raise UsageError(f"{where}: '{key}' must be an integer, got {value!r}.")
+            setattr(spec, key, value)
+    if spec.seeds < 1 or min(spec.frames) < 1:
+        raise UsageError(f"{where}: 'seeds' and 'frames' must be positive.")
+    if data.get("source_frames") is not None:
+        spec.source_frames = _axis(data, "source_frames", int, where)
+        if min(spec.source_frames) < 1:
+            raise UsageError(f"{where}: 'source_frames' must be positive; omit it to give source runs 'frames'.")
+    spec.overrides = _config_keys(data.get("overrides") or {}, "overrides", where)
+    spec.grid = _config_keys(data.get("grid") or {}, "grid", where)
+    _check_grid(spec.grid, where)
+    spec.threshold, primary = _report_keys(data, where)
+    spec.primary_metric = primary
+    spec.resources.update(_resources(data, where))
+    runs = math.prod([len(spec.pairs), len(spec.methods), len(spec.algos), spec.seeds, len(spec.frames),
+                      len(spec.source_frames or [None]), *map(len, spec.grid.values())])
+    if runs > MAX_RUNS:
+        raise UsageError(f"{where} expands to {runs:,} transfer runs (pairs x methods x algos x seeds x frames x grid "
+                         f"values), more than the {MAX_RUNS:,} one sweep plans; split it into smaller sweeps.")
+    return spec
+
+
+def _check_names(spec: Spec, data: dict, where: str) -> None:
+    """Every pair (or lone target task), method and algo of the spec is registered."""
+    from drltg.envs import TASKS, get_pair
+    from drltg.learners import ALGOS
+    from drltg.transfer import METHODS, get_method
+
     for pair in spec.pairs:
         try:
             if pair not in TASKS:  # a task alone is a target (methods without a source, or a given one)
@@ -161,21 +190,11 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
     for algo in spec.algos:
         if algo not in ALGOS:
             raise UsageError(f"{where}: unknown algo '{algo}'{_hint(algo, sorted(ALGOS))}")
-    for key in ("seeds", "seed"):
-        if key in data:
-            value = data[key]
-            if not isinstance(value, int) or isinstance(value, bool):
-                raise UsageError(f"{where}: '{key}' must be an integer, got {value!r}.")
-            setattr(spec, key, value)
-    if spec.seeds < 1 or min(spec.frames) < 1:
-        raise UsageError(f"{where}: 'seeds' and 'frames' must be positive.")
-    if data.get("source_frames") is not None:
-        spec.source_frames = _axis(data, "source_frames", int, where)
-        if min(spec.source_frames) < 1:
-            raise UsageError(f"{where}: 'source_frames' must be positive; omit it to give source runs 'frames'.")
-    spec.overrides = _config_keys(data.get("overrides") or {}, "overrides", where)
-    spec.grid = _config_keys(data.get("grid") or {}, "grid", where)
-    for key, values in spec.grid.items():
+
+
+def _check_grid(grid: dict, where: str) -> None:
+    """Each grid key sweeps a non-empty list of distinct, printable values (they name folders)."""
+    for key, values in grid.items():
         if not isinstance(values, list) or not values:
             raise UsageError(f"{where}: grid key '{key}' must be a non-empty list of values.")
         _no_repeats(values, f"grid: {key}", where)
@@ -183,6 +202,12 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
         if named is not None:
             raise UsageError(f"{where}: grid value {named!r} of '{key}' holds a control character; grid values name "
                              "the runs' folders, so give printable values.")
+
+
+def _report_keys(data: dict, where: str) -> tuple:
+    """``threshold`` and ``primary_metric`` (``None`` where not given), checked as ``drltg report`` checks them."""
+    from drltg.analysis.report import check_metric, parse_threshold
+
     threshold = data.get("threshold")
     if threshold is not None and (isinstance(threshold, bool) or not isinstance(threshold, (int, float, str))):
         raise UsageError(f"{where}: 'threshold' must be a number or a percentage like \"80%\".")
@@ -190,7 +215,6 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
         parse_threshold(threshold)
     except UsageError as err:
         raise UsageError(f"{where}: {err}".replace("--threshold", "threshold")) from None
-    spec.threshold = threshold
     primary = data.get("primary_metric")
     if primary is not None:
         try:
@@ -200,7 +224,11 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
         if primary not in SUMMARY_COLUMNS or primary.startswith("time_to"):
             raise UsageError(f"{where}: primary_metric '{primary}' is not a comparison the summary holds; choose "
                              f"one of {', '.join(c for c in SUMMARY_COLUMNS if not c.startswith('time_to'))}.")
-        spec.primary_metric = primary
+    return threshold, primary
+
+
+def _resources(data: dict, where: str) -> dict:
+    """What each run asks of a Ray cluster (``num_cpus``, ``num_gpus``), non-negative numbers."""
     resources = data.get("resources") or {}
     if not isinstance(resources, dict):
         raise UsageError(f"{where}: 'resources' must be a mapping like {{num_cpus: 1, num_gpus: 0}}.")
@@ -209,13 +237,7 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
             raise UsageError(f"{where}: unknown resource '{key}'{_hint(key, RESOURCES)}")
         if isinstance(value, bool) or not isinstance(value, (int, float)) or value < 0:
             raise UsageError(f"{where}: resource '{key}' must be a non-negative number, got {value!r}.")
-        spec.resources[key] = value
-    runs = math.prod([len(spec.pairs), len(spec.methods), len(spec.algos), spec.seeds, len(spec.frames),
-                      len(spec.source_frames or [None]), *map(len, spec.grid.values())])
-    if runs > MAX_RUNS:
-        raise UsageError(f"{where} expands to {runs:,} transfer runs (pairs x methods x algos x seeds x frames x grid "
-                         f"values), more than the {MAX_RUNS:,} one sweep plans; split it into smaller sweeps.")
-    return spec
+    return resources
 
 
 def load_spec(path: str | Path) -> Spec:

@@ -344,14 +344,7 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
             for piece, seed_stats in zip(pieces, stats):
                 _episode_stats(piece, seed_stats)
             if frames >= init_random:
-                for batch in learner.batches(opt.updates_per_batch):
-                    losses = learner.update(batch, update_actor=updates % learner.actor_delay == 0)
-                    health.check_losses(losses, frames, seeds)
-                    updates += 1
-                    for k, v in losses.items():
-                        if v.numel() == seeds:
-                            for seed_stats, x in zip(stats, v.reshape(-1).tolist()):
-                                seed_stats[f"train/{k}"].append(x)
+                updates = _update(learner, opt.updates_per_batch, updates, frames, stats)
             bar.update(pieces[0].numel())
             if frames >= next_log:
                 fps = (frames - start_frames) / (time.perf_counter() - start)
@@ -379,6 +372,20 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
     for writer, extra in zip(writers, extras):
         writer.finish(frames, updates, wall, (frames - start_frames) / max(wall, 1e-9),
                       {**(extra or {}), **best.summary(cfg, writer.rows)})
+
+
+def _update(learner, count: int, updates: int, frames: int, stats: list[dict[str, list[float]]]) -> int:
+    """``count`` gradient steps (the actor's every ``actor_delay``-th), each seed's losses kept in its
+    stats; returns the number of updates so far."""
+    for batch in learner.batches(count):
+        losses = learner.update(batch, update_actor=updates % learner.actor_delay == 0)
+        health.check_losses(losses, frames, learner.seeds)
+        updates += 1
+        for k, v in losses.items():
+            if v.numel() == learner.seeds:
+                for seed_stats, x in zip(stats, v.reshape(-1).tolist()):
+                    seed_stats[f"train/{k}"].append(x)
+    return updates
 
 
 def _episode_stats(data: TensorDictBase, stats: dict) -> None:
