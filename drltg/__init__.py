@@ -19,11 +19,12 @@ when first used)::
     drltg.seed_group   SeedGroup: N seeds' agents stacked, one vmapped update for all of them
     drltg.transfer     load_actor, load_critic, load_agent, load_from_run: a trained run as a source;
                        the named methods of ``drltg train -o transfer.method=...``
-    drltg.training     train(cfg, run_dir): the loop that writes a run directory (is_complete(run_dir));
-                       evaluate(env, actor): success rate and return of deterministic episodes;
-                       train_seeds(cfg, run_dir, n): seeds S..S+n-1 in one process, one run directory each;
-                       evaluate_run(run_dir, checkpoint="best"): a saved policy on fresh episodes, with intervals
-    drltg.experiments  source, baseline and transfer runs over seeds (``drltg experiment``, ``drltg sweep``)
+    drltg.training.loop        train(cfg, run_dir): the loop that writes a run directory (is_complete(run_dir));
+                               evaluate(env, actor): success rate and return of deterministic episodes
+    drltg.training.seeds       train_seeds(cfg, run_dir, n): seeds S..S+n-1 in one process, one directory each
+    drltg.training.reevaluate  evaluate_run(run_dir, checkpoint="best"): a saved policy on fresh episodes
+    drltg.experiments.experiment  experiment(pair, method, frames=, out=): source, baseline and transfer runs
+                       over seeds, then the report (``drltg experiment``); ``drltg sweep`` for a grid of them
     drltg.analysis     transfer metrics, reports, plots and tables from run directories (no torch)
     drltg.cli          the ``drltg`` command
 
@@ -48,6 +49,7 @@ _SURFACE = {
     "drltg.training.loop": ["train", "evaluate", "is_complete"],
     "drltg.training.seeds": ["train_seeds"],
     "drltg.training.reevaluate": ["evaluate_run"],
+    "drltg.experiments.experiment": ["experiment"],
 }
 _WHERE = {name: module for module, names in _SURFACE.items() for name in names}
 

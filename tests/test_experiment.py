@@ -1,5 +1,6 @@
 """`drltg experiment`: source, baseline and transfer runs over seeds, then the report."""
 import json
+import os
 import shutil
 
 import pytest
@@ -42,6 +43,25 @@ def test_rerun_reuses_completed_runs(experiment, capsys):
     assert stamps == {p: p.stat().st_mtime_ns for p in out.glob("*/seed-*/summary.json")}
 
 
+def test_the_python_function_is_the_command(experiment, capsys):
+    """drltg.experiment, called from a script on the command's folder, reuses its runs and returns the
+    report the command wrote; a frame count may be written as text."""
+    import drltg
+
+    out, args = experiment
+    stamps = {p: p.stat().st_mtime_ns for p in out.glob("*/seed-*/summary.json")}
+    overrides = [args[i + 1] for i, a in enumerate(args) if a == "-o"]
+    report = drltg.experiment("fourrooms-near", "model-reuse", seeds=2, frames="0.512k", out=out, threshold=0,
+                              overrides=overrides, progress=False)
+    assert stamps == {p: p.stat().st_mtime_ns for p in out.glob("*/seed-*/summary.json")}
+    saved = json.loads((out / "report" / "transfer_metrics.json").read_text())
+    assert report["metrics"] == pytest.approx(saved["metrics"], nan_ok=True)
+    assert report["out_dir"] == str(out / "report") and report["diverged"] == []
+    assert capsys.readouterr().out == ""  # a library call prints nothing; the command prints the table
+    with pytest.raises(ValueError, match="--seeds and --frames must be positive"):
+        drltg.experiment("fourrooms-near", "model-reuse", seeds=0, frames=512, out=out)
+
+
 def test_a_moved_experiment_finds_its_sources_and_reuses_its_runs(experiment, tmp_path):
     from drltg.store import rundir
 
@@ -78,3 +98,52 @@ def test_unknown_pair(tmp_path, capsys):
                  "--out", str(tmp_path / "x")]) == 2
     assert "did you mean 'fourrooms-near'" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+SCRIPT = '''
+import sys
+import drltg
+from drltg.envs import register_pair, register_task
+from drltg.envs.fourrooms import FourRoomsEnv
+
+
+def corridor(**options):  # a factory of the script's own, at its top level
+    return FourRoomsEnv(**options)
+
+
+def main(out, factory):
+    register_task("mine/a", factory, "the script's source task", goal=(8.0, 8.0), horizon=40)
+    register_task("mine/b", factory, "the script's target task", goal=(8.0, 7.0), horizon=40)
+    register_pair("mine-near", "mine/a", "mine/b", "registered inside main()")
+    report = drltg.experiment("mine-near", "model-reuse", seeds=1, frames=64, out=out, progress=False,
+                              overrides=OVERRIDES)
+    print("gain", report["metrics"]["mean_return_gain"])
+
+
+OVERRIDES = %r
+if __name__ == "__main__":
+    main(sys.argv[1], corridor if sys.argv[2] == "top" else (lambda **o: FourRoomsEnv(**o)))
+'''
+
+
+@pytest.mark.parametrize("factory", ["top", "lambda"])
+def test_tasks_registered_inside_a_script_s_function_reach_the_workers(tmp_path, factory):
+    """A script registers its task pair inside main() and runs an experiment in spawned worker processes:
+    the runs train on its tasks; a factory no worker can import (a lambda) is refused before any work."""
+    import subprocess
+    import sys
+
+    overrides = [TINY[i + 1] for i in range(0, len(TINY), 2)]
+    (tmp_path / "script.py").write_text(SCRIPT % (overrides,))
+    done = subprocess.run([sys.executable, "script.py", str(tmp_path / "out"), factory], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=600, env={**os.environ, "RL_WARNINGS": "False"})
+    if factory == "top":
+        assert done.returncode == 0, done.stderr[-2000:]
+        assert "gain" in done.stdout
+        assert yaml.safe_load((tmp_path / "out" / "transfer" / "seed-0" / "config.yaml").read_text())["task"] == \
+            "mine/b"
+    else:
+        assert done.returncode != 0
+        last = done.stderr.strip().splitlines()[-1]
+        assert "the task 'mine/a' cannot reach the worker processes" in last and "--import" in last, last
+        assert not (tmp_path / "out").exists()

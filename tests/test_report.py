@@ -820,3 +820,14 @@ def test_the_earlier_rows_in_results_are_the_report_of_their_logs(row, tmp_path,
         assert fresh["settings"]["budget"] == kept["settings"]["budget"]
         for key in ("mean_return_gain", "final_performance_baseline", "final_performance_transfer"):
             assert fresh["metrics"][key] == pytest.approx(kept["metrics"][key], rel=1e-12)
+
+
+def test_identical_sides_write_a_report_without_an_undefined_p_value(tmp_path):
+    """Transfer runs that equal their baselines (a method that changed nothing yet): every paired
+    difference is 0, so the ratio's t test has no spread; the report says so and is still written."""
+    b = [Curve([0, 160, 320], [-1.0, -0.9 + 0.1 * i, -0.8], f"b{i}", f"b{i}", config={"seed": i}) for i in range(3)]
+    t = [Curve(c.frames, c.values, f"t{i}", f"t{i}", config={"seed": i}) for i, c in enumerate(b)]
+    res = report.transfer_report(b, t, tmp_path / "rep")
+    assert "transfer_ratio_p_value" not in res["metrics"] and res["metrics"]["mean_return_gain"] == 0.0
+    assert any("no spread" in w for w in res["settings"]["warnings"])
+    assert json.loads((tmp_path / "rep" / "transfer_metrics.json").read_text())["metrics"]["transfer_ratio"] == 0.0

@@ -1,5 +1,4 @@
 """`drltg sweep`: spec expansion and validation, the local pool, resuming, failure isolation, Ray."""
-import argparse
 import contextlib
 import csv
 import io
@@ -70,7 +69,7 @@ def test_a_task_alone_is_a_target_when_the_source_is_given(tmp_path):
 
 def test_runs_are_those_of_drltg_experiment(tmp_path):
     """Every run of ``drltg experiment`` with the same settings is a sweep run with the same config."""
-    from drltg.experiments.experiment import plan as experiment_plan
+    from drltg.experiments.experiment import plan_runs
 
     spec = sweep.parse_spec(GRID)
     runs, _ = sweep.plan(spec, tmp_path / "sweep")
@@ -82,9 +81,8 @@ def test_runs_are_those_of_drltg_experiment(tmp_path):
     overrides = [f"{k}={json.dumps(v)}" for k, v in TINY.items()]
     for pair in GRID["pairs"]:
         for method in GRID["methods"]:
-            args = argparse.Namespace(pair=pair, method=method, algo="sac", seeds=1, seed=0, frames=256,
-                                      source_frames=None, overrides=overrides, out=tmp_path / pair / method)
-            assert {key(cfg, role) for role, cfg, _ in experiment_plan(args)} <= planned
+            plan = plan_runs(pair, method, seeds=1, frames=256, overrides=overrides, out=tmp_path / pair / method)
+            assert {key(cfg, role) for role, cfg, _ in plan} <= planned
 
 
 def test_swept_axes_name_the_variant_directories(tmp_path):

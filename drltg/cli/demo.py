@@ -15,7 +15,7 @@ import argparse
 from pathlib import Path
 
 from drltg import config as config_lib
-from drltg.errors import UsageError
+from drltg.errors import RunFailed, UsageError
 from drltg.store import rundir
 
 DEMO = dict(pair="fourrooms-near", method="model-reuse", algo="sac", seeds=6, seed=0, frames=10_000,
@@ -49,7 +49,7 @@ def plan(out: Path, d: dict = DEMO) -> list[tuple[str, dict, Path]]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drltg.experiments.experiment import _check_settings, check_runs, execute_and_report
+    from drltg.experiments.experiment import _check_settings, check_runs, execute_and_report, print_report
 
     d = DEMO
     if args.workers < 1:
@@ -65,5 +65,11 @@ def run(args: argparse.Namespace) -> int:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise UsageError(f"cannot create --out '{out}' ({err.strerror}).") from None
-    return execute_and_report(runs, out, saved, d, workers=args.workers, name="demo", threshold=d["threshold"],
-                              method=d["method"])
+    try:
+        result = execute_and_report(runs, out, saved, d, workers=args.workers, name="demo", threshold=d["threshold"],
+                                    method=d["method"])
+    except RunFailed as err:
+        print(err)
+        return 1
+    print_report(result)
+    return 1 if result["diverged"] else 0

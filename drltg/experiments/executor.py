@@ -163,15 +163,52 @@ def _die_with_parent(parent: int) -> None:
         os.kill(os.getpid(), signal.SIGTERM)
 
 
-def _worker_init(parent: int | None = None) -> None:
+def _worker_init(parent: int | None = None, registered: tuple = ((), ())) -> None:
     """One torch thread per run; SIGTERM unwinds the run as in ``drltg train`` (lock released, its
     checkpoint kept), so an interrupted experiment resumes where it stopped; the worker gets SIGTERM when
-    its parent dies."""
+    its parent dies. ``registered``: the parent's own tasks and methods (:func:`registrations`)."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     os.environ.setdefault("MKL_NUM_THREADS", "1")
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
     if parent is not None:
         _die_with_parent(parent)
+    from drltg.envs import register_task
+    from drltg.transfer import register_method
+
+    tasks, methods = registered
+    for spec in tasks:
+        register_task(spec.name, spec.entry, spec.description, train=spec.train, potential=spec.potential,
+                      replace=True, **spec.defaults)
+    for method in methods:
+        register_method(method, replace=True)
+
+
+def registrations(runs: list[Run]) -> tuple[list, list]:
+    """The tasks and transfer methods of ``runs`` as this process registered them, for the worker processes
+    to register too: a spawned worker imports drltg and the plugins (``--import``, ``DRLTG_IMPORT``), not
+    what a script registered, inside a function or not. A script's registration whose code a worker
+    cannot import (a lambda, a function defined inside another) is refused here, before any work."""
+    import pickle
+
+    from drltg.envs import get_task
+    from drltg.transfer import get_method
+
+    tasks = {run.cfg.task: get_task(run.cfg.task) for run in runs}
+    methods = {part: get_method(part) for run in runs for part in run.cfg.transfer.method.split("+")}
+    shipped: tuple[list, list] = ([], [])
+    for kind, (what, specs) in enumerate((("task", tasks), ("transfer method", methods))):
+        for name, spec in specs.items():
+            try:
+                pickle.dumps(spec)
+            except (pickle.PicklingError, AttributeError, TypeError) as err:
+                code = (spec.entry, spec.potential) if kind == 0 else (spec.build, spec.check)
+                if all(getattr(c, "__module__", None) != "__main__" for c in code):
+                    continue  # registered by a module the workers import too (a plugin)
+                raise UsageError(f"the {what} {name!r} cannot reach the worker processes ({err}); define its "
+                                 "functions at the top level of the script or a module, or register it in a "
+                                 "module given to --import (or DRLTG_IMPORT).") from None
+            shipped[kind].append(spec)
+    return shipped
 
 
 def _run_in_pool(train, *args):
@@ -193,6 +230,7 @@ class LocalBackend:
         self.workers = workers
         self.pool = None
         self.pool_of = {}  # future -> the pool that runs it
+        self.registered: tuple = ((), ())  # the user's own tasks and methods, for the workers (registrations)
 
     @property
     def capacity(self) -> int:
@@ -204,7 +242,7 @@ class LocalBackend:
 
         if self.pool is None:
             self.pool = cf.ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"),
-                                               initializer=_worker_init, initargs=(os.getpid(),))
+                                               initializer=_worker_init, initargs=(os.getpid(), self.registered))
         return self.pool
 
     def submit(self, run: Run):
@@ -235,6 +273,8 @@ class LocalBackend:
                 if pool is self.pool:
                     pool.shutdown(wait=False, cancel_futures=True)
                     self.pool = None
+            except Exception as err:  # raised in the worker before the run started (e.g. reading its config)
+                results.append((f, ("failed", f"{type(err).__name__}: {err}")))
         return results
 
     def close(self) -> None:
@@ -413,6 +453,8 @@ def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs", pro
     from tqdm.auto import tqdm
 
     check_order(runs)
+    if isinstance(backend, LocalBackend):
+        backend.registered = registrations(runs)
     status: dict[Path, tuple[str, str]] = {}
     for r in runs:
         finished = rundir.summary_status(r.path)

@@ -27,13 +27,14 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import Sequence
 
 import yaml
 
 from drltg import config as config_lib
 from drltg import safe_yaml
 from drltg.config import RunConfig
-from drltg.errors import UsageError
+from drltg.errors import RunFailed, UsageError
 from drltg.store import rundir
 
 SEED = "{seed}"  # in a given transfer.source: the transfer run's seed
@@ -87,14 +88,6 @@ def refuse_plan_overrides(overrides, where: str, owner: str, flags: dict[str, st
             given = "" if owned == key else f" (through '{key}')"
             raise UsageError(f"{where} may not set '{owned}'{given}: the {owner} sets it per run; "
                              f"use {flags[owned]} instead.")
-
-
-def plan(args: argparse.Namespace) -> list[tuple[str, RunConfig, Path]]:
-    """The experiment's runs as (role, config, run directory), sources first."""
-    config_lib.refuse_conflicts(args.overrides)
-    return plan_runs(args.pair, args.method, algo=args.algo, seeds=args.seeds, seed=args.seed,
-                     frames=args.frames, source_frames=args.source_frames, overrides=args.overrides,
-                     out=args.out)
 
 
 def plan_runs(
@@ -223,52 +216,92 @@ def check_existing(runs: list) -> None:
             raise UsageError(f"'{run.path}' exists but holds no config.yaml; move it away or use another --out.")
 
 
-def _settings(args: argparse.Namespace) -> dict:
-    """What must match to continue an experiment (the folder itself may be named any way)."""
-    return {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()
-            if k not in ("out", "workers", "threshold", "_module", "command", "no_seed_groups", "no_progress")}
-
-
 def _check_settings(path: Path, settings: dict) -> None:
     if not path.is_file():
         return
     saved = safe_yaml.load(path.read_text(), f"'{path}'")
-    saved = {k: v for k, v in saved.items() if k != "out"} if isinstance(saved, dict) else saved
+    # "out" and "imports" were kept by earlier versions; neither changes what the runs are
+    saved = {k: v for k, v in saved.items() if k not in ("out", "imports")} if isinstance(saved, dict) else saved
     if saved != settings:
         raise UsageError(f"'{path.parent}' holds an experiment with other settings; choose another --out.")
 
 
-def run(args: argparse.Namespace) -> int:
-    from drltg.analysis.report import parse_threshold
-    from drltg.experiments.executor import check_order
+def experiment(pair: str, method: str, *, frames: int | str, out: str | Path, seeds: int = 5, seed: int = 0,
+               algo: str = "sac", source_frames: int | str | None = None, overrides: Sequence[str] = (),
+               threshold: float | str | None = None, workers: int = 1, group_seeds: bool = True,
+               progress: bool = True) -> dict:
+    """Train one experiment's source, baseline and transfer runs into ``out`` and report the transfer runs
+    against the baselines; what is finished is reused and what was interrupted resumes.
 
-    if args.workers < 1:
+    The arguments are ``drltg experiment``'s (frame counts as ``20000``, ``"20k"`` or ``"1e4"``;
+    ``overrides`` as ``["transfer.upsilon=0.9"]``). Returns the report, :func:`drltg.analysis.report.
+    transfer_report`'s dict, with ``"diverged"``: the runs left out of it because their losses diverged.
+    Raises :class:`~drltg.errors.UsageError` for a bad setting, before anything is written, and
+    :class:`~drltg.errors.RunFailed` naming every run that failed.
+
+        >>> report = drltg.experiment("fourrooms-near", "policy-reuse", seeds=3, frames="20k", out="runs/near")
+        >>> report["metrics"]["mean_return_gain"], report["out_dir"]
+    """
+    from drltg.analysis.report import parse_threshold
+    from drltg.experiments.executor import check_order, registrations
+
+    frames, source_frames = (None if f is None else config_lib.frame_count(str(f)) for f in (frames, source_frames))
+    if workers < 1:
         raise UsageError("--workers must be at least 1.")
-    parse_threshold(args.threshold)
-    out = rundir.check_directory(args.out, "--out")
+    parse_threshold(threshold)
+    out = rundir.check_directory(out, "--out")
     rundir.refuse_run_directory(out, "--out")
-    runs = plan(args)
+    overrides = list(overrides)
+    config_lib.refuse_conflicts(overrides)
+    runs = plan_runs(pair, method, algo=algo, seeds=seeds, seed=seed, frames=frames, source_frames=source_frames,
+                     overrides=overrides, out=out)
     check_runs(runs)
-    settings, saved = _settings(args), out / "experiment.yaml"
+    settings = {"pair": pair, "method": method, "algo": algo, "seeds": seeds, "seed": seed, "frames": frames,
+                "source_frames": source_frames, "overrides": overrides}
+    saved = out / "experiment.yaml"
     _check_settings(saved, settings)
     check_order(as_runs(runs, out))
     check_existing(as_runs(runs, out))
+    registrations(as_runs(runs, out))  # what a worker process could not register is refused now
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise UsageError(f"cannot create --out '{out}' ({err.strerror}).") from None
-    return execute_and_report(runs, out, saved, settings, workers=args.workers, name="experiment",
-                              threshold=args.threshold, method=args.method, group_seeds=not args.no_seed_groups,
-                              progress=not args.no_progress)
+    return execute_and_report(runs, out, saved, settings, workers=workers, name="experiment", threshold=threshold,
+                              method=method, group_seeds=group_seeds, progress=progress)
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        result = experiment(args.pair, args.method, frames=args.frames, out=args.out, seeds=args.seeds,
+                            seed=args.seed, algo=args.algo, source_frames=args.source_frames,
+                            overrides=args.overrides, threshold=args.threshold, workers=args.workers,
+                            group_seeds=not args.no_seed_groups, progress=not args.no_progress)
+    except RunFailed as err:
+        print(err)
+        return 1
+    print_report(result)
+    return 1 if result["diverged"] else 0
+
+
+def print_report(result: dict) -> None:
+    """What the commands print of an experiment's report: the diverged runs, the table, the headline."""
+    from drltg.analysis.claims import headline
+    from drltg.analysis.report import format_table
+
+    if result["diverged"]:
+        print("diverged runs (left out of the report):\n  " + "\n  ".join(result["diverged"]))
+    print(format_table(result))
+    print("\n" + headline(result))
+    print(f"\nreport: {result['out_dir']}")
 
 
 def execute_and_report(runs, out: Path, saved: Path, settings: dict, *, workers: int, name: str, threshold,
-                       method: str, group_seeds: bool = True, progress: bool = True) -> int:
+                       method: str, group_seeds: bool = True, progress: bool = True) -> dict:
     """Under the folder's lock: save the settings, train every run not finished yet on ``workers``
-    processes, then report the transfer runs against the baselines and print the table and headline.
-    Returns 1 if a run failed (no report) or diverged (left out of the report), else 0."""
-    from drltg.analysis.claims import headline
-    from drltg.analysis.report import format_table, transfer_report
+    processes, then report the transfer runs against the baselines (the report's dict, with ``"diverged"``:
+    the runs left out of it). Raises :class:`~drltg.errors.RunFailed` if a run failed: no report then."""
+    from drltg.analysis.report import transfer_report
     from drltg.experiments.executor import LocalBackend, execute
 
     with rundir.lock(out, f"{name} folder"):
@@ -281,11 +314,8 @@ def execute_and_report(runs, out: Path, saved: Path, settings: dict, *, workers:
             backend.close()
         failures = [f"{path}: {detail}" for path, (state, detail) in status.items() if state == "failed"]
         if failures:
-            print("failed runs:\n  " + "\n  ".join(failures))
-            return 1
+            raise RunFailed("failed runs:\n  " + "\n  ".join(failures))
         diverged = [f"{path}: {detail}" for path, (state, detail) in status.items() if state == "diverged"]
-        if diverged:
-            print("diverged runs (left out of the report):\n  " + "\n  ".join(diverged))
         result = transfer_report(
             [d for role, _, d in runs if role == "baseline"],
             [d for role, _, d in runs if role == "transfer"],
@@ -294,7 +324,4 @@ def execute_and_report(runs, out: Path, saved: Path, settings: dict, *, workers:
             baseline_label="no transfer",
             transfer_label=method,
         )
-    print(format_table(result))
-    print("\n" + headline(result))
-    print(f"\nreport: {out / 'report'}")
-    return 1 if diverged else 0
+    return {**result, "diverged": diverged}

@@ -140,6 +140,9 @@ def _p_values(metric: Metric, b, t, paired: bool, s: ReportSettings, warnings: l
         return {name: p}
     t_p = float(stats.t_test(b, t, paired))
     if metric.kind == "ratio":  # Fieller's interval contains 0 exactly where this test accepts
+        if math.isnan(t_p):  # the pairs' differences have no spread: no test to give
+            warnings.append(f"{metric.name}: no p-value, the differences of the paired areas have no spread.")
+            return {}
         return {name: t_p}
     exact = stats.permutation_test(b, t, paired, seed=int(s.seed))
     shapes = [x for x in ([stats.shape_of(t - b)] if paired else [stats.shape_of(b), stats.shape_of(t)]) if x]
