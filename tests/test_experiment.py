@@ -43,6 +43,15 @@ def test_rerun_reuses_completed_runs(experiment, capsys):
     assert stamps == {p: p.stat().st_mtime_ns for p in out.glob("*/seed-*/summary.json")}
 
 
+def test_the_experiment_prints_the_warnings_its_report_prints(experiment, tmp_path, capsys):
+    out, args = experiment
+    assert main(args) == 0
+    said = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning:")]
+    assert main(["report", "--baseline", str(out / "baseline"), "--transfer", str(out / "transfer"),
+                 "--threshold", "0", "--out", str(tmp_path / "rep")]) == 0
+    assert said and said == [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning:")]
+
+
 def test_the_python_function_is_the_command(experiment, capsys):
     """drltg.experiment, called from a script on the command's folder, reuses its runs and returns the
     report the command wrote; a frame count may be written as text."""

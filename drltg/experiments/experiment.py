@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import Sequence
 
@@ -285,10 +286,13 @@ def run(args: argparse.Namespace) -> int:
 
 
 def print_report(result: dict) -> None:
-    """What the commands print of an experiment's report: the diverged runs, the table, the headline."""
+    """What the commands print of an experiment's report: its warnings (on stderr, as ``drltg report``
+    prints them), the diverged runs, the table, the headline."""
     from drltg.analysis.claims import headline
     from drltg.analysis.report import format_table
 
+    for w in result["settings"]["warnings"]:
+        print(f"warning: {w}", file=sys.stderr)
     if result["diverged"]:
         print("diverged runs (left out of the report):\n  " + "\n  ".join(result["diverged"]))
     print(format_table(result))
