@@ -24,7 +24,8 @@ when first used)::
     drltg.training.seeds       train_seeds(cfg, run_dir, n): seeds S..S+n-1 in one process, one directory each
     drltg.training.reevaluate  evaluate_run(run_dir, checkpoint="best"): a saved policy on fresh episodes
     drltg.experiments.experiment  experiment(pair, method, frames=, out=): source, baseline and transfer runs
-                       over seeds, then the report (``drltg experiment``); ``drltg sweep`` for a grid of them
+                       over seeds, then the report (``drltg experiment``)
+    drltg.experiments.sweep  sweep(spec, out): a grid of experiments from a YAML spec or mapping (``drltg sweep``)
     drltg.analysis     transfer metrics, reports, plots and tables from run directories (no torch)
     drltg.cli          the ``drltg`` command
 
@@ -50,6 +51,7 @@ _SURFACE = {
     "drltg.training.seeds": ["train_seeds"],
     "drltg.training.reevaluate": ["evaluate_run"],
     "drltg.experiments.experiment": ["experiment"],
+    "drltg.experiments.sweep": ["sweep"],
 }
 _WHERE = {name: module for module, names in _SURFACE.items() for name in names}
 

@@ -167,6 +167,23 @@ def test_local_grid_trains_each_run_once_and_reports(local):
     assert (out / "transfer_matrix.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_the_python_function_is_the_command(local, capsys):
+    """drltg.sweep on the command's folder, with the spec as a mapping: it reuses every run and returns the
+    summary the command wrote, one row per report; a library call prints nothing."""
+    import drltg
+
+    _, out, curves = local
+    result = drltg.sweep(GRID, out, workers=2, progress=False)
+    assert _curves(out) == curves
+    assert set(state for state, _ in result["status"].values()) == {"skipped"} and len(result["status"]) == 7
+    assert result["summary"] == (out / "summary.md").read_text()
+    assert [(r["pair"], r["method"]) for r in result["rows"]] == [
+        ("fourrooms-near", "model-reuse"), ("fourrooms-near", "reward-shaping"),
+        ("fourrooms-far", "model-reuse"), ("fourrooms-far", "reward-shaping")]
+    assert capsys.readouterr().out == ""
+    assert yaml.safe_load((out / "sweep.yaml").read_text()) == GRID
+
+
 @pytest.fixture(scope="module")
 def rerun(local, tmp_path_factory):
     """The local sweep after a kill mid-run, a broken source, and a lost run; then re-run."""

@@ -54,9 +54,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from drltg.config import RunConfig
 from drltg.errors import UsageError
-from drltg.experiments.executor import LocalBackend, RayBackend, Run, execute, seed_groups
+from drltg.experiments.executor import LocalBackend, RayBackend, Run, execute, registrations, seed_groups
 from drltg.store import rundir
 
 KEYS = ("pairs", "methods", "algos", "seeds", "seed", "frames", "source_frames", "overrides", "grid",
@@ -466,45 +468,106 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "a terminal)")
 
 
-def run(args: argparse.Namespace) -> int:
+def sweep(spec: str | Path | dict, out: str | Path, *, backend: str = "local", workers: int | None = None,
+          address: str | None = None, num_cpus: float | None = None, num_gpus: float | None = None,
+          metric: str = "mean_return_gain", group_seeds: bool = True, progress: bool = True) -> dict:
+    """Train a sweep's runs into ``out`` (what is finished is reused, what was interrupted resumes) and
+    write a report per cell and the summary; the arguments are ``drltg sweep``'s, ``spec`` a YAML file or
+    the same mapping (``{"pairs": [...], "methods": [...], "seeds": 5, "frames": 20000}``).
+
+    Returns ``{"rows": one per report (pair, algo, variant, method, report folder, metrics or a note),
+    "status": {run directory: (status, detail)}, "summary": the summary table as Markdown}``. A run that
+    failed or diverged is in ``status``; the reports leave it out.
+
+        >>> result = drltg.sweep("examples/sweeps/fourrooms.yaml", "runs/sweep", workers=2)
+    """
     from drltg.analysis.report import check_metric
     from drltg.experiments.experiment import check_existing, check_runs
 
-    if args.workers is not None and args.workers < 1:
+    if workers is not None and workers < 1:
         raise UsageError("--workers must be at least 1.")
-    check_metric(args.metric)
-    spec = load_spec(args.spec)
-    resources = {**spec.resources, **{k: v for k, v in (("num_cpus", args.num_cpus),
-                                                         ("num_gpus", args.num_gpus)) if v is not None}}
-    _check_resources(resources, args)
-    out = rundir.check_directory(args.out, "--out")
+    check_metric(metric)
+    if isinstance(spec, dict):
+        parsed, text = parse_spec(spec), yaml.safe_dump(spec, sort_keys=False).encode()
+    else:
+        parsed, text = load_spec(spec), Path(spec).read_bytes()
+    resources = {**parsed.resources, **{k: v for k, v in (("num_cpus", num_cpus), ("num_gpus", num_gpus))
+                                        if v is not None}}
+    _check_resources(resources, backend, address)
+    out = rundir.check_directory(out, "--out")
     rundir.refuse_run_directory(out, "--out")
-    runs, cells = plan(spec, out)
-    if args.dry_run:
-        for r in runs:
-            print(f"{r.role:<9} {r.frames:>9} frames  {r.path.relative_to(out)}")
-        units = [[r] for r in runs] if args.no_seed_groups else seed_groups(runs)
-        groups = [u for u in units if len(u) > 1]
-        print(f"{len(runs)} runs, {len(cells)} reports; {len(units)} units of work: {len(groups)} seed groups "
-              f"of {sum(map(len, groups))} runs, {len(units) - len(groups)} runs alone")
-        return 0
+    runs, cells = plan(parsed, out)
     check_runs([(r.role, r.cfg, r.path) for r in runs])
     check_existing(runs)
+    if backend == "local":
+        registrations(runs)  # what a worker process could not register is refused now
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise UsageError(f"cannot create --out '{out}' ({err.strerror}).") from None
     with rundir.lock(out, "sweep folder"):
-        return _execute_and_report(args, spec, out, runs, cells, resources)
+        check_existing(runs)  # another sweep may have written them meanwhile
+        if backend == "ray":
+            pool = RayBackend(address, resources, num_cpus=workers)
+        else:
+            pool = LocalBackend(workers or os.cpu_count() or 1)
+        try:
+            rundir.write_files(out, {"sweep.yaml": text})
+            status = execute(runs, pool, desc="sweep", group_seeds=group_seeds, progress=progress)
+        finally:
+            pool.close()
+        return _write_summary(parsed, out, runs, cells, status, metric)
 
 
-def _check_resources(resources: dict, args: argparse.Namespace) -> None:
+def run(args: argparse.Namespace) -> int:
+    if args.dry_run:
+        return _dry_run(args)
+    result = sweep(args.spec, args.out, backend=args.backend, workers=args.workers, address=args.address,
+                   num_cpus=args.num_cpus, num_gpus=args.num_gpus, metric=args.metric,
+                   group_seeds=not args.no_seed_groups, progress=not args.no_progress)
+    out, status = rundir.check_directory(args.out, "--out"), result["status"]
+    print(result["summary"])
+    counts = [s for s, _ in status.values()]
+    failed = [path for path, (state, _) in status.items() if state == "failed"]
+    for path in failed:
+        log = result["logs"][path]
+        print(f"failed: {path.relative_to(out)}: {status[path][1]}" + (f"\n        log: {log}" if log.exists() else ""))
+    for path, (state, detail) in status.items():
+        if state == "diverged":
+            print(f"diverged: {path.relative_to(out)}: {detail}")
+    diverged = f"{counts.count('diverged')} diverged, " if "diverged" in counts else ""
+    print(f"{len(status)} runs: {counts.count('done')} done, {len(failed)} failed, {diverged}"
+          f"{counts.count('skipped')} skipped (complete before); summary: {out / 'summary.md'}")
+    return 1 if failed or "diverged" in counts else 0
+
+
+def _dry_run(args: argparse.Namespace) -> int:
+    """List the runs and reports of the spec and the units of work they train in; run nothing."""
+    from drltg.analysis.report import check_metric
+
+    check_metric(args.metric)
+    spec = load_spec(args.spec)
+    _check_resources({**spec.resources, **{k: v for k, v in (("num_cpus", args.num_cpus), ("num_gpus", args.num_gpus))
+                                           if v is not None}}, args.backend, args.address)
+    out = rundir.check_directory(args.out, "--out")
+    rundir.refuse_run_directory(out, "--out")
+    runs, cells = plan(spec, out)
+    for r in runs:
+        print(f"{r.role:<9} {r.frames:>9} frames  {r.path.relative_to(out)}")
+    units = [[r] for r in runs] if args.no_seed_groups else seed_groups(runs)
+    groups = [u for u in units if len(u) > 1]
+    print(f"{len(runs)} runs, {len(cells)} reports; {len(units)} units of work: {len(groups)} seed groups "
+          f"of {sum(map(len, groups))} runs, {len(units) - len(groups)} runs alone")
+    return 0
+
+
+def _check_resources(resources: dict, backend: str, address: str | None) -> None:
     """Per-run resources must be finite and not negative; on the local Ray instance (no ``--address``) a
     run may not ask for more GPUs than this machine has, or Ray would wait for them forever."""
     for key, value in resources.items():
         if not math.isfinite(value) or value < 0:
             raise UsageError(f"--{key.replace('_', '-')} must be a finite number >= 0, got {value}.")
-    if args.backend == "ray" and args.address is None and resources.get("num_gpus", 0) > 0:
+    if backend == "ray" and address is None and resources.get("num_gpus", 0) > 0:
         import torch
 
         if resources["num_gpus"] > torch.cuda.device_count():
@@ -513,21 +576,9 @@ def _check_resources(resources: dict, args: argparse.Namespace) -> None:
                              "--num-gpus 0, or --address of a cluster with GPUs.")
 
 
-def _execute_and_report(args, spec: Spec, out: Path, runs: list[Run], cells: list[Cell], resources: dict) -> int:
+def _write_summary(spec: Spec, out: Path, runs: list[Run], cells: list[Cell], status: dict, metric: str) -> dict:
+    """A report per cell whose runs are complete, then summary.{csv,md}, runs.csv and the matrix plot."""
     from drltg.analysis import tables
-    from drltg.experiments.experiment import check_existing
-
-    check_existing(runs)  # another sweep may have written them meanwhile
-    if args.backend == "ray":
-        backend = RayBackend(args.address, resources, num_cpus=args.workers)
-    else:
-        backend = LocalBackend(args.workers)
-    try:
-        rundir.write_files(out, {"sweep.yaml": Path(args.spec).read_bytes()})
-        status = execute(runs, backend, desc="sweep", group_seeds=not args.no_seed_groups,
-                         progress=not args.no_progress)
-    finally:
-        backend.close()
 
     rows = write_reports(cells, status, spec.threshold)
     csv_text, md_text = summary_tables(rows, spec.primary_metric)
@@ -535,18 +586,7 @@ def _execute_and_report(args, spec: Spec, out: Path, runs: list[Run], cells: lis
         (r.path.relative_to(out), r.role, *status[r.path], r.log.relative_to(out)) for r in runs], "csv")
     files = {"summary.csv": csv_text.encode(), "summary.md": md_text.encode(), "runs.csv": runs_csv.encode()}
     if any(r["metrics"] for r in rows):
-        files["transfer_matrix.png"] = plot_transfer_matrix(rows, args.metric)
+        files["transfer_matrix.png"] = plot_transfer_matrix(rows, metric)
     rundir.write_files(out, files)
-    counts = [s for s, _ in status.values()]
-    print(md_text)
-    failed = [r for r in runs if status[r.path][0] == "failed"]
-    for r in failed:
-        print(f"failed: {r.path.relative_to(out)}: {status[r.path][1]}"
-              + (f"\n        log: {r.log}" if r.log.exists() else ""))
-    for r in runs:
-        if status[r.path][0] == "diverged":
-            print(f"diverged: {r.path.relative_to(out)}: {status[r.path][1]}")
-    diverged = f"{counts.count('diverged')} diverged, " if "diverged" in counts else ""
-    print(f"{len(runs)} runs: {counts.count('done')} done, {len(failed)} failed, {diverged}"
-          f"{counts.count('skipped')} skipped (complete before); summary: {out / 'summary.md'}")
-    return 1 if failed or "diverged" in counts else 0
+    return {"rows": rows, "status": {r.path: status[r.path] for r in runs}, "summary": md_text,
+            "logs": {r.path: r.log for r in runs}}
