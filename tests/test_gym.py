@@ -335,3 +335,28 @@ def test_the_pendulum_study_is_reproduced_from_its_committed_curves(tmp_path):
     result = transfer_report(STUDY / "baseline", STUDY / "transfer", tmp_path, threshold=settings["threshold"],
                              baseline_label=settings["baseline_label"], transfer_label=settings["transfer_label"])
     assert _rounded(result["metrics"]) == _rounded(committed["metrics"])  # its sentences: tests/test_claims.py
+
+
+def _upright(options):
+    """Phi = -(1 - cos(theta)): 0 upright, -2 hanging (Pendulum's observation is cos, sin, velocity)."""
+    from tensordict.nn import TensorDictModule
+
+    return TensorDictModule(lambda obs: obs[..., :1] - 1.0, in_keys=["observation"], out_keys=["potential"])
+
+
+def test_a_gymnasium_task_takes_a_shaping_potential():
+    """register_gym_task(..., potential=) makes reward shaping work on a Gymnasium task, as on drltg's own."""
+    import drltg.transfer  # noqa: F401  (registers reward-shaping)
+
+    register_gym_task("pend/shaped", "Pendulum-v1", potential=_upright, replace=True)
+    try:
+        cfg = config_lib.resolve(task="pend/shaped", overrides=["transfer.method=reward-shaping"])
+        env = make_env("pend/shaped", batch_size=(2,), seed=0)
+        td = env.reset()
+        phi = get_task("pend/shaped").potential(cfg.env)(td)["potential"]
+        assert torch.allclose(phi, td["observation"][..., :1] - 1.0)
+        with pytest.raises(UsageError, match="no shaping potential"):
+            register_gym_task("pend/plain", "Pendulum-v1", replace=True)
+            config_lib.resolve(task="pend/plain", overrides=["transfer.method=reward-shaping"])
+    finally:
+        TASKS.pop("pend/shaped", None), TASKS.pop("pend/plain", None)

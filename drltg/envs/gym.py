@@ -15,7 +15,7 @@ Gymnasium itself is imported when an env is built or a ``gym/`` name is looked u
 from __future__ import annotations
 
 import functools
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 from drltg.errors import UsageError
 
@@ -97,6 +97,7 @@ def register_gym_task(
     *,
     info_keys: Sequence[str] = (),
     train: dict[str, Any] | None = None,
+    potential: Callable[[dict[str, Any]], Callable] | None = None,
     replace: bool = False,
     **make_kwargs,
 ):
@@ -104,7 +105,9 @@ def register_gym_task(
 
     The task is batched like drltg's own (``SerialEnv`` of ``GymWrapper``), so ``register_pair``,
     ``drltg experiment`` and sweeps take it as any other; ``make_kwargs`` become its ``env.*`` settings.
-    Gymnasium is not imported here: a plugin registering tasks stays cheap to import.
+    ``potential(env_options)`` builds its reward-shaping potential, as for :func:`~drltg.envs.register_task`
+    (``--method reward-shaping``). Gymnasium is not imported here: a plugin registering tasks stays cheap
+    to import.
     """
     from drltg.envs.registry import register_task
 
@@ -113,8 +116,8 @@ def register_gym_task(
     options = ", ".join(f"{k}={v!r}" for k, v in make_kwargs.items())
     description = description or f"Gymnasium {gym_id}" + (f" with {options}" if options else "")
     extra = {"info_keys": list(info_keys)} if info_keys else {}
-    return register_task(name, make_gym_env, description, train=train, replace=replace, gym_id=gym_id,
-                         **extra, **make_kwargs)
+    return register_task(name, make_gym_env, description, train=train, potential=potential, replace=replace,
+                         gym_id=gym_id, **extra, **make_kwargs)
 
 
 def resolve(name: str) -> bool:
