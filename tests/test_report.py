@@ -831,3 +831,27 @@ def test_identical_sides_write_a_report_without_an_undefined_p_value(tmp_path):
     assert "transfer_ratio_p_value" not in res["metrics"] and res["metrics"]["mean_return_gain"] == 0.0
     assert any("no spread" in w for w in res["settings"]["warnings"])
     assert json.loads((tmp_path / "rep" / "transfer_metrics.json").read_text())["metrics"]["transfer_ratio"] == 0.0
+
+
+def test_foreign_logs_in_seed_folders_are_paired_by_their_folder_names(tmp_path):
+    """Stable-Baselines3 logs kept one folder per seed (seed-0, seed-1, ...) pair by seed, in any order, as
+    drltg runs pair by their configs; without such folders they stay unpaired unless --paired."""
+    def sb3(path: Path, values):
+        path.mkdir(parents=True)
+        rows = "".join(f"{f},{v}\n" for f, v in zip((0, 100, 200), values))
+        (path / "progress.csv").write_text("time/total_timesteps,eval/mean_reward\n" + rows)
+
+    for seed, level in ((0, 1.0), (1, 5.0), (2, 9.0)):
+        sb3(tmp_path / "b" / f"seed-{seed}", [level] * 3)
+        sb3(tmp_path / "t" / f"seed-{2 - seed}", [11.0 - level] * 3)  # listed in the other order
+    res = report.compute(report.read_runs(str(tmp_path / "b"), report.ReportSettings()),
+                         report.read_runs(str(tmp_path / "t"), report.ReportSettings()))
+    assert res["settings"]["paired"] is True and "seed-N folders" in res["settings"]["pairing"]
+    assert res["scores"]["pair"].tolist() == [0, 1, 2, 0, 1, 2]
+    assert res["scores"]["seed"].tolist() == [0, 1, 2, 0, 1, 2]
+    assert res["scores"]["mean_return"].tolist() == [1.0, 5.0, 9.0, 2.0, 6.0, 10.0]  # each pair differs by 1
+    assert res["metrics"]["mean_return_gain"] == pytest.approx(1.0)
+    (tmp_path / "b" / "seed-0").rename(tmp_path / "b" / "first")
+    res = report.compute(report.read_runs(str(tmp_path / "b"), report.ReportSettings()),
+                         report.read_runs(str(tmp_path / "t"), report.ReportSettings()))
+    assert res["settings"]["paired"] is False

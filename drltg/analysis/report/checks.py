@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
@@ -190,9 +191,21 @@ def _check_sides(baseline: Sequence[Curve], transfer: Sequence[Curve], allow: bo
     warnings.append(f"baseline and transfer settings differ (--allow-mismatch): {text}")
 
 
+SEED_FOLDER = re.compile(r"seed[-_]?(\d+)")
+
+
 def seed_of(curve: Curve):
+    """The run's seed: its config's, else the number of a ``seed-N`` folder on its path (foreign logs kept
+    one folder per seed, as ``drltg experiment`` keeps runs); ``None`` if neither says."""
     seed = (curve.config or {}).get("seed")
-    return seed if isinstance(seed, int) and not isinstance(seed, bool) else None
+    if isinstance(seed, int) and not isinstance(seed, bool):
+        return seed
+    return _folder_seed(curve)
+
+
+def _folder_seed(curve: Curve) -> int | None:
+    named = [m for part in curve.source.parts if (m := SEED_FOLDER.fullmatch(part))]
+    return int(named[-1].group(1)) if named else None
 
 
 def _pairing(baseline: list[Curve], transfer: list[Curve], paired: bool | None) -> tuple[bool, str, list[Curve]]:
@@ -204,9 +217,12 @@ def _pairing(baseline: list[Curve], transfer: list[Curve], paired: bool | None) 
         return False, "unpaired: paired=False was given", transfer
     if one_to_one:
         order = {s: c for s, c in zip(st, transfer)}
-        how = "--paired" if paired else "drltg runs"
+        if all(c.config and seed_of(c) == (c.config or {}).get("seed") for c in baseline + transfer):
+            how, where = "--paired" if paired else "drltg runs", "in its config.yaml"
+        else:
+            how, where = "--paired" if paired else "seed-N folders", "(its config.yaml, or its seed-N folder)"
         return True, (f"paired by seed ({how}): each baseline run has the transfer run with the same seed "
-                      "in its config.yaml"), [order[s] for s in sb]
+                      f"{where}"), [order[s] for s in sb]
     if recorded:
         why = (f"the baseline seeds {sorted(sb)} and transfer seeds {sorted(st)} do not match one to one")
         if paired:
