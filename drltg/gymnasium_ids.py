@@ -19,6 +19,7 @@ import importlib.abc
 import importlib.util
 import re
 import sys
+import warnings
 from typing import Iterable
 
 NAMESPACE = "drltg"
@@ -54,6 +55,7 @@ def register_ids(tasks: Iterable[str] | None = None) -> list[str]:
 
         if _on_register not in ON_REGISTER:
             ON_REGISTER.append(_on_register)
+            _load_plugins()
         tasks = list(TASKS)
     added = []
     for task in tasks:
@@ -67,6 +69,18 @@ def register_ids(tasks: Iterable[str] | None = None) -> list[str]:
                            kwargs={"task": task}, disable_env_checker=False)
         added.append(env_id)
     return added
+
+
+def _load_plugins() -> None:
+    """The user's plugins (``DRLTG_IMPORT``, entry points), as every drltg command loads them: their tasks
+    get ids too. A plugin that fails is a warning here, not an error inside ``import gymnasium``."""
+    from drltg import plugins
+    from drltg.errors import UsageError
+
+    try:
+        plugins.load()
+    except UsageError as err:
+        warnings.warn(f"drltg: {err}", stacklevel=2)
 
 
 def _on_register(spec) -> None:

@@ -78,3 +78,15 @@ def test_a_broken_entry_point_is_one_sentence(monkeypatch):
     monkeypatch.setattr(plugins, "entry_points", lambda group: [ep])
     with pytest.raises(plugins.UsageError, match="the drltg plugin 'broken' .* failed to load"):
         plugins.load()
+
+
+def test_plugins_are_loaded_on_the_gymnasium_path(tmp_path):
+    """gymnasium.make("drltg:drltg/<task>-v0") finds a DRLTG_IMPORT plugin's task, as every command does."""
+    code = ("import gymnasium\nenv = gymnasium.make('drltg:drltg/line-right-v0')\nobs, _ = env.reset(seed=0)\n"
+            "print(env.unwrapped.task, obs.shape)")
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "DRLTG_IMPORT": "drltg_example_plugin",
+           "PYTHONPATH": os.pathsep.join([str(root / "examples" / "plugin"), str(root)])}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, env=env)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split()[0] == "line/right"
