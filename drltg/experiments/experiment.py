@@ -261,9 +261,10 @@ def experiment(pair: str, method: str, *, frames: int | str, out: str | Path, se
                 "source_frames": source_frames, "overrides": overrides}
     saved = out / "experiment.yaml"
     _check_settings(saved, settings)
-    check_order(as_runs(runs, out))
-    check_existing(as_runs(runs, out))
-    registrations(as_runs(runs, out))  # what a worker process could not register is refused now
+    planned = as_runs(runs, out)
+    check_order(planned)
+    check_existing(planned)
+    registrations(planned)  # what a worker process could not register is refused now
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
