@@ -92,7 +92,6 @@ def merge(cfg: dict, overrides: dict, prefix: str = "") -> None:
 
 _NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
-
 _FRAMES = re.compile(r"\s*(\d+(?:\.\d*)?|\.\d+)(?:[eE]\+?(\d+))?\s*([kKmM]?)\s*")
 
 

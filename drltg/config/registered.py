@@ -13,10 +13,8 @@ METHOD_RULES: dict[str, Any] = {}
 ``a+b``), filled by :func:`drltg.transfer.register_method` (through :func:`add_method`): import
 :mod:`drltg.transfer` (the commands do) before resolving a config that uses a transfer method."""
 
-
 METHOD_OPTIONS: dict[str, str] = {}
 """``transfer.<key>`` -> the one method whose option it is (filled by :func:`~drltg.config.run.add_method` too)."""
-
 
 METHOD_MODELS: dict[str, type[BaseModel]] = {}
 """``transfer.method`` -> the model of its options (``transfer.<key>``)."""

@@ -91,5 +91,4 @@ class LogConfig(Section):
 
 ALGOS = ("sac", "td3", "soc")
 
-
 ENV_HELP = "keyword arguments of the task's env factory, checked against its declared defaults"

@@ -34,14 +34,11 @@ def _integral(value: Any) -> Any:
 Int = Annotated[int, BeforeValidator(_integral), Strict()]
 """An integer; an integral float (``-o frames=1e4``) becomes ``int``; strings and booleans are refused."""
 
-
 Float = Annotated[float, BeforeValidator(_finite_number)]
 """A finite number (an integer is read as a float); strings and booleans are refused."""
 
-
 Bool = Annotated[bool, Strict()]
 """``true`` or ``false`` only (not ``1``, ``"yes"``)."""
-
 
 Str = Annotated[str, Strict()]
 
@@ -49,17 +46,14 @@ Str = Annotated[str, Strict()]
 Number = Annotated[Union[int, float], BeforeValidator(_finite_number)]
 """An integer or a float, kept as given (an env keyword whose default is a list of numbers)."""
 
-
 Probability = Annotated[float, BeforeValidator(_finite_number), Field(ge=0.0, le=1.0)]
 
 
 MAX_EPISODES = 10_000
 """Most evaluation episodes a run or ``drltg evaluate`` takes (they step as one env batch)."""
 
-
 MAX_THREADS = 512
 """Most CPU threads a run asks torch for (far more than a machine has is an error, not a request)."""
-
 
 MAX_SEEDS = 1_000
 """Most seeds of one command (``--seeds``, an experiment's seeds)."""
