@@ -97,6 +97,12 @@ def _agent(loss: LossModule, policy: TensorDictModule, cfg: RunConfig, *, actor=
     return Agent(actor, policy, loss, SoftUpdate(loss, tau=cfg.optim.tau), optimizer, **fields)
 
 
+def _sac_options(cfg: RunConfig) -> dict:
+    """The loss options continuous and discrete SAC share: twin critics, L2, the temperature settings."""
+    return dict(num_qvalue_nets=2, loss_function="l2", alpha_init=cfg.sac.alpha_init, fixed_alpha=cfg.sac.fixed_alpha,
+                target_entropy=cfg.sac.target_entropy, deactivate_vmap=DEACTIVATE_VMAP)
+
+
 def make_sac_agent(env: EnvBase, cfg: RunConfig) -> Agent:
     """SAC (Haarnoja et al. 2018): tanh-Gaussian actor, twin Q critics, learned temperature.
     On a discrete (one-hot) action space it builds discrete SAC (Christodoulou 2019)."""
@@ -120,13 +126,8 @@ def make_sac_agent(env: EnvBase, cfg: RunConfig) -> Agent:
     loss = SACLoss(
         actor,
         qvalue,
-        num_qvalue_nets=2,
-        loss_function="l2",
-        alpha_init=cfg.sac.alpha_init,
-        fixed_alpha=cfg.sac.fixed_alpha,
-        target_entropy=cfg.sac.target_entropy,
         action_spec=spec,
-        deactivate_vmap=DEACTIVATE_VMAP,
+        **_sac_options(cfg),
     )
     return _agent(loss, actor, cfg)
 
@@ -149,12 +150,7 @@ def make_discrete_sac_agent(env: EnvBase, cfg: RunConfig) -> Agent:
         qvalue,
         action_space=spec,
         num_actions=n,
-        num_qvalue_nets=2,
-        loss_function="l2",
-        alpha_init=cfg.sac.alpha_init,
-        fixed_alpha=cfg.sac.fixed_alpha,
-        target_entropy=cfg.sac.target_entropy,
-        deactivate_vmap=DEACTIVATE_VMAP,
+        **_sac_options(cfg),
     )
     return _agent(loss, actor, cfg)
 

@@ -236,6 +236,19 @@ def test_override_parsing_is_unchanged_for_valid_values():
     assert config_lib.parse_override("sac.target_entropy=auto") == ("sac.target_entropy", "auto")
 
 
+@pytest.mark.parametrize("raw", ["0", "7", "-3", "+4", "1000", " 12 ", "007", "0x1f", "1_000", "0o17", "1.", "1e3",
+                                 "-0", "yes", "~", "12345678901234567890"])
+def test_an_override_value_reads_as_yaml_reads_it(raw):
+    """Plain decimals skip the YAML parser (a refused key is answered without loading it): same value, same type."""
+    import yaml
+
+    key, value = config_lib.parse_override(f"a.b={raw}")
+    expected = yaml.safe_load(raw)
+    if raw == "1e3":
+        expected = 1000.0  # YAML 1.1 reads a string, drltg a number
+    assert key == "a.b" and value == expected and type(value) is type(expected)
+
+
 def test_a_mapping_for_a_section_is_merged():
     cfg = _resolve("optim={lr: 0.1}")
     assert cfg.optim.lr == 0.1 and cfg.optim.gamma == 0.99

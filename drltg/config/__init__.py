@@ -15,6 +15,7 @@ method's options are a model of their own, built when it is registered, :func:`a
 is a mapping of the task's keyword arguments, checked against the keywords its factory declares
 (:func:`validate`).
 """
+from drltg.config import sections
 from drltg.config.checks import check_device, validate
 from drltg.config.diff import config_changes, describe, dump, env_keys_set_once
 from drltg.config.env_options import env_defaults, env_model, task_env
@@ -45,20 +46,7 @@ from drltg.config.run import (
     transfer_model,
     updated,
 )
-from drltg.config.sections import (
-    ALGOS,
-    OPTION_POLICIES,
-    BufferConfig,
-    CheckpointConfig,
-    CollectorConfig,
-    EvalConfig,
-    LogConfig,
-    NetworkConfig,
-    OptimConfig,
-    SACConfig,
-    SOCConfig,
-    TD3Config,
-)
+from drltg.config.sections import *  # noqa: F403 (the section models, listed in sections.__all__)
 from drltg.config.values import (
     MAX_EPISODES,
     MAX_SEEDS,
@@ -77,8 +65,7 @@ __all__ = [
     "config_changes", "env_keys_set_once", "refuse_conflicts", "parse_override", "frame_count", "load_yaml",
     "merge", "set_key", "task_env", "env_defaults", "env_model", "check_device",
     "Int", "Float", "Bool", "Str", "Number", "Probability", "Section", "MAX_EPISODES", "MAX_SEEDS", "MAX_THREADS",
-    "CollectorConfig", "BufferConfig", "OptimConfig", "NetworkConfig", "SACConfig", "TD3Config", "SOCConfig",
-    "EvalConfig", "CheckpointConfig", "LogConfig", "TransferConfig", "ALGOS", "OPTION_POLICIES",
+    *sections.__all__, "TransferConfig",
     "METHOD_RULES", "METHOD_OPTIONS", "METHOD_MODELS", "TRANSFER_KEYS", "BUILTIN_METHOD_OPTIONS", "ENV_EXECUTION_KEYS",
     "method_names", "builtin_options", "options_model", "add_method", "remove_method", "transfer_model", "_model",
 ]

@@ -1,10 +1,7 @@
 """Comparing two configs (what changed between a saved run and a resumed one) and printing them."""
 from __future__ import annotations
 
-import yaml
-from pydantic import (
-    BaseModel,
-)
+from pydantic import BaseModel
 
 from drltg.config.env_options import task_env
 from drltg.config.methods import BUILTIN_METHOD_OPTIONS
@@ -78,11 +75,17 @@ def describe() -> str:
     flat = _flatten(defaults())
     rows = ["| key | default | accepted values | meaning |", "|---|---|---|---|"]
     for key, info in _fields().items():
-        default = yaml.safe_dump(flat[key], default_flow_style=True).strip().removesuffix("...").strip()
+        default = _yaml().safe_dump(flat[key], default_flow_style=True).strip().removesuffix("...").strip()
         rows.append(f"| `{key}` | {default} | {_expected(info)} | {info.description or ''} |")
     return "\n".join(rows)
 
 
 def dump(cfg: RunConfig | dict) -> str:
     """``cfg`` as the YAML of ``config.yaml``: its sections in order, plain values."""
-    return yaml.safe_dump(cfg.model_dump() if isinstance(cfg, BaseModel) else cfg, sort_keys=False)
+    return _yaml().safe_dump(cfg.model_dump() if isinstance(cfg, BaseModel) else cfg, sort_keys=False)
+
+
+def _yaml():
+    import yaml  # only when a config is printed or written: a refused key is answered without it
+
+    return yaml

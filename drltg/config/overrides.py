@@ -10,7 +10,6 @@ from pydantic import (
     BaseModel,
 )
 
-from drltg import safe_yaml
 from drltg.config.checks import validate
 from drltg.config.env_options import task_env
 from drltg.config.run import RunConfig, _section_models, _task_spec, _unknown, build, keys
@@ -90,6 +89,7 @@ def merge(cfg: dict, overrides: dict, prefix: str = "") -> None:
             set_key(cfg, key, v)
 
 
+_DECIMAL = re.compile(r"[+-]?(0|[1-9]\d*)")
 _NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
 _FRAMES = re.compile(r"\s*(\d+(?:\.\d*)?|\.\d+)(?:[eE]\+?(\d+))?\s*([kKmM]?)\s*")
@@ -113,6 +113,10 @@ def parse_override(text: str) -> tuple[str, Any]:
     if "=" not in text:
         raise UsageError(f"override '{text}' must look like KEY=VALUE, e.g. optim.lr=1e-3.")
     key, raw = text.split("=", 1)
+    if _DECIMAL.fullmatch(raw.strip()):  # what YAML would read, without loading a YAML parser for a number
+        return key.strip(), int(raw)
+    from drltg import safe_yaml
+
     try:
         value = safe_yaml.load(raw, f"the value of override '{key.strip()}'")
     except UsageError as err:
@@ -134,6 +138,8 @@ def load_yaml(path: str | Path, what: str = "config file") -> dict:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as err:
         raise UsageError(f"{what} '{path}' is not UTF-8 text (byte {err.start}).") from None
+    from drltg import safe_yaml
+
     data = safe_yaml.load(text, f"{what} '{path}'") or {}
     if not isinstance(data, dict):
         raise UsageError(f"{what} '{path}' must hold a mapping of keys.")

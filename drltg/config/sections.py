@@ -3,11 +3,14 @@ from __future__ import annotations
 
 from typing import Annotated, Literal, Optional, Union
 
-from pydantic import (
-    Field,
-)
+from pydantic import Field
 
 from drltg.config.values import MAX_EPISODES, Bool, Float, Int, Probability, Section, _what
+
+__all__ = [
+    "CollectorConfig", "BufferConfig", "OptimConfig", "NetworkConfig", "SACConfig", "TD3Config", "SOCConfig",
+    "EvalConfig", "CheckpointConfig", "LogConfig", "ALGOS", "OPTION_POLICIES",
+]
 
 
 class CollectorConfig(Section):

@@ -247,16 +247,14 @@ ROOMS_TRAIN = {"sac": {"alpha_init": 0.01}, "network": {"hidden": [64, 64]}}
 GRID_TRAIN = {**ROOMS_TRAIN, "sac": {**ROOMS_TRAIN["sac"], "fixed_alpha": True}}
 
 
-def _rooms_potential(options: dict[str, Any]):
-    from drltg.envs.fourrooms import FourRoomsPotential
+def _named_potential(entry: str, option: str, options: dict[str, Any]):
+    """The potential class (or factory) named ``"module:attr"``, imported on use, of ``options[option]``."""
+    module, _, attr = entry.partition(":")
+    return getattr(importlib.import_module(module), attr)(options[option])
 
-    return FourRoomsPotential(options["goal"])
 
-
-def _grid_potential(options: dict[str, Any]):
-    from drltg.envs.gridrooms import GridFourRoomsPotential
-
-    return GridFourRoomsPotential(options["goal"])
+_rooms_potential = functools.partial(_named_potential, "drltg.envs.fourrooms:FourRoomsPotential", "goal")
+_grid_potential = functools.partial(_named_potential, "drltg.envs.gridrooms:GridFourRoomsPotential", "goal")
 
 register_task(
     "fourrooms/northeast",
@@ -399,11 +397,7 @@ ROBOSUITE_TRAIN = {
 }
 
 
-def _manipulation_potential(options: dict[str, Any]):
-    from drltg.envs.robosuite.potentials import potential_for
-
-    return potential_for(options["task"])
-
+_manipulation_potential = functools.partial(_named_potential, "drltg.envs.robosuite.potentials:potential_for", "task")
 
 register_task(
     "lift",

@@ -18,9 +18,9 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     from drltg.envs import get_task
     from drltg.transforms import PotentialShaping
 
-    spec = get_task(cfg.task)
-    potential = spec.potential({**spec.defaults, **cfg.env})
-    return Transfer(train_transforms=[PotentialShaping(potential, gamma=cfg.optim.gamma)])
+    task = get_task(cfg.task)
+    shaping = PotentialShaping(task.potential({**task.defaults, **cfg.env}), gamma=cfg.optim.gamma)
+    return Transfer(train_transforms=[shaping])
 
 
 REWARD_SHAPING = register_method(TransferMethod(

@@ -13,7 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
-from drltg import config, safe_yaml
+from drltg import config
 from drltg.config import RunConfig, TransferConfig
 from drltg.envs import make_env
 from drltg.envs.robosuite.layout import TASKS as MANIPULATION
@@ -117,6 +117,8 @@ def rebuild(run_dir, device: str = "cpu", checkpoint: str = "last") -> Rebuilt:
     if not (run / ckpt).is_file():
         raise UsageError(missing_checkpoint(run_dir, checkpoint) if checkpoint == "best" else
                          f"'{run_dir}' is not a drltg run directory: it holds no {ckpt.as_posix()}.")
+    from drltg import safe_yaml
+
     data = safe_yaml.load((run / CONFIG).read_text(), f"'{run / CONFIG}'")
     if not isinstance(data, dict) or not {"task", "algo", "env"} <= set(data):
         raise UsageError(f"'{run / CONFIG}' is not a drltg run config (it lacks task, algo or env).")
