@@ -9,7 +9,8 @@ Suites: ``env`` (FourRooms vs a NumPy reference), ``robosuite`` (wrapper overhea
 (``drltg train lift`` against Stable-Baselines3 SAC on robosuite's Lift, several minutes) and ``demo``
 (``drltg demo``, several minutes), ``seeds`` (N seeds in one process against N runs one after
 another, many minutes) and ``sweep`` (a FourRooms sweep with seed groups against every run alone, about
-15 minutes on 2 cores) run only when named.
+15 minutes on 2 cores) and ``threads`` (SAC steps under torch's default thread count against one
+thread, with a core idle and busy; it starts a spinning process) run only when named.
 """
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ import torch
 from benchmarks.common import REPO, machine, versions
 
 DEFAULT = ("env", "robosuite", "sac", "train", "memory", "gymnasium")
-NAMED_ONLY = ("lift", "demo", "seeds", "sweep")
+NAMED_ONLY = ("lift", "demo", "seeds", "sweep", "threads")
 
 
 def _suite(name: str):
@@ -51,6 +52,8 @@ def _suite(name: str):
         from benchmarks.seeds import run
     elif name == "sweep":
         from benchmarks.sweep import run
+    elif name == "threads":
+        from benchmarks.threads import run
     else:
         run = _demo
     return run

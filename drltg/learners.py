@@ -257,13 +257,20 @@ class UpdateStep:
             minute and was not faster; see ``benchmarks/README.md``).
         cudagraphs: capture the step in a CUDA graph with tensordict's ``CudaGraphModule`` (every
             tensor on one CUDA device, a fixed batch shape; Adam is switched to ``capturable``).
+        threads: torch CPU threads the step runs in, torch's setting restored after it (``None``: torch's
+            own setting). drltg's networks are small: each operation is too short to share between
+            threads, and a parallel region waits for its slowest thread, so with torch's default of one
+            thread per core a single busy core (another run, env workers) makes every step wait
+            (``python -m benchmarks threads``).
     """
 
-    def __init__(self, agent: Agent, *, loss_terms=None, compile: bool = False, cudagraphs: bool = False):
+    def __init__(self, agent: Agent, *, loss_terms=None, compile: bool = False, cudagraphs: bool = False,
+                 threads: int | None = 1):
         self.agent = agent
         self.loss_terms = loss_terms
         self.compile = compile
         self.cudagraphs = cudagraphs
+        self.threads = threads
         if cudagraphs:
             for group in agent.optimizer.param_groups:
                 group["capturable"] = True
@@ -295,7 +302,15 @@ class UpdateStep:
     def __call__(self, batch: TensorDictBase, update_actor: bool = True) -> TensorDictBase:
         if update_actor not in self.steps:
             self.steps[update_actor] = self._build(update_actor)
-        losses = self.steps[update_actor](batch)
+        before = torch.get_num_threads()
+        if self.threads is None or self.threads == before:
+            losses = self.steps[update_actor](batch)
+        else:
+            torch.set_num_threads(self.threads)
+            try:
+                losses = self.steps[update_actor](batch)
+            finally:
+                torch.set_num_threads(before)
         return losses.clone() if self.cudagraphs else losses
 
 

@@ -3,6 +3,7 @@
 gradients and random draws; ``UpdateStep`` is the sota loop; ``sample_batches`` draws what repeated
 sampling draws; the training curve is that of the reference step."""
 
+import os
 import subprocess
 import sys
 
@@ -262,3 +263,46 @@ def test_layer_norm_is_refused_for_the_soft_option_critic():
 
     with pytest.raises(UsageError, match="network.layer_norm applies to sac and td3"):
         config_lib.resolve({}, ["network.layer_norm=critics"], task="fourrooms/northeast", algo="soc")
+
+
+USER_LOOP = """
+import torch
+from drltg import UpdateStep, make_agent, make_env, resolve
+
+if torch.get_num_threads() == 1:
+    torch.set_num_threads(2)  # a one-core machine: as torch's default is on two
+default = torch.get_num_threads()
+
+env = make_env("fourrooms/northeast", batch_size=(8,), seed=0)
+agent = make_agent(env, resolve(task="fourrooms/northeast"))
+seen = []
+agent.loss.qvalue_network.register_forward_pre_hook(lambda module, args: seen.append(torch.get_num_threads()))
+update = UpdateStep(agent)
+for _ in range(2):
+    update(env.rollout(32, break_when_any_done=False).reshape(-1))
+print(sorted(set(seen)), torch.get_num_threads() == default > 1)
+"""
+
+
+def test_a_users_own_loop_updates_in_one_thread_without_asking():
+    """A script that never calls ``torch.set_num_threads`` (torch's default: a thread per core): its
+    ``UpdateStep`` runs in one thread (many threads on small networks are many times slower once a core
+    is busy, ``python -m benchmarks threads``) and leaves the process's setting as it found it."""
+    env = {k: v for k, v in os.environ.items() if k not in ("OMP_NUM_THREADS", "MKL_NUM_THREADS")}
+    out = subprocess.run([sys.executable, "-c", USER_LOOP], capture_output=True, text=True, env=env, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split("\n")[-2] == "[1] True"
+
+
+def test_update_step_threads_none_keeps_torchs_setting():
+    agent = agent_for("sac")
+    seen = []
+    agent.loss.qvalue_network.register_forward_pre_hook(lambda module, args: seen.append(torch.get_num_threads()))
+    before = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        UpdateStep(agent, threads=None)(random_batch())
+        UpdateStep(agent, threads=3)(random_batch())
+        assert set(seen[:1]) == {2} and set(seen[-1:]) == {3} and torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)

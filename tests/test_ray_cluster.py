@@ -152,3 +152,43 @@ def test_a_sweep_on_two_nodes_survives_the_loss_of_the_worker_node(tmp_path):
         assert sorted(r["status"] for r in csv.DictReader(f)) == ["done"] * 4
     assert curves(out) == curves(local)  # every run equals the local pool's, the rerun one included
     assert "ray: both nodes stopped" in output and not session(sids[0]) and not session(sids[1])
+
+
+RAY_SCRIPT = '''
+import sys
+import drltg
+from drltg.envs import register_pair, register_task
+from drltg.envs.fourrooms import FourRoomsEnv
+
+
+def rooms(**options):
+    return FourRoomsEnv(**options)
+
+
+def main(out):
+    register_task("mine/a", rooms, "the script's source task", goal=(8.0, 8.0), horizon=40)
+    register_task("mine/b", rooms, "the script's target task", goal=(8.0, 7.0), horizon=40)
+    register_pair("mine-near", "mine/a", "mine/b", "registered inside main()")
+    spec = {**SPEC, "pairs": ["mine-near"], "methods": ["model-reuse"], "seeds": 1}
+    result = drltg.sweep(spec, out, backend="ray", workers=1, progress=False)
+    print("status", sorted(set(s for s, _ in result["status"].values())))
+
+
+SPEC = %r
+if __name__ == "__main__":
+    main(sys.argv[1])
+'''
+
+
+def test_tasks_registered_inside_a_script_s_function_reach_the_ray_workers(tmp_path):
+    """A script registers its pair inside main() and sweeps it on a local Ray instance: Ray's workers import
+    drltg, not the script, and get its tasks from the driver, so every run trains on the script's task."""
+    (tmp_path / "script.py").write_text(RAY_SCRIPT % (SPEC,))
+    env = {**os.environ, "RAY_ADDRESS": "", "RL_WARNINGS": "False"}
+    done = subprocess.run([sys.executable, "script.py", str(tmp_path / "out")], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=600, env=env)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "status ['done']" in done.stdout, done.stdout[-2000:]
+    configs = sorted((tmp_path / "out").glob("**/seed-0/config.yaml"))
+    assert configs and {yaml.safe_load(c.read_text())["task"] for c in configs} <= {"mine/a", "mine/b"}
+    assert "mine/b" in {yaml.safe_load(c.read_text())["task"] for c in configs}

@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import pickle
 import signal
 import sys
 import time
@@ -172,6 +173,11 @@ def _worker_init(parent: int | None = None, registered: tuple = ((), ())) -> Non
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
     if parent is not None:
         _die_with_parent(parent)
+    register(registered)
+
+
+def register(registered: tuple) -> None:
+    """Register in this worker the tasks and methods the parent shipped (:func:`registrations`)."""
     from drltg.envs import register_task
     from drltg.transfer import register_method
 
@@ -188,8 +194,6 @@ def registrations(runs: list[Run]) -> tuple[list, list]:
     to register too: a spawned worker imports drltg and the plugins (``--import``, ``DRLTG_IMPORT``), not
     what a script registered, inside a function or not. A script's registration whose code a worker
     cannot import (a lambda, a function defined inside another) is refused here, before any work."""
-    import pickle
-
     from drltg.envs import get_task
     from drltg.transfer import get_method
 
@@ -335,12 +339,16 @@ def check_answers(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
         channel.close()
 
 
-def _cancellable(train, *args):
-    """``train(*args)`` (:func:`run_one`, :func:`run_group`) as a Ray task. Ray cancels a running task by
-    calling its SIGINT handler, which Ray's workers ignore; with Python's, the run unwinds at its next
-    batch as after Ctrl-C (lock released, checkpoint kept) and the task ends cancelled."""
+def _cancellable(registered, call: bytes):
+    """``train(*args)`` (:func:`run_one`, :func:`run_group`, pickled in ``call`` by the driver) as a Ray task,
+    after the driver's own tasks and methods are registered: a config names its task, so it is unpickled
+    only then. Ray cancels a running task by calling its SIGINT handler, which Ray's workers ignore; with
+    Python's, the run unwinds at its next batch as after Ctrl-C (lock released, checkpoint kept) and the
+    task ends cancelled."""
     with contextlib.suppress(ValueError):  # not in the main thread: a cancelled task is killed after the grace
         signal.signal(signal.SIGINT, signal.default_int_handler)
+    register(registered)
+    train, args = pickle.loads(call)  # bytes from the driver's memory, never from a file
     return train(*args)
 
 
@@ -362,6 +370,7 @@ class RayBackend:
             raise UsageError("--backend ray needs Ray: pip install 'drltg[ray]'.") from None
         self.ray = ray
         self.pending: set = set()
+        self.registered: tuple = ((), ())  # the user's own tasks and methods, for the workers (registrations)
         sigterm = signal.getsignal(signal.SIGTERM)  # ray.init sets its own; the caller's unwinds the sweep
         if address is None:
             ray.init(address="local", num_cpus=num_cpus, include_dashboard=False,
@@ -387,13 +396,13 @@ class RayBackend:
     capacity = math.inf  # Ray queues the tasks and runs as many as the cluster's resources allow
 
     def submit(self, run: Run):
-        ref = self.task.remote(run_one, run.cfg, str(run.path), str(run.log))
+        ref = self.task.remote(self.registered, pickle.dumps((run_one, (run.cfg, str(run.path), str(run.log)))))
         self.pending.add(ref)
         return ref
 
     def submit_group(self, runs: list[Run]):
-        ref = self.task.remote(run_group, [r.cfg for r in runs], [str(r.path) for r in runs],
-                               [str(r.log) for r in runs])
+        args = ([r.cfg for r in runs], [str(r.path) for r in runs], [str(r.log) for r in runs])
+        ref = self.task.remote(self.registered, pickle.dumps((run_group, args)))
         self.pending.add(ref)
         return ref
 
@@ -407,7 +416,7 @@ class RayBackend:
             try:
                 results.append((ref, self.ray.get(ref)))
             except Exception as err:  # its worker or node died more often than it is retried
-                results.append((ref, ("failed", f"Ray task failed: {type(err).__name__}")))
+                results.append((ref, ("failed", f"Ray task failed: {type(err).__name__}: {_last_line(err)}")))
         return results
 
     def close(self, grace: float = CANCEL_GRACE) -> None:
@@ -453,8 +462,7 @@ def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs", pro
     from tqdm.auto import tqdm
 
     check_order(runs)
-    if isinstance(backend, LocalBackend):
-        backend.registered = registrations(runs)
+    backend.registered = registrations(runs)
     status: dict[Path, tuple[str, str]] = {}
     for r in runs:
         finished = rundir.summary_status(r.path)
@@ -510,3 +518,9 @@ def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs", pro
     finally:
         bar.close()
     return status
+
+
+def _last_line(err: BaseException) -> str:
+    """The last non-empty line of an error's text: the cause, under a remote traceback."""
+    lines = [line.strip() for line in str(err).splitlines() if line.strip()]
+    return lines[-1] if lines else ""

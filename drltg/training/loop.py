@@ -265,7 +265,8 @@ class AgentLearner:
         self.policy = agent.policy if transfer.policy is None else transfer.policy
         if transfer.mixer is not None:
             self.policy = TensorDictSequential(self.policy, transfer.mixer)
-        self.step = UpdateStep(agent, loss_terms=transfer.loss_terms, cudagraphs=cudagraphs)
+        self.step = UpdateStep(agent, loss_terms=transfer.loss_terms, cudagraphs=cudagraphs,
+                               threads=None)  # train() set torch to cfg.threads for the whole run
 
     def split(self, data: TensorDictBase) -> list[TensorDictBase]:
         return [data.reshape(-1)]
