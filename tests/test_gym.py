@@ -360,3 +360,19 @@ def test_a_gymnasium_task_takes_a_shaping_potential():
             config_lib.resolve(task="pend/plain", overrides=["transfer.method=reward-shaping"])
     finally:
         TASKS.pop("pend/shaped", None), TASKS.pop("pend/plain", None)
+
+
+def test_drltg_tasks_names_the_gymnasium_id_a_slashed_id_misses(capsys):
+    """``gymnasium.make("drltg/fourrooms/northeast-v0")`` is refused by Gymnasium's own id parser before
+    drltg sees it; ``drltg tasks`` says how ids are formed, and the id it shows makes the env."""
+    from drltg.cli import main
+
+    with pytest.raises(gymnasium.error.Error, match="Malformed"):
+        gymnasium.make("drltg/fourrooms/northeast-v0")
+    assert main(["tasks", "fourrooms/northeast"]) == 0
+    line = capsys.readouterr().out.strip().splitlines()[-1]
+    shown = line.split('gymnasium.make("', 1)[1].split('"', 1)[0]
+    assert shown == "drltg/fourrooms-northeast-v0" and "'/' as '-'" in line
+    env = gymnasium.make(shown)
+    assert env.reset(seed=0)[0].shape == (2,)
+    env.close()

@@ -26,4 +26,9 @@ def run(args: argparse.Namespace) -> int:
     for method in methods:
         source = {None: "", "run": " [source: a run]", "policy": " [source: a run or demonstrator:TASK]"}[method.source]
         print(f"  {method.name:<{width}}  {method.help}{source}")
+    if tasks:
+        from drltg.gymnasium_ids import task_id
+
+        print(f"as Gymnasium envs: drltg/<task, '/' as '-'>-v0, e.g. gymnasium.make(\"{task_id(tasks[0].name)}\") "
+              f"for {tasks[0].name} (drltg.gymnasium_ids.task_id)")
     return 0
