@@ -60,15 +60,21 @@ def _rank(pair: str) -> int:
 
 
 def family(reports: dict, metric: str = PRIMARY) -> dict:
-    """Holm-adjusted p-values of ``metric`` over every report given (those with a p-value)."""
+    """``metric``'s p-values over every report given (those with one), Holm-adjusted as one family: the t
+    tests' and, separately, the exact tests' (:func:`drltg.analysis.claims.exact_p`)."""
     keys = [k for k in reports if reports[k]["metrics"].get(f"{metric}_p_value") is not None]
-    adjusted = stats.holm([reports[k]["metrics"][f"{metric}_p_value"] for k in keys])
-    return dict(zip(keys, adjusted))
+    t = stats.holm([reports[k]["metrics"][f"{metric}_p_value"] for k in keys])
+    ms = [reports[k]["metrics"] for k in keys]
+    exact = stats.holm([m[f"{metric}_p_value"] if cl.exact_p(m, metric) is None else cl.exact_p(m, metric) for m in ms])
+    return {k: cl.Adjusted(a, e, len(keys)) for k, a, e in zip(keys, t, exact)}
 
 
-def said(m: dict, name: str = PRIMARY, p_adjusted: float | None = None, **words) -> str:
-    """The verdict sentence of metric ``name`` of a report's ``metrics``."""
-    return cl.verdict(m[name], m.get(f"{name}_ci"), p_adjusted, **words)
+def said(report: dict, name: str = PRIMARY, p_adjusted: cl.Adjusted | None = None, **words) -> str:
+    """The verdict sentence of metric ``name`` of a report: read alone (its exact test's own p-value) or in
+    a family (``p_adjusted``, :func:`family`)."""
+    m = report["metrics"]
+    p = p_adjusted if p_adjusted is not None else cl.Adjusted(None, cl.exact_p(m, name))
+    return cl.verdict(m[name], m.get(f"{name}_ci"), p, design=cl.design_of(report), **words)
 
 
 def _cell(m, key, fmt="+.2f"):
@@ -91,7 +97,7 @@ def sweep_table(root: Path) -> str:
     for (pair, method), r in reports.items():
         m, conv = r["metrics"], r["settings"].get("convergence", {})
         moving = any(str(v) != "converged" for v in conv.values())
-        p = adjusted.get((pair, method))
+        p = getattr(adjusted.get((pair, method)), "t", None)
         rows.append((pair, method, _cell(m, PRIMARY), "" if p is None else cl.p_text(p), _cell(m, "jumpstart"),
                      _cell(m, "asymptotic_performance") + (" (final)" if moving else ""),
                      _cell(m, "transfer_ratio"), f"{_time_to(r, 'baseline')} / {_time_to(r, 'transfer')}",
@@ -110,14 +116,14 @@ def sweep_verdicts(root: Path, order: list[str]) -> str:
     adjusted = family(reports)
     n = len(adjusted)
     lines = [f"Read as one family: the mean return gain of the {n} reports, Holm-adjusted; a gain is called "
-             "higher or lower only where its interval excludes 0 and its adjusted p is below 0.05."]
+             "higher or lower only where its interval excludes 0 and both its t test and its exact sign-flip test "
+             "have an adjusted p below 0.05."]
     for method in order:
         parts = []
         for (pair, meth), r in reports.items():
             if meth != method:
                 continue
-            m = r["metrics"]
-            parts.append(f"{_target(pair)} {said(m, PRIMARY, adjusted.get((pair, meth)))}")
+            parts.append(f"{_target(pair)} {said(r, PRIMARY, adjusted.get((pair, meth)))}")
         lines.append(f"- **{METHOD_NAMES.get(method, method)}**: " + "; ".join(parts) + ".")
     pairs = list(dict.fromkeys(pair for pair, _ in reports))
     for pair in pairs:
@@ -151,7 +157,7 @@ TARGETS = {"near": "near (1.0, same room)", "inner": "inner (2.1, same room)",
 
 def results_table() -> str:
     """docs/results.md's table: the graded sweep's mean return gain per target and method; bold where the gain is a
-    finding within the sweep's family (interval excludes 0, Holm-adjusted p < 0.05)."""
+    finding within the sweep's family (interval excludes 0; the t and exact tests' Holm-adjusted p < 0.05)."""
     reports = sweep_reports(GRADED)
     adjusted = family(reports)
     methods = ["model-reuse", "value-shaping", "policy-reuse", "reward-shaping"]
@@ -174,7 +180,7 @@ def readme_others() -> str:
     """docs/results.md's paragraph on the other studies, each sentence from its reports."""
     grid = sweep_reports(RESULTS / "sweep-gridrooms")
     adj_g = family(grid)
-    g = {k: said(r["metrics"], PRIMARY, adj_g.get(k)) for k, r in grid.items()}
+    g = {k: said(r, PRIMARY, adj_g.get(k)) for k, r in grid.items()}
     h2h = {k: load(OPTIONS / "head-to-head" / f"fourrooms-{k}" / "transfer_metrics.json")
            for k in ("near-k2", "near-k4", "far-k2", "far-k4")}
     adj_h = family(h2h)
@@ -185,7 +191,7 @@ def readme_others() -> str:
         "- Soft option-critic minus SAC, both with model reuse, head to head (`results/sweep-options/`, Holm over "
         f"{len(adj_h)}): " + "; ".join(
             f"{k.replace('-k', ', K = ')}: "
-            f"{said(r['metrics'], PRIMARY, adj_h.get(k), higher='SOC higher', lower='SOC lower')}"
+            f"{said(r, PRIMARY, adj_h.get(k), higher='SOC higher', lower='SOC lower')}"
             for k, r in h2h.items()) + ".",
     ]
     return "\n".join(lines) + "\n" + readme_lift()
@@ -200,12 +206,12 @@ def readme_lift() -> str:
     dense = load(DENSE / "vs-seed" / "transfer_metrics.json")
     lines = [
         f"- Lift from the scripted demonstrator (`results/sweep-lift-demonstrations/`): demonstrations with behaviour "
-        f"cloning, mean success gain {said(demo['metrics'])}; "
+        f"cloning, mean success gain {said(demo)}; "
         f"{cl.threshold_sentence(demo, 'transfer', 'success ≥ 0.8')}.",
         "- Lift → Lift+Place and Lift+Place with barrier from the same demonstrations "
         "(`results/sweep-lift-to-place/`), "
         f"mean lifted-rate gain (Holm over the {len(adj_p)} targets): "
-        + "; ".join(f"{pair}: {said(r['metrics'], PRIMARY, adj_p.get(pair))}" for pair, r in place.items()) + ".",
+        + "; ".join(f"{pair}: {said(r, PRIMARY, adj_p.get(pair))}" for pair, r in place.items()) + ".",
         f"- Lift on the dense reward against the seed project's one SB3 run (`results/lift-dense/`): mean return gain "
         f"{cl.signed(dense['metrics'][PRIMARY], 1)} over frames {dense['settings']['start']:,} to "
         f"{dense['settings']['budget']:,}, with no interval and no verdict (one run on one side); the SB3 curve is "
@@ -257,7 +263,7 @@ def lift_variants() -> str:
                      + f", final {e[max(e)]:.1f}.")
     r = load(variants / "bc-10-episodes-report-success" / "transfer_metrics.json")
     final = [load(run / "summary.json")["final_eval"]["success_rate"] for run in _seeds(variants / "bc-10-episodes")]
-    lines.append(f"  - unfiltered cloning, 10 episodes, 3 seeds: mean success gain {said(r['metrics'])}; final success "
+    lines.append(f"  - unfiltered cloning, 10 episodes, 3 seeds: mean success gain {said(r)}; final success "
                  f"{', '.join(f'{x:.1f}' for x in final)}; {cl.threshold_sentence(r, 'transfer', 'success ≥ 0.8')}.")
     return "\n".join(lines) + "\n"
 
@@ -269,14 +275,12 @@ def options_verdicts() -> str:
     adj_h, adj_o = family(h2h), family(own)
     lines = [f"Head to head (SOC − SAC, mean return gain, Holm over the {len(adj_h)} comparisons):"]
     for (pair, k), r in h2h.items():
-        m = r["metrics"]
         lines.append(f"- {_target(pair)}, K = {k}: "
-                     f"{said(m, PRIMARY, adj_h.get((pair, k)), higher='SOC higher', lower='SOC lower')}.")
+                     f"{said(r, PRIMARY, adj_h.get((pair, k)), higher='SOC higher', lower='SOC lower')}.")
     lines.append(f"Each SOC learner against its own baseline (Holm over the {len(adj_o)} reports):")
     for (pair, method), r in own.items():
-        m = r["metrics"]
         lines.append(f"- {pair.replace('fourrooms-', '').replace('soc.num_options=', 'K = ')}: "
-                     f"{said(m, PRIMARY, adj_o.get((pair, method)))}.")
+                     f"{said(r, PRIMARY, adj_o.get((pair, method)))}.")
     for (pair, method), r in own.items():
         if pair.startswith("fourrooms-near"):
             who = pair.replace("fourrooms-near soc.num_options=", "near, SOC K = ") + " with model reuse"
@@ -418,8 +422,7 @@ def lift_demonstrations_verdicts() -> str:
     lines = []
     for method in ("demonstrations", "policy-reuse", "jumpstart"):
         s = load(LIFT / method / "report-success" / "transfer_metrics.json")
-        m = s["metrics"]
-        lines.append(f"- **{method}**: mean success gain {said(m)}; "
+        lines.append(f"- **{method}**: mean success gain {said(s)}; "
                      f"{cl.threshold_sentence(s, 'transfer', 'success ≥ 0.8')}.")
         if method == "demonstrations":
             first = []
@@ -455,8 +458,7 @@ def lift_to_place_verdicts() -> str:
              f"together: Holm over the {len(adjusted)}):"]
     wins = total = 0
     for pair, r in lifted.items():
-        m = r["metrics"]
-        lines.append(f"- {pair}: {said(m, PRIMARY, adjusted.get(pair))}.")
+        lines.append(f"- {pair}: {said(r, PRIMARY, adjusted.get(pair))}.")
         b = cl.per_seed_scores(r, "baseline")
         t = cl.per_seed_scores(r, "transfer")
         wins += sum(t[s] > b[s] for s in b)
@@ -468,7 +470,7 @@ def lift_to_place_verdicts() -> str:
                  f"paired baseline (exact two-sided sign test p = {cl.p_text(p)}; a test chosen after the results "
                  "were seen, so read it as a description, not a confirmed finding).")
     for pair in lifted:
-        s = load(PLACE / pair / "sac" / "demonstrations" / "report-success" / "transfer_metrics.json")["metrics"]
+        s = load(PLACE / pair / "sac" / "demonstrations" / "report-success" / "transfer_metrics.json")
         lines.append(f"- {pair}, placing (mean success-rate gain): {said(s)}.")
     return "\n".join(lines) + "\n"
 
@@ -898,7 +900,7 @@ def manipulation_rows() -> str:
             continue
         adjusted = family(reports)
         m, st = reports["success"]["metrics"], reports["success"]["settings"]
-        gains = "; ".join(f"{tag} rate {said(r['metrics'], PRIMARY, adjusted.get(tag))}{_ends(r)}"
+        gains = "; ".join(f"{tag} rate {said(r, PRIMARY, adjusted.get(tag))}{_ends(r)}"
                           for tag, r in reports.items())
         held = {side: round(m[f"threshold_reached_{side}"] * m[f"n_seeds_{side}"]) for side in ("transfer", "baseline")}
         if any(held.values()):

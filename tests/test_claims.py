@@ -83,11 +83,39 @@ def test_best_needs_every_paired_difference_to_exclude_zero():
 
     a, b = method([3.0, 4.2, 4.8, 6.0]), method([1.0, 2.0, 3.0, 4.0])  # A − B = 2.0, 2.2, 1.8, 2.0
     c = method([3.5, 3.0, 5.5, 5.0])  # A − C = −0.5, +1.2, −0.7, +1.0: mean 0.25, sd 0.988, t(3) 3.182
-    best = cl.best_sentence({"A": a, "B": b}, "near")
-    assert best.startswith("near: A is best, ahead of every other method (paired by seed, Holm over 1): B +2.00 [")
+    # 4 pairs: the t test separates A from B, but no sign-flip test of 4 pairs goes below 2 / 2^4 = 0.125
+    four = cl.best_sentence({"A": a, "B": b}, "near")
+    assert four == ("near: no method is best at 4 pairs; A leads, and its paired difference to B, "
+                    "+2.00 [+1.74, +2.26], has the exact test's p = 0.125")
     level = cl.best_sentence({"A": a, "B": b, "C": c}, "near")
     assert level == ("near: no method is best; A leads, and its paired difference to C is +0.25 [\u22121.32, +1.82]: "
                      "no evidence of a difference at this budget")
+    a6, b6 = method([3.0, 4.2, 4.8, 6.0, 5.1, 7.0]), method([1.0, 2.0, 3.0, 4.0, 3.0, 5.1])  # 6 pairs: p = 2 / 64
+    best = cl.best_sentence({"A": a6, "B": b6}, "near")
+    assert best.startswith("near: A is best, ahead of every other method (paired by seed, Holm over 1): B +2.00 [")
+
+
+@pytest.mark.parametrize("value, ci, n, paired, family, expected", [
+    (0.4, (0.1, 0.7), 3, True, 1, 6),     # power: 1 pair (3 x 0.238); a sign-flip test reaches 0.05 from 6 (2/64)
+    (0.4, (0.1, 0.7), 3, False, 1, 4),    # a permutation of 4 + 4 runs reaches 2/70 = 0.029
+    (0.4, (0.1, 0.7), 5, True, 20, 10),   # Holm over 20: 2 / 2^10 < 0.05 / 20
+    (0.1, (-0.9, 1.1), 5, True, 1, 510),  # power: 5 (2.8016 x 0.36023 / 0.1)^2 = 509.3
+])
+def test_seeds_to_decide_is_the_power_estimate_or_the_exact_tests_floor(value, ci, n, paired, family, expected):
+    assert cl.seeds_to_decide(value, ci, n, paired, family) == expected
+
+
+def test_a_verdict_needs_the_exact_test_to_agree():
+    agreed = cl.Adjusted(0.01, 0.03)
+    assert cl.direction((0.1, 0.5), agreed) == 1
+    assert cl.direction((0.1, 0.5), cl.Adjusted(0.01, 0.25)) == 0
+    assert cl.verdict(0.4, (0.1, 0.7), agreed) == "+0.40 [+0.10, +0.70], higher with transfer"
+    assert cl.verdict(0.4, (0.1, 0.7), cl.Adjusted(0.01, 0.25), design=(3, True)) == (
+        "+0.40 [+0.10, +0.70]: no verdict at 3 pairs (the exact test's p = 0.25); about 6 would decide it (estimate)")
+    assert cl.verdict(-0.4, (-0.7, -0.1), cl.Adjusted(0.02, 0.2, 4), design=(5, False)) == (
+        "\u22120.40 [\u22120.70, \u22120.10]: no verdict at 5 seeds a side (the exact test's p = 0.2 after Holm); "
+        "about 5 would decide it (estimate)")
+    assert cl.verdict(0.4, (-0.1, 0.7), cl.Adjusted(0.2, 0.25)).endswith("no evidence of a difference at this budget")
 
 
 def test_the_headline_concludes_or_says_there_is_no_evidence():
@@ -126,7 +154,7 @@ def test_a_changed_number_changes_the_sentences(tmp_path):
     changed.write_text(json.dumps(data))
     order = ["model-reuse", "value-shaping", "policy-reuse", "reward-shaping"]
     before, after = g.sweep_verdicts(g.GRADED, order), g.sweep_verdicts(tmp_path, order)
-    assert "near +1.08 [+0.91, +1.24], higher with transfer" in before
+    assert "near +1.08 [+0.91, +1.24]: no verdict at 5 pairs (the exact test's p = 1 after Holm)" in before
     assert "near +1.08 [\u22120.20, +2.30]: no evidence of a difference at this budget" in after
 
 

@@ -4,10 +4,12 @@ A researcher quotes sentences, not tables, so every sentence that states a resul
 ``transfer_metrics.json`` (or sweep summary) it summarises, and only these words carry a verdict:
 
 - **a difference** is called higher / lower only when its interval excludes 0 and, where a family of
-  intervals is read together, its Holm-adjusted p-value is below ``LEVEL`` too; otherwise the sentence
-  says "no evidence of a difference at this budget" (or, for a non-zero difference that has no interval,
-  "no interval, so no verdict");
-- **best** only when every pairwise difference to the others excludes 0 (after Holm over those pairs);
+  intervals is read together, its Holm-adjusted p-value is below ``LEVEL`` too, and the exact test that
+  assumes no normality (sign-flip over pairs, permutation of runs) agrees at the same adjusted level;
+  where only the t test finds one, the sentence says "no verdict at N pairs" and about how many would
+  decide it; otherwise "no evidence of a difference at this budget" (or, for a non-zero difference that
+  has no interval, "no interval, so no verdict");
+- **best** only when every pairwise difference to the others passes both tests (after Holm over those pairs);
 - **every seed** only when every seed does; otherwise the count ("3 of 5 seeds") is given;
 - **a threshold** is "first reached" for a first crossing, and "held" (sustained) only under the report's
   sustained rule, whose sentence states how many evaluations after the crossing confirm it.
@@ -18,7 +20,7 @@ the paired comparison between two methods that share their seeds (:func:`pairwis
 from __future__ import annotations
 
 import math
-from typing import Mapping, Sequence
+from typing import Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -60,31 +62,87 @@ def excludes_zero(ci: Sequence | None) -> bool:
     return has_interval(ci) and (ci[0] > 0 or ci[1] < 0)
 
 
-def direction(ci: Sequence | None, p_adjusted: float | None = None, level: float = LEVEL) -> int:
+class Adjusted(NamedTuple):
+    """A difference's two p-values, each Holm-adjusted within the family it is read in: ``t``, the test
+    behind its interval; ``exact``, the sign-flip or permutation test, which assumes no normality;
+    ``size``, how many differences the family holds."""
+
+    t: float | None
+    exact: float | None
+    size: int = 1
+
+
+def exact_p(metrics: Mapping, name: str) -> float | None:
+    """The exact test's p-value behind metric ``name``: ``<name>_p_exact`` of a mean difference; P(T > B)'s
+    own (an exact sign or permutation test already); for transfer_ratio the mean return gain's (the same
+    areas compared: no effect on one is no effect on the other)."""
+    if name == "transfer_ratio":
+        name = "mean_return_gain"
+    if name.startswith("probability_of_improvement"):
+        return metrics.get(f"{name}_p_value")
+    return metrics.get(f"{name}_p_exact")
+
+
+def direction(ci: Sequence | None, p_adjusted: float | Adjusted | None = None, level: float = LEVEL) -> int:
     """+1 / −1 when the interval lies above / below 0 (and the family's adjusted p is below ``level``
-    where one is given), else 0: the one rule behind every higher / lower / no-evidence word."""
+    where one is given; for an :class:`Adjusted` pair, the exact test's too), else 0: the one rule
+    behind every higher / lower / no-evidence word."""
+    t, exact, _ = p_adjusted if isinstance(p_adjusted, Adjusted) else (p_adjusted, None, 1)
     if not excludes_zero(ci):
         return 0
-    if p_adjusted is not None and not p_adjusted < level:
+    if t is not None and not t < level:
+        return 0
+    if exact is not None and not exact < level:
         return 0
     return 1 if ci[0] > 0 else -1
 
 
-def verdict(value: float, ci: Sequence | None, p_adjusted: float | None = None, family: int | None = None,
-            higher: str = "higher with transfer", lower: str = "lower with transfer") -> str:
+def seeds_to_decide(value: float, ci: Sequence, n: int, paired: bool, family: int = 1,
+                    level: float = LEVEL, confidence: float = 0.95) -> int:
+    r"""About how many seeds a side (pairs, when paired) would let both tests decide a difference, an
+    estimate: the t test's sample size for 80% power at the observed effect and spread,
+    :math:`n\,((z_{1-\alpha/2} + z_{0.8})\,\mathrm{se}/|\hat\delta|)^2` with the standard error read back from
+    the interval, and at least the fewest seeds at which the exact test can reach ``level / family`` at
+    all (paired: :math:`2/2^n`; unpaired: :math:`2/\binom{2n}{n}`)."""
+    from scipy import stats as sst
+
+    df = max(n - 1, 1)
+    se = (ci[1] - ci[0]) / (2 * sst.t.ppf(0.5 + confidence / 2, df))
+    z = sst.norm.ppf(1 - level / 2) + sst.norm.ppf(0.8)
+    power = math.ceil(n * (z * se / abs(value)) ** 2) if value else n
+    exact = 2
+    while (2 / 2 ** exact if paired else 2 / math.comb(2 * exact, exact)) >= level / family:
+        exact += 1
+    return max(power, exact)
+
+
+def verdict(value: float, ci: Sequence | None, p_adjusted: float | Adjusted | None = None,
+            family: int | None = None, higher: str = "higher with transfer", lower: str = "lower with transfer",
+            design: tuple[int, bool] | None = None) -> str:
     """``+1.08 [+0.91, +1.24], higher with transfer`` or ``...: no evidence of a difference at this budget``;
     an interval that excludes 0 but is held back by the family's adjustment says so, naming the adjusted
-    p-value (and the family's size when given). A non-zero difference without an interval (every pair
+    p-value (and the family's size when given). Where the t test finds a difference and the exact test
+    (``p_adjusted.exact``) does not, there is no verdict at these seeds, and ``design`` (seeds per side,
+    paired) gives about how many would decide it. A non-zero difference without an interval (every pair
     gave the same one, or the ratio is unbounded) has no verdict either way."""
-    sign = direction(ci, p_adjusted)
+    t, exact, size = p_adjusted if isinstance(p_adjusted, Adjusted) else (p_adjusted, None, 1)
+    sign = direction(ci, t)
     text = estimate(value, ci)
+    if sign and exact is not None and not exact < LEVEL:
+        after = " after Holm" if max(family or 1, size) > 1 else ""
+        if design is None:
+            return f"{text}: no verdict (the exact test's p = {p_text(exact)}{after})"
+        n, paired = design
+        about = seeds_to_decide(value, ci, n, paired, max(family or 1, size))
+        return (f"{text}: no verdict at {n} {'pairs' if paired else 'seeds a side'} (the exact test's p = "
+                f"{p_text(exact)}{after}); about {about} would decide it (estimate)")
     if sign > 0:
         return f"{text}, {higher}"
     if sign < 0:
         return f"{text}, {lower}"
-    if excludes_zero(ci) and p_adjusted is not None:
+    if excludes_zero(ci) and t is not None:
         of = "" if family is None else f" of {family}"
-        return f"{text}: {NO_EVIDENCE} after Holm's adjustment (adjusted p = {p_text(p_adjusted)}{of})"
+        return f"{text}: {NO_EVIDENCE} after Holm's adjustment (adjusted p = {p_text(t)}{of})"
     if signed(value) != signed(0) and not has_interval(ci):
         return f"{text}: {NO_INTERVAL}"
     return f"{text}: {NO_EVIDENCE}"
@@ -153,12 +211,14 @@ def report_sentences(report: Mapping, metrics: Sequence[str] = ("mean_return_gai
     (Holm over ``settings.family``), and each side's threshold count."""
     m, st = report["metrics"], report["settings"]
     family = (st.get("family") or {}).get("size")
+    exact = exact_family(report)
     out = []
     for name in metrics:
         if m.get(name) is None:
             continue
         label = LABELS.get(name, name.replace("_", " "))
-        said = verdict(m[name], m.get(f"{name}_ci"), m.get(f"{name}_p_adjusted"), family)
+        p = Adjusted(m.get(f"{name}_p_adjusted"), exact.get(name))
+        said = verdict(m[name], m.get(f"{name}_ci"), p, family, design=design_of(report))
         out.append(f"{label.capitalize()}: {said}.")
     if st.get("threshold") is not None:
         for side in ("baseline", "transfer"):
@@ -166,15 +226,31 @@ def report_sentences(report: Mapping, metrics: Sequence[str] = ("mean_return_gai
     return out
 
 
+def design_of(report: Mapping) -> tuple[int, bool]:
+    """``(seeds a side, paired)`` of a report: the fewer seeds of its two sides."""
+    m = report["metrics"]
+    return min(m["n_seeds_baseline"], m["n_seeds_transfer"]), bool(report["settings"].get("paired"))
+
+
+def exact_family(report: Mapping) -> dict[str, float]:
+    """The exact tests' p-values of a report's family (``settings.family``), Holm-adjusted together as the
+    report adjusts the t tests' (a metric without an exact test, a final trend, keeps its own p-value)."""
+    m, family = report["metrics"], (report["settings"].get("family") or {}).get("metrics", [])
+    names = [k for k in family if m.get(f"{k}_p_value") is not None]
+    ps = [m[f"{k}_p_value"] if exact_p(m, k) is None else exact_p(m, k) for k in names]
+    return dict(zip(names, stats.holm(ps)))
+
+
 def per_seed_scores(report: Mapping, side: str, score: str = "mean_return") -> dict:
     """``{seed: score}`` of one side (seeds from the runs' configs)."""
     return {r["seed"]: r[score] for r in report["per_seed"][side] if r.get("seed") is not None}
 
 
-def pairwise(a: Mapping, b: Mapping, score: str = "mean_return") -> tuple[float, tuple[float, float] | None, float]:
+def pairwise(a: Mapping, b: Mapping, score: str = "mean_return") -> tuple[float, tuple[float, float] | None, float,
+                                                                        float]:
     """Paired comparison of two methods' transfer runs on the same target: ``d_i = A_i − B_i`` over the seeds
     both share (runs with the same seed share the baseline's seed and initial weights), its mean, paired
-    t-interval (``None`` without spread) and t-test p-value."""
+    t-interval (``None`` without spread), t-test p-value and the exact sign-flip test's p-value."""
     sa, sb = per_seed_scores(a, "transfer", score), per_seed_scores(b, "transfer", score)
     shared = sorted(set(sa) & set(sb))
     if len(shared) < 2:
@@ -183,29 +259,36 @@ def pairwise(a: Mapping, b: Mapping, score: str = "mean_return") -> tuple[float,
     lo, hi = stats.t_interval(x, y, paired=True)
     p = stats.t_test(x, y, paired=True)
     ci = None if math.isnan(float(lo)) else (float(lo), float(hi))
-    return float((y - x).mean()), ci, (1.0 if math.isnan(p) else float(p))
+    return float((y - x).mean()), ci, (1.0 if math.isnan(p) else float(p)), stats.permutation_test(x, y, paired=True)
 
 
 def best_sentence(reports: Mapping[str, Mapping], where: str, score: str = "mean_return") -> str:
     """Which method, if any, is best on one target: the one whose transfer runs beat every other's, each
-    paired difference excluding 0 after Holm over all the pairs read; otherwise it names the leader and the
-    rival it is not separated from."""
+    paired difference excluding 0 with the t test and the exact sign-flip test agreeing after Holm over all
+    the pairs read; otherwise it names the leader and the rival it is not separated from."""
     names = sorted(reports)
     if len(names) < 2:
         raise ValueError("best needs at least two methods")
     means = {n: float(np.mean(list(per_seed_scores(reports[n], "transfer", score).values()))) for n in names}
     leader = max(names, key=means.get)
     pairs = [(leader, other, *pairwise(reports[leader], reports[other], score)) for other in names if other != leader]
-    adjusted = stats.holm([p for *_, p in pairs])
+    adjusted = [Adjusted(t, e, len(pairs)) for t, e in zip(stats.holm([p[4] for p in pairs]),
+                                                           stats.holm([p[5] for p in pairs]))]
     weakest = None
-    for (_, other, diff, ci, _p), p_adj in zip(pairs, adjusted):
+    for (_, other, diff, ci, *_), p_adj in zip(pairs, adjusted):
         if direction(ci, p_adj) <= 0 and (weakest is None or diff < weakest[1]):
-            weakest = (other, diff, ci)
+            weakest = (other, diff, ci, p_adj)
     if weakest is None:
-        diffs = "; ".join(f"{other} {estimate(diff, ci)}" for _, other, diff, ci, _p in pairs)
+        diffs = "; ".join(f"{other} {estimate(diff, ci)}" for _, other, diff, ci, *_ in pairs)
         return (f"{where}: {leader} is best, ahead of every other method (paired by seed, Holm over "
                 f"{len(pairs)}): {diffs}")
-    other, diff, ci = weakest
+    other, diff, ci, p_adj = weakest
+    if direction(ci, p_adj.t) and not p_adj.exact < LEVEL:
+        n = len(set(per_seed_scores(reports[leader], "transfer", score)) & set(per_seed_scores(reports[other],
+                                                                                              "transfer", score)))
+        return (f"{where}: no method is best at {n} pairs; {leader} leads, and its paired difference to {other}, "
+                f"{estimate(diff, ci)}, has the exact test's p = {p_text(p_adj.exact)}"
+                + (" after Holm" if len(pairs) > 1 else ""))
     return (f"{where}: no method is best; {leader} leads, and its paired difference to {other} is "
             f"{estimate(diff, ci)}: {NO_EVIDENCE}")
 
@@ -220,7 +303,8 @@ def headline(report: Mapping, metric: str = "mean_return_gain") -> str:
     where = f"{st['transfer_label']} vs {st['baseline_label']}, {design}, {frames(st['budget'])} frames"
     if m.get(metric) is None:
         return f"Headline ({where}): {label} is not available."
-    return f"Headline ({where}): {label} {verdict(m[metric], m.get(f'{metric}_ci'))}."
+    said = verdict(m[metric], m.get(f"{metric}_ci"), Adjusted(None, exact_p(m, metric)), design=design_of(report))
+    return f"Headline ({where}): {label} {said}."
 
 
 def fill_regions(text: str, regions: Mapping[str, str]) -> str:
