@@ -146,7 +146,7 @@ def threshold_lines(root: Path, side: str, methods: list[str] | None = None) -> 
             who = f"{_target(pair)}, baseline"
         else:
             who = f"{_target(pair)}, {METHOD_NAMES.get(method, method)}"
-        lines.append(f"- {cl.threshold_sentence(r, side, who)}.")
+        lines.append(f"- {threshold(r, side, who)}.")
     return "\n".join(lines) + "\n"
 
 
@@ -207,7 +207,7 @@ def readme_lift() -> str:
     lines = [
         f"- Lift from the scripted demonstrator (`results/sweep-lift-demonstrations/`): demonstrations with behaviour "
         f"cloning, mean success gain {said(demo)}; "
-        f"{cl.threshold_sentence(demo, 'transfer', 'success ≥ 0.8')}.",
+        f"{threshold(demo, 'transfer', 'success ≥ 0.8')}.",
         "- Lift → Lift+Place and Lift+Place with barrier from the same demonstrations "
         "(`results/sweep-lift-to-place/`), "
         f"mean lifted-rate gain (Holm over the {len(adj_p)} targets): "
@@ -264,7 +264,7 @@ def lift_variants() -> str:
     r = load(variants / "bc-10-episodes-report-success" / "transfer_metrics.json")
     final = [load(run / "summary.json")["final_eval"]["success_rate"] for run in _seeds(variants / "bc-10-episodes")]
     lines.append(f"  - unfiltered cloning, 10 episodes, 3 seeds: mean success gain {said(r)}; final success "
-                 f"{', '.join(f'{x:.1f}' for x in final)}; {cl.threshold_sentence(r, 'transfer', 'success ≥ 0.8')}.")
+                 f"{', '.join(f'{x:.1f}' for x in final)}; {threshold(r, 'transfer', 'success ≥ 0.8')}.")
     return "\n".join(lines) + "\n"
 
 
@@ -284,7 +284,7 @@ def options_verdicts() -> str:
     for (pair, method), r in own.items():
         if pair.startswith("fourrooms-near"):
             who = pair.replace("fourrooms-near soc.num_options=", "near, SOC K = ") + " with model reuse"
-            lines.append(f"- {cl.threshold_sentence(r, 'transfer', who)}.")
+            lines.append(f"- {threshold(r, 'transfer', who)}.")
     return "\n".join(lines) + "\n"
 
 
@@ -423,7 +423,7 @@ def lift_demonstrations_verdicts() -> str:
     for method in ("demonstrations", "policy-reuse", "jumpstart"):
         s = load(LIFT / method / "report-success" / "transfer_metrics.json")
         lines.append(f"- **{method}**: mean success gain {said(s)}; "
-                     f"{cl.threshold_sentence(s, 'transfer', 'success ≥ 0.8')}.")
+                     f"{threshold(s, 'transfer', 'success ≥ 0.8')}.")
         if method == "demonstrations":
             first = []
             for run in sorted((LIFT / method / "transfer").glob("seed-*")):
@@ -1034,6 +1034,20 @@ def placement_verdicts() -> str:
     return "\n".join(lines) + "\n"
 
 # --------------------------------------------------------------------------------------- regions
+def _curves(report: dict, side: str) -> list:
+    """The side's runs as the report read them (its per-seed sources, relative to the repository)."""
+    from drltg.analysis.curves import read_curves
+
+    st = report["settings"]
+    return [read_curves(ROOT / row["source"], format=st["format"], tag=st["tag"])[0]
+            for row in report["per_seed"][side]]
+
+
+def threshold(report: dict, side: str = "transfer", who: str | None = None) -> str:
+    """:func:`drltg.analysis.claims.threshold_sentence`, with the seeds that cross too late to be confirmed."""
+    return cl.threshold_sentence(report, side, who, late=cl.late_crossings(report, side, _curves(report, side)))
+
+
 def pendulum_heavier() -> str:
     """The Pendulum study (results/pendulum-heavier/report): its table and its report's sentences."""
     report = json.loads((RESULTS / "pendulum-heavier" / "report" / "transfer_metrics.json").read_text())
@@ -1045,7 +1059,8 @@ def pendulum_heavier() -> str:
                  estimate(m.get("transfer_ratio"), m.get("transfer_ratio_ci"), "+.2f"),
                  estimate(m.get("probability_of_improvement"), m.get("probability_of_improvement_ci"), ".2f"),
                  f"{m['final_performance_baseline']:.0f} / {m['final_performance_transfer']:.0f}"))
-    sentences = cl.report_sentences(report, ("mean_return_gain", "jumpstart", "asymptotic_performance"))
+    late = {side: cl.late_crossings(report, side, _curves(report, side)) for side in ("baseline", "transfer")}
+    sentences = cl.report_sentences(report, ("mean_return_gain", "jumpstart", "asymptotic_performance"), late)
     return render(rows, "markdown") + "\n" + "\n".join(f"- {s}" for s in sentences) + "\n"
 
 

@@ -4,6 +4,7 @@ import json
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from drltg.analysis import claims as cl
@@ -75,6 +76,31 @@ def test_a_first_crossing_is_never_called_sustained_or_held():
     assert text == ("near: 2 of 3 seeds reach 0.5 at least once (a first crossing, not a sustained one), "
                     "from 1k, 3k frames")
     assert " hold" not in text
+
+
+def test_a_crossing_too_late_to_confirm_is_unconfirmed_never_not_held():
+    """Seeds at or above the threshold at the budget's last evaluation without a confirmed crossing (the
+    sustained rule needs 2 more evaluations) are counted apart; a first-crossing rule says nothing of them."""
+    from types import SimpleNamespace
+
+    def curve(*values):
+        return SimpleNamespace(frames=np.arange(len(values)) * 1000.0, values=np.array(values))
+
+    r = report(times=(1000.0, None, None))
+    r["settings"]["budget"] = 4000
+    runs = [curve(0, 0.6, 0.7, 0.8, 0.9), curve(0, 0.1, 0.2, 0.4, 0.6, 0.9), curve(0, 0.6, 0.7, 0.2, 0.3)]
+    assert cl.late_crossings(r, "transfer", runs) == 1  # the second: 0.6 at 4k (0.9 at 5k is past the budget)
+    text = cl.threshold_sentence(r, "transfer", "near", late=1)
+    assert text.endswith("; of the other 2, 1 ends the budget at or above it: unconfirmed at the end of the budget, "
+                         "too late for the evaluations that would confirm a crossing")
+    assert text.startswith("near: 1 of 3 seeds holds 0.5 to the end")
+    none = report(times=(None, None, None))
+    none["settings"]["budget"] = 4000
+    assert cl.threshold_sentence(none, late=3).endswith("; every seed (3 of 3) ends the budget at or above it: "
+                                                        "unconfirmed at the end of the budget, too late for the "
+                                                        "evaluations that would confirm a crossing")
+    first = report(crossing="first")
+    assert "unconfirmed" not in cl.threshold_sentence(first, late=1)
 
 
 def test_best_needs_every_paired_difference_to_exclude_zero():

@@ -12,7 +12,9 @@ A researcher quotes sentences, not tables, so every sentence that states a resul
 - **best** only when every pairwise difference to the others passes both tests (after Holm over those pairs);
 - **every seed** only when every seed does; otherwise the count ("3 of 5 seeds") is given;
 - **a threshold** is "first reached" for a first crossing, and "held" (sustained) only under the report's
-  sustained rule, whose sentence states how many evaluations after the crossing confirm it.
+  sustained rule, whose sentence states how many evaluations after the crossing confirm it; a run at or
+  above it at the end whose crossing came too late to be confirmed is "unconfirmed at the end of the
+  budget", never "does not hold".
 
 The functions take plain dicts (the report's JSON as loaded) and never compute a new statistic other than
 the paired comparison between two methods that share their seeds (:func:`pairwise`).
@@ -174,11 +176,14 @@ def frames(x: float) -> str:
     return f"{k:.0f}k" if abs(k - round(k)) < 0.05 else f"{k:.1f}k"
 
 
-def threshold_sentence(report: Mapping, side: str = "transfer", who: str | None = None) -> str:
+def threshold_sentence(report: Mapping, side: str = "transfer", who: str | None = None,
+                       late: int = 0) -> str:
     """How many of a side's seeds reach the report's threshold under its rule, and the median frame.
 
     "every seed" only when every seed does; the median is the report's upper median (``null`` without a
-    strict majority, then only the count is given)."""
+    strict majority, then only the count is given). ``late``: how many seeds without a confirmed crossing
+    end the budget at or above the threshold (:func:`late_crossings`), crossings the sustained rule had no
+    evaluations left to confirm: said as unconfirmed, never as not holding."""
     st, per_seed = report["settings"], report["per_seed"][side]
     threshold = st.get("threshold")
     if threshold is None:
@@ -203,12 +208,37 @@ def threshold_sentence(report: Mapping, side: str = "transfer", who: str | None 
     median = report["metrics"].get(f"time_to_threshold_{side}")
     if median is not None and len(reached) < len(times):
         text += f" (upper median over seeds {frames(median)})"
+    if late and st.get("crossing") != "first":
+        if k == 0:
+            who_late = f"{seeds(late, n)} {agree(late, n, 'ends', 'end')}"
+        elif n - k == 1:
+            who_late = "the other seed ends"
+        else:
+            who_late = f"of the other {n - k}, {late} {'ends' if late == 1 else 'end'}"
+        text += (f"; {who_late} the budget at or above it: unconfirmed at the end of the budget, too late for the "
+                 "evaluations that would confirm a crossing")
     return text
 
 
-def report_sentences(report: Mapping, metrics: Sequence[str] = ("mean_return_gain",)) -> list[str]:
+def late_crossings(report: Mapping, side: str, curves: Sequence) -> int:
+    """How many of ``side``'s seeds have no confirmed crossing but are at or above the threshold at their last
+    evaluation within the budget; ``curves`` are the side's runs in the report's order (``Curve``)."""
+    st, per_seed = report["settings"], report["per_seed"][side]
+    if st.get("threshold") is None:
+        return 0
+    count = 0
+    for row, curve in zip(per_seed, curves, strict=True):
+        inside = np.asarray(curve.frames) <= st["budget"]
+        if row.get("time_to_threshold") is None and inside.any() and curve.values[inside][-1] >= st["threshold"]:
+            count += 1
+    return count
+
+
+def report_sentences(report: Mapping, metrics: Sequence[str] = ("mean_return_gain",),
+                     late: Mapping[str, int] | None = None) -> list[str]:
     """The conclusions of one report: each named metric against 0, read within the report's family
-    (Holm over ``settings.family``), and each side's threshold count."""
+    (Holm over ``settings.family``), and each side's threshold count (``late``: each side's
+    :func:`late_crossings`)."""
     m, st = report["metrics"], report["settings"]
     family = (st.get("family") or {}).get("size")
     exact = exact_family(report)
@@ -222,7 +252,7 @@ def report_sentences(report: Mapping, metrics: Sequence[str] = ("mean_return_gai
         out.append(f"{label.capitalize()}: {said}.")
     if st.get("threshold") is not None:
         for side in ("baseline", "transfer"):
-            out.append(threshold_sentence(report, side).capitalize() + ".")
+            out.append(threshold_sentence(report, side, late=(late or {}).get(side, 0)).capitalize() + ".")
     return out
 
 
