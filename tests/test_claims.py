@@ -368,3 +368,12 @@ def test_the_shaping_stages_sentence_averages_each_side_over_its_seeds(tmp_path,
         "is grasped in 0 and lifted in 0 of 20 episodes; reward-shaping (2 seeds), the gripper comes 0.052 m "
         "closer to the cube than where it starts (0.200 m) on average, more than 1 cm closer in 1 of 2 runs, and "
         "averages 0.20 m from it; the cube is grasped in 4 and lifted in 1 of 20 episodes.\n")
+
+
+def test_a_recipe_reported_on_the_seeds_that_chose_it_says_so():
+    g = generator()
+    ran = {"per_seed": {"transfer": [{"seed": 0}, {"seed": 100}, {"seed": 300}]}}
+    said = g._tuned("demonstrations-reference-place", ran)
+    assert "chosen on seeds 0, 100, which are reported here too" in said and "not a fresh-seed result" in said
+    assert g._tuned("demonstrations-reference-place", {"per_seed": {"transfer": [{"seed": 7}]}}) == ""
+    assert g._tuned("model-reuse-place", ran) == ""
