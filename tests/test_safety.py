@@ -361,7 +361,12 @@ def test_ctrl_c_during_an_evaluation_stops_it_at_the_next_step(tmp_path, monkeyp
 
     monkeypatch.setattr(train_mod, "evaluate", evaluate)
     run = tmp_path / "run"
-    assert main(train_args(run, "-o", "checkpoint.every=128", frames=512)) == 130
+    # Ctrl-C as Python sets it up (a library imported by an earlier test in this process may have changed it)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        assert main(train_args(run, "-o", "checkpoint.every=128", frames=512)) == 130
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert steps["after_signal"] == 0
     assert not (run / rundir.LOCK).exists()
     assert [r["frames"] for r in rundir.read_eval_csv(run / "eval.csv")] == [0, 128]

@@ -375,7 +375,8 @@ class RayBackend:
         if address is None:
             ray.init(address="local", num_cpus=num_cpus, include_dashboard=False,
                      _node_ip_address="127.0.0.1", configure_logging=False, log_to_driver=False)
-            print(f"ray: a local instance on {ray.util.get_node_ip_address()} with {num_cpus} CPUs",
+            cpus = num_cpus if num_cpus is not None else ray.cluster_resources().get("CPU", 0)
+            print(f"ray: a local instance on {ray.util.get_node_ip_address()} with {cpus:g} CPUs",
                   file=sys.stderr)
         else:
             check_answers(address, connect_timeout)
