@@ -1,6 +1,7 @@
 """Coverage of the report's default intervals and false-positive rates of its tests, on simulated seeds.
 
     python results/coverage/simulate.py [--experiments 4000] > results/coverage/README.md   # a few minutes
+    python results/coverage/simulate.py --learn-or-not > results/coverage/learn-or-not.md
 
 Each simulated experiment draws per-seed scores for a baseline and a transfer side whose true
 difference is known, builds the interval the report would build, and counts whether it holds the
@@ -14,6 +15,11 @@ table. Per-seed scores (paired designs share a seed effect between the two runs 
 ``bimodal``    a seed fails (score 0) with probability 0.5 (B) or 0.25 (T), else N(4, 0.5^2); paired: +
                a shared N(0, 0.5^2)
 ``rate``       a success rate over 16 episodes, the seed's own rate ~ Beta(2, 2) (B) or Beta(3, 1.5) (T)
+``learn-50``, ``learn-80``  learn or not, as in a study: a score is a run's mean success rate over 21
+               evaluations of 10 episodes; a seed that learns reaches its success q ~ Beta(40, 10) over 4
+               evaluations from evaluation 3 to 5, one that does not scores 0. The baseline never learns; a
+               transfer seed learns with probability 0.5 or 0.8 (under no effect, both sides learn with it);
+               paired seeds share q and the evaluation where learning starts
 """
 from __future__ import annotations
 
@@ -27,8 +33,23 @@ from drltg.analysis import metrics as M
 from drltg.analysis import stats
 
 SHAPES = ("normal", "lognormal", "bimodal", "rate")
+"""The shapes of the report's coverage claim (``drltg.analysis.report.COVERAGE_CLAIM``)."""
+LEARN = {"learn-50": 0.5, "learn-80": 0.8}
+"""The chance that a transfer seed learns, per learn-or-not shape."""
+
+
+def _learned(q: np.ndarray, start: np.ndarray, rng) -> np.ndarray:
+    """A learning run's score: its mean success over 21 evaluations of 10 episodes, success ramping from 0
+    at evaluation ``start`` to ``q`` four evaluations later."""
+    ramp = np.clip((np.arange(21) - start[..., None]) / 4, 0, 1)
+    return (rng.binomial(10, q[..., None] * ramp) / 10).mean(-1)
+
+
+LEARNED = float(_learned(np.random.default_rng(96).beta(40, 10, 200_000),
+                         np.random.default_rng(95).integers(3, 6, 200_000), np.random.default_rng(94)).mean())
+"""The mean score of a seed that learns (200k simulated runs)."""
 MEANS = {"normal": (0.0, 1.0), "lognormal": (float(np.exp(0.625)), float(np.exp(0.925))), "bimodal": (2.0, 3.0),
-         "rate": (0.5, 2 / 3)}
+         "rate": (0.5, 2 / 3), **{shape: (0.0, p * LEARNED) for shape, p in LEARN.items()}}
 """The true mean score of each side (B, T) when transfer has an effect."""
 DESIGNS = ("paired", "unpaired")
 SEEDS = (3, 5, 10)
@@ -57,6 +78,13 @@ def draw(shape: str, design: str, n: int, experiments: int, rng, null: bool = Fa
         b = np.where(rng.random(size) < 0.5, 0.0, rng.normal(4, 0.5, size)) + shared
         t = np.where(rng.random(size) < fail_t, 0.0, rng.normal(4, 0.5, size)) + shared
         return b, t, 4 * (0.5 - fail_t)
+    if shape in LEARN:
+        p = LEARN[shape]
+        q, start = rng.beta(40, 10, size), rng.integers(3, 6, size)
+        qb, sb = (q, start) if paired else (rng.beta(40, 10, size), rng.integers(3, 6, size))
+        b = np.where(rng.random(size) < (p if null else 0.0), _learned(qb, sb, rng), 0.0)
+        t = np.where(rng.random(size) < p, _learned(q, start, rng), 0.0)
+        return b, t, 0.0 if null else p * LEARNED
     if shape == "rate":  # a pair's two seeds share their luck u: each side's rate is its quantile u
         from scipy import stats
 
@@ -79,7 +107,7 @@ def difference_coverage(shape, design, n, experiments, seed) -> tuple[float, flo
     b, t, truth = draw(shape, design, n, experiments, np.random.default_rng(seed))
     paired = design == "paired"
     lo, hi = stats.t_interval(b, t, paired=paired, confidence=LEVEL)
-    if shape == "rate":
+    if shape == "rate" or shape in LEARN:
         lo, hi = np.maximum(lo, -1.0), np.minimum(hi, 1.0)
     boot = [covered(*stats.INTERVALS[name](b, t, paired=paired, confidence=LEVEL, n_resamples=1000, seed=seed + 1),
                     truth) for name in ("studentized", "bca")]
@@ -150,6 +178,8 @@ REASONS = {
     "bimodal": ("with few seeds the share of failed seeds in a sample strays far from its rate, and the spread "
                 "the sample shows with it"),
     "rate": "too few seeds for the spread of the rates to be estimated at the promised precision",
+    **dict.fromkeys(LEARN, "a sample in which every transfer seed learns (or none does) shows no sign of the other "
+                           "mode, so the interval sits on the mode it saw"),
 }
 
 
@@ -162,7 +192,7 @@ def _bootstrap_note(name: str, t: float, boot_t: float, bca: float) -> str:
     return f"; the bootstrap candidates do worse ({boot_t:.3f}, {bca:.3f})"
 
 
-def table(experiments: int, seed: int = 0) -> str:
+def table(experiments: int, seed: int = 0, shapes=SHAPES) -> str:
     slow = max(experiments // 4, 200)
     lines = [
         "| scores | design | seeds | mean difference (t) | transfer_ratio (Fieller; share without one) | "
@@ -171,7 +201,7 @@ def table(experiments: int, seed: int = 0) -> str:
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     short = []
-    for shape in SHAPES:
+    for shape in shapes:
         for design in DESIGNS:
             for n in SEEDS:
                 cov, biggest, boot_t, bca = difference_coverage(shape, design, n, experiments, seed)
@@ -192,15 +222,15 @@ def table(experiments: int, seed: int = 0) -> str:
     return "\n".join(lines) + f"\n\nBelow {TARGET} (the level each default interval is held to):\n\n" + below + "\n"
 
 
-HEADER = """# Coverage of the report's intervals
+HEADER = """# {title}
 
-Made by `python results/coverage/simulate.py --experiments {experiments}` ({seconds:.0f} s on this machine;
+Made by `python results/coverage/simulate.py{flags} --experiments {experiments}` ({seconds:.0f} s on this machine;
 seeded, so the same command prints the same table). Coverage of the report's default 95% intervals:
 the share of simulated experiments whose interval holds the true value ({experiments} experiments per cell
 for the mean difference, {slow} for the others: standard errors about {se_fast:.3f} and {se_slow:.3f} near 0.95).
 False positives: the share of experiments without any effect in which the report's p_value is below 0.05
 ({slow} experiments: standard error about {se_fp:.3f} near 0.05). The score shapes are those of the
-script's docstring; `rate` intervals are cut to [-1, 1] (differences) and lie in [0, 1] (P(T > B)).
+script's docstring; `rate`{learn} intervals are cut to [-1, 1] (differences) and lie in [0, 1] (P(T > B)).
 
 """
 
@@ -209,11 +239,17 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--experiments", type=int, default=4000)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--learn-or-not", action="store_true", help="the learn-or-not shapes (results/coverage/"
+                        "learn-or-not.md), which the report's coverage claim does not name")
     args = parser.parse_args()
     start = time.perf_counter()
-    body = table(args.experiments, args.seed)
+    body = table(args.experiments, args.seed, tuple(LEARN) if args.learn_or_not else SHAPES)
     slow = max(args.experiments // 4, 200)
-    print(HEADER.format(experiments=args.experiments, seconds=time.perf_counter() - start, slow=slow,
+    title = ("Coverage on learn-or-not scores (shapes the report's coverage claim does not name)" if args.learn_or_not
+             else "Coverage of the report's intervals")
+    print(HEADER.format(title=title, flags=" --learn-or-not" if args.learn_or_not else "",
+                        learn=" and learn-or-not" if args.learn_or_not else "", experiments=args.experiments,
+                        seconds=time.perf_counter() - start, slow=slow,
                         se_fast=(0.95 * 0.05 / args.experiments) ** 0.5, se_slow=(0.95 * 0.05 / slow) ** 0.5,
                         se_fp=(0.95 * 0.05 / slow) ** 0.5) + body, end="")
 
