@@ -273,15 +273,17 @@ def options_verdicts() -> str:
     h2h = {(f"fourrooms-{pair}", k): load(OPTIONS / "head-to-head" / f"fourrooms-{pair}-k{k}" / "transfer_metrics.json")
            for pair in ("near", "far") for k in (2, 4)}
     own = sweep_reports(OPTIONS)
-    adj_h, adj_o = family(h2h), family(own)
-    lines = [f"Head to head (SOC − SAC, mean return gain, Holm over the {len(adj_h)} comparisons):"]
+    # one family: every test these sentences draw on, the head-to-head comparisons and the own baselines
+    adjusted = family({**{("h2h", *k): r for k, r in h2h.items()}, **{("own", *k): r for k, r in own.items()}})
+    lines = [f"Read as one family, Holm over all {len(adjusted)} mean return gains below ({len(h2h)} head to head, "
+             f"{len(own)} against their own baselines).", "Head to head (SOC − SAC, mean return gain):"]
     for (pair, k), r in h2h.items():
         lines.append(f"- {_target(pair)}, K = {k}: "
-                     f"{said(r, PRIMARY, adj_h.get((pair, k)), higher='SOC higher', lower='SOC lower')}.")
-    lines.append(f"Each SOC learner against its own baseline (Holm over the {len(adj_o)} reports):")
+                     f"{said(r, PRIMARY, adjusted.get(('h2h', pair, k)), higher='SOC higher', lower='SOC lower')}.")
+    lines.append("Each SOC learner against its own baseline:")
     for (pair, method), r in own.items():
         lines.append(f"- {pair.replace('fourrooms-', '').replace('soc.num_options=', 'K = ')}: "
-                     f"{said(r, PRIMARY, adj_o.get((pair, method)))}.")
+                     f"{said(r, PRIMARY, adjusted.get(('own', pair, method)))}.")
     for (pair, method), r in own.items():
         if pair.startswith("fourrooms-near"):
             who = pair.replace("fourrooms-near soc.num_options=", "near, SOC K = ") + " with model reuse"
