@@ -272,9 +272,14 @@ def test_each_reported_row_gets_its_gains_holm_adjusted_within_the_row(tmp_path,
     and 0.06 under Holm (2 x 0.03, then the larger of that and 1 x 0.04), and where 2 of 3 transfer seeds
     hold the success threshold; only pi-reuse-place's lifted rate differs at its ends (+1.00 at the first
     evaluation, +0.20 at the last), so only its gain says where it comes from."""
+    from types import SimpleNamespace
+
     claims = generator()
     monkeypatch.setattr(claims, "MANIP", tmp_path)
     shutil.copy(ROOT / "results" / "manipulation" / "queue.sh", tmp_path / "queue.sh")
+    lifted = {"baseline": [0.0, 0.0], "transfer": [1.0, 0.9]}  # pi-reuse-place's jumpstart still there at 5k
+    monkeypatch.setattr(claims, "_curves", lambda report, side: [
+        SimpleNamespace(frames=np.array([0.0, 5000.0]), values=np.array(lifted[side]))] * 3)
 
     def put(row, method, tag, value, ci, p, totals=(1.0, 1.0), reached=(0.0, 0.0), ends=(0.0, 0.0)):
         folder = tmp_path / row / "lift-to-place" / "sac" / method / f"report-{tag}"
@@ -377,3 +382,21 @@ def test_a_recipe_reported_on_the_seeds_that_chose_it_says_so():
     assert "chosen on seeds 0, 100, which are reported here too" in said and "not a fresh-seed result" in said
     assert g._tuned("demonstrations-reference-place", {"per_seed": {"transfer": [{"seed": 7}]}}) == ""
     assert g._tuned("model-reuse-place", ran) == ""
+
+
+def test_a_frame_0_jumpstart_gone_by_the_next_evaluation_is_said_to_be_one(monkeypatch):
+    from types import SimpleNamespace
+
+    g = generator()
+    r = {"metrics": {"jumpstart": 1.0, "asymptotic_performance": 0.0}, "settings": {"asymptote_window": 0.1}}
+
+    def runs(*seconds):
+        return [SimpleNamespace(frames=np.array([0.0, 5000.0, 10000.0]), values=np.array([v0, v1, 0.0]))
+                for v0, v1 in seconds]
+
+    curves = {"baseline": runs((0, 0), (0, 0)), "transfer": runs((1, 0), (1, 0))}
+    monkeypatch.setattr(g, "_curves", lambda report, side: curves[side])
+    assert g._ends(r).endswith("; gone by the second evaluation, 5k frames: +0.00, so this gain is the frame-0 "
+                               "jumpstart carried over the first interval, not a gain over the run)")
+    curves["transfer"] = runs((1, 1), (1, 1))  # still there at the second evaluation: nothing more to say
+    assert g._ends(r) == " (at the first evaluation +1.00, over the last 10% of the budget +0.00)"
