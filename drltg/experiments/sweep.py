@@ -476,8 +476,8 @@ def sweep(spec: str | Path | dict, out: str | Path, *, backend: str = "local", w
     the same mapping (``{"pairs": [...], "methods": [...], "seeds": 5, "frames": 20000}``).
 
     Returns ``{"rows": one per report (pair, algo, variant, method, report folder, metrics or a note),
-    "status": {run directory: (status, detail)}, "summary": the summary table as Markdown}``. A run that
-    failed or diverged is in ``status``; the reports leave it out.
+    "status": {run directory: (status, detail)}, "summary": the summary table as Markdown, "logs": {run
+    directory: its log file}}``. A run that failed or diverged is in ``status``; the reports leave it out.
 
         >>> result = drltg.sweep("examples/sweeps/fourrooms.yaml", "runs/sweep", workers=2)
     """
@@ -491,16 +491,13 @@ def sweep(spec: str | Path | dict, out: str | Path, *, backend: str = "local", w
         parsed, text = parse_spec(spec), yaml.safe_dump(spec, sort_keys=False).encode()
     else:
         parsed, text = load_spec(spec), Path(spec).read_bytes()
-    resources = {**parsed.resources, **{k: v for k, v in (("num_cpus", num_cpus), ("num_gpus", num_gpus))
-                                        if v is not None}}
-    _check_resources(resources, backend, address)
+    resources = _resources_for(parsed, num_cpus, num_gpus, backend, address)
     out = rundir.check_directory(out, "--out")
     rundir.refuse_run_directory(out, "--out")
     runs, cells = plan(parsed, out)
     check_runs([(r.role, r.cfg, r.path) for r in runs])
     check_existing(runs)
-    if backend == "local":
-        registrations(runs)  # what a worker process could not register is refused now
+    registrations(runs)  # what a worker process could not register is refused now
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
@@ -547,8 +544,7 @@ def _dry_run(args: argparse.Namespace) -> int:
 
     check_metric(args.metric)
     spec = load_spec(args.spec)
-    _check_resources({**spec.resources, **{k: v for k, v in (("num_cpus", args.num_cpus), ("num_gpus", args.num_gpus))
-                                           if v is not None}}, args.backend, args.address)
+    _resources_for(spec, args.num_cpus, args.num_gpus, args.backend, args.address)
     out = rundir.check_directory(args.out, "--out")
     rundir.refuse_run_directory(out, "--out")
     runs, cells = plan(spec, out)
@@ -559,6 +555,15 @@ def _dry_run(args: argparse.Namespace) -> int:
     print(f"{len(runs)} runs, {len(cells)} reports; {len(units)} units of work: {len(groups)} seed groups "
           f"of {sum(map(len, groups))} runs, {len(units) - len(groups)} runs alone")
     return 0
+
+
+def _resources_for(spec: Spec, num_cpus: float | None, num_gpus: float | None, backend: str,
+                   address: str | None) -> dict:
+    """What each run asks of Ray: the spec's ``resources``, ``num_cpus`` / ``num_gpus`` where given, checked."""
+    resources = {**spec.resources, **{k: v for k, v in (("num_cpus", num_cpus), ("num_gpus", num_gpus))
+                                      if v is not None}}
+    _check_resources(resources, backend, address)
+    return resources
 
 
 def _check_resources(resources: dict, backend: str, address: str | None) -> None:
