@@ -73,9 +73,7 @@ def family(reports: dict, metric: str = PRIMARY) -> dict:
 def said(report: dict, name: str = PRIMARY, p_adjusted: cl.Adjusted | None = None, **words) -> str:
     """The verdict sentence of metric ``name`` of a report: read alone (its exact test's own p-value) or in
     a family (``p_adjusted``, :func:`family`)."""
-    m = report["metrics"]
-    p = p_adjusted if p_adjusted is not None else cl.Adjusted(None, cl.exact_p(m, name))
-    return cl.verdict(m[name], m.get(f"{name}_ci"), p, design=cl.design_of(report), **words)
+    return cl.verdict_of(report, name, p_adjusted, **words)
 
 
 def _cell(m, key, fmt="+.2f"):

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from drltg.analysis import claims as cl
+from drltg.analysis import stats
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -104,8 +105,9 @@ def test_a_crossing_too_late_to_confirm_is_unconfirmed_never_not_held():
 
 
 def test_best_needs_every_paired_difference_to_exclude_zero():
-    def method(scores):
-        return {"per_seed": {"transfer": [{"seed": s, "mean_return": v} for s, v in enumerate(scores)]}}
+    def method(scores):  # reports read with the t interval (--interval t)
+        return {"per_seed": {"transfer": [{"seed": s, "mean_return": v} for s, v in enumerate(scores)]},
+                "settings": {"interval_method": "t"}}
 
     a, b = method([3.0, 4.2, 4.8, 6.0]), method([1.0, 2.0, 3.0, 4.0])  # A − B = 2.0, 2.2, 1.8, 2.0
     c = method([3.5, 3.0, 5.5, 5.0])  # A − C = −0.5, +1.2, −0.7, +1.0: mean 0.25, sd 0.988, t(3) 3.182
@@ -400,3 +402,30 @@ def test_a_frame_0_jumpstart_gone_by_the_next_evaluation_is_said_to_be_one(monke
                                "jumpstart carried over the first interval, not a gain over the run)")
     curves["transfer"] = runs((1, 1), (1, 1))  # still there at the second evaluation: nothing more to say
     assert g._ends(r) == " (at the first evaluation +1.00, over the last 10% of the budget +0.00)"
+
+
+def test_a_betting_p_value_by_hand():
+    # x = 1, 1, 1 against m = 1/2: every bet is capped at c/m = 1.5 (the plug-in bets are above 3), so the
+    # up-gambler's wealth is 1.75^3 and the down-gambler's falls; p = 1 / (max wealth / 2)
+    assert stats.betting_p(np.ones((1, 3)), [0.5])[0, 0] == pytest.approx(2 / 1.75 ** 3)
+    # the largest paired differences possible: 6 pairs cannot reach 0.05, 7 can
+    for n, p in ((6, 2 / 1.75 ** 6), (7, 2 / 1.75 ** 7)):
+        lo, hi, p0 = stats.betting_interval(np.zeros(n), np.ones(n), (0, 1), paired=True)
+        assert p0 == pytest.approx(p) and (lo > 0) == (p < 0.05)
+
+
+def test_a_betting_interval_holds_0_and_says_how_many_seeds_would_decide():
+    rows = {side: [{"seed": i, "mean_return": v} for i, v in enumerate(values)]
+            for side, values in (("baseline", [0.0] * 3), ("transfer", [1.0] * 3))}
+    ranged = {"metrics": {"n_seeds_baseline": 3, "n_seeds_transfer": 3, "mean_return_gain": 1.0,
+                          "mean_return_gain_ci": [-0.2, 1.0], "mean_return_gain_p_exact": 0.25},
+              "settings": {"paired": True, "interval_method": "auto", "value_range": [0, 1]}, "per_seed": rows}
+    # 7 pairs like these reach p = 2 / 1.75^7 < 0.05 (and a sign-flip test of 7 pairs can: 2/128)
+    assert cl.betting_seeds([0.0] * 3, [1.0] * 3, (0, 1), paired=True) == 7
+    assert cl.verdict_of(ranged, "mean_return_gain") == ("+1.00 [\u22120.20, +1.00]: no verdict at 3 pairs; about 7 "
+                                                         "would decide it if further seeds scored like these (estimate)")
+    unknown = {**ranged, "metrics": {k: v for k, v in ranged["metrics"].items() if not k.endswith("_ci")},
+               "settings": {**ranged["settings"], "value_range": None}}
+    assert cl.verdict_of(unknown, "mean_return_gain") == (
+        "+1.00: no interval without the curves' range (--value-range), so no verdict")
+    assert cl.betting_seeds([0.5] * 3, [0.5] * 3, (0, 1), paired=True) is None  # alike: no number decides

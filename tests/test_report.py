@@ -338,7 +338,7 @@ def flat(values, seeds=None, frames=(0, 10, 20, 30), prefix="run", **config):
 def test_paired_by_seed_uses_the_per_pair_differences():
     b = flat([1.0, 2.0, 3.0], seeds=[0, 100, 200], prefix="b")
     t = flat([6.0, 2.0, 4.0], seeds=[200, 0, 100], prefix="t")  # listed in another order
-    res = report.compute(b, t)
+    res = report.compute(b, t, interval="t")
     m, st = res["metrics"], res["settings"]
     assert st["paired"] is True and "paired by seed" in st["pairing"]
     assert [r["seed"] for r in res["per_seed"]["transfer"]] == [0, 100, 200]  # aligned with the baseline
@@ -362,7 +362,7 @@ def test_paired_by_seed_uses_the_per_pair_differences():
 def test_unpaired_uses_welch_standard_error_with_hsu_degrees_of_freedom():
     b = flat([1.0, 2.0, 3.0], prefix="b")
     t = flat([2.0, 4.0, 6.0], prefix="t")
-    res = report.compute(b, t)
+    res = report.compute(b, t, interval="t")
     m, st = res["metrics"], res["settings"]
     assert st["paired"] is False and "foreign logs" in st["pairing"]
     # se = sqrt(1/3 + 4/3); df = min(3, 3) - 1 = 2
@@ -372,7 +372,7 @@ def test_unpaired_uses_welch_standard_error_with_hsu_degrees_of_freedom():
     assert m["probability_of_improvement"] == pytest.approx(7.5 / 9)
     lo, hi = m["probability_of_improvement_ci"]
     assert 0 < lo < 7.5 / 9 < hi < 1
-    forced = report.compute(b, t, paired=True)
+    forced = report.compute(b, t, paired=True, interval="t")
     assert forced["settings"]["paired"] and "in the order given" in forced["settings"]["pairing"]
     assert forced["metrics"]["mean_return_gain_ci"] == pytest.approx(
         [2 - 4.302653 / np.sqrt(3), 2 + 4.302653 / np.sqrt(3)], abs=1e-5)
@@ -394,7 +394,7 @@ def test_no_degenerate_intervals():
     f = (0, 10, 20, 30)
     b = [Curve(f, [v, 1, 2, 3], f"b{i}", f"b{i}", config={"seed": i}) for i, v in enumerate([0.1, 0.5, 0.2])]
     t = [Curve(f, [v, 2, 3, 5 + i], f"t{i}", f"t{i}", config={"seed": i}) for i, v in enumerate([0.1, 0.5, 0.2])]
-    res = report.compute(b, t)
+    res = report.compute(b, t, interval="t")
     m, st = res["metrics"], res["settings"]
     assert m["jumpstart"] == 0 and "jumpstart_ci" not in m
     assert any("jumpstart has no interval: every pair gives the same difference (0)" in w for w in st["warnings"])
@@ -403,14 +403,14 @@ def test_no_degenerate_intervals():
     g = (0, 5, 10, 15)
     b = [Curve(g, [0, 0, v, 0], f"b{i}", f"b{i}", config={"seed": i}) for i, v in enumerate([0.1, 0.0, 0.0])]
     t = [Curve(g, [1, 0, v, 0], f"t{i}", f"t{i}", config={"seed": i}) for i, v in enumerate([0.1, 0.0, 0.0])]
-    res = report.compute(b, t, paired=True, threshold=None)
+    res = report.compute(b, t, paired=True, threshold=None, interval="t")
     m = res["metrics"]
     assert m["mean_return_gain"] == pytest.approx(1 / 6)
     assert "mean_return_gain_ci" not in m and "mean_return_gain_p_value" not in m
     assert "mean_return_gain has no interval: every pair gives the same difference (0.1667)" in \
         res["settings"]["warnings"][0]
     # every run of each side identical: no spread at all
-    same = report.compute(flat([1.0] * 3, prefix="b"), flat([2.0] * 3, prefix="t"))
+    same = report.compute(flat([1.0] * 3, prefix="b"), flat([2.0] * 3, prefix="t"), interval="t")
     assert "mean_return_gain_ci" not in same["metrics"]
     assert any("identical values" in w for w in same["settings"]["warnings"])
     table = report.format_table(same)
@@ -424,7 +424,7 @@ def test_mean_return_gain_is_offset_free_and_the_ratio_is_not():
     t = flat([2.0, 4.0, 6.0], prefix="t")
     shifted_b = flat([11.0, 12.0, 13.0], prefix="b")
     shifted_t = flat([12.0, 14.0, 16.0], prefix="t")
-    m, s = report.compute(b, t)["metrics"], report.compute(shifted_b, shifted_t)["metrics"]
+    m, s = report.compute(b, t, interval="t")["metrics"], report.compute(shifted_b, shifted_t, interval="t")["metrics"]
     assert m["mean_return_gain"] == pytest.approx(s["mean_return_gain"]) == pytest.approx(2)
     assert m["mean_return_gain_ci"] == pytest.approx(s["mean_return_gain_ci"])
     assert m["transfer_ratio"] == pytest.approx(1.0) and s["transfer_ratio"] == pytest.approx(2 / 12)
@@ -581,7 +581,7 @@ def test_settings_define_the_cli_options(capsys):
     args = parser.parse_args(["--baseline", "b", "--transfer", "t", "--paired", "--source-frames", "40k",
                               "--sustain", "3"])
     s = report.ReportSettings.from_args(args)
-    assert (s.crossing, s.paired, s.source_frames, s.sustain, s.interval) == ("sustained", True, 40_000, 3, "t")
+    assert (s.crossing, s.paired, s.source_frames, s.sustain, s.interval) == ("sustained", True, 40_000, 3, "auto")
     assert report.ReportSettings.from_args(parser.parse_args(["--crossing", "first"])).crossing == "first"
     for bad, text in ((["--sustain", "1"], "--sustain must be at least 2"),
                       (["--trend-window", "2"], "--trend-window must lie in (0, 1]"),
@@ -637,7 +637,7 @@ def test_a_new_metric_is_one_entry(monkeypatch):
     """An entry of METRICS reaches the JSON metrics, the CSV rows and the text table."""
     entry = report.Metric("total_reward_gain", "difference", "total_reward", iqm=True, note="area, not mean")
     monkeypatch.setattr(catalogue, "METRICS", catalogue.METRICS + (entry,))
-    res = report.compute(flat([1.0, 2.0, 3.0], prefix="b"), flat([2.0, 4.0, 6.0], prefix="t"))
+    res = report.compute(flat([1.0, 2.0, 3.0], prefix="b"), flat([2.0, 4.0, 6.0], prefix="t"), interval="t")
     m = res["metrics"]
     assert m["total_reward_gain"] == pytest.approx(60.0)  # areas 30, 60, 90 vs 60, 120, 180
     assert m["total_reward_gain_iqm"] == pytest.approx(60.0)
@@ -718,7 +718,7 @@ def test_a_report_on_run_directories_imports_no_torch(tmp_path):
 def test_every_metric_with_an_interval_has_a_p_value_adjusted_over_the_report_s_family():
     b = flat([1.0, 2.0, 3.0, 2.5, 1.5], seeds=[0, 1, 2, 3, 4], prefix="b")
     t = flat([2.0, 4.0, 6.0, 3.0, 1.6], seeds=[0, 1, 2, 3, 4], prefix="t")
-    res = report.compute(b, t, threshold=1.5)
+    res = report.compute(b, t, threshold=1.5, interval="t")
     m, family = res["metrics"], res["settings"]["family"]
     with_ci = [k.removesuffix("_ci") for k in m if k.endswith("_ci")]
     assert family["metrics"] == with_ci and family["size"] == len(with_ci) > 5
@@ -735,12 +735,12 @@ def test_skewed_per_seed_differences_take_the_exact_test_s_p_value():
     seeds = list(range(10))
     b = flat([0.0] * 10, seeds=seeds, prefix="b")
     t = flat([0.1, 0.2, 0.1, 0.3, 0.2, 0.1, 0.2, 0.3, 0.1, 9.0], seeds=seeds, prefix="t")  # one seed far out
-    res = report.compute(b, t)
+    res = report.compute(b, t, interval="t")
     m = res["metrics"]
     assert m["mean_return_gain_p_value"] == m["mean_return_gain_p_exact"] == pytest.approx(2 / 2 ** 10)
     assert any("look skewed" in w and "exact permutation" in w for w in res["settings"]["warnings"])
     normal = report.compute(flat([0.0] * 3, seeds=[0, 1, 2], prefix="b"), flat([1.0, 2.0, 3.0], seeds=[0, 1, 2],
-                                                                             prefix="t"))["metrics"]
+                                                                             prefix="t"), interval="t")["metrics"]
     assert normal["mean_return_gain_p_value"] != normal["mean_return_gain_p_exact"]  # the t test's, < 8 seeds
 
 
@@ -754,7 +754,7 @@ def test_a_success_rate_s_intervals_stay_in_their_range(tmp_path):
             rows = "".join(f"{x},0.0,0.0,8,{r if x > 0 else 0.0}\n" for x in f)
             (run / "eval.csv").write_text("frames,return_mean,return_std,episodes,success_rate\n" + rows)
             (run / "config.yaml").write_text("task: fourrooms/northeast\n")  # no seed: unpaired
-    res = report.transfer_report(tmp_path / "b", tmp_path / "t", tmp_path / "out", tag="success_rate")
+    res = report.transfer_report(tmp_path / "b", tmp_path / "t", tmp_path / "out", tag="success_rate", interval="t")
     m = res["metrics"]
     assert res["settings"]["value_range"] == [0, 1]
     assert m["asymptotic_performance_ci"][1] == 1.0 and m["asymptotic_performance_ci"][0] == -1.0  # cut to range
@@ -762,6 +762,26 @@ def test_a_success_rate_s_intervals_stay_in_their_range(tmp_path):
     assert unbounded[1] > 1 and unbounded[0] < -1  # what the plain t interval would say
     for key, (lo, hi) in ((k, v) for k, v in m.items() if k.endswith("_ci")):
         assert (0.0 if "probability" in key else -1.0) <= lo <= hi <= 1.0, key
+
+
+def test_the_default_interval_is_a_betting_interval_within_the_range_and_none_without_one():
+    b = flat([0.0, 0.1, 0.0, 0.2, 0.1], seeds=range(5), prefix="b")
+    t = flat([0.9, 1.0, 0.8, 1.0, 0.9], seeds=range(5), prefix="t")
+    unknown = report.compute(b, t)
+    m, st = unknown["metrics"], unknown["settings"]
+    assert not any(k.endswith("_ci") and "probability" not in k for k in m)  # P(T > B) keeps its exact interval
+    assert m["mean_return_gain_p_exact"] == pytest.approx(2 / 2 ** 5) and "mean_return_gain_p_value" not in m
+    assert sum("no mean difference has an interval" in w for w in st["warnings"]) == 1
+    ranged = report.compute(b, t, value_range="0,1")
+    m, st = ranged["metrics"], ranged["settings"]
+    lo, hi, p = stats.betting_interval(np.array([0.0, 0.1, 0.0, 0.2, 0.1]), np.array([0.9, 1.0, 0.8, 1.0, 0.9]),
+                                       (0, 1), paired=True)
+    assert m["mean_return_gain_ci"] == pytest.approx([lo, hi]) and m["mean_return_gain_p_value"] == pytest.approx(p)
+    assert lo < 0 < m["mean_return_gain"] < hi  # 5 pairs: no betting interval excludes 0
+    assert st["interval_method"] == "auto" and "from the values' range [0, 1] alone" in st["interval"]
+    for bad in ("1,0", "0", "a,b", "0,inf"):
+        with pytest.raises(UsageError, match="--value-range"):
+            report.compute(b, t, value_range=bad)
 
 
 def test_convergence_needs_the_equivalence_test():
@@ -827,7 +847,7 @@ def test_identical_sides_write_a_report_without_an_undefined_p_value(tmp_path):
     difference is 0, so the ratio's t test has no spread; the report says so and is still written."""
     b = [Curve([0, 160, 320], [-1.0, -0.9 + 0.1 * i, -0.8], f"b{i}", f"b{i}", config={"seed": i}) for i in range(3)]
     t = [Curve(c.frames, c.values, f"t{i}", f"t{i}", config={"seed": i}) for i, c in enumerate(b)]
-    res = report.transfer_report(b, t, tmp_path / "rep")
+    res = report.transfer_report(b, t, tmp_path / "rep", interval="t")
     assert "transfer_ratio_p_value" not in res["metrics"] and res["metrics"]["mean_return_gain"] == 0.0
     assert any("no spread" in w for w in res["settings"]["warnings"])
     assert json.loads((tmp_path / "rep" / "transfer_metrics.json").read_text())["metrics"]["transfer_ratio"] == 0.0

@@ -120,13 +120,14 @@ def seeds_to_decide(value: float, ci: Sequence, n: int, paired: bool, family: in
 
 def verdict(value: float, ci: Sequence | None, p_adjusted: float | Adjusted | None = None,
             family: int | None = None, higher: str = "higher with transfer", lower: str = "lower with transfer",
-            design: tuple[int, bool] | None = None) -> str:
+            design: tuple[int, bool] | None = None, about: int | None = None) -> str:
     """``+1.08 [+0.91, +1.24], higher with transfer`` or ``...: no evidence of a difference at this budget``;
     an interval that excludes 0 but is held back by the family's adjustment says so, naming the adjusted
     p-value (and the family's size when given). Where the t test finds a difference and the exact test
     (``p_adjusted.exact``) does not, there is no verdict at these seeds, and ``design`` (seeds per side,
     paired) gives about how many would decide it. A non-zero difference without an interval (every pair
-    gave the same one, or the ratio is unbounded) has no verdict either way."""
+    gave the same one, or the ratio is unbounded) has no verdict either way. ``about``: the seeds at which a
+    range-bounded interval that holds 0 would decide (:func:`betting_seeds`), said in place of "no evidence"."""
     t, exact, size = p_adjusted if isinstance(p_adjusted, Adjusted) else (p_adjusted, None, 1)
     sign = direction(ci, t)
     text = estimate(value, ci)
@@ -147,7 +148,63 @@ def verdict(value: float, ci: Sequence | None, p_adjusted: float | Adjusted | No
         return f"{text}: {NO_EVIDENCE} after Holm's adjustment (adjusted p = {p_text(t)}{of})"
     if signed(value) != signed(0) and not has_interval(ci):
         return f"{text}: {NO_INTERVAL}"
+    if about is not None and design is not None and signed(value) != signed(0):
+        n, paired = design
+        return (f"{text}: no verdict at {n} {'pairs' if paired else 'seeds a side'}; about {about} would decide it "
+                "if further seeds scored like these (estimate)")
     return f"{text}: {NO_EVIDENCE}"
+
+
+SCORES = {"mean_return_gain": "mean_return", "jumpstart": "initial_performance",
+          "asymptotic_performance": "final_performance"}
+"""The per-seed score each mean difference compares."""
+
+
+def verdict_of(report: Mapping, name: str, p_adjusted: Adjusted | None = None, family: int | None = None,
+               **words) -> str:
+    """:func:`verdict` of metric ``name`` of a report, read alone (its exact test's own p-value) or in a family
+    (``p_adjusted``), saying why there is no interval where the report withheld one, and, for a range-bounded
+    interval that holds 0, about how many seeds would decide."""
+    m, st = report["metrics"], report["settings"]
+    ci, design = m.get(f"{name}_ci"), design_of(report)
+    p = p_adjusted if p_adjusted is not None else Adjusted(None, exact_p(m, name))
+    auto = st.get("interval_method") == "auto" and design[0] >= 3
+    if auto and not has_interval(ci) and st.get("value_range") is None and m.get(name) is not None:
+        return f"{estimate(m[name])}: {NO_RANGE}"
+    about = None
+    if auto and has_interval(ci) and not excludes_zero(ci) and name in SCORES:
+        rows = report["per_seed"]
+        b, t = ([r[SCORES[name]] for r in rows[side]] for side in ("baseline", "transfer"))
+        about = betting_seeds(b, t, st["value_range"], design[1], max(family or 1, p.size))
+    return verdict(m[name], ci, p, family, design=design, about=about, **words)
+
+
+NO_RANGE = "no interval without the curves' range (--value-range), so no verdict"
+
+
+def betting_seeds(b: Sequence[float], t: Sequence[float], value_range: Sequence[float], paired: bool,
+                  family: int = 1, level: float = LEVEL, most: int = 1000) -> int | None:
+    """About how many seeds a side (pairs, when paired) would let the betting test and the exact test decide,
+    if further seeds scored like these (the sample repeated in turn), an estimate; ``None`` when no number up to
+    ``most`` would (the two sides score alike)."""
+    b, t = np.asarray(b, float), np.asarray(t, float)
+
+    def decides(k: int) -> bool:
+        tb, tt = np.resize(b, k), np.resize(t, k)
+        return stats.betting_interval(tb, tt, value_range, paired, 1 - level)[2] < level / family
+
+    exact = 2
+    while (2 / 2 ** exact if paired else 2 / math.comb(2 * exact, exact)) >= level / family:
+        exact += 1
+    low, high = len(b), len(b)
+    while not decides(high):
+        low, high = high, 2 * high
+        if high > most:
+            return None
+    while high - low > 1:
+        mid = (low + high) // 2
+        low, high = (low, mid) if decides(mid) else (mid, high)
+    return max(high, exact)
 
 
 def p_text(p: float) -> str:
@@ -247,8 +304,8 @@ def report_sentences(report: Mapping, metrics: Sequence[str] = ("mean_return_gai
         if m.get(name) is None:
             continue
         label = LABELS.get(name, name.replace("_", " "))
-        p = Adjusted(m.get(f"{name}_p_adjusted"), exact.get(name))
-        said = verdict(m[name], m.get(f"{name}_ci"), p, family, design=design_of(report))
+        p = Adjusted(m.get(f"{name}_p_adjusted"), exact.get(name), family or 1)
+        said = verdict_of(report, name, p, family)
         out.append(f"{label.capitalize()}: {said}.")
     if st.get("threshold") is not None:
         for side in ("baseline", "transfer"):
@@ -279,17 +336,26 @@ def per_seed_scores(report: Mapping, side: str, score: str = "mean_return") -> d
 def pairwise(a: Mapping, b: Mapping, score: str = "mean_return") -> tuple[float, tuple[float, float] | None, float,
                                                                         float]:
     """Paired comparison of two methods' transfer runs on the same target: ``d_i = A_i − B_i`` over the seeds
-    both share (runs with the same seed share the baseline's seed and initial weights), its mean, paired
-    t-interval (``None`` without spread), t-test p-value and the exact sign-flip test's p-value."""
+    both share (runs with the same seed share the baseline's seed and initial weights), its mean, the interval
+    of the reports' rule (``--interval auto``: the betting interval within their value range, ``None`` without
+    one; otherwise the paired t-interval, ``None`` without spread) and its test's p-value, and the exact
+    sign-flip test's p-value."""
     sa, sb = per_seed_scores(a, "transfer", score), per_seed_scores(b, "transfer", score)
     shared = sorted(set(sa) & set(sb))
     if len(shared) < 2:
         raise ValueError("two methods share fewer than 2 seeds: no paired comparison")
     x, y = np.array([sb[s] for s in shared]), np.array([sa[s] for s in shared])
+    exact = stats.permutation_test(x, y, paired=True)
+    st = a["settings"]
+    if st.get("interval_method") == "auto":
+        if st.get("value_range") is None:
+            return float((y - x).mean()), None, exact, exact
+        lo, hi, p = stats.betting_interval(x, y, st["value_range"], paired=True)
+        return float((y - x).mean()), (float(lo), float(hi)), float(p), exact
     lo, hi = stats.t_interval(x, y, paired=True)
     p = stats.t_test(x, y, paired=True)
     ci = None if math.isnan(float(lo)) else (float(lo), float(hi))
-    return float((y - x).mean()), ci, (1.0 if math.isnan(p) else float(p)), stats.permutation_test(x, y, paired=True)
+    return float((y - x).mean()), ci, (1.0 if math.isnan(p) else float(p)), exact
 
 
 def best_sentence(reports: Mapping[str, Mapping], where: str, score: str = "mean_return") -> str:
@@ -320,7 +386,7 @@ def best_sentence(reports: Mapping[str, Mapping], where: str, score: str = "mean
                 f"{estimate(diff, ci)}, has the exact test's p = {p_text(p_adj.exact)}"
                 + (" after Holm" if len(pairs) > 1 else ""))
     return (f"{where}: no method is best; {leader} leads, and its paired difference to {other} is "
-            f"{estimate(diff, ci)}: {NO_EVIDENCE}")
+            f"{estimate(diff, ci)}: {NO_EVIDENCE if has_interval(ci) else NO_RANGE}")
 
 
 def headline(report: Mapping, metric: str = "mean_return_gain") -> str:
@@ -333,7 +399,7 @@ def headline(report: Mapping, metric: str = "mean_return_gain") -> str:
     where = f"{st['transfer_label']} vs {st['baseline_label']}, {design}, {frames(st['budget'])} frames"
     if m.get(metric) is None:
         return f"Headline ({where}): {label} is not available."
-    said = verdict(m[metric], m.get(f"{metric}_ci"), Adjusted(None, exact_p(m, metric)), design=design_of(report))
+    said = verdict_of(report, metric)
     return f"Headline ({where}): {label} {said}."
 
 

@@ -180,6 +180,94 @@ def welch_interval(b, t, paired: bool = False, confidence: float = 0.95) -> tupl
     return t_interval(b, t, paired, confidence, df="welch")
 
 
+def _bets(x: Array, alpha: float) -> Array:
+    r"""Predictable plug-in bets :math:`\lambda_i = \sqrt{2\log(2/\alpha) / (n\,\hat\sigma^2_{i-1})}` with
+    :math:`\hat\mu_i = (\tfrac12 + \sum_{j\le i} x_j)/(i+1)` and
+    :math:`\hat\sigma^2_i = (\tfrac14 + \sum_{j\le i}(x_j - \hat\mu_j)^2)/(i+1)` (:math:`\hat\sigma^2_0 = 1/4`)."""
+    n = x.shape[-1]
+    i = np.arange(1, n + 1)
+    mu = (0.5 + np.cumsum(x, -1)) / (i + 1)
+    var = (0.25 + np.cumsum((x - mu) ** 2, -1)) / (i + 1)
+    before = np.concatenate([np.full((*x.shape[:-1], 1), 0.25), var[..., :-1]], -1)
+    return np.sqrt(2 * np.log(2 / alpha) / (n * before))
+
+
+def betting_p(x, means, alpha: float = 0.05, c: float = 0.75) -> Array:
+    r"""p-values of "the mean of ``x`` is m" for each m of ``means``, ``x`` in [0, 1] along its last axis:
+    ``[..., len(means)]``.
+
+    Waudby-Smith & Ramdas (2024)'s hedged capital: a gambler who bets that the mean is above m and one who
+    bets it is below each start with 1/2, :math:`K^\pm_i(m) = \prod_{j \le i}(1 \pm \lambda^\pm_j (x_j - m))` with
+    the bets of :func:`_bets` capped at :math:`c/m` and :math:`c/(1-m)`. Under the mean m their wealth is a
+    nonnegative martingale from 1, so by Ville's inequality :math:`p = 1 / \max_i \max(K^+_i, K^-_i)/2` is a valid
+    p-value for any distribution on [0, 1]: no normality, no symmetry, no minimum sample."""
+    x = as_array(x)
+    m = np.asarray(means, np.float64)[:, None]
+    lam = _bets(x, alpha)[..., None, :]
+    dev = x[..., None, :] - m
+    with np.errstate(divide="ignore"):
+        up, down = np.minimum(lam, c / m), np.minimum(lam, c / (1 - m))
+    with np.errstate(divide="ignore"):  # a wealth of 0 is a log of -inf, never the maximum
+        log_wealth = np.maximum(np.log1p(up * dev).cumsum(-1), np.log1p(-down * dev).cumsum(-1)).max(-1)
+    return np.minimum(1.0, np.exp(np.log(2.0) - log_wealth))
+
+
+BETTING_GRID = np.linspace(0.0, 1.0, 2001)
+"""The means a betting interval is tested at; its ends are widened to the next point out."""
+
+
+def _betting_mean(x: Array, alpha: float) -> tuple[Array, Array, Array]:
+    """Interval ``(low, high)`` of the mean of ``x`` in [0, 1] at level ``1 - alpha``, and the p-values on
+    :data:`BETTING_GRID` (in chunks: the grid times the seeds times the experiments)."""
+    flat = x.reshape(-1, x.shape[-1])
+    p = np.concatenate([betting_p(flat[i:i + 64], BETTING_GRID, alpha) for i in range(0, len(flat), 64)])
+    kept = p > alpha
+    step = BETTING_GRID[1]
+    lo = np.maximum(BETTING_GRID[kept.argmax(-1)] - step, 0.0)
+    hi = np.minimum(BETTING_GRID[len(BETTING_GRID) - 1 - kept[:, ::-1].argmax(-1)] + step, 1.0)
+    return lo.reshape(x.shape[:-1]), hi.reshape(x.shape[:-1]), p.reshape(*x.shape[:-1], -1)
+
+
+def _unit(x: Array, low: float, high: float) -> Array:
+    x = (x - low) / (high - low)
+    if np.any(x < -1e-9) or np.any(x > 1 + 1e-9):
+        raise ValueError(f"a score lies outside the value range [{low:g}, {high:g}]")
+    return np.clip(x, 0.0, 1.0)
+
+
+def betting_sides(b, t, value_range: tuple[float, float], confidence: float = 0.95) -> tuple[tuple, tuple]:
+    """Each side's betting interval of its mean at level ``1 - alpha/2`` (Bonferroni: both hold together
+    with probability at least ``1 - alpha``), for scores in ``value_range``: ``((L_B, U_B), (L_T, U_T))``."""
+    alpha = 2 * _check_confidence(confidence)
+    a, w = float(value_range[0]), float(value_range[1]) - float(value_range[0])
+    (lb, ub, _), (lt, ut, _) = (_betting_mean(_unit(as_array(x), a, a + w), alpha / 2) for x in (b, t))
+    return (a + w * lb, a + w * ub), (a + w * lt, a + w * ut)
+
+
+def betting_interval(b, t, value_range: tuple[float, float], paired: bool = False,
+                     confidence: float = 0.95) -> tuple[Array, Array, Array]:
+    r"""Interval of ``mean(t) - mean(b)`` for scores known to lie in ``value_range`` = [a, a + w], valid for any
+    distribution there (learn-or-not seeds included), and its p-value of no difference: ``(low, high, p)``.
+
+    Paired: the betting interval of the differences' mean, :math:`(d + w) / 2w \in [0, 1]`. Unpaired: each
+    side's interval at level :math:`1 - \alpha/2` (:func:`betting_sides`), the difference of the ends,
+    :math:`[L_T - U_B,\ U_T - L_B]`; its p-value is twice the smallest level at which both sides reject one
+    value between their means. It is wide with few seeds (with 5 pairs or fewer it cannot exclude 0),
+    because only the range, not the seeds' spread, bounds what the unseen seeds could do."""
+    alpha = 2 * _check_confidence(confidence)
+    b, t = _pairs(b, t, paired)
+    a, w = float(value_range[0]), float(value_range[1]) - float(value_range[0])
+    b, t = _unit(b, a, a + w), _unit(t, a, a + w)
+    if paired:
+        lo, hi, p = _betting_mean((t - b + 1) / 2, alpha)
+        return w * (2 * lo - 1), w * (2 * hi - 1), p[..., len(BETTING_GRID) // 2]
+    (lb, ub, pb), (lt, ut, pt) = _betting_mean(b, alpha / 2), _betting_mean(t, alpha / 2)
+    mb, mt = b.mean(-1)[..., None], t.mean(-1)[..., None]
+    between = (BETTING_GRID >= np.minimum(mb, mt)) & (BETTING_GRID <= np.maximum(mb, mt))
+    p0 = np.minimum(1.0, 2 * np.where(between, np.maximum(pb, pt), np.inf).min(-1))
+    return w * (lt - ub), w * (ut - lb), p0
+
+
 INTERVALS = {"t": t_interval, "welch": welch_interval, "studentized": studentized_interval,
              "bca": bca_interval, "percentile": percentile_interval}
 """Candidate intervals of a mean difference; ``t`` is the report's, chosen by the coverage measured in

@@ -70,7 +70,7 @@ checked): ``transfer_metrics.json`` (``metrics``, ``settings`` with every choice
 :class:`ReportSettings`.
 """
 from drltg.analysis.report.catalogue import COMPARISONS, METRICS, TABLE_ROWS, Metric, table_rows
-from drltg.analysis.report.describe import COVERAGE_CLAIM, COVERAGE_EXCEPTIONS
+from drltg.analysis.report.describe import BETTING_CLAIM, COVERAGE_CLAIM, COVERAGE_EXCEPTIONS
 from drltg.analysis.report.matrix import check_metric, find_matrix_cells, transfer_matrix
 from drltg.analysis.report.outputs import format_table, metrics_rows, render
 from drltg.analysis.report.pipeline import compute, read_runs, transfer_report
@@ -80,5 +80,5 @@ __all__ = [
     "transfer_report", "compute", "read_runs", "render", "format_table", "metrics_rows",
     "ReportSettings", "SETTINGS_DEFAULTS", "parse_threshold", "parse_frames",
     "Metric", "METRICS", "TABLE_ROWS", "COMPARISONS", "table_rows",
-    "COVERAGE_CLAIM", "COVERAGE_EXCEPTIONS", "transfer_matrix", "find_matrix_cells", "check_metric",
+    "BETTING_CLAIM", "COVERAGE_CLAIM", "COVERAGE_EXCEPTIONS", "transfer_matrix", "find_matrix_cells", "check_metric",
 ]

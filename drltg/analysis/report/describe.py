@@ -13,7 +13,7 @@ from drltg.analysis import stats
 from drltg.analysis.curves import Curve
 from drltg.analysis.report.align import Window, eval_grid, on_grid
 from drltg.analysis.report.checks import Sides
-from drltg.analysis.report.inference import family_of, is_missing, num
+from drltg.analysis.report.inference import UNBOUNDED, family_of, is_missing, num
 from drltg.analysis.report.settings import MIN_SEEDS, PLOT_POINTS, ReportSettings
 
 
@@ -60,8 +60,9 @@ def describe(s: ReportSettings, sides: Sides, w: Window, trends: dict, warnings:
         "ratio_eps": float(s.ratio_eps),
         "ratio_scale": w.scale,
         "interval": _interval_rule(s, sides.paired, w),
+        "interval_method": s.interval,
         "value_range": None if w.value_range is None else list(w.value_range),
-        "p_values": _p_value_rule(sides.paired),
+        "p_values": _p_value_rule(sides.paired, s.interval),
         "family": {"size": len(family), "metrics": family, "adjustment": (
             f"Holm over these {len(family)} p-values: the chance of any false finding among them stays "
             f"below the level at which they are read")},
@@ -97,6 +98,19 @@ def _crossing_rule(s: ReportSettings) -> str:
 
 def _interval_rule(s: ReportSettings, paired: bool, w: Window) -> str:
     level = f"{100 * float(s.confidence):g}%"
+    poi = "Clopper-Pearson's exact interval over pairs" if paired else "Newcombe's score interval (method 5)"
+    tail = (f"{poi} for the probabilities of improvement, inside [0, 1]; none with fewer than {MIN_SEEDS} seeds on "
+            "a side")
+    if s.interval == "auto":
+        if w.value_range is None:
+            return (f"{level}: none for the mean differences and transfer_ratio ({UNBOUNDED}); {tail}. "
+                    f"{BETTING_CLAIM}")
+        diff = ("the betting interval (hedged capital, Waudby-Smith & Ramdas 2024) of the per-pair differences"
+                if paired else "the two sides' betting intervals (hedged capital, Waudby-Smith & Ramdas 2024) at "
+                "half the error level each, their ends subtracted")
+        return (f"{level}: {diff} for the mean differences, from the values' range [{w.value_range[0]:g}, "
+                f"{w.value_range[1]:g}] alone; the ratio of the sides' intervals for transfer_ratio; {tail}. "
+                f"{BETTING_CLAIM}")
     diff = {"t": "paired t-interval on the per-pair differences" if paired else
             "t-interval with Welch's standard error and Hsu's min(n_B, n_T) - 1 degrees of freedom",
             "welch": "paired t-interval" if paired else "Welch t-interval",
@@ -105,29 +119,36 @@ def _interval_rule(s: ReportSettings, paired: bool, w: Window) -> str:
     bounded = ("" if w.value_range is None else
                f"; the values lie in [{w.value_range[0]:g}, {w.value_range[1]:g}], so every difference's interval "
                f"is cut to +-{w.value_range[1] - w.value_range[0]:g} (the truth lies inside, coverage is kept)")
-    poi = "Clopper-Pearson's exact interval over pairs" if paired else "Newcombe's score interval (method 5)"
-    return (f"{level}: {diff} for the mean differences; Fieller's interval for transfer_ratio; {poi} for the "
-            f"probabilities of improvement, inside [0, 1]; none with fewer than {MIN_SEEDS} seeds on a side"
-            f"{bounded}. {COVERAGE_CLAIM}")
+    return f"{level}: {diff} for the mean differences; Fieller's interval for transfer_ratio; {tail}{bounded}. " \
+           f"{COVERAGE_CLAIM}"
 
 
-COVERAGE_CLAIM = ("In simulation (results/coverage) these intervals cover at least 93% of the time with 3 to 10 "
+BETTING_CLAIM = ("A betting interval holds its level for any scores within the range, learn-or-not seeds "
+                 "included (Ville's inequality; in simulation, results/coverage, at least 95% on every shape at 3, "
+                 "5 and 10 seeds); it is wide with few seeds and cannot exclude 0 with 5 pairs or fewer.")
+COVERAGE_CLAIM = ("In simulation (results/coverage) the t intervals cover at least 93% of the time with 3 to 10 "
                   "seeds on normal, bimodal and success-rate scores, except for paired scores with a strong "
                   "multiplicative seed effect (right-skewed differences) and paired bimodal scores at 3 seeds "
-                  "(and at 5 for transfer_ratio); no bootstrap interval measured did better there.")
+                  "(and at 5 for transfer_ratio), and on learn-or-not scores (0.68 to 0.76 at 3 and 5 seeds); no "
+                  "bootstrap interval measured did better there.")
 COVERAGE_EXCEPTIONS = (("lognormal", "paired", None), ("bimodal", "paired", 3), ("bimodal", "paired", 5))
 """(scores, design, seeds or None for any) of results/coverage where the claim above does not hold; a test
 checks the committed table against it."""
 
 
-def _p_value_rule(paired: bool) -> str:
-    test = "the paired t test" if paired else "the t test with Welch's standard error and Hsu's degrees of freedom"
+def _p_value_rule(paired: bool, interval: str = "auto") -> str:
     poi = "the exact sign test over pairs (ties dropped)" if paired else \
         "the exact permutation test of the Mann-Whitney estimate"
+    exact = "sign-flip test over pairs" if paired else "permutation test of the runs"
+    if interval == "auto":
+        return (f"two-sided, of no effect: the betting test dual to each mean difference's interval (to "
+                f"transfer_ratio's, the sides compared), where there is one; the exact {exact} in *_p_exact for "
+                f"every mean difference; {poi} for P(T > B); the slope's t test for final_trend_*")
+    test = "the paired t test" if paired else "the t test with Welch's standard error and Hsu's degrees of freedom"
     return (f"two-sided, of no effect: {test} behind each mean difference's interval (transfer_ratio's too, "
             f"whose Fieller interval excludes 0 exactly where it rejects), unless the per-seed scores look skewed "
             f"or bimodal (from {stats.SHAPE_MIN_SEEDS} seeds: D'Agostino's skewness test at 0.05, Sarle's "
-            "bimodality coefficient above 5/9), where the exact permutation test's p-value is used (given in "
+            f"bimodality coefficient above 5/9), where the exact {exact}'s p-value is used (given in "
             f"*_p_exact for every mean difference); {poi} for P(T > B); the slope's t test for final_trend_*")
 
 

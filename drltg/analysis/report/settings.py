@@ -81,15 +81,19 @@ class ReportSettings:
     source_frames: object = _option(None, "--source-frames", metavar="N",
                                     help="frames of source training per transfer run, for the total-time "
                                     "metrics (default: read from drltg runs' transfer.source)")
-    interval: str = _option("t", "--interval", choices=tuple(stats.INTERVALS),
-                            help="interval of the mean differences (default: t, the one whose coverage "
-                            "holds in simulation; the bootstrap ones use --bootstrap and --seed)")
+    interval: str = _option("auto", "--interval", choices=("auto", *stats.INTERVALS),
+                            help="interval of the mean differences (default: auto, a betting interval valid for "
+                            "any scores within --value-range, none where the range is unknown; t and the "
+                            "bootstrap ones assume what results/coverage measures; the bootstrap ones use "
+                            "--bootstrap and --seed)")
     confidence: float = _option(0.95, "--confidence", type=float, help="confidence level (default: 0.95)")
     bootstrap: int = _option(10_000, "--bootstrap", type=int, metavar="N",
                              help="resamples of a bootstrap --interval (default: 10000)")
     seed: int = _option(0, "--seed", type=int, help="seed of a bootstrap --interval (default: 0)")
     ratio_eps: float = _option(0.01)
-    value_range: tuple | None = _option(None)  # (low, high) of the curves' values; default: [0, 1] for a rate
+    value_range: object = _option(None, "--value-range", metavar="LOW,HIGH",
+                                  help="the range every value of the curves lies in, e.g. 0,500 for a reward in "
+                                  "[0, 1] over 500 steps (default: 0,1 for a rate, else unknown)")
 
     def __post_init__(self):
         """Check every setting before any run is read (one sentence each)."""
@@ -111,17 +115,15 @@ class ReportSettings:
              f"--sustain must be at least 2 evaluations (the crossing and one after it), got {self.sustain}.")
         need(float(self.convergence_margin) > 0,
              f"--convergence-margin must be positive, got {self.convergence_margin}.")
-        need(self.value_range is None or (len(self.value_range) == 2
-                                          and float(self.value_range[0]) < float(self.value_range[1])),
-             f"value_range must be (low, high) with low < high, got {self.value_range}.")
+        self.value_range = parse_range(self.value_range)
         need(self.crossing in ("sustained", "first"), f"--crossing must be sustained or first, got '{self.crossing}'.")
         need(not (self.sustain is not None and self.crossing == "first"),
              "--sustain applies to a sustained crossing; drop it or --crossing first.")
         need(0.0 < float(self.confidence) < 1.0, f"--confidence must lie in (0, 1), got {self.confidence}.")
         need(int(self.bootstrap) >= 100, f"--bootstrap needs at least 100 resamples, got {self.bootstrap}.")
         need(0 <= int(self.seed) < 2**32, f"--seed must be an integer in [0, 2**32 - 1], got {self.seed}.")
-        need(self.interval in stats.INTERVALS,
-             f"unknown --interval '{self.interval}'; choose one of {', '.join(stats.INTERVALS)}.")
+        need(self.interval == "auto" or self.interval in stats.INTERVALS,
+             f"unknown --interval '{self.interval}'; choose one of auto, {', '.join(stats.INTERVALS)}.")
         need(self.format in FORMATS, f"unknown log format '{self.format}'; choose one of {', '.join(FORMATS)}.")
         if self.source_frames is not None:
             frames = parse_frames(self.source_frames, "--source-frames")
@@ -165,6 +167,20 @@ def parse_threshold(threshold) -> tuple[float | None, float | None]:
             return None, _bounded(value, threshold, "--threshold", "percentage") / 100.0
         return _bounded(value, threshold, "--threshold", "number"), None
     return _bounded(float(threshold), threshold, "--threshold", "number"), None
+
+
+def parse_range(value) -> tuple[float, float] | None:
+    """``"0,500"`` or ``(0, 500)`` -> (0.0, 500.0): finite, low < high."""
+    if value is None:
+        return None
+    parts = value.split(",") if isinstance(value, str) else list(value)
+    try:
+        low, high = (float(x) for x in parts)
+    except (TypeError, ValueError):
+        raise UsageError(f"--value-range '{value}' is not LOW,HIGH (e.g. 0,500).") from None
+    if not (math.isfinite(low) and math.isfinite(high) and low < high):
+        raise UsageError(f"--value-range needs finite LOW < HIGH, got {low:g},{high:g}.")
+    return low, high
 
 
 def parse_frames(text, option: str = "--budget") -> float | None:
