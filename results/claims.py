@@ -506,7 +506,7 @@ def demo_sentence() -> str:
     machine = load(DEMO / "machine.json")
     source = _seeds(DEMO / "source")[0]
     success = load(source / "summary.json")["final_eval"]["success_rate"]
-    lo, hi = r["metrics"][f"{PRIMARY}_ci"]
+    ci = r["metrics"].get(f"{PRIMARY}_ci")
     install = ""
     if "install_s" in machine:
         total = (machine["install_s"] + machine["wall_s"]) / 60
@@ -517,9 +517,10 @@ def demo_sentence() -> str:
             f"CPU-minutes (about {machine['cpu_s'] / 60 / machine['cores']:.1f} minutes on {machine['cores']} free "
             f"cores).{install} "
             f"Its one source run ends at a success rate of {success:.2f} on the source task. Another machine "
-            f"follows another floating-point stream and trains another source: the interval (half-width "
-            f"{(hi - lo) / 2:.2f}) covers the spread of target training from this source only, so a rerun's gain may "
-            "move further, with the quality of its source.\n")
+            "follows another floating-point stream and trains another source: "
+            + (f"the interval (half-width {(ci[1] - ci[0]) / 2:.2f}) covers" if ci else "the seeds measure")
+            + " the spread of target training from this source only, so a rerun's gain may move further, with the "
+            "quality of its source.\n")
 
 
 # ------------------------------------------------------------------------------------ registries
@@ -898,24 +899,23 @@ def _ends(report: dict) -> str:
     return text + ")"
 
 
-TUNED_ON = {
-    "demonstrations-reference": ("the placement reference's recipe (measurements/place-reference-ln-half-noisy)",
-                                 {0, 100, 200}),
-    "lift-demonstrations-variants": ("the Lift cloning defaults (lift-demonstrations-variants)", {0}),
+RECIPES = {
+    "demonstrations-reference": "the placement reference's recipe (measurements/place-reference-ln-half-noisy)",
+    "lift-demonstrations-variants": "the Lift cloning defaults (lift-demonstrations-variants)",
 }
-"""Recipes chosen after seeing runs: what was chosen, and on which seeds."""
+"""Recipes chosen after seeing runs, by the result names that use them; the seeds come from the runs' configs
+(``tuned_on``), through the report (``settings.tuned_on``)."""
 
 
 def _tuned(name: str, report: dict) -> str:
     """A clause naming the seeds of ``report`` that also chose its recipe (none: empty)."""
-    for prefix, (what, seeds) in TUNED_ON.items():
-        if name.startswith(prefix):
-            shared = sorted(seeds & {r["seed"] for r in report["per_seed"]["transfer"]})
-            if shared:
-                return (f"; {what}: chosen on seed{'s' if len(shared) > 1 else ''} "
-                        f"{', '.join(map(str, shared))}, which {'are' if len(shared) > 1 else 'is'} reported here "
-                        "too (tuned on the seeds it reports, not a fresh-seed result)")
-    return ""
+    shared = (report["settings"].get("tuned_on") or {}).get("transfer") or []
+    if not shared:
+        return ""
+    what = next((w for prefix, w in RECIPES.items() if name.startswith(prefix)), "its recipe")
+    return (f"; {what}: chosen on seed{'s' if len(shared) > 1 else ''} {', '.join(map(str, shared))}, which "
+            f"{'are' if len(shared) > 1 else 'is'} reported here too (tuned on the seeds it reports, not a "
+            "fresh-seed result)")
 
 
 def manipulation_rows() -> str:

@@ -20,7 +20,7 @@ for pair in fourrooms-near fourrooms-far; do
   for k in 2 4; do
     $DRLTG report --baseline "results/sweep-fourrooms-graded/$pair/sac/model-reuse/transfer" \
       --transfer "$OUT/$pair/soc/soc.num_options=$k/model-reuse/transfer" \
-      --baseline-label "SAC + model reuse" --transfer-label "SOC K=$k + model reuse" --threshold 0.5 \
+      --baseline-label "SAC + model reuse" --transfer-label "SOC K=$k + model reuse" --threshold 0.5 --allow-mismatch \
       --out "$OUT/head-to-head/$pair-k$k" > /dev/null
     rm -f "$OUT/head-to-head/$pair-k$k/transfer_plot.svg"
   done

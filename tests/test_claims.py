@@ -182,8 +182,8 @@ def test_a_changed_number_changes_the_sentences(tmp_path):
     changed.write_text(json.dumps(data))
     order = ["model-reuse", "value-shaping", "policy-reuse", "reward-shaping"]
     before, after = g.sweep_verdicts(g.GRADED, order), g.sweep_verdicts(tmp_path, order)
-    assert "near +1.08 [+0.91, +1.24]: no verdict at 5 pairs (the exact test's p = 1 after Holm)" in before
-    assert "near +1.08 [\u22120.20, +2.30]: no evidence of a difference at this budget" in after
+    assert "near +1.08 [\u22120.75, +2.00]: no verdict at 5 pairs; about 20 would decide it" in before
+    assert "near +1.08 [\u22120.20, +2.30]: no verdict at 5 pairs; about 20 would decide it" in after
 
 
 def test_the_registry_tables_list_every_builtin_task_method_and_key():
@@ -379,11 +379,12 @@ def test_the_shaping_stages_sentence_averages_each_side_over_its_seeds(tmp_path,
 
 def test_a_recipe_reported_on_the_seeds_that_chose_it_says_so():
     g = generator()
-    ran = {"per_seed": {"transfer": [{"seed": 0}, {"seed": 100}, {"seed": 300}]}}
+    ran = {"settings": {"tuned_on": {"baseline": [], "transfer": [0, 100]}}}  # the report's reading of tuned_on
     said = g._tuned("demonstrations-reference-place", ran)
-    assert "chosen on seeds 0, 100, which are reported here too" in said and "not a fresh-seed result" in said
-    assert g._tuned("demonstrations-reference-place", {"per_seed": {"transfer": [{"seed": 7}]}}) == ""
-    assert g._tuned("model-reuse-place", ran) == ""
+    assert said == ("; the placement reference's recipe (measurements/place-reference-ln-half-noisy): chosen on seeds "
+                    "0, 100, which are reported here too (tuned on the seeds it reports, not a fresh-seed result)")
+    assert g._tuned("demonstrations-reference-place", {"settings": {"tuned_on": {"transfer": []}}}) == ""
+    assert g._tuned("model-reuse-place", ran).startswith("; its recipe: chosen on seeds 0, 100")
 
 
 def test_a_frame_0_jumpstart_gone_by_the_next_evaluation_is_said_to_be_one(monkeypatch):
@@ -422,8 +423,9 @@ def test_a_betting_interval_holds_0_and_says_how_many_seeds_would_decide():
               "settings": {"paired": True, "interval_method": "auto", "value_range": [0, 1]}, "per_seed": rows}
     # 7 pairs like these reach p = 2 / 1.75^7 < 0.05 (and a sign-flip test of 7 pairs can: 2/128)
     assert cl.betting_seeds([0.0] * 3, [1.0] * 3, (0, 1), paired=True) == 7
-    assert cl.verdict_of(ranged, "mean_return_gain") == ("+1.00 [\u22120.20, +1.00]: no verdict at 3 pairs; about 7 "
-                                                         "would decide it if further seeds scored like these (estimate)")
+    assert cl.verdict_of(ranged, "mean_return_gain") == (
+        "+1.00 [\u22120.20, +1.00]: no verdict at 3 pairs; about 7 would decide it if further seeds scored like these "
+        "(estimate)")
     unknown = {**ranged, "metrics": {k: v for k, v in ranged["metrics"].items() if not k.endswith("_ci")},
                "settings": {**ranged["settings"], "value_range": None}}
     assert cl.verdict_of(unknown, "mean_return_gain") == (

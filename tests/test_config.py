@@ -342,7 +342,8 @@ def test_dump_then_load_gives_the_same_config(tmp_path):
     again = config_lib.resolve(config_lib.load_yaml(path))
     assert again == cfg and config_lib.dump(again) == config_lib.dump(cfg)
     assert config_lib.build(yaml.safe_load(config_lib.dump(cfg))) == cfg
-    assert list(yaml.safe_load(config_lib.dump(cfg))) == ["task", "algo", "seed", "frames", "device", "threads", "env",
+    assert list(yaml.safe_load(config_lib.dump(cfg))) == ["task", "algo", "seed", "frames", "device", "threads",
+                                                          "tuned_on", "env",
                                                           "collector", "buffer", "optim", "network", "sac", "td3",
                                                           "soc", "eval", "checkpoint", "log", "transfer"]
     assert pickle.loads(pickle.dumps(cfg)) == cfg  # a config goes to worker processes as its values

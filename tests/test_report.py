@@ -703,13 +703,14 @@ def test_the_analysis_package_imports_no_torch():
 
 def test_a_report_on_run_directories_imports_no_torch(tmp_path):
     """The committed runs' configs differ in the method options they hold (saved as methods were added):
-    the built-in defaults fill them in without importing the methods, the task registry or torch."""
+    the built-in defaults fill them in without importing the methods or torch (the task registry, read for the
+    runs' return range, imports none)."""
     cell = RESULTS / "sweep-fourrooms-graded" / "fourrooms-near" / "sac"
     argv = ["report", "--baseline", str(cell / "baseline"), "--transfer", str(cell / "value-shaping" / "transfer"),
             "--threshold", "0.5", "--out", str(tmp_path / "out")]
     code = ("import sys\nfrom drltg.cli import main\n"
             f"assert main({argv!r}) == 0\n"
-            f"leaked = [m for m in {NO_TORCH!r} if m in sys.modules]\nassert not leaked, leaked")
+            f"leaked = [m for m in {('torch', 'drltg.transfer')!r} if m in sys.modules]\nassert not leaked, leaked")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     assert json.loads((tmp_path / "out" / "transfer_metrics.json").read_text())["metrics"]["n_seeds_baseline"] == 5
@@ -782,6 +783,32 @@ def test_the_default_interval_is_a_betting_interval_within_the_range_and_none_wi
     for bad in ("1,0", "0", "a,b", "0,inf"):
         with pytest.raises(UsageError, match="--value-range"):
             report.compute(b, t, value_range=bad)
+
+
+def test_drltg_runs_bound_their_returns_by_the_range_their_task_declares():
+    from drltg.envs.registry import TASKS
+
+    assert TASKS["fourrooms/northeast"].return_range() == (-1.0, 1.0)  # 100 steps at 0.01, or the goal's +1
+    assert TASKS["gridrooms/northeast"].return_range({"horizon": 200, "step_cost": 0.02}) == (-4.0, 1.0)
+    assert TASKS["lift-place-seed"].return_range() == (0.0, 500.0)  # at most 1 a step for 500 steps
+    assert TASKS["pendulum/g15"].return_range()[0] == pytest.approx(-(np.pi ** 2 + 6.4 + 0.004) * 200)
+
+    def runs(side, values, **env):
+        config = {"task": "fourrooms/northeast", "env": env}
+        return [Curve((0, 10, 20), [v] * 3, f"{side}/seed-{i}/eval.csv", f"{side}{i}", config={"seed": i, **config})
+                for i, v in enumerate(values)]
+
+    b, t = runs("b", [-1.0, -0.8, -0.9]), runs("t", [0.5, 0.6, -1.0000001])  # float32 round-off of -1 is inside
+    st = report.compute(b, t)["settings"]
+    assert st["value_range"] == [-1.0, 1.0] and "[-1, 1] alone" in st["interval"]
+    longer = report.compute(runs("b", [-1.5, -0.8, -0.9], horizon=150), runs("t", [0.5, 0.6, 0.7], horizon=150))
+    assert longer["settings"]["value_range"] == [-1.5, 1.0]
+    foreign = report.compute(flat([0.0, 0.1, 0.2], seeds=[0, 1, 2], prefix="b"), flat([1.0, 2.0, 3.0], seeds=[0, 1, 2],
+                                                                                   prefix="t"))
+    assert foreign["settings"]["value_range"] is None  # no task to ask: no interval (see the warnings)
+    outside = report.compute(runs("b", [-1.0, -0.8, -0.9]), runs("t", [0.5, 0.6, 1.5]))  # a shaped return, say
+    assert outside["settings"]["value_range"] is None
+    assert any("has values outside [-1, 1]" in w for w in outside["settings"]["warnings"])
 
 
 def test_convergence_needs_the_equivalence_test():

@@ -212,6 +212,8 @@ def betting_p(x, means, alpha: float = 0.05, c: float = 0.75) -> Array:
     return np.minimum(1.0, np.exp(np.log(2.0) - log_wealth))
 
 
+RANGE_TOLERANCE = 1e-6
+"""How far, as a share of the range, a score may stray outside it and count as round-off (curves are float32)."""
 BETTING_GRID = np.linspace(0.0, 1.0, 2001)
 """The means a betting interval is tested at; its ends are widened to the next point out."""
 
@@ -229,8 +231,9 @@ def _betting_mean(x: Array, alpha: float) -> tuple[Array, Array, Array]:
 
 
 def _unit(x: Array, low: float, high: float) -> Array:
+    """Scores mapped from [low, high] to [0, 1]; round-off of float32 logs (1e-6 of the range) is clipped."""
     x = (x - low) / (high - low)
-    if np.any(x < -1e-9) or np.any(x > 1 + 1e-9):
+    if np.any(x < -RANGE_TOLERANCE) or np.any(x > 1 + RANGE_TOLERANCE):
         raise ValueError(f"a score lies outside the value range [{low:g}, {high:g}]")
     return np.clip(x, 0.0, 1.0)
 

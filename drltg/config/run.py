@@ -5,7 +5,7 @@ from __future__ import annotations
 import difflib
 import functools
 import re
-from typing import Any, Literal, Optional
+from typing import Annotated, Any, Literal, Optional
 
 from pydantic import (
     BaseModel,
@@ -93,6 +93,9 @@ class RunConfig(Section):
     device: Str = Field("cpu", description="torch device",
                         json_schema_extra=_what("a torch device such as cpu, cuda or cuda:0"))
     threads: Int = Field(1, ge=1, le=MAX_THREADS, description="CPU threads per run")  # small nets are overhead-bound
+    tuned_on: list[Annotated[Int, Field(ge=0)]] = Field(
+        [], description="seeds whose results chose this recipe; a report that reads any of them says so",
+        json_schema_extra=_what("a list of seeds (e.g. [0, 100])"))
     env: dict[Str, Any] = Field(default_factory=dict, description=ENV_HELP,
                                 json_schema_extra=_what("a mapping of the task's keyword arguments (e.g. "
                                                         "env.horizon=200)"))

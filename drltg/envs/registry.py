@@ -20,6 +20,7 @@ import functools
 import importlib
 import importlib.util
 import inspect
+import math
 import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,6 +45,18 @@ class TaskSpec:
     train: dict[str, Any] = field(default_factory=dict)
     potential: Callable[[dict[str, Any]], Callable] | None = None
     """``potential(env_options)`` builds the task's shaping potential (``drltg.transforms.PotentialShaping``)."""
+    returns: Callable[[dict[str, Any]], tuple[float, float]] | None = None
+    """``returns(options)``: the range every episode's return lies in, from the factory's keywords (a report
+    bounds its intervals by it: ``drltg.analysis.stats.betting_interval``)."""
+
+    def return_range(self, env_options: dict[str, Any] | None = None) -> tuple[float, float] | None:
+        """The range of an episode's return with these env options (the factory's and the task's defaults
+        under them); ``None`` where the task does not declare one."""
+        if self.returns is None:
+            return None
+        declared = {k: v for k, v in self.keywords()[0].items() if v is not inspect.Parameter.empty}
+        low, high = self.returns({**declared, **self.defaults, **(env_options or {})})
+        return float(low), float(high)
 
     @property
     def factory(self) -> Callable[..., EnvBase]:
@@ -163,18 +176,20 @@ def register_task(
     *,
     train: dict[str, Any] | None = None,
     potential: Callable[[dict[str, Any]], Callable] | None = None,
+    returns: Callable[[dict[str, Any]], tuple[float, float]] | None = None,
     replace: bool = False,
     **defaults,
 ) -> TaskSpec:
     """Registers a task; ``factory`` is a callable or ``"module:attr"`` (imported when the task is first
     built); ``defaults`` are keyword arguments of ``factory``, ``train`` config overrides,
-    ``potential(env_options)`` builds its reward-shaping potential. ``replace=True`` redefines a
+    ``potential(env_options)`` builds its reward-shaping potential, ``returns(options)`` gives the range of an
+    episode's return (:attr:`TaskSpec.returns`). ``replace=True`` redefines a
     registered task (a notebook cell run twice)."""
     if dict.__contains__(TASKS, name) and not replace:
         raise UsageError(f"task {name!r} is already registered; pass replace=True to redefine it.")
     if isinstance(factory, str) and not all(factory.partition(":")[::2]):
         raise UsageError(f"task {name!r}: a factory named by a string is 'module:attr', got {factory!r}.")
-    spec = TaskSpec(name, factory, description, dict(defaults), dict(train or {}), potential)
+    spec = TaskSpec(name, factory, description, dict(defaults), dict(train or {}), potential, returns)
     TASKS[name] = spec
     for hook in ON_REGISTER:
         hook(spec)
@@ -247,6 +262,11 @@ ROOMS_TRAIN = {"sac": {"alpha_init": 0.01}, "network": {"hidden": [64, 64]}}
 GRID_TRAIN = {**ROOMS_TRAIN, "sac": {**ROOMS_TRAIN["sac"], "fixed_alpha": True}}
 
 
+def _rooms_returns(o: dict) -> tuple[float, float]:
+    """FourRooms: -step_cost on every step but the goal's, +1 there: from never reaching it to reaching it at once."""
+    return -o["step_cost"] * o["horizon"], 1.0
+
+
 def _named_potential(entry: str, option: str, options: dict[str, Any]):
     """The potential class (or factory) named ``"module:attr"``, imported on use, of ``options[option]``."""
     module, _, attr = entry.partition(":")
@@ -263,6 +283,7 @@ register_task(
     goal=(8.0, 8.0),
     step_cost=0.01,
     train=ROOMS_TRAIN,
+    returns=_rooms_returns,
     potential=_rooms_potential,
 )
 register_task(
@@ -272,6 +293,7 @@ register_task(
     goal=(8.0, 7.0),
     step_cost=0.01,
     train=ROOMS_TRAIN,
+    returns=_rooms_returns,
     potential=_rooms_potential,
 )
 register_task(
@@ -281,6 +303,7 @@ register_task(
     goal=(2.0, 2.0),
     step_cost=0.01,
     train=ROOMS_TRAIN,
+    returns=_rooms_returns,
     potential=_rooms_potential,
 )
 # Graded targets for the source goal (8, 8): shortest free path from the source goal through the
@@ -293,6 +316,7 @@ register_task(
     goal=(6.5, 6.5),
     step_cost=0.01,
     train=ROOMS_TRAIN,
+    returns=_rooms_returns,
     potential=_rooms_potential,
 )
 register_task(
@@ -302,6 +326,7 @@ register_task(
     goal=(8.0, 2.0),
     step_cost=0.01,
     train=ROOMS_TRAIN,
+    returns=_rooms_returns,
     potential=_rooms_potential,
 )
 register_task(
@@ -311,6 +336,7 @@ register_task(
     goal=(2.0, 8.0),
     step_cost=0.01,
     train=ROOMS_TRAIN,
+    returns=_rooms_returns,
     potential=_rooms_potential,
 )
 register_task(
@@ -320,6 +346,7 @@ register_task(
     goal=(3, 9),
     step_cost=0.01,
     train=GRID_TRAIN,
+    returns=_rooms_returns,
     potential=_grid_potential,
 )
 register_task(
@@ -329,6 +356,7 @@ register_task(
     goal=(4, 9),
     step_cost=0.01,
     train=GRID_TRAIN,
+    returns=_rooms_returns,
     potential=_grid_potential,
 )
 register_task(
@@ -338,6 +366,7 @@ register_task(
     goal=(9, 3),
     step_cost=0.01,
     train=GRID_TRAIN,
+    returns=_rooms_returns,
     potential=_grid_potential,
 )
 register_pair(
@@ -387,6 +416,11 @@ register_pair(
 # robosuite manipulation (drltg.envs.robosuite; robosuite is imported only when a task is built).
 # SAC settings known to work on Lift: replay 1e6, batch 256, 2x256 nets, lr 3e-4, one update per frame
 # (Stable-Baselines3's SAC defaults; results/README.md's lift-dense study found none better at 30k frames).
+def _manipulation_returns(o: dict) -> tuple[float, float]:
+    """Every manipulation reward pays between 0 and ``reward_scale`` (1) per step."""
+    return 0.0, o["horizon"] * (1.0 if o.get("reward_scale") is None else o["reward_scale"])
+
+
 ROBOSUITE_TRAIN = {
     "buffer": {"size": 1_000_000, "batch_size": 256},
     "network": {"hidden": [256, 256]},
@@ -405,6 +439,7 @@ register_task(
     "robosuite Lift: the Panda lifts the cube 4 cm (reward 1 per lifted step), horizon 500",
     task="lift",
     train=ROBOSUITE_TRAIN,
+    returns=_manipulation_returns,
     potential=_manipulation_potential,
 )
 register_task(
@@ -413,6 +448,7 @@ register_task(
     "lift the cube and set it down on the green target disc 0.32 m away, horizon 500",
     task="lift-place",
     train=ROBOSUITE_TRAIN,
+    returns=_manipulation_returns,
     potential=_manipulation_potential,
 )
 register_task(
@@ -421,6 +457,7 @@ register_task(
     "lift-place with a heavy 7 cm wall between cube and target (pushing cannot work), horizon 500",
     task="lift-place-barrier",
     train=ROBOSUITE_TRAIN,
+    returns=_manipulation_returns,
     potential=_manipulation_potential,
 )
 register_task(
@@ -430,6 +467,7 @@ register_task(
     task="lift",
     reward_shaping=True,
     train=ROBOSUITE_TRAIN,
+    returns=_manipulation_returns,
 )
 # The earlier implementation's place reward (drltg.envs.robosuite.tasks.SeedReward) on drltg's scenes: dense
 # stages plus a contact bonus that pays pushing like placing; success stays drltg's strict check.
@@ -440,6 +478,7 @@ register_task(
     "horizon 500",
     task="lift-place-seed",
     train=ROBOSUITE_TRAIN,
+    returns=_manipulation_returns,
 )
 register_task(
     "lift-place-barrier-seed",
@@ -447,6 +486,7 @@ register_task(
     "lift-place-barrier with the earlier implementation's dense reward (contact pays 1), horizon 500",
     task="lift-place-barrier-seed",
     train=ROBOSUITE_TRAIN,
+    returns=_manipulation_returns,
 )
 register_pair("lift-to-place", "lift", "lift-place", "lifting skills reused to lift and place")
 register_pair("lift-to-place-barrier", "lift", "lift-place-barrier", "lifting reused where pushing cannot work")
@@ -473,9 +513,14 @@ PENDULUM_TRAIN = {
     "checkpoint": {"every": 5000},
 }
 
+def _pendulum_returns(o: dict) -> tuple[float, float]:
+    """Pendulum-v1 costs theta^2 + 0.1 thetadot^2 + 0.001 u^2 per step, at most pi^2 + 0.1 * 8^2 + 0.001 * 2^2."""
+    return -(math.pi ** 2 + 6.4 + 0.004) * o.get("max_episode_steps", 200), 0.0
+
+
 _GYM = "drltg.envs.gym:make_gym_env"  # drltg.envs.gym.register_gym_task's factory
 register_task("pendulum/g10", _GYM, "Gymnasium Pendulum-v1, gravity g = 10 (its default)",
-              gym_id="Pendulum-v1", g=10.0, train=PENDULUM_TRAIN)
+              gym_id="Pendulum-v1", g=10.0, train=PENDULUM_TRAIN, returns=_pendulum_returns)
 register_task("pendulum/g15", _GYM, "Gymnasium Pendulum-v1, gravity g = 15: a heavier swing-up",
-              gym_id="Pendulum-v1", g=15.0, train=PENDULUM_TRAIN)
+              gym_id="Pendulum-v1", g=15.0, train=PENDULUM_TRAIN, returns=_pendulum_returns)
 register_pair("pendulum-heavier", "pendulum/g10", "pendulum/g15", "Pendulum's gravity rises from 10 to 15")

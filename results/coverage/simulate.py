@@ -2,6 +2,7 @@
 
     python results/coverage/simulate.py [--experiments 4000] > results/coverage/README.md   # a few minutes
     python results/coverage/simulate.py --learn-or-not > results/coverage/learn-or-not.md
+    python results/coverage/simulate.py --power > results/coverage/power.md
 
 Each simulated experiment draws per-seed scores for a baseline and a transfer side whose true
 difference is known, builds the interval the report would build, and counts whether it holds the
@@ -153,6 +154,26 @@ def poi_coverage(shape, design, n, experiments, seed) -> tuple[float, float, flo
     return covered(lo, hi, truth), float(lo.min()), float(hi.max())
 
 
+RANGES = {"rate": (0.0, 1.0), **dict.fromkeys(LEARN, (0.0, 1.0))}
+"""The shapes whose range a report knows (a rate's, a success rate's): the default interval is a betting
+interval there; the others' range is unknown, so the default withholds the interval."""
+
+
+def default_coverage(shape, design, n, experiments, seed) -> tuple[str, str, str]:
+    """The report's default (``--interval auto``): (coverage of the betting interval, share of experiments
+    without any effect in which it excludes 0, share of experiments with the effect in which it does), or
+    ("withheld", "none", "none") where the range is unknown."""
+    if shape not in RANGES:
+        return "withheld", "none", "none"
+    paired = design == "paired"
+    b, t, truth = draw(shape, design, n, experiments, np.random.default_rng(seed))
+    lo, hi, _ = stats.betting_interval(b, t, RANGES[shape], paired)
+    b, t, _ = draw(shape, design, n, experiments, np.random.default_rng(seed + 7), null=True)
+    lo0, hi0, _ = stats.betting_interval(b, t, RANGES[shape], paired)
+    return (f"{covered(lo, hi, truth):.3f}", f"{((lo0 > 0) | (hi0 < 0)).mean():.3f}",
+            f"{((lo > 0) | (hi < 0)).mean():.3f}")
+
+
 def false_positives(shape, design, n, experiments, seed) -> tuple[float, float]:
     """Where transfer changes nothing: the share of experiments whose mean difference's p_value (the t
     test, or the exact permutation test where the scores look skewed or bimodal) and whose P(T > B)
@@ -195,15 +216,17 @@ def _bootstrap_note(name: str, t: float, boot_t: float, bca: float) -> str:
 def table(experiments: int, seed: int = 0, shapes=SHAPES) -> str:
     slow = max(experiments // 4, 200)
     lines = [
-        "| scores | design | seeds | mean difference (t) | transfer_ratio (Fieller; share without one) | "
+        "| scores | design | seeds | default (auto): betting or withheld | false claims: default | power: default | "
+        "mean difference (t) | transfer_ratio (Fieller; share without one) | "
         "P(T > B) | false positives: mean difference | false positives: P(T > B) | not default: bootstrap-t | "
         "not default: BCa |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     short = []
     for shape in shapes:
         for design in DESIGNS:
             for n in SEEDS:
+                auto, auto_fp, auto_power = default_coverage(shape, design, n, experiments, seed)
                 cov, biggest, boot_t, bca = difference_coverage(shape, design, n, experiments, seed)
                 ratio, nulls = ratio_coverage(shape, design, n, slow, seed)
                 poi, low, high = poi_coverage(shape, design, n, slow, seed)
@@ -214,19 +237,44 @@ def table(experiments: int, seed: int = 0, shapes=SHAPES) -> str:
                     if not value >= TARGET:
                         short.append(f"- {name}: {value:.3f} ({where} seeds): {REASONS[shape]}"
                                      + _bootstrap_note(name, cov, boot_t, bca))
-                lines.append(f"| {shape} | {design} | {n} | {cov:.3f} | {ratio:.3f} ({nulls:.0%}) | {poi:.3f} | "
-                             f"{fp_mean:.3f} | {fp_poi:.3f} | {boot_t:.3f} | {bca:.3f} |")
+                lines.append(f"| {shape} | {design} | {n} | {auto} | {auto_fp} | {auto_power} | {cov:.3f} | "
+                             f"{ratio:.3f} ({nulls:.0%}) | {poi:.3f} | {fp_mean:.3f} | {fp_poi:.3f} | {boot_t:.3f} | "
+                             f"{bca:.3f} |")
                 if shape == "rate":
                     assert biggest <= 1.0 and 0.0 <= low and high <= 1.0  # the ranges the report promises
     below = "\n".join(short) or "- none"
-    return "\n".join(lines) + f"\n\nBelow {TARGET} (the level each default interval is held to):\n\n" + below + "\n"
+    return ("\n".join(lines) + f"\n\nBelow {TARGET} (the level each interval is held to), of t and Fieller's "
+            "(`--interval t`):\n\n" + below + "\n")
+
+
+def power_table(experiments: int = 300, seed: int = 3) -> str:
+    """How often the default (betting) interval excludes 0 on learn-or-not scores with the effect, by seeds."""
+    lines = ["| seeds | " + " | ".join(f"{shape} {design}" for shape in LEARN for design in DESIGNS) + " |",
+             "|---|" + "---|" * (len(LEARN) * len(DESIGNS))]
+    for n in (5, 10, 15, 20, 30):
+        cells = []
+        for shape in LEARN:
+            for design in DESIGNS:
+                b, t, _ = draw(shape, design, n, experiments, np.random.default_rng(seed))
+                lo, hi, _ = stats.betting_interval(b, t, RANGES[shape], design == "paired")
+                cells.append(f"{((lo > 0) | (hi < 0)).mean():.2f}")
+        lines.append(f"| {n} | " + " | ".join(cells) + " |")
+    return ("# Power of the default interval on learn-or-not scores\n\n"
+            f"Made by `python results/coverage/simulate.py --power` ({experiments} experiments a cell, seeded): the "
+            "share of experiments in which the betting interval excludes 0 where transfer has the effect of "
+            "results/coverage/learn-or-not.md (the baseline never learns; a transfer seed learns with probability "
+            "0.5 or 0.8). It holds its level for any scores, and pays for it in seeds.\n\n" + "\n".join(lines) + "\n")
 
 
 HEADER = """# {title}
 
 Made by `python results/coverage/simulate.py{flags} --experiments {experiments}` ({seconds:.0f} s on this machine;
-seeded, so the same command prints the same table). Coverage of the report's default 95% intervals:
-the share of simulated experiments whose interval holds the true value ({experiments} experiments per cell
+seeded, so the same command prints the same table). Coverage of the report's 95% intervals: the share of
+simulated experiments whose interval holds the true value. The default (`--interval auto`) is a betting
+interval where the scores' range is known (rates: [0, 1]) and no interval where it is not; `--interval t`
+gives the t interval, Fieller's for the ratio, as the next columns measure them. Power: the share of
+experiments with the effect in which the default interval excludes 0 (it is wide: with 6 pairs or fewer it
+never does) ({experiments} experiments per cell
 for the mean difference, {slow} for the others: standard errors about {se_fast:.3f} and {se_slow:.3f} near 0.95).
 False positives: the share of experiments without any effect in which the report's p_value is below 0.05
 ({slow} experiments: standard error about {se_fp:.3f} near 0.05). The score shapes are those of the
@@ -241,7 +289,12 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--learn-or-not", action="store_true", help="the learn-or-not shapes (results/coverage/"
                         "learn-or-not.md), which the report's coverage claim does not name")
+    parser.add_argument("--power", action="store_true", help="the default interval's power on learn-or-not "
+                        "scores at 5 to 30 seeds (results/coverage/power.md)")
     args = parser.parse_args()
+    if args.power:
+        print(power_table(), end="")
+        return
     start = time.perf_counter()
     body = table(args.experiments, args.seed, tuple(LEARN) if args.learn_or_not else SHAPES)
     slow = max(args.experiments // 4, 200)

@@ -11,6 +11,7 @@ import numpy as np
 
 from drltg import safe_yaml
 from drltg.analysis import metrics as M
+from drltg.analysis import stats
 from drltg.analysis.curves import Curve
 from drltg.analysis.report.checks import Sides, run_name
 from drltg.analysis.report.settings import MAX_LENGTH_RATIO, ReportSettings, parse_frames, parse_threshold
@@ -67,18 +68,38 @@ def align(sides: Sides, s: ReportSettings, warnings: list[str]) -> Window:
 
 
 def _value_range(runs: Sequence[Curve], s: ReportSettings, warnings: list[str]) -> tuple[float, float] | None:
-    """``value_range`` as given, else [0, 1] for a rate (``RATE_SUFFIX``); ``None`` when unbounded, or when
-    a run's values leave the range (then a warning names it)."""
+    """``value_range`` as given, else [0, 1] for a rate (``RATE_SUFFIX``), else the return range the runs' task
+    declares for their env options (drltg runs' returns: :meth:`TaskSpec.return_range`); ``None`` when unknown, or
+    when a run's values leave the range (then a warning names it)."""
     given = s.value_range
-    if given is None and not (s.tag and str(s.tag).split("/")[-1].endswith(RATE_SUFFIX)):
+    if given is None and s.tag and str(s.tag).split("/")[-1].endswith(RATE_SUFFIX):
+        given = (0.0, 1.0)
+    if given is None and s.tag in (None, "return_mean"):
+        given = _task_returns(runs)
+    if given is None:
         return None
-    lo, hi = (0.0, 1.0) if given is None else (float(given[0]), float(given[1]))
-    outside = next((c for c in runs if c.values.min() < lo or c.values.max() > hi), None)
+    lo, hi = float(given[0]), float(given[1])
+    tol = stats.RANGE_TOLERANCE * (hi - lo)
+    outside = next((c for c in runs if c.values.min() < lo - tol or c.values.max() > hi + tol), None)
     if outside is not None:
         warnings.append(f"{run_name(outside)} has values outside [{lo:g}, {hi:g}], so the intervals are not "
                         "bounded to that range.")
         return None
     return lo, hi
+
+
+def _task_returns(runs: Sequence[Curve]) -> tuple[float, float] | None:
+    """The one return range every run's task declares for its env options (``None`` for a foreign log, a task
+    this process does not know, or runs whose ranges differ)."""
+    from drltg.envs.registry import TASKS
+
+    ranges = set()
+    for c in runs:
+        task = (c.config or {}).get("task")
+        if not c.source.name == "eval.csv" or task not in TASKS:
+            return None
+        ranges.add(TASKS[task].return_range((c.config or {}).get("env")))
+    return ranges.pop() if len(ranges) == 1 else None
 
 
 def _spacing(c: Curve, start: float, budget: float) -> float | None:

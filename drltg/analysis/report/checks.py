@@ -51,7 +51,19 @@ def check_runs(baseline: Sequence[Curve], transfer: Sequence[Curve], s: ReportSe
         _check_configs(side, runs, bool(s.allow_mixed), warnings)
     _check_sides(baseline, transfer, bool(s.allow_mismatch), warnings)
     paired, pairing, transfer = _pairing(baseline, transfer, s.paired)
+    for side, runs in (("baseline", baseline), ("transfer", transfer)):
+        seeds = tuned_on(runs)
+        if seeds:
+            warnings.append(f"the {side} runs' recipe was chosen on seed{'s' if len(seeds) > 1 else ''} "
+                            f"{', '.join(map(str, seeds))} (their config's tuned_on), which this report reads: a "
+                            "result tuned on the seeds it reports, not a fresh-seed one.")
     return Sides(baseline, transfer, task, paired, pairing)
+
+
+def tuned_on(runs: Sequence[Curve]) -> list[int]:
+    """The seeds of ``runs`` that also chose their recipe (``tuned_on`` in the runs' configs)."""
+    chosen = {int(x) for c in runs for x in ((c.config or {}).get("tuned_on") or ())}
+    return sorted(chosen & {int(c.config["seed"]) for c in runs if (c.config or {}).get("seed") is not None})
 
 
 def run_name(curve: Curve) -> str:
@@ -163,7 +175,7 @@ def _check_configs(side: str, curves: Sequence[Curve], allow_mixed: bool, warnin
                         "does not load).")
 
 
-PER_RUN = ("seed", "device", "threads", "log", "checkpoint", "transfer")
+PER_RUN = ("seed", "device", "threads", "log", "checkpoint", "transfer", "tuned_on")
 """Config sections and keys that do not change what a curve means (``transfer`` is what the report compares)."""
 
 

@@ -12,7 +12,7 @@ from drltg.analysis import metrics as M
 from drltg.analysis import stats
 from drltg.analysis.curves import Curve
 from drltg.analysis.report.align import Window, eval_grid, on_grid
-from drltg.analysis.report.checks import Sides
+from drltg.analysis.report.checks import Sides, tuned_on
 from drltg.analysis.report.inference import UNBOUNDED, family_of, is_missing, num
 from drltg.analysis.report.settings import MIN_SEEDS, PLOT_POINTS, ReportSettings
 
@@ -35,6 +35,8 @@ def describe(s: ReportSettings, sides: Sides, w: Window, trends: dict, warnings:
         "budget_source": w.budget_source,
         "paired": sides.paired,
         "pairing": sides.pairing,
+        "tuned_on": {side: tuned_on(runs) for side, runs in (("baseline", sides.baseline),
+                                                             ("transfer", sides.transfer))},
         "jumpstart_window": int(s.jumpstart_window),
         "asymptote_window": float(s.asymptote_window),
         "asymptote_frames": [num(lo), num(hi)],
@@ -61,6 +63,9 @@ def describe(s: ReportSettings, sides: Sides, w: Window, trends: dict, warnings:
         "ratio_scale": w.scale,
         "interval": _interval_rule(s, sides.paired, w),
         "interval_method": s.interval,
+        "allow_mixed": bool(s.allow_mixed),
+        "allow_mismatch": bool(s.allow_mismatch),
+        "include_unfinished": bool(s.include_unfinished),
         "value_range": None if w.value_range is None else list(w.value_range),
         "p_values": _p_value_rule(sides.paired, s.interval),
         "family": {"size": len(family), "metrics": family, "adjustment": (

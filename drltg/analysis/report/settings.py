@@ -15,7 +15,7 @@ MAX_LENGTH_RATIO = 2.0  # longest / shortest run beyond which a default budget w
 PLOT_POINTS = 100  # the display line is smoothed to about this many evaluation windows
 MIN_SEEDS = 3  # fewer seeds on a side leave an interval without a usable spread estimate
 MIN_TREND_POINTS = 4  # a line through fewer points leaves under 2 degrees of freedom for its error
-CONFIG_KEYS_PER_RUN = ("seed", "frames", "device", "threads", "log", "checkpoint", "transfer.source")
+CONFIG_KEYS_PER_RUN = ("seed", "frames", "device", "threads", "log", "checkpoint", "transfer.source", "tuned_on")
 
 
 def _option(default, flag=None, group="metrics", **argparse_kwargs):
