@@ -70,6 +70,19 @@ def family(reports: dict, metric: str = PRIMARY) -> dict:
     return {k: cl.Adjusted(a, e, len(keys)) for k, a, e in zip(keys, t, exact)}
 
 
+def whole_family(reports: dict, metric: str = PRIMARY) -> dict:
+    """``metric`` of each report read in the family of every test the reports hold (each report's
+    ``settings.family``: all its metrics, trends included), Holm-adjusted together, the interval's tests and
+    apart the exact tests (:func:`drltg.analysis.claims.exact_p`)."""
+    keys = [(tag, k) for tag, r in reports.items() for k in (r["settings"].get("family") or {}).get("metrics", [])
+            if r["metrics"].get(f"{k}_p_value") is not None]
+    ms = [reports[tag]["metrics"] for tag, _ in keys]
+    t = stats.holm([m[f"{k}_p_value"] for m, (_, k) in zip(ms, keys)])
+    exact = stats.holm([m[f"{k}_p_value"] if cl.exact_p(m, k) is None else cl.exact_p(m, k)
+                        for m, (_, k) in zip(ms, keys)])
+    return {tag: cl.Adjusted(a, e, len(keys)) for (tag, k), a, e in zip(keys, t, exact) if k == metric}
+
+
 def said(report: dict, name: str = PRIMARY, p_adjusted: cl.Adjusted | None = None, **words) -> str:
     """The verdict sentence of metric ``name`` of a report: read alone (its exact test's own p-value) or in
     a family (``p_adjusted``, :func:`family`)."""
@@ -921,17 +934,20 @@ def _tuned(name: str, report: dict) -> str:
 def manipulation_rows() -> str:
     """One line per reported row, in the queue's order: the transfer side's gain over no transfer in mean
     success rate over the budget (the area under the curve per frame, paired by seed), and on the placing
-    targets in lifted rate; the two gains of a row are one family, Holm-adjusted. Where any seed holds the
+    targets in lifted rate; the gains are read in the family of every test of the row's reports, Holm-adjusted
+    (:func:`whole_family`). Where any seed holds the
     report's success threshold to the end (its sustained rule), how many on each side do."""
     lines, queue = [], _queue()[0]
     for row in queue:
         reports = {tag: r for tag in ("success", "lifted") if (r := _row_report(row, tag)) is not None}
         if "success" not in reports:
             continue
-        adjusted = family(reports)
+        adjusted = whole_family(reports)
         m, st = reports["success"]["metrics"], reports["success"]["settings"]
         gains = "; ".join(f"{tag} rate {said(r, PRIMARY, adjusted.get(tag))}{_ends(r)}"
                           for tag, r in reports.items())
+        size = next(iter(adjusted.values())).size if adjusted else 0
+        gains += f" (Holm over all {size} tests of its {len(reports)} report{'s' if len(reports) > 1 else ''})"
         held = {side: round(m[f"threshold_reached_{side}"] * m[f"n_seeds_{side}"]) for side in ("transfer", "baseline")}
         if any(held.values()):
             gains += (f"; success rate ≥ {st['threshold']:g} held to the end by {held['transfer']} of "
