@@ -78,10 +78,16 @@ class StepsToGoal(torch.nn.Module):
 
 TRAIN = {"sac": {"alpha_init": 0.01}, "network": {"hidden": [32, 32]}}
 
+
+def returns(options):
+    """-0.01 a step until the goal pays 1: from never reaching it in ``horizon`` steps to reaching it at once."""
+    return -0.01 * options["horizon"], 1.0
+
+
 register_task("line/right", LineWorld, "a point on [0, 1] reaches the goal at 0.9", goal=0.9, train=TRAIN,
-              potential=lambda options: StepsToGoal(options["goal"]), replace=True)
+              potential=lambda options: StepsToGoal(options["goal"]), returns=returns, replace=True)
 register_task("line/middle", LineWorld, "a point on [0, 1] reaches the goal at 0.6", goal=0.6, train=TRAIN,
-              potential=lambda options: StepsToGoal(options["goal"]), replace=True)
+              potential=lambda options: StepsToGoal(options["goal"]), returns=returns, replace=True)
 register_pair("line-shift", "line/right", "line/middle", "the goal moves from 0.9 to 0.6", replace=True)
 
 
