@@ -35,10 +35,10 @@ SEEDS = (1, 4, 8, 16)
 TASK = "fourrooms/northeast"
 
 
-def _command(args: list[str], run_dir: Path) -> float:
+def _command(args: list[str], run_dir: Path, task: str = TASK) -> float:
     env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": str(REPO)}
     start = time.perf_counter()
-    done = subprocess.run([sys.executable, "-m", "drltg.cli", "train", TASK, *args, "--run-dir", str(run_dir),
+    done = subprocess.run([sys.executable, "-m", "drltg.cli", "train", task, *args, "--run-dir", str(run_dir),
                            "--no-progress"], cwd=REPO, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - start
     if done.returncode:
@@ -85,6 +85,52 @@ def fourrooms(frames: int, rounds: int) -> dict:
     out["commands"] = {"group": f"drltg train {TASK} --seeds N --frames {frames}",
                        "separate": f"drltg train {TASK} --seed k --frames {frames}  (k = 0 .. N-1, one after another)"}
     return out
+
+
+LIFT_TASK = "lift-place-seed"
+LIFT_OPTIONS = ["-o", "collector.init_random_frames=500", "-o", "eval.every=1000000", "-o", "eval.episodes=1",
+                "-o", "checkpoint.every=1000000"]
+"""The study's task with its settings (1 update a frame, 2 envs a seed in worker processes), a short warm-up
+and one 1-episode evaluation at the end, so the loop's time is nearly all training."""
+
+
+def lift_runs(n: int, frames: int, rounds: int) -> dict:
+    """Whole ``drltg train lift-place-seed`` commands: ``--seeds n`` (one process, one vmapped update, each
+    seed's envs in worker processes) against ``n`` commands ``--seed k`` one after another, all on the cores
+    this process may use (pin it with ``taskset`` to measure one core). Loop frames/s: every seed's frames
+    over the training loop's time (summary.json), start-up excluded; command wall time with it."""
+    walls, loops = {"group": [], "separate": []}, {"group": [], "separate": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        for r in range(rounds):
+            for kind in ("group", "separate") if r % 2 == 0 else ("separate", "group"):
+                root = Path(tmp) / f"{kind}-{r}"
+                if kind == "group":
+                    walls[kind].append(_command(["--seeds", str(n), "--frames", str(frames), *LIFT_OPTIONS], root,
+                                                LIFT_TASK))
+                    loops[kind].append(_loop_seconds(root / "seed-0"))
+                else:
+                    dirs = [root / f"seed-{k}" for k in range(n)]
+                    walls[kind].append(sum(_command(["--seed", str(k), "--frames", str(frames), *LIFT_OPTIONS], d,
+                                                    LIFT_TASK) for k, d in enumerate(dirs)))
+                    loops[kind].append(sum(_loop_seconds(d) for d in dirs))
+    median = {kind: sorted(xs)[len(xs) // 2] for kind, xs in loops.items()}
+    wall = {kind: sorted(xs)[len(xs) // 2] for kind, xs in walls.items()}
+    return {
+        "seeds": n, "frames_per_seed": frames, "rounds": rounds, "cpus": len(os.sched_getaffinity(0)),
+        "loop_frames_per_s": {kind: round(n * frames / t, 1) for kind, t in median.items()},
+        "command_wall_s": {kind: round(t, 1) for kind, t in wall.items()},
+        "ratio_loop": round(median["separate"] / median["group"], 3),
+        "ratio_command_wall": round(wall["separate"] / wall["group"], 3),
+        "commands": {"group": f"drltg train {LIFT_TASK} --seeds {n} --frames {frames} {' '.join(LIFT_OPTIONS)}",
+                     "separate": f"drltg train {LIFT_TASK} --seed k --frames {frames} ... (k = 0 .. {n - 1})"},
+    }
+
+
+def run_lift(device: str = "cpu", quick: bool = False) -> dict:
+    if device != "cpu":
+        return {"missing": "the lift-seeds suite measures single-threaded CPU runs"}
+    return {"threads": 1, "lift": lift_runs(3, 1500 if quick else 3000, 1 if quick else 2),
+            "target": "a Lift-sized run >= 2x the frames per core of runs one after another"}
 
 
 def _separate_case(n: int, chunk: int):

@@ -947,7 +947,8 @@ def manipulation_rows() -> str:
         gains = "; ".join(f"{tag} rate {said(r, PRIMARY, adjusted.get(tag))}{_ends(r)}"
                           for tag, r in reports.items())
         size = next(iter(adjusted.values())).size if adjusted else 0
-        gains += f" (Holm over all {size} tests of its {len(reports)} report{'s' if len(reports) > 1 else ''})"
+        gains += (f" (Holm over all {size} test{'s' if size != 1 else ''} of its {len(reports)} "
+                  f"report{'s' if len(reports) > 1 else ''})")
         held = {side: round(m[f"threshold_reached_{side}"] * m[f"n_seeds_{side}"]) for side in ("transfer", "baseline")}
         if any(held.values()):
             gains += (f"; success rate ≥ {st['threshold']:g} held to the end by {held['transfer']} of "

@@ -269,11 +269,12 @@ def test_the_collapse_lines_count_where_each_unplaced_cube_ends(tmp_path, monkey
 
 
 def test_each_reported_row_gets_its_gains_holm_adjusted_within_the_row(tmp_path, monkeypatch):
-    """Two rows of the queue reported: pi-reuse-place, where no run placed and only the lifted rate has a
-    p-value (0.02, alone in its family), and model-reuse-place, whose p-values 0.03 and 0.04 become 0.06
-    and 0.06 under Holm (2 x 0.03, then the larger of that and 1 x 0.04), and where 2 of 3 transfer seeds
-    hold the success threshold; only pi-reuse-place's lifted rate differs at its ends (+1.00 at the first
-    evaluation, +0.20 at the last), so only its gain says where it comes from."""
+    """Two rows of the queue reported, each report with a jumpstart test beside its gain (p = 0.5), so a row's
+    family holds every test of its two reports: pi-reuse-place, where no run placed and the success gain has
+    no p-value, so the lifted gain's 0.02 is read among 3 tests (Holm: 3 x 0.02 = 0.06); model-reuse-place,
+    whose 0.03 and 0.04 are read among 4 (4 x 0.03, then the larger of that and 3 x 0.04: 0.12 both), and
+    where 2 of 3 transfer seeds hold the success threshold; only pi-reuse-place's lifted rate differs at its
+    ends (+1.00 at the first evaluation, +0.20 at the last), so only its gain says where it comes from."""
     from types import SimpleNamespace
 
     claims = generator()
@@ -289,9 +290,10 @@ def test_each_reported_row_gets_its_gains_holm_adjusted_within_the_row(tmp_path,
         metrics = {"mean_return_gain": value, "mean_return_gain_ci": ci, "mean_return_gain_p_value": p,
                    "n_seeds_transfer": 3, "n_seeds_baseline": 3, "total_reward_baseline": totals[0],
                    "total_reward_transfer": totals[1], "threshold_reached_baseline": reached[0],
-                   "threshold_reached_transfer": reached[1], "jumpstart": ends[0], "asymptotic_performance": ends[1]}
+                   "threshold_reached_transfer": reached[1], "jumpstart": ends[0], "asymptotic_performance": ends[1],
+                   "jumpstart_p_value": 0.5}
         settings = {"task": "lift-place", "transfer_label": method, "baseline_label": "no transfer", "budget": 100000,
-                    "threshold": 0.5, "asymptote_window": 0.1}
+                    "threshold": 0.5, "asymptote_window": 0.1, "family": {"metrics": ["mean_return_gain", "jumpstart"]}}
         (folder / "transfer_metrics.json").write_text(json.dumps({"metrics": metrics, "settings": settings}))
 
     put("pi-reuse-place", "policy-reuse", "success", 0.0, None, None, totals=(0.0, 0.0))
@@ -301,14 +303,16 @@ def test_each_reported_row_gets_its_gains_holm_adjusted_within_the_row(tmp_path,
     rows = len(claims._queue()[0])
     assert claims.manipulation_rows().splitlines() == [
         "- `pi-reuse-place` (lift-place, policy-reuse against no transfer, 3 paired seeds × 100k frames), mean gain "
-        "in success rate +0.00: no evidence of a difference at this budget; lifted rate +0.30 [+0.10, +0.50], higher "
-        "with transfer (at the first evaluation +1.00, over the last 10% of the budget +0.20); no run on either side "
+        "in success rate +0.00: no evidence of a difference at this budget; lifted rate +0.30 [+0.10, +0.50]: no "
+        "evidence of a difference at this budget after Holm's adjustment (adjusted p = 0.06) (at the first evaluation "
+        "+1.00, over the last 10% of the budget +0.20) (Holm over all 3 tests of its 2 reports); no run on either side "
         "placed a cube in any evaluation.",
         "- `model-reuse-place` (lift-place, model-reuse against no transfer, 3 paired seeds × 100k frames), mean gain "
         "in success rate +0.20 [+0.05, +0.35]: no evidence of a difference at this budget after Holm's adjustment "
-        "(adjusted p = 0.06); lifted rate +0.40 [+0.10, +0.70]: no evidence of a difference at this budget after "
-        "Holm's adjustment (adjusted p = 0.06); success rate ≥ 0.5 held to the end by 2 of 3 seeds with transfer and "
-        "0 of 3 without; no run without transfer placed a cube in any evaluation.",
+        "(adjusted p = 0.12); lifted rate +0.40 [+0.10, +0.70]: no evidence of a difference at this budget after "
+        "Holm's adjustment (adjusted p = 0.12) (Holm over all 4 tests of its 2 reports); success rate ≥ 0.5 held to "
+        "the end by 2 of 3 seeds with transfer and 0 of 3 without; no run without transfer placed a cube in any "
+        "evaluation.",
         f"{rows - 2} of the queue's {rows} rows are not complete yet (the runs finished so far are below).",
     ]
     shutil.rmtree(tmp_path / "pi-reuse-place")
@@ -431,3 +435,15 @@ def test_a_betting_interval_holds_0_and_says_how_many_seeds_would_decide():
     assert cl.verdict_of(unknown, "mean_return_gain") == (
         "+1.00: no interval without the curves' range (--value-range), so no verdict")
     assert cl.betting_seeds([0.5] * 3, [0.5] * 3, (0, 1), paired=True) is None  # alike: no number decides
+
+
+def test_best_under_the_betting_interval_says_how_many_pairs_would_decide():
+    def method(scores):  # reports read with --interval auto, returns in [0, 1]
+        return {"per_seed": {"transfer": [{"seed": s, "mean_return": v} for s, v in enumerate(scores)]},
+                "settings": {"interval_method": "auto", "value_range": [0, 1]}}
+
+    # A − B = 1 in each of 3 pairs: the betting interval holds 0 (3 pairs can multiply the wealth by at most
+    # 1.75^3), and 7 such pairs reach p = 2 / 1.75^7 < 0.05 (cl.betting_seeds)
+    said = cl.best_sentence({"A": method([1.0, 1.0, 1.0]), "B": method([0.0, 0.0, 0.0])}, "near")
+    assert said.startswith("near: no method is best at 3 pairs; A leads, and its paired difference to B, +1.00 [")
+    assert said.endswith("would take about 7 pairs like these to decide (estimate)")

@@ -385,6 +385,14 @@ def best_sentence(reports: Mapping[str, Mapping], where: str, score: str = "mean
         return (f"{where}: no method is best at {n} pairs; {leader} leads, and its paired difference to {other}, "
                 f"{estimate(diff, ci)}, has the exact test's p = {p_text(p_adj.exact)}"
                 + (" after Holm" if len(pairs) > 1 else ""))
+    st = reports[leader]["settings"]
+    if has_interval(ci) and st.get("interval_method") == "auto" and signed(diff) != signed(0):
+        sa, so = per_seed_scores(reports[leader], "transfer", score), per_seed_scores(reports[other], "transfer", score)
+        shared = sorted(set(sa) & set(so))
+        about = betting_seeds([so[k] for k in shared], [sa[k] for k in shared], st["value_range"], True, len(pairs))
+        if about is not None:
+            return (f"{where}: no method is best at {len(shared)} pairs; {leader} leads, and its paired difference "
+                    f"to {other}, {estimate(diff, ci)}, would take about {about} pairs like these to decide (estimate)")
     return (f"{where}: no method is best; {leader} leads, and its paired difference to {other} is "
             f"{estimate(diff, ci)}: {NO_EVIDENCE if has_interval(ci) else NO_RANGE}")
 
