@@ -2,7 +2,8 @@
 # The earlier implementation's own place tasks, step 2: the Lift source its rows reuse, SAC on lift-dense
 # (robosuite's dense Lift reward, as the earlier implementation trained its source), before the rows.
 #   bash results/seed_sources.sh      (RUNS=runs/seed-tasks by default; re-running resumes; CORE=0 pins one core)
-# Seeds 10, 11, 12 as one seed group in one process, 500k frames each, the manipulation defaults (replay 1e6,
+# Seeds 60, 61, 62 (target seed s reuses source seed s + 50, so no source and target run share a seed) as one
+# seed group in one process, 500k frames each, the manipulation defaults (replay 1e6,
 # batch 256, 2x256 nets, lr 3e-4, one update per frame, 2 envs a seed, 5k random warm-up frames), evaluated
 # every 10k frames on 10 episodes; checkpoints every 20k frames and the best evaluation's (checkpoint.keep_best).
 # A source holds when its success rate over the second half of training never falls below 0.7 and averages
@@ -12,9 +13,9 @@ set -euo pipefail
 RUNS=${RUNS:-runs/seed-tasks}
 DRLTG=${DRLTG:-drltg}
 dir=$RUNS/sources/lift-dense-sac
-resume=(); [ -f "$dir/seed-10/config.yaml" ] && resume=(--resume)
+resume=(); [ -f "$dir/seed-60/config.yaml" ] && resume=(--resume)
 pin=(); [ -n "${CORE:-}" ] && pin=(taskset -c "$CORE")
-"${pin[@]}" $DRLTG train lift-dense --seed 10 --seeds 3 --frames 500000 --run-dir "$dir" --no-progress \
+"${pin[@]}" $DRLTG train lift-dense --seed 60 --seeds 3 --frames 500000 --run-dir "$dir" --no-progress \
   "${resume[@]}" -o eval.every=10000 -o eval.episodes=10 -o checkpoint.every=20000 -o checkpoint.keep_best=true || true
 for run in "$dir"/seed-*; do
   keep=results/seed-tasks/sources/lift-dense-sac/${run##*/}; mkdir -p "$keep"
