@@ -6,6 +6,9 @@ measures them and chose ``t_interval`` as the default)
                               error with Hsu's :math:`\min(n_B, n_T) - 1` degrees of freedom.
     ``welch_interval``, ``studentized_interval``, ``bca_interval``, ``percentile_interval``: the
                               other candidates (they under-cover with 3 to 10 seeds).
+    ``betting_interval``      from the scores' known range alone (hedged capital betting, Waudby-Smith &
+                              Ramdas 2024): valid for any distribution on it, learn-or-not included; the
+                              report's default. ``betting_p``: its p-values.
     ``ratio_interval``        Fieller's interval of a ratio of means, mapped to ``transfer_ratio``; NaN
                               when the baseline mean's own interval contains 0 (unbounded).
     ``poi_interval``          interval of a probability of improvement inside [0, 1] (Clopper-Pearson
@@ -205,9 +208,8 @@ def betting_p(x, means, alpha: float = 0.05, c: float = 0.75) -> Array:
     m = np.asarray(means, np.float64)[:, None]
     lam = _bets(x, alpha)[..., None, :]
     dev = x[..., None, :] - m
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide="ignore"):  # c/0 caps nothing; a wealth of 0 is a log of -inf, never the maximum
         up, down = np.minimum(lam, c / m), np.minimum(lam, c / (1 - m))
-    with np.errstate(divide="ignore"):  # a wealth of 0 is a log of -inf, never the maximum
         log_wealth = np.maximum(np.log1p(up * dev).cumsum(-1), np.log1p(-down * dev).cumsum(-1)).max(-1)
     return np.minimum(1.0, np.exp(np.log(2.0) - log_wealth))
 
@@ -255,8 +257,9 @@ def betting_interval(b, t, value_range: tuple[float, float], paired: bool = Fals
     Paired: the betting interval of the differences' mean, :math:`(d + w) / 2w \in [0, 1]`. Unpaired: each
     side's interval at level :math:`1 - \alpha/2` (:func:`betting_sides`), the difference of the ends,
     :math:`[L_T - U_B,\ U_T - L_B]`; its p-value is twice the smallest level at which both sides reject one
-    value between their means. It is wide with few seeds (with 5 pairs or fewer it cannot exclude 0),
-    because only the range, not the seeds' spread, bounds what the unseen seeds could do."""
+    value between their means. It is wide with few seeds (with 6 pairs or fewer it cannot exclude 0: a pair
+    multiplies the wealth by at most 1 + c = 1.75, and 1.75^6 / 2 < 20), because only the range, not the
+    seeds' spread, bounds what the unseen seeds could do."""
     alpha = 2 * _check_confidence(confidence)
     b, t = _pairs(b, t, paired)
     a, w = float(value_range[0]), float(value_range[1]) - float(value_range[0])
@@ -273,7 +276,8 @@ def betting_interval(b, t, value_range: tuple[float, float], paired: bool = Fals
 
 INTERVALS = {"t": t_interval, "welch": welch_interval, "studentized": studentized_interval,
              "bca": bca_interval, "percentile": percentile_interval}
-"""Candidate intervals of a mean difference; ``t`` is the report's, chosen by the coverage measured in
+"""Candidate intervals of a mean difference that build on the seeds' spread (``--interval``; the report's
+default is :func:`betting_interval`, or none without a range); ``t`` is the best of them by the coverage measured in
 ``tests/test_coverage.py`` (the only candidate at or near the promised level with 3 to 10 seeds)."""
 
 

@@ -130,7 +130,7 @@ def _interval_rule(s: ReportSettings, paired: bool, w: Window) -> str:
 
 BETTING_CLAIM = ("A betting interval holds its level for any scores within the range, learn-or-not seeds "
                  "included (Ville's inequality; in simulation, results/coverage, at least 95% on every shape at 3, "
-                 "5 and 10 seeds); it is wide with few seeds and cannot exclude 0 with 5 pairs or fewer.")
+                 "5 and 10 seeds); it is wide with few seeds and cannot exclude 0 with 6 pairs or fewer.")
 COVERAGE_CLAIM = ("In simulation (results/coverage) the t intervals cover at least 93% of the time with 3 to 10 "
                   "seeds on normal, bimodal and success-rate scores, except for paired scores with a strong "
                   "multiplicative seed effect (right-skewed differences) and paired bimodal scores at 3 seeds "
