@@ -6,9 +6,11 @@ A researcher quotes sentences, not tables, so every sentence that states a resul
 - **a difference** is called higher / lower only when its interval excludes 0 and, where a family of
   intervals is read together, its Holm-adjusted p-value is below ``LEVEL`` too, and the exact test that
   assumes no normality (sign-flip over pairs, permutation of runs) agrees at the same adjusted level;
-  where only the t test finds one, the sentence says "no verdict at N pairs" and about how many would
-  decide it; otherwise "no evidence of a difference at this budget" (or, for a non-zero difference that
-  has no interval, "no interval, so no verdict");
+  where only the interval's test finds one, or a range-bounded (betting) interval holds 0 for a non-zero
+  difference, the sentence says "no verdict at N pairs" and about how many would decide it; otherwise "no
+  evidence of a difference at this budget" (or, for a non-zero difference that has no interval, "no
+  interval, so no verdict", and, where the report knew no range for its curves, "no interval without the
+  curves' range");
 - **best** only when every pairwise difference to the others passes both tests (after Holm over those pairs);
 - **every seed** only when every seed does; otherwise the count ("3 of 5 seeds") is given;
 - **a threshold** is "first reached" for a first crossing, and "held" (sustained) only under the report's
@@ -17,7 +19,8 @@ A researcher quotes sentences, not tables, so every sentence that states a resul
   budget", never "does not hold".
 
 The functions take plain dicts (the report's JSON as loaded) and never compute a new statistic other than
-the paired comparison between two methods that share their seeds (:func:`pairwise`).
+the paired comparison between two methods that share their seeds (:func:`pairwise`) and the estimate of
+how many seeds would decide (:func:`seeds_to_decide`, :func:`betting_seeds`).
 """
 from __future__ import annotations
 
