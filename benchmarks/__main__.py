@@ -11,8 +11,9 @@ Suites: ``env`` (FourRooms vs a NumPy reference), ``robosuite`` (wrapper overhea
 another, many minutes), ``lift-seeds`` (3 seeds of a Lift run as one seed group against 3 runs one
 after another, whole commands, about 20 minutes on one core), ``sweep`` (a FourRooms sweep with seed
 groups against every run alone, about 15 minutes on 2 cores) and ``threads`` (SAC steps under torch's
-default thread count against one thread, with a core idle and busy; it starts a spinning process) run
-only when named.
+default thread count against one thread, with a core idle and busy; it starts a spinning process) and
+``coverage`` (the report's intervals on simulated seeds, results/coverage's tables, a few minutes) run only
+when named.
 """
 from __future__ import annotations
 
@@ -32,7 +33,7 @@ import torch
 from benchmarks.common import REPO, machine, versions
 
 DEFAULT = ("env", "robosuite", "sac", "train", "memory", "gymnasium")
-NAMED_ONLY = ("lift", "demo", "seeds", "lift-seeds", "sweep", "threads")
+NAMED_ONLY = ("lift", "demo", "seeds", "lift-seeds", "sweep", "threads", "coverage")
 
 
 def _suite(name: str):
@@ -58,6 +59,8 @@ def _suite(name: str):
         from benchmarks.sweep import run
     elif name == "threads":
         from benchmarks.threads import run
+    elif name == "coverage":
+        from benchmarks.coverage import run
     else:
         run = _demo
     return run
@@ -128,6 +131,10 @@ def summarize(suites: dict, device: str) -> dict:
     if lift_seeds:
         out["lift-seeds: 3 seeds, group / one after another (loop frames per core)"] = {
             "value": lift_seeds["ratio_loop"], "target": ">= 2", "met": _met(lift_seeds["ratio_loop"], 2.0)}
+    coverage = suites.get("coverage")
+    if coverage:
+        out["coverage: cells where the default interval covers below 0.93"] = {
+            "value": coverage["default_below_0.93"], "target": "0", "met": coverage["default_below_0.93"] == 0}
     sweep = suites.get("sweep")
     if sweep:
         for clock in ("wall", "cpu"):
