@@ -343,3 +343,35 @@ def test_seeds_with_cuda_graphs_train_one_after_another(monkeypatch):
     cfg = config_lib.resolve({}, TINY + ["device=cuda", "optim.cudagraphs=true"], task="fourrooms/northeast")
     assert "CUDA graph" in group_support(cfg)
     assert group_support(config_lib.updated(cfg, {"optim.cudagraphs": False})) is None
+
+
+def test_a_lift_groups_seed_workers_step_their_envs_themselves(monkeypatch):
+    """On 2 cores a group of 3 Lift seeds with 2 envs each starts 3 worker processes, not 3 + 6: a seed's
+    worker steps its own envs (robosuite's parallel=False), unless env.parallel is given or every env of
+    the group has a core of its own."""
+    from drltg import config as config_lib
+    from drltg.envs import limits
+    from drltg.training import seeds as group_training
+
+    built = []
+
+    class Workers:  # stands in for ParallelEnv: what each seed's worker would build
+        def __init__(self, n, make, create_env_kwargs, mp_start_method):
+            built.append(make.keywords)
+
+    monkeypatch.setattr(group_training, "ParallelEnv", Workers)
+    monkeypatch.setattr(group_training, "TransformedEnv", lambda env, transform: env)
+    for cores, overrides, expected in ((2, [], {"batch_size": (2,), "parallel": False}),
+                                       (6, [], {"batch_size": (2,)}),
+                                       (2, ["env.parallel=true"], {"batch_size": (2,)})):
+        monkeypatch.setattr(limits, "usable_cpus", lambda cores=cores: cores)
+        group_training._worker_env(config_lib.resolve(None, overrides, task="lift"), [0, 1, 2], 2, 0)
+        assert built.pop() == expected
+
+
+def test_usable_cpus_are_the_process_affinity():
+    import os
+
+    from drltg.envs.limits import usable_cpus
+
+    assert usable_cpus() == len(os.sched_getaffinity(0))

@@ -242,8 +242,19 @@ def _flatten(data):
 def _worker_env(cfg: RunConfig, seeds: list[int], per_seed: int, seed_offset: int) -> EnvBase:
     """One worker process per seed, each building the env its run alone builds (same factory, settings
     and seed), flattened seed-major; the workers start as ``env.mp_start_method`` says (TorchRL's default
-    if unset). Transforms go on an env around this one: the flattening must come first on both ways."""
-    workers = ParallelEnv(len(seeds), functools.partial(build_env, cfg, batch_size=(per_seed,)),
+    if unset). Transforms go on an env around this one: the flattening must come first on both ways.
+
+    A seed's worker steps its ``per_seed`` envs itself (``parallel=False``, for a task that takes it) unless
+    ``env.parallel`` says otherwise or there are cores for every env of the group: processes of its own
+    would only add a gigabyte each (an interpreter and a simulation) and a pipe round trip a step, with the
+    seeds' workers already running side by side. The simulations and their seeds are the same either way."""
+    from drltg.envs import get_task
+    from drltg.envs.limits import usable_cpus
+
+    serial = ("parallel" in get_task(cfg.task).keywords()[0] and cfg.env.get("parallel") is None
+              and len(seeds) * per_seed > usable_cpus())
+    build = functools.partial(build_env, cfg, batch_size=(per_seed,), **({"parallel": False} if serial else {}))
+    workers = ParallelEnv(len(seeds), build,
                           create_env_kwargs=[{"seed": s + seed_offset} for s in seeds],
                           mp_start_method=cfg.env.get("mp_start_method"))
     return TransformedEnv(workers, SeedMajor())

@@ -13,7 +13,6 @@ from __future__ import annotations
 import functools
 import inspect
 import logging
-import os
 from typing import Sequence
 
 import numpy as np
@@ -22,7 +21,7 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
-from drltg.envs.limits import MAX_HORIZON
+from drltg.envs.limits import MAX_HORIZON, usable_cpus
 from drltg.envs.robosuite.layout import OBSERVABLES, layout_of
 from drltg.errors import UsageError
 
@@ -281,8 +280,9 @@ def make_robosuite_env(
     """One :class:`RobosuiteEnv` for ``batch_size=()``; for ``(n,)``, ``n`` of them stepped together,
     each in its own worker process (``ParallelEnv``, started by ``mp_start_method``, TorchRL's default
     ``spawn`` if ``None``) or, with ``parallel=False``, in this one (``SerialEnv``). ``parallel=None``
-    starts processes only when there is a CPU core for each env: a worker holds its own simulation and
-    interpreter (about 1 GB), so on 2 cores the 10 envs of an evaluation step in this process instead.
+    starts processes only when this process may use a CPU core for each env (its affinity: a run pinned to
+    one core with ``taskset`` steps its envs here): a worker holds its own simulation and interpreter (about
+    1 GB), so on 2 cores the 10 envs of an evaluation step in this process instead.
     Both step the same simulations from the same seeds: ``set_seed(s)`` on the batch seeds its members
     with distinct seeds derived from ``s``, in order, either way."""
     from torchrl.envs import ParallelEnv, SerialEnv
@@ -294,7 +294,7 @@ def make_robosuite_env(
         raise ValueError(f"robosuite tasks batch along one dimension, got batch_size={tuple(batch_size)}.")
     n = batch_size[0]
     if parallel is None:
-        parallel = n <= (os.cpu_count() or 1)
+        parallel = n <= usable_cpus()
     make = functools.partial(RobosuiteEnv, task, device=device, **options)
     if parallel and n > 1:
         return ParallelEnv(n, make, mp_start_method=mp_start_method)
