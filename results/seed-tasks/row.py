@@ -1,0 +1,104 @@
+"""One row of the seed's tasks: baselines and transfer runs, each side one seed group, then its reports.
+
+    python results/seed-tasks/row.py ROW [--runs runs/seed-tasks] [--dry-run]     # re-running resumes
+
+Seeds 10, 11, 12 (never used to choose a recipe), 300k frames, evaluated every 10k frames on 10 episodes,
+checkpoints every 20k. A transfer run of seed s reuses the source run of seed s + 50 at its best evaluation
+(``results/seed_sources.sh`` trains them: SAC, or ALGO=soc for SOC-4). Each side trains as one seed group
+in this process (``drltg.training.seeds.train_group``), so pin it to a core with ``taskset``; a side already
+finished is reused (the lift-place-seed SAC baselines are ``results/seed_tasks.sh``'s). Then the row's
+curves and configs are kept in ``results/seed-tasks/ROW/`` and reported: the return on the task's reward
+(threshold 50), and the success and lifted rates (0.5 and 0.8; success alone on Lift).
+
+``shaping-lift-seed`` is the earlier implementation's reward shaping on Lift: SAC on robosuite's dense reward
+(``env.reward_shaping=true``) against the sparse one, both evaluated on Lift's own success.
+"""
+from __future__ import annotations
+
+import argparse
+import shutil
+from pathlib import Path
+
+import drltg.transfer  # noqa: F401  (registers the transfer methods the rows name)
+from drltg import config as config_lib
+from drltg.analysis.report import transfer_report
+
+SEEDS = (10, 11, 12)
+SOURCE_OFFSET = 50
+FRAMES = 300_000
+COMMON = ["eval.every=10000", "eval.episodes=10", "checkpoint.every=20000"]
+ROWS = {  # name: (target task, algo, transfer overrides, source folder or None)
+    "shaping-lift-seed": ("lift", "sac", ["env.reward_shaping=true"], None),
+    "pi-reuse-place-seed": ("lift-place-seed", "sac", ["transfer.method=policy-reuse"], "lift-dense-sac"),
+    "pi-reuse-barrier-seed": ("lift-place-barrier-seed", "sac", ["transfer.method=policy-reuse"], "lift-dense-sac"),
+    "model-reuse-place-seed": ("lift-place-seed", "sac", ["transfer.method=model-reuse"], "lift-dense-sac"),
+    "soc-model-reuse-place-seed": ("lift-place-seed", "soc", ["transfer.method=model-reuse"], "lift-dense-soc4"),
+}
+KEPT = ("config.yaml", "eval.csv", "summary.json")
+
+
+def sides(row: str, runs: Path) -> dict[str, tuple[list, list[Path]]]:
+    """``{"baseline": (configs, dirs), "transfer": (configs, dirs)}`` of a row."""
+    task, algo, overrides, source = ROWS[row]
+    learner = ["soc.num_options=4"] if algo == "soc" else []
+    out = {}
+    for side in ("baseline", "transfer"):
+        cfgs = []
+        for s in SEEDS:
+            extra = [] if side == "baseline" else list(overrides)
+            if side == "transfer" and source:
+                extra += [f"transfer.source={runs / 'sources' / source / f'seed-{s + SOURCE_OFFSET}'}",
+                          "transfer.source_checkpoint=best"]
+            cfgs.append(config_lib.resolve(None, COMMON + learner + extra, task=task, algo=algo, seed=s,
+                                           frames=FRAMES))
+        folder = runs / task / algo / ("baseline" if side == "baseline" else row)
+        out[side] = (cfgs, [folder / f"seed-{s}" for s in SEEDS])
+    return out
+
+
+def train(cfgs: list, dirs: list[Path]) -> None:
+    from drltg.training.seeds import train_group
+
+    if all((d / "summary.json").is_file() for d in dirs):
+        return
+    train_group(cfgs, dirs, resume=all((d / "config.yaml").is_file() for d in dirs))
+
+
+def keep_and_report(row: str, groups: dict) -> None:
+    task = ROWS[row][0]
+    out = Path(__file__).resolve().parent / row
+    for side, (_, dirs) in groups.items():
+        for d in dirs:
+            (out / side / d.name).mkdir(parents=True, exist_ok=True)
+            for name in KEPT:
+                if (d / name).is_file():
+                    shutil.copyfile(d / name, out / side / d.name / name)
+    stages = [("report", None, 50)] + [(f"report-{tag}", f"{tag}_rate", threshold) for tag, threshold in
+                                         (("success", 0.5), ("lifted", 0.8)) if task != "lift" or tag == "success"]
+    for folder, tag, threshold in stages:
+        if task == "lift" and tag is None:
+            continue  # shaping's two sides are paid by different rewards: only the success rate compares
+        transfer_report(out / "baseline", out / "transfer", out / folder, tag=tag, threshold=threshold,
+                        baseline_label="no transfer", transfer_label=row, allow_mismatch=task == "lift")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("row", choices=sorted(ROWS))
+    parser.add_argument("--runs", type=Path, default=Path("runs/seed-tasks"))
+    parser.add_argument("--dry-run", action="store_true", help="list the runs and their settings, train nothing")
+    args = parser.parse_args()
+    groups = sides(args.row, args.runs)
+    if args.dry_run:
+        for side, (cfgs, dirs) in groups.items():
+            for c, d in zip(cfgs, dirs):
+                print(f"{side:9} {d}  task={c.task} algo={c.algo} seed={c.seed} method={c.transfer.method} "
+                      f"source={c.transfer.source} env.reward_shaping={c.env.get('reward_shaping')}")
+        return
+    for side in ("baseline", "transfer"):
+        train(*groups[side])
+    keep_and_report(args.row, groups)
+
+
+if __name__ == "__main__":
+    main()
