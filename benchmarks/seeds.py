@@ -95,23 +95,27 @@ and one 1-episode evaluation at the end, so the loop's time is nearly all traini
 
 
 def lift_runs(n: int, frames: int, rounds: int) -> dict:
-    """Whole ``drltg train lift-place-seed`` commands: ``--seeds n`` (one process, one vmapped update, each
-    seed's envs in worker processes) against ``n`` commands ``--seed k`` one after another, all on the cores
-    this process may use (pin it with ``taskset`` to measure one core). Loop frames/s: every seed's frames
-    over the training loop's time (summary.json), start-up excluded; command wall time with it."""
-    walls, loops = {"group": [], "separate": []}, {"group": [], "separate": []}
+    """Whole ``drltg train lift-place-seed`` commands on the cores this process may use (pin it with ``taskset``
+    to measure one core): ``--seeds n`` (one process, one vmapped update, each seed's envs in a worker process)
+    against ``n`` commands ``--seed k`` one after another, their envs stepped in-process (what a run pinned to
+    one core does) and in worker processes (``env.parallel=true``, what it did before it counted its cores).
+    Loop frames/s: every seed's frames over the training loop's time (summary.json), start-up excluded;
+    command wall time with it."""
+    kinds = {"group": [], "separate": [], "separate_workers": []}
+    walls, loops = {k: [] for k in kinds}, {k: [] for k in kinds}
     with tempfile.TemporaryDirectory() as tmp:
         for r in range(rounds):
-            for kind in ("group", "separate") if r % 2 == 0 else ("separate", "group"):
+            for kind in kinds if r % 2 == 0 else reversed(list(kinds)):
                 root = Path(tmp) / f"{kind}-{r}"
                 if kind == "group":
                     walls[kind].append(_command(["--seeds", str(n), "--frames", str(frames), *LIFT_OPTIONS], root,
                                                 LIFT_TASK))
                     loops[kind].append(_loop_seconds(root / "seed-0"))
                 else:
+                    extra = ["-o", "env.parallel=true"] if kind == "separate_workers" else []
                     dirs = [root / f"seed-{k}" for k in range(n)]
-                    walls[kind].append(sum(_command(["--seed", str(k), "--frames", str(frames), *LIFT_OPTIONS], d,
-                                                    LIFT_TASK) for k, d in enumerate(dirs)))
+                    walls[kind].append(sum(_command(["--seed", str(k), "--frames", str(frames), *LIFT_OPTIONS,
+                                                     *extra], d, LIFT_TASK) for k, d in enumerate(dirs)))
                     loops[kind].append(sum(_loop_seconds(d) for d in dirs))
     median = {kind: sorted(xs)[len(xs) // 2] for kind, xs in loops.items()}
     wall = {kind: sorted(xs)[len(xs) // 2] for kind, xs in walls.items()}
@@ -121,15 +125,17 @@ def lift_runs(n: int, frames: int, rounds: int) -> dict:
         "command_wall_s": {kind: round(t, 1) for kind, t in wall.items()},
         "ratio_loop": round(median["separate"] / median["group"], 3),
         "ratio_command_wall": round(wall["separate"] / wall["group"], 3),
+        "ratio_loop_in_process_vs_workers": round(median["separate_workers"] / median["separate"], 3),
         "commands": {"group": f"drltg train {LIFT_TASK} --seeds {n} --frames {frames} {' '.join(LIFT_OPTIONS)}",
-                     "separate": f"drltg train {LIFT_TASK} --seed k --frames {frames} ... (k = 0 .. {n - 1})"},
+                     "separate": f"drltg train {LIFT_TASK} --seed k --frames {frames} ... (k = 0 .. {n - 1})",
+                     "separate_workers": "the same with -o env.parallel=true"},
     }
 
 
 def run_lift(device: str = "cpu", quick: bool = False) -> dict:
     if device != "cpu":
         return {"missing": "the lift-seeds suite measures single-threaded CPU runs"}
-    return {"threads": 1, "lift": lift_runs(3, 1500 if quick else 3000, 1 if quick else 2),
+    return {"threads": 1, "lift": lift_runs(3, 2000 if quick else 4000, 1 if quick else 2),
             "target": "a Lift-sized run >= 2x the frames per core of runs one after another"}
 
 
