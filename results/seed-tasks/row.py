@@ -1,14 +1,16 @@
-"""One row of the seed's tasks: baselines and transfer runs, each side one seed group, then its reports.
+"""One row of the seed's tasks: its baseline and transfer runs, then its reports.
 
-    python results/seed-tasks/row.py ROW [--runs runs/seed-tasks] [--dry-run]     # re-running resumes
+    taskset -c 0 python results/seed-tasks/row.py ROW --seeds 10 12 &     # re-running resumes
+    taskset -c 1 python results/seed-tasks/row.py ROW --seeds 11          # one process per core
 
 Seeds 10, 11, 12 (never used to choose a recipe), 300k frames, evaluated every 10k frames on 10 episodes,
 checkpoints every 20k. A transfer run of seed s reuses the source run of seed s + 50 at its best evaluation
-(``results/seed_sources.sh`` trains them: SAC, or ALGO=soc for SOC-4). Each side trains as one seed group
-in this process (``drltg.training.seeds.train_group``), so pin it to a core with ``taskset``; a side already
-finished is reused (the lift-place-seed SAC baselines are ``results/seed_tasks.sh``'s). Then the row's
-curves and configs are kept in ``results/seed-tasks/ROW/`` and reported: the return on the task's reward
-(threshold 50), and the success and lifted rates (0.5 and 0.8; success alone on Lift).
+(``results/seed_sources.sh`` trains them: SAC, or ALGO=soc for SOC-4). The runs of the seeds given train one
+after another in this process, each alone (on one core that is faster than a seed group: benchmarks/README.md,
+"Lift seeds on one core"); a finished run is reused (the lift-place-seed SAC baselines are
+``results/seed_tasks.sh``'s). Once every run of the row is finished, its curves and configs are kept in
+``results/seed-tasks/ROW/`` and reported: the return on the task's reward (threshold 50), and the success
+and lifted rates (0.5 and 0.8; success alone on Lift).
 
 ``shaping-lift-seed`` is the earlier implementation's reward shaping on Lift: SAC on robosuite's dense reward
 (``env.reward_shaping=true``) against the sparse one, both evaluated on Lift's own success.
@@ -17,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import shutil
+import sys
 from pathlib import Path
 
 import drltg.transfer  # noqa: F401  (registers the transfer methods the rows name)
@@ -56,12 +59,12 @@ def sides(row: str, runs: Path) -> dict[str, tuple[list, list[Path]]]:
     return out
 
 
-def train(cfgs: list, dirs: list[Path]) -> None:
-    from drltg.training.seeds import train_group
+def train_runs(cfgs: list, dirs: list[Path]) -> None:
+    from drltg.training.loop import train
 
-    if all((d / "summary.json").is_file() for d in dirs):
-        return
-    train_group(cfgs, dirs, resume=all((d / "config.yaml").is_file() for d in dirs))
+    for cfg, run in zip(cfgs, dirs):
+        if not (run / "summary.json").is_file():
+            train(cfg, run, resume=(run / "config.yaml").is_file(), progress=False)
 
 
 def keep_and_report(row: str, groups: dict) -> None:
@@ -86,6 +89,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("row", choices=sorted(ROWS))
     parser.add_argument("--runs", type=Path, default=Path("runs/seed-tasks"))
+    parser.add_argument("--seeds", type=int, nargs="+", default=list(SEEDS), choices=SEEDS,
+                        help="the seeds whose baseline and transfer runs this process trains (default: all)")
     parser.add_argument("--dry-run", action="store_true", help="list the runs and their settings, train nothing")
     args = parser.parse_args()
     groups = sides(args.row, args.runs)
@@ -96,9 +101,19 @@ def main() -> None:
                       f"source={c.transfer.source} env.reward_shaping={c.env.get('reward_shaping')}")
         return
     for side in ("baseline", "transfer"):
-        train(*groups[side])
-    keep_and_report(args.row, groups)
+        cfgs, dirs = groups[side]
+        train_runs(*zip(*[(c, d) for c, d in zip(cfgs, dirs) if c.seed in args.seeds]))
+    if all((d / "summary.json").is_file() for _, dirs in groups.values() for d in dirs):
+        keep_and_report(args.row, groups)
+    else:
+        print(f"{args.row}: runs of other seeds are not finished yet; the last process to finish reports the row")
 
 
 if __name__ == "__main__":
-    main()
+    from drltg.errors import UsageError
+
+    try:
+        main()
+    except UsageError as err:
+        print(f"error: {err}", file=sys.stderr)
+        raise SystemExit(2) from None
