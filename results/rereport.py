@@ -37,8 +37,8 @@ def rereport(path: Path) -> dict:
     kw["threshold"] = st.get("threshold_given")
     if st.get("budget_source") == "--budget":
         kw["budget"] = st["budget"]
-    if st.get("value_range") is not None and st.get("tag") is None:
-        kw["value_range"] = tuple(st["value_range"])
+    if st.get("value_range_given") is not None:  # else the range is found again: a rate's, or the task's
+        kw["value_range"] = tuple(st["value_range_given"])
     runs = {side: [_here(p) for p in st[side]] for side in ("baseline", "transfer")}
     kept = {f for f in OUTPUTS if (path.parent / f).exists()}
     result = transfer_report(runs["baseline"], runs["transfer"], path.parent, **kw)

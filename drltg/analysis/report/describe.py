@@ -67,6 +67,7 @@ def describe(s: ReportSettings, sides: Sides, w: Window, trends: dict, warnings:
         "allow_mismatch": bool(s.allow_mismatch),
         "include_unfinished": bool(s.include_unfinished),
         "value_range": None if w.value_range is None else list(w.value_range),
+        "value_range_given": None if s.value_range is None else list(s.value_range),
         "p_values": _p_value_rule(sides.paired, s.interval),
         "family": {"size": len(family), "metrics": family, "adjustment": (
             f"Holm over these {len(family)} p-values: the chance of any false finding among them stays "
