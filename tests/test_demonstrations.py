@@ -155,6 +155,19 @@ def test_demonstrations_refuse_what_they_cannot_use(override, message, tmp_path)
     assert not (tmp_path / "run").exists()
 
 
+def test_the_lift_demonstrator_serves_lift_under_its_dense_reward():
+    """lift-dense is Lift's scene and observation with robosuite's dense reward: its demonstrator is Lift's."""
+    from drltg.transfer.source import check
+
+    cfg = config_lib.resolve({}, ["transfer.method=demonstrations", "transfer.source=demonstrator:lift"],
+                             task="lift-dense", frames=256, seed=0)
+    check(cfg)  # accepted: no env is built
+    wrong = config_lib.resolve({}, ["transfer.method=demonstrations", "transfer.source=demonstrator:lift"],
+                               task="pendulum/g10", frames=256, seed=0)
+    with pytest.raises(UsageError, match="solves lift"):
+        check(wrong)
+
+
 # ------------------------------------------------------------------ behaviour cloning (Nair et al. 2018)
 from torchrl.envs import ExplorationType, set_exploration_type  # noqa: E402
 

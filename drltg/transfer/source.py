@@ -46,8 +46,8 @@ def check(cfg: RunConfig) -> None:
         _check_source_run(Path(t.source).expanduser(), t)
     elif method.source != "policy":
         raise UsageError(f"a demonstrator has no weights to reuse; {method.name} needs a source run directory.")
-    elif demonstrated not in MANIPULATION or cfg.task not in MANIPULATION:
-        raise UsageError(
+    elif demonstrated not in MANIPULATION or cfg.env.get("task", cfg.task) not in MANIPULATION:
+        raise UsageError(  # lift-dense is Lift's scene under another reward: env.task names the scene
             f"transfer.source=demonstrator:{demonstrated} on task '{cfg.task}': the demonstrator reads the "
             f"manipulation observation and solves {', '.join(MANIPULATION)} only."
         )

@@ -5,7 +5,7 @@
 
 Seeds 10, 11, 12 (never used to choose a recipe), 300k frames, evaluated every 10k frames on 10 episodes,
 checkpoints every 20k. A transfer run of seed s reuses the source run of seed s + 50 at its best evaluation
-(``results/seed_sources.sh`` trains them: SAC, or ALGO=soc for SOC-4). The runs of the seeds given train one
+(``study.py`` trains them, and runs every row a seed at a time). The runs of the seeds given train one
 after another in this process, each alone (on one core that is faster than a seed group: benchmarks/README.md,
 "Lift seeds on one core"); a finished run is reused (the lift-place-seed SAC baselines are
 ``results/seed_tasks.sh``'s). Once every run of the row is finished, its curves and configs are kept in
@@ -37,6 +37,10 @@ ROWS = {  # name: (target task, algo, transfer overrides, source folder or None)
     "model-reuse-place-seed": ("lift-place-seed", "sac", ["transfer.method=model-reuse"], "lift-dense-sac"),
     "soc-model-reuse-place-seed": ("lift-place-seed", "soc", ["transfer.method=model-reuse"], "lift-dense-soc4"),
 }
+LAYER_NORM = ["network.layer_norm=critics"]
+"""Model reuse copies the SAC source's networks whole, LayerNorm critics included (``study.py``'s recipe), so
+both sides of that row have them: its baselines are ``baseline-ln``, and the two sides differ in the transfer
+alone."""
 KEPT = ("config.yaml", "eval.csv", "summary.json")
 
 
@@ -44,6 +48,8 @@ def sides(row: str, runs: Path) -> dict[str, tuple[list, list[Path]]]:
     """``{"baseline": (configs, dirs), "transfer": (configs, dirs)}`` of a row."""
     task, algo, overrides, source = ROWS[row]
     learner = ["soc.num_options=4"] if algo == "soc" else []
+    ln = row == "model-reuse-place-seed"
+    learner += LAYER_NORM if ln else []
     out = {}
     for side in ("baseline", "transfer"):
         cfgs = []
@@ -54,7 +60,7 @@ def sides(row: str, runs: Path) -> dict[str, tuple[list, list[Path]]]:
                           "transfer.source_checkpoint=best"]
             cfgs.append(config_lib.resolve(None, COMMON + learner + extra, task=task, algo=algo, seed=s,
                                            frames=FRAMES))
-        folder = runs / task / algo / ("baseline" if side == "baseline" else row)
+        folder = runs / task / algo / (row if side == "transfer" else "baseline-ln" if ln else "baseline")
         out[side] = (cfgs, [folder / f"seed-{s}" for s in SEEDS])
     return out
 

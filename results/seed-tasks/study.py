@@ -1,0 +1,139 @@
+"""The seed's tasks as one queue: the Lift sources, then the rows' runs, one run per core at a time.
+
+    python results/seed-tasks/study.py --cores 0 1          # re-running resumes; --dry-run lists the jobs
+
+A job is a source run (``drltg train lift-dense``, seed 60, 61 or 62) or one seed of a row
+(``row.py ROW --seeds S``: its baseline, then its transfer run). Each core takes the first job, in the order
+below, that is neither finished nor running and whose source is finished, and runs it pinned to that core
+(``taskset``), its output in ``RUNS/logs/JOB.log``. A finished source's curves are kept in
+``results/seed-tasks/sources/``; the process that finishes a row's last seed reports the row.
+
+The sources: SAC, or the soft option-critic with 4 options, on ``lift-dense`` (robosuite's dense Lift reward, as
+the earlier implementation trained its source) with the scripted demonstrator's 50 episodes (the recipe that
+learned Lift in drltg's manipulation study: half of every batch demonstrated and LayerNorm critics for SAC, a
+quarter for SOC-4), 60k frames, evaluated every 5k frames on 10 episodes, checkpoints every 5k and at the best
+evaluation (the rows reuse ``best.pt``). Target seed s reuses source seed s + 50.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+_spec = importlib.util.spec_from_file_location("seed_rows", HERE / "row.py")
+row = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(row)
+
+SOURCE_SEEDS = tuple(s + row.SOURCE_OFFSET for s in row.SEEDS)
+SOURCE_FRAMES = 60_000
+DEMONSTRATIONS = ["transfer.method=demonstrations", "transfer.source=demonstrator:lift"]
+SOURCES = {  # folder: learner flags
+    "lift-dense-sac": ["-o", "network.layer_norm=critics", "-o", "transfer.demo_ratio=0.5"],
+    "lift-dense-soc4": ["--algo", "soc", "-o", "soc.num_options=4"],
+}
+SOURCE_SETTINGS = ["eval.every=5000", "eval.episodes=10", "checkpoint.every=5000", "checkpoint.keep_best=true",
+                   *DEMONSTRATIONS]
+ORDER = [("source", "lift-dense-sac"), ("row", "pi-reuse-place-seed"), ("source", "lift-dense-soc4"),
+         ("row", "model-reuse-place-seed"), ("row", "pi-reuse-barrier-seed"), ("row", "shaping-lift-seed"),
+         ("row", "soc-model-reuse-place-seed")]
+
+
+class Job:
+    def __init__(self, name: str, argv: list[str], outputs: list[Path], needs: list[Path], keep=None):
+        self.name, self.argv, self.outputs, self.needs, self.keep = name, argv, outputs, needs, keep
+
+    def finished(self) -> bool:
+        return all((d / "summary.json").is_file() for d in self.outputs)
+
+    def ready(self) -> bool:
+        return all((d / "summary.json").is_file() for d in self.needs)
+
+
+def source_job(name: str, seed: int, runs: Path) -> Job:
+    run = runs / "sources" / name / f"seed-{seed}"
+    drltg = str(Path(sys.executable).with_name("drltg"))
+    argv = [drltg, "train", "lift-dense", *SOURCES[name], "--seed", str(seed), "--frames", str(SOURCE_FRAMES),
+            "--run-dir", str(run), "--no-progress", *[x for o in SOURCE_SETTINGS for x in ("-o", o)]]
+    if (run / "config.yaml").is_file():
+        argv.append("--resume")
+    return Job(f"{name}-seed-{seed}", argv, [run], [], keep=(run, HERE / "sources" / name / f"seed-{seed}"))
+
+
+def row_job(name: str, seed: int, runs: Path) -> Job:
+    sides = row.sides(name, runs)
+    outputs = [dirs[row.SEEDS.index(seed)] for _, dirs in sides.values()]
+    source = row.ROWS[name][3]
+    needs = [runs / "sources" / source / f"seed-{seed + row.SOURCE_OFFSET}"] if source else []
+    argv = [sys.executable, str(HERE / "row.py"), name, "--seeds", str(seed), "--runs", str(runs)]
+    return Job(f"{name}-seed-{seed}", argv, outputs, needs)
+
+
+def jobs(runs: Path) -> list[Job]:
+    out = []
+    for kind, name in ORDER:
+        if kind == "source":
+            out += [source_job(name, s, runs) for s in SOURCE_SEEDS]
+        else:
+            out += [row_job(name, s, runs) for s in row.SEEDS]
+    return out
+
+
+def keep(job: Job) -> None:
+    if job.keep is None:
+        return
+    run, kept = job.keep
+    kept.mkdir(parents=True, exist_ok=True)
+    for name in row.KEPT:
+        if (run / name).is_file():
+            shutil.copyfile(run / name, kept / name)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cores", type=int, nargs="+", default=[1], help="the cores that take jobs, one each")
+    parser.add_argument("--runs", type=Path, default=Path("runs/seed-tasks"))
+    parser.add_argument("--dry-run", action="store_true", help="list the jobs and whether each is finished")
+    args = parser.parse_args()
+    if args.dry_run:
+        for job in jobs(args.runs):
+            state = "finished" if job.finished() else "ready" if job.ready() else "waits for its source"
+            print(f"{job.name:36} {state}")
+        return
+    (args.runs / "logs").mkdir(parents=True, exist_ok=True)
+    running: dict[int, tuple[Job, subprocess.Popen]] = {}
+    failed: set[str] = set()  # not tried again by this process: its log says why
+    while True:
+        for core, (job, proc) in list(running.items()):
+            if proc.poll() is not None:
+                keep(job)
+                if proc.returncode != 0:
+                    failed.add(job.name)
+                print(f"{time.strftime('%H:%M')} {job.name}: exit {proc.returncode}", flush=True)
+                del running[core]
+        skip = failed | {job.name for job, _ in running.values()}
+        todo = [j for j in jobs(args.runs) if not j.finished() and j.name not in skip]
+        for core in [c for c in args.cores if c not in running]:
+            ready = [j for j in todo if j.ready()]
+            if not ready:
+                break
+            job = ready[0]
+            todo.remove(job)
+            log = open(args.runs / "logs" / f"{job.name}.log", "a")
+            running[core] = (job, subprocess.Popen(["taskset", "-c", str(core), *job.argv], stdout=log,
+                                                   stderr=subprocess.STDOUT))
+            print(f"{time.strftime('%H:%M')} {job.name} on core {core}", flush=True)
+        if not running:
+            left = [j.name for j in jobs(args.runs) if not j.finished()]
+            print("every job is finished" if not left else f"not finished (failed, or waiting for a source that "
+                  f"failed): {', '.join(left)}", flush=True)
+            return
+        time.sleep(30)
+
+
+if __name__ == "__main__":
+    main()
