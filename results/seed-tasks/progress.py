@@ -1,7 +1,8 @@
-"""Regenerate the table of results/seed-tasks/README.md from the kept curves: `python results/seed-tasks/progress.py`.
+"""Regenerate the tables of results/seed-tasks/README.md from the kept curves: `python results/seed-tasks/progress.py`.
 
-Every number in the README's generated region comes from the kept eval.csv files and from the earlier
-implementation's SAC log on its Lift+Place task (tests/data/sb3_runs/liftplace_sac), read at the same frames.
+Every number in the README's generated regions comes from the kept eval.csv files and from the earlier
+implementation's logs (tests/data/sb3_runs), read at the same frames: the baselines' progress, the Lift sources
+(does each hold its success over the second half of training?) and the rows beside the earlier runs.
 """
 from __future__ import annotations
 
@@ -14,13 +15,30 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from drltg.analysis.curves import read_curves  # noqa: E402
+from drltg.config.overrides import load_yaml  # noqa: E402
 from drltg.store.rundir import atomic_write, read_eval_csv  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 BASELINES = HERE / "lift-place-seed" / "sac" / "baseline"
 EARLIER = ROOT / "tests" / "data" / "sb3_runs" / "liftplace_sac"
-START, END = "<!-- progress -->", "<!-- /progress -->"
+SB3 = ROOT / "tests" / "data" / "sb3_runs"
+EARLIER = SB3 / "liftplace_sac"
 TARGET, BUDGET = 50.0, 300_000
+HOLD_LOWEST, HOLD_MEAN = 0.7, 0.9
+SOURCES = {  # folder: what it is
+    "lift-dense-sac": "SAC + the demonstrator's episodes (LayerNorm critics, half of every batch)",
+    "lift-dense-soc4": "SOC-4 + the demonstrator's episodes (a quarter of every batch)",
+    "lift-dense-sac-plain": "SAC alone, as the earlier implementation's source (stopped)",
+}
+ROWS = {  # row: (target folder, baseline folder, earlier no-transfer log, earlier transfer log)
+    "shaping-lift-seed": ("lift/sac", "baseline", "lift_sparse_sac", "lift_shaped_sac"),
+    "pi-reuse-place-seed": ("lift-place-seed/sac", "baseline", "liftplace_sac", "liftplace_sac_policyreuse"),
+    "pi-reuse-barrier-seed": ("lift-place-barrier-seed/sac", "baseline", "liftplacebarrier_sac",
+                              "liftplacebarrier_sac_policyreuse"),
+    "model-reuse-place-seed": ("lift-place-seed/sac", "baseline-ln", "liftplace_sac", None),
+    "soc-model-reuse-place-seed": ("lift-place-seed/soc", "baseline", None, "liftplace_soc4"),
+}
+SIDE_BY_SIDE_FRAMES = (100_000, 200_000, 300_000)
 
 
 def runs() -> dict[str, list[dict]]:
@@ -55,11 +73,93 @@ def region() -> str:
     return "\n".join(lines) + "\n\n" + sentence
 
 
+def second_half(rows: list[dict], frames: int) -> list[float]:
+    """Success rates of the evaluations in the second half of a run of ``frames`` frames."""
+    return [r["success_rate"] for r in rows if r["frames"] >= frames / 2]
+
+
+def sources() -> str:
+    lines = ["| source | seed | frames | success, last evaluation | second half: lowest / mean | holds |",
+             "|---|---|---|---|---|---|"]
+    verdicts = []
+    for name, what in SOURCES.items():
+        seeds = sorted((HERE / "sources" / name).glob("seed-*"))
+        held = 0
+        for d in seeds:
+            rows = read_eval_csv(d / "eval.csv")
+            planned = int(load_yaml(d / "config.yaml")["frames"])
+            done = (d / "summary.json").is_file()
+            half = second_half(rows, planned)
+            if done:
+                holds = min(half) >= HOLD_LOWEST and np.mean(half) >= HOLD_MEAN
+                held += holds
+                cells = f"{min(half):.1f} / {np.mean(half):.2f} | {'yes' if holds else 'no'}"
+            else:
+                cells = "— | not finished"
+            lines.append(f"| `{name}` | {d.name.removeprefix('seed-')} | {rows[-1]['frames']:,} of {planned:,} | "
+                         f"{rows[-1]['success_rate']:.1f} | {cells} |")
+        finished = sum((d / "summary.json").is_file() for d in seeds)
+        if seeds and not finished:
+            verdicts.append(f"- `{name}`, {what}: no seed finished, so none is judged.")
+        elif seeds:
+            verdicts.append(f"- `{name}`, {what}: {held} of {finished} finished seeds hold"
+                            + (f" ({len(seeds) - finished} not finished)" if finished < len(seeds) else "") + ".")
+    earlier = read_curves(SB3 / "lift_shaped_sac")[0]
+    late = earlier.frames >= earlier.frames[-1] / 2
+    low = int(np.argmin(earlier.values[late]))
+    at = lambda x: f"{int(x):,}"  # noqa: E731
+    verdicts.append(
+        f"- The earlier implementation's source (`lift_shaped_sac`, SAC alone on the dense reward, "
+        f"{at(earlier.frames[-1])} frames; its log records return only): over its second half the evaluation "
+        f"return averaged {np.mean(earlier.values[late]):.1f} and fell to {earlier.values[late][low]:.1f} at "
+        f"{at(earlier.frames[late][low])} frames (its best {earlier.values.max():.1f}).")
+    return "\n".join(lines) + "\n\n" + "\n".join(verdicts)
+
+
+def _mean_at(folder: Path, frames: int, key: str) -> float | None:
+    values = []
+    for d in sorted(folder.glob("seed-*")):
+        rows = [r for r in read_eval_csv(d / "eval.csv") if r["frames"] == frames] if (d / "eval.csv").is_file() else []
+        if not rows:
+            return None
+        values.append(rows[0].get(key, float("nan")))
+    return float(np.mean(values)) if values else None
+
+
+def _earlier_at(log: str | None, frames: int) -> str:
+    if log is None:
+        return "not run"
+    curve = read_curves(SB3 / log)[0]
+    return f"{np.interp(frames, curve.frames, curve.values):.1f}" if curve.frames[0] <= frames else "—"
+
+
+def side_by_side() -> str:
+    lines = ["| row | frames | earlier: no transfer | earlier: transfer | drltg: no transfer | drltg: transfer "
+             "| drltg transfer: placed / pushed / lifted |", "|---" * 7 + "|"]
+    fmt = lambda x, spec=".1f": "—" if x is None else format(x, spec)  # noqa: E731
+    for row, (target, baseline, before, after) in ROWS.items():
+        key = "success_rate" if row == "shaping-lift-seed" else "return_mean"
+        kept = HERE / row
+        for f in SIDE_BY_SIDE_FRAMES:
+            base = _mean_at(kept / "baseline" if kept.is_dir() else HERE / target / baseline, f, key)
+            moved = _mean_at(kept / "transfer", f, key)
+            rates = [_mean_at(kept / "transfer", f, f"{k}_rate") for k in ("success", "pushed", "lifted")]
+            lines.append(f"| `{row}` | {f:,} | {_earlier_at(before, f)} | {_earlier_at(after, f)} | {fmt(base)} | "
+                         f"{fmt(moved)} | {' / '.join(fmt(x, '.2f') for x in rates)} |")
+    return "\n".join(lines)
+
+
+REGIONS = {"progress": region, "sources": sources, "side-by-side": side_by_side}
+
+
 def filled(text: str) -> str:
-    """``text`` (the README) with its generated region rebuilt from the kept curves."""
-    head, rest = text.split(START, 1)
-    _, tail = rest.split(END, 1)
-    return f"{head}{START}\n{region()}\n{END}{tail}"
+    """``text`` (the README) with its generated regions rebuilt from the kept curves."""
+    for name, make in REGIONS.items():
+        start, end = f"<!-- {name} -->", f"<!-- /{name} -->"
+        head, rest = text.split(start, 1)
+        _, tail = rest.split(end, 1)
+        text = f"{head}{start}\n{make()}\n{end}{tail}"
+    return text
 
 
 def main() -> None:
