@@ -47,6 +47,18 @@ def test_run_directory_contract(tiny_run):
     assert (tiny_run / "logs" / "csv" / "scalars").is_dir()
 
 
+def test_the_summary_splits_the_wall_time_by_phase(tiny_run):
+    """update + evaluate + checkpoint + the rest (collection) add up to the run's wall time."""
+    import json
+
+    summary = json.loads((tiny_run / "summary.json").read_text())
+    split = summary["wall_time_split_s"]
+    assert set(split) == {"update", "evaluate", "checkpoint", "collect_and_rest"}
+    assert all(v >= 0 for v in split.values())
+    assert split["update"] > 0 and split["evaluate"] > 0 and split["checkpoint"] > 0  # 2 evaluations, 2 saves
+    assert abs(sum(split.values()) - summary["wall_time_s"]) <= 0.05
+
+
 def test_same_seed_same_curve(tiny_run, tmp_path):
     again = train(tiny_cfg(), tmp_path / "b", progress=False)
     assert (again / "eval.csv").read_text() == (tiny_run / "eval.csv").read_text()

@@ -310,8 +310,12 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
 
     saved = frames  # the frame of the latest last.pt (a resumed run's checkpoint; none yet at frame 0)
 
+    seconds: dict[str, float] = defaultdict(float)  # where the loop's wall time went, phase by phase
+
     def run_eval() -> None:
-        for writer, row in zip(writers, learner.evaluate(stop_if_signalled)):
+        with _timed(seconds, "evaluate"):
+            rows = learner.evaluate(stop_if_signalled)
+        for writer, row in zip(writers, rows):
             writer.evaluation({"frames": frames, **row})
         bar.set_postfix(eval_return=f"{writers[0].rows[-1]['return_mean']:.3f}", refresh=False)
         if cfg.checkpoint.keep_best:
@@ -321,9 +325,10 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
 
     def save_checkpoint(improved=(), last: bool = True) -> None:
         nonlocal saved
-        for k, (writer, state) in enumerate(zip(writers, learner.state())):
-            health.check_state(state["loss"], frames, k if seeds > 1 else None)
-            writer.checkpoint(state, frames, updates, last=last, best=bool(improved and improved[k]))
+        with _timed(seconds, "checkpoint"):
+            for k, (writer, state) in enumerate(zip(writers, learner.state())):
+                health.check_state(state["loss"], frames, k if seeds > 1 else None)
+                writer.checkpoint(state, frames, updates, last=last, best=bool(improved and improved[k]))
         saved = frames if last else saved
 
     bar = tqdm(total=cfg.frames, initial=frames, unit="frame", disable=None if progress else True,  # None: a TTY only
@@ -336,6 +341,7 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
         next_log = frames + cfg.log.every
         stats: list[dict[str, list[float]]] = [defaultdict(list) for _ in range(seeds)]
         start, start_frames = time.perf_counter(), frames
+        seconds.clear()  # the split covers the same window as wall_time_s
 
         for data in collector:
             stop_if_signalled()
@@ -345,7 +351,8 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
             for piece, seed_stats in zip(pieces, stats):
                 _episode_stats(piece, seed_stats)
             if frames >= init_random:
-                updates = _update(learner, opt.updates_per_batch, updates, frames, stats)
+                with _timed(seconds, "update"):
+                    updates = _update(learner, opt.updates_per_batch, updates, frames, stats)
             bar.update(pieces[0].numel())
             if frames >= next_log:
                 fps = (frames - start_frames) / (time.perf_counter() - start)
@@ -369,10 +376,22 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
         run_eval()
     save_checkpoint()
     wall = time.perf_counter() - start
+    split = {k: round(seconds[k], 2) for k in ("update", "evaluate", "checkpoint")}
+    split["collect_and_rest"] = round(max(wall - sum(seconds.values()), 0.0), 2)
     extras = extra_summary if isinstance(extra_summary, list) else [extra_summary] * len(writers)
     for writer, extra in zip(writers, extras):
         writer.finish(frames, updates, wall, (frames - start_frames) / max(wall, 1e-9),
-                      {**(extra or {}), **best.summary(cfg, writer.rows)})
+                      {**(extra or {}), **best.summary(cfg, writer.rows), "wall_time_split_s": split})
+
+
+@contextlib.contextmanager
+def _timed(seconds: dict[str, float], phase: str):
+    """Add the wall time of the ``with`` body to ``seconds[phase]``."""
+    begin = time.perf_counter()
+    try:
+        yield
+    finally:
+        seconds[phase] += time.perf_counter() - begin
 
 
 def _update(learner, count: int, updates: int, frames: int, stats: list[dict[str, list[float]]]) -> int:
