@@ -320,6 +320,38 @@ def test_each_reported_row_gets_its_gains_holm_adjusted_within_the_row(tmp_path,
     assert claims.manipulation_rows() == "No row of the queue is complete yet (the runs finished so far are below).\n"
 
 
+def test_a_seed_row_reads_its_three_reports_as_one_family(tmp_path, monkeypatch):
+    """pi-reuse-place-seed reported on return, success and lifted rate, each report with a jumpstart test beside
+    its gain (p = 0.5): the gains' p = 0.01, 0.02 and 0.03 are read among 6 tests (Holm: 6 x 0.01 = 0.06, then
+    5 x 0.02 = 0.10, then 4 x 0.03 = 0.12); the other four rows are not reported yet."""
+    claims = generator()
+    monkeypatch.setattr(claims, "SEED", tmp_path)
+
+    def put(sub, value, ci, p):
+        folder = tmp_path / "pi-reuse-place-seed" / sub
+        folder.mkdir(parents=True)
+        metrics = {"mean_return_gain": value, "mean_return_gain_ci": ci, "mean_return_gain_p_value": p,
+                   "n_seeds_transfer": 3, "n_seeds_baseline": 3, "jumpstart": 0.0, "asymptotic_performance": 0.0,
+                   "jumpstart_p_value": 0.5}
+        settings = {"task": "lift-place-seed", "transfer_label": "pi-reuse-place-seed", "baseline_label":
+                    "no transfer", "budget": 300000, "family": {"metrics": ["mean_return_gain", "jumpstart"]}}
+        (folder / "transfer_metrics.json").write_text(json.dumps({"metrics": metrics, "settings": settings}))
+
+    assert claims.seed_rows() == "No row of the 5 is reported yet: the table above shows their runs so far.\n"
+    put("report", 40.0, [10.0, 70.0], 0.01)
+    put("report-success", 0.1, [0.02, 0.18], 0.02)
+    put("report-lifted", 0.2, [0.05, 0.35], 0.03)
+    assert claims.seed_rows().splitlines() == [
+        "- `pi-reuse-place-seed` (lift-place-seed, pi-reuse-place-seed against no transfer, 3 paired seeds × 300k "
+        "frames), mean gain in return +40.00 [+10.00, +70.00]: no evidence of a difference at this budget after "
+        "Holm's adjustment (adjusted p = 0.06); success rate +0.10 [+0.02, +0.18]: no evidence of a difference at "
+        "this budget after Holm's adjustment (adjusted p = 0.1); lifted rate +0.20 [+0.05, +0.35]: no evidence of a "
+        "difference at this budget after Holm's adjustment (adjusted p = 0.12) (Holm over all 6 tests of its 3 "
+        "reports).",
+        "4 of the 5 rows are not reported yet.",
+    ]
+
+
 def test_the_source_noise_sentence_sums_the_sources_episodes(tmp_path, monkeypatch):
     """Two sources: 9 + 10 of 20 lifted without noise, 5 + 0 at the largest sigma, where the scripted
     demonstrator's row of summary.json says it placed 7 of 10."""
