@@ -67,3 +67,49 @@ def test_the_seed_tasks_progress_table_is_generated_from_its_kept_curves():
     text = (RESULTS / "seed-tasks" / "README.md").read_text()
     assert progress.filled(text) == text, "run python results/seed-tasks/progress.py"
     assert "earlier SAC (1 run)" in text and "| 10,000 |" in text
+
+
+def _study():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("seed_study", RESULTS / "seed-tasks" / "study.py")
+    study = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(study)
+    return study
+
+
+def test_the_seed_study_queues_its_sources_before_the_rows_that_reuse_them(tmp_path):
+    """6 sources and 5 rows of 3 seeds; a row's seed s waits for source seed s + 50 of its learner, and only
+    for it; model reuse, which copies the SAC source's LayerNorm critics, has LayerNorm baselines of its own."""
+    from drltg import config as config_lib
+
+    study = _study()
+    jobs = study.jobs(tmp_path)
+    assert [j.name for j in jobs][:4] == ["lift-dense-sac-seed-60", "lift-dense-sac-seed-61", "lift-dense-sac-seed-62",
+                                          "pi-reuse-place-seed-seed-10"]
+    assert len(jobs) == 6 + 5 * 3 and not any(j.finished() for j in jobs)
+    ready = {j.name for j in jobs if j.ready()}
+    assert ready == {f"{name}-seed-{s}" for name in ("lift-dense-sac", "lift-dense-soc4") for s in (60, 61, 62)} | {
+        f"shaping-lift-seed-seed-{s}" for s in (10, 11, 12)}
+    done = tmp_path / "sources" / "lift-dense-soc4" / "seed-61"
+    done.mkdir(parents=True)
+    (done / "summary.json").write_text("{}")
+    ready_now = {j.name for j in study.jobs(tmp_path) if j.ready()} - ready
+    assert ready_now == {"soc-model-reuse-place-seed-seed-11"}
+
+    def source(name):
+        job = next(j for j in jobs if j.name == f"{name}-seed-60")
+        flags = job.argv[job.argv.index("lift-dense") + 1:]
+        overrides = [v for f, v in zip(flags, flags[1:]) if f == "-o"]
+        return config_lib.resolve(None, overrides, task="lift-dense", algo="soc" if "soc" in flags else "sac",
+                                  seed=60, frames=int(flags[flags.index("--frames") + 1]))
+
+    sac, soc = source("lift-dense-sac"), source("lift-dense-soc4")
+    assert config_lib.config_changes(sac, soc) == ["algo", "network.layer_norm", "transfer.demo_ratio"]
+    assert sac.transfer.method == "demonstrations" and sac.checkpoint.keep_best and sac.frames == 60_000
+    model = study.row.sides("model-reuse-place-seed", tmp_path)
+    assert all(c.network.layer_norm == "critics" for side in model.values() for c in side[0])
+    assert model["baseline"][1][0] == tmp_path / "lift-place-seed" / "sac" / "baseline-ln" / "seed-10"
+    pi = study.row.sides("pi-reuse-place-seed", tmp_path)
+    assert pi["baseline"][1][0] == tmp_path / "lift-place-seed" / "sac" / "baseline" / "seed-10"
+    assert pi["baseline"][0][0].network.layer_norm == "none"
