@@ -98,8 +98,13 @@ def test_the_seed_study_queues_its_sources_before_the_rows_that_reuse_them(tmp_p
     assert ready_now == {"soc-model-reuse-place-seed-seed-11"}
 
     def source(name):
+        import shlex
+
         job = next(j for j in jobs if j.name == f"{name}-seed-60")
-        flags = job.argv[job.argv.index("lift-dense") + 1:]
+        train, evaluate = (shlex.split(c) for c in job.argv[2].split(" && "))  # sh -c "train && evaluate"
+        assert evaluate[1:] == ["evaluate", str(tmp_path / "sources" / name / "seed-60"), "--checkpoint", "best",
+                                "--episodes", "50"]
+        flags = train[train.index("lift-dense") + 1:]
         overrides = [v for f, v in zip(flags, flags[1:]) if f == "-o"]
         return config_lib.resolve(None, overrides, task="lift-dense", algo="soc" if "soc" in flags else "sac",
                                   seed=60, frames=int(flags[flags.index("--frames") + 1]))

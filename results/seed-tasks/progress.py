@@ -82,7 +82,7 @@ def second_half(rows: list[dict], frames: int) -> list[float]:
 
 def sources() -> str:
     lines = ["| source | seed | frames | success, last evaluation | best.pt, which the rows reuse "
-             "| second half: lowest / mean | holds |", "|---|---|---|---|---|---|---|"]
+             "(95% Clopper-Pearson) | second half: lowest / mean | holds |", "|---|---|---|---|---|---|---|"]
     verdicts = []
     for name, what in SOURCES.items():
         seeds = sorted((HERE / "sources" / name).glob("seed-*"))
@@ -94,6 +94,10 @@ def sources() -> str:
             half = second_half(rows, planned)
             best = json.loads((d / "summary.json").read_text()).get("best") if done else None
             reused = f"{best['score']:.1f} at {best['frames']:,}" if best else "—"
+            for fresh in sorted(d.glob("evaluate-best-*-50ep.json")):  # drltg evaluate, fresh episodes
+                r = json.loads(fresh.read_text())
+                lo, hi = r["success_rate_ci95"]
+                reused += f"; {r['success_rate']:.2f} [{lo:.2f}, {hi:.2f}] on {r['episodes']} fresh episodes"
             if done:
                 holds = min(half) >= HOLD_LOWEST and np.mean(half) >= HOLD_MEAN
                 held += holds

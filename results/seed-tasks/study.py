@@ -12,12 +12,14 @@ The sources: SAC, or the soft option-critic with 4 options, on ``lift-dense`` (r
 the earlier implementation trained its source) with the scripted demonstrator's 50 episodes (the recipe that
 learned Lift in drltg's manipulation study: half of every batch demonstrated and LayerNorm critics for SAC, a
 quarter for SOC-4), 60k frames, evaluated every 5k frames on 10 episodes, checkpoints every 5k and at the best
-evaluation (the rows reuse ``best.pt``). Target seed s reuses source seed s + 50.
+evaluation (the rows reuse ``best.pt``, which ``drltg evaluate`` then scores on 50 fresh episodes). Target seed s
+reuses source seed s + 50.
 """
 from __future__ import annotations
 
 import argparse
 import importlib.util
+import shlex
 import shutil
 import subprocess
 import sys
@@ -36,6 +38,8 @@ SOURCES = {  # folder: learner flags
     "lift-dense-sac": ["-o", "network.layer_norm=critics", "-o", "transfer.demo_ratio=0.5"],
     "lift-dense-soc4": ["--algo", "soc", "-o", "soc.num_options=4"],
 }
+BEST_EPISODES = 50
+"""Fresh episodes on which a finished source's best.pt, the checkpoint the rows reuse, is evaluated."""
 SOURCE_SETTINGS = ["eval.every=5000", "eval.episodes=10", "checkpoint.every=5000", "checkpoint.keep_best=true",
                    *DEMONSTRATIONS]
 ORDER = [("source", "lift-dense-sac"), ("row", "pi-reuse-place-seed"), ("source", "lift-dense-soc4"),
@@ -61,6 +65,8 @@ def source_job(name: str, seed: int, runs: Path) -> Job:
             "--run-dir", str(run), "--no-progress", *[x for o in SOURCE_SETTINGS for x in ("-o", o)]]
     if (run / "config.yaml").is_file():
         argv.append("--resume")
+    evaluate = [drltg, "evaluate", str(run), "--checkpoint", "best", "--episodes", str(BEST_EPISODES)]
+    argv = ["sh", "-c", f"{shlex.join(argv)} && {shlex.join(evaluate)}"]
     return Job(f"{name}-seed-{seed}", argv, [run], [], keep=(run, HERE / "sources" / name / f"seed-{seed}"))
 
 
@@ -88,9 +94,9 @@ def keep(job: Job) -> None:
         return
     run, kept = job.keep
     kept.mkdir(parents=True, exist_ok=True)
-    for name in row.KEPT:
-        if (run / name).is_file():
-            shutil.copyfile(run / name, kept / name)
+    for path in [run / name for name in row.KEPT] + sorted(run.glob(f"evaluate-best-*-{BEST_EPISODES}ep.json")):
+        if path.is_file():
+            shutil.copyfile(path, kept / path.name)
 
 
 def main() -> None:
