@@ -11,6 +11,7 @@ directory's lifecycle (checks, lock, resume, cleanup of a failed start) is
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 import signal
 import sys
@@ -309,13 +310,11 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
     init_random = math.ceil(col.init_random_frames / col.frames_per_batch) * col.frames_per_batch
 
     saved = frames  # the frame of the latest last.pt (a resumed run's checkpoint; none yet at frame 0)
+    clock = PhaseClock()
 
-    seconds: dict[str, float] = defaultdict(float)  # where the loop's wall time went, phase by phase
-
+    @clock.timed("evaluate")
     def run_eval() -> None:
-        with _timed(seconds, "evaluate"):
-            rows = learner.evaluate(stop_if_signalled)
-        for writer, row in zip(writers, rows):
+        for writer, row in zip(writers, learner.evaluate(stop_if_signalled)):
             writer.evaluation({"frames": frames, **row})
         bar.set_postfix(eval_return=f"{writers[0].rows[-1]['return_mean']:.3f}", refresh=False)
         if cfg.checkpoint.keep_best:
@@ -323,12 +322,12 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
             if any(improved):  # last.pt too, so that best.pt is never later than the checkpoint a resume reads
                 save_checkpoint(improved, last=frames > 0)
 
+    @clock.timed("checkpoint")
     def save_checkpoint(improved=(), last: bool = True) -> None:
         nonlocal saved
-        with _timed(seconds, "checkpoint"):
-            for k, (writer, state) in enumerate(zip(writers, learner.state())):
-                health.check_state(state["loss"], frames, k if seeds > 1 else None)
-                writer.checkpoint(state, frames, updates, last=last, best=bool(improved and improved[k]))
+        for k, (writer, state) in enumerate(zip(writers, learner.state())):
+            health.check_state(state["loss"], frames, k if seeds > 1 else None)
+            writer.checkpoint(state, frames, updates, last=last, best=bool(improved and improved[k]))
         saved = frames if last else saved
 
     bar = tqdm(total=cfg.frames, initial=frames, unit="frame", disable=None if progress else True,  # None: a TTY only
@@ -340,8 +339,7 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
         next_ckpt = (frames // cfg.checkpoint.every + 1) * cfg.checkpoint.every
         next_log = frames + cfg.log.every
         stats: list[dict[str, list[float]]] = [defaultdict(list) for _ in range(seeds)]
-        start, start_frames = time.perf_counter(), frames
-        seconds.clear()  # the split covers the same window as wall_time_s
+        start, start_frames = clock.start(), frames
 
         for data in collector:
             stop_if_signalled()
@@ -351,14 +349,11 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
             for piece, seed_stats in zip(pieces, stats):
                 _episode_stats(piece, seed_stats)
             if frames >= init_random:
-                with _timed(seconds, "update"):
+                with clock("update"):
                     updates = _update(learner, opt.updates_per_batch, updates, frames, stats)
             bar.update(pieces[0].numel())
             if frames >= next_log:
-                fps = (frames - start_frames) / (time.perf_counter() - start)
-                for writer, seed_stats in zip(writers, stats):
-                    writer.log({k: sum(v) / len(v) for k, v in seed_stats.items() if v} | {"train/fps": fps}, frames)
-                    seed_stats.clear()
+                _log(writers, stats, frames, fps=(frames - start_frames) / (time.perf_counter() - start))
                 next_log = frames + cfg.log.every
             if frames >= next_eval or frames >= cfg.frames:
                 run_eval()
@@ -376,22 +371,54 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
         run_eval()
     save_checkpoint()
     wall = time.perf_counter() - start
-    split = {k: round(seconds[k], 2) for k in ("update", "evaluate", "checkpoint")}
-    split["collect_and_rest"] = round(max(wall - sum(seconds.values()), 0.0), 2)
     extras = extra_summary if isinstance(extra_summary, list) else [extra_summary] * len(writers)
     for writer, extra in zip(writers, extras):
         writer.finish(frames, updates, wall, (frames - start_frames) / max(wall, 1e-9),
-                      {**(extra or {}), **best.summary(cfg, writer.rows), "wall_time_split_s": split})
+                      {**(extra or {}), **best.summary(cfg, writer.rows), "wall_time_split_s": clock.split(wall)})
 
 
-@contextlib.contextmanager
-def _timed(seconds: dict[str, float], phase: str):
-    """Add the wall time of the ``with`` body to ``seconds[phase]``."""
-    begin = time.perf_counter()
-    try:
-        yield
-    finally:
-        seconds[phase] += time.perf_counter() - begin
+class PhaseClock:
+    """Where a loop's wall time went: ``with clock("update"):`` or ``@clock.timed("evaluate")`` add their body's
+    time to a phase; :meth:`split` gives the phases and, as ``collect_and_rest``, what is left of the window."""
+
+    PHASES = ("update", "evaluate", "checkpoint")
+
+    def __init__(self):
+        self.seconds: dict[str, float] = defaultdict(float)
+
+    def start(self) -> float:
+        """Forget what was timed so far (a window starts); returns ``time.perf_counter()``."""
+        self.seconds.clear()
+        return time.perf_counter()
+
+    @contextlib.contextmanager
+    def __call__(self, phase: str):
+        begin = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.seconds[phase] += time.perf_counter() - begin
+
+    def timed(self, phase: str):
+        def wrap(fn):
+            @functools.wraps(fn)
+            def timed_fn(*args, **kwargs):
+                with self(phase):
+                    return fn(*args, **kwargs)
+            return timed_fn
+        return wrap
+
+    def split(self, wall: float) -> dict[str, float]:
+        """Seconds per phase over a window of ``wall`` seconds, rounded to 10 ms."""
+        out = {k: round(self.seconds[k], 2) for k in self.PHASES}
+        return out | {"collect_and_rest": round(max(wall - sum(self.seconds.values()), 0.0), 2)}
+
+
+def _log(writers: list[RunWriter], stats: list[dict[str, list[float]]], frames: int, fps: float) -> None:
+    """Each seed's training scalars since the last log, averaged, with the loop's frames/s; then forgotten."""
+    for writer, seed_stats in zip(writers, stats):
+        writer.log({k: sum(v) / len(v) for k, v in seed_stats.items() if v} | {"train/fps": fps}, frames)
+        seed_stats.clear()
 
 
 def _update(learner, count: int, updates: int, frames: int, stats: list[dict[str, list[float]]]) -> int:
