@@ -96,12 +96,17 @@ def test_the_seed_study_queues_its_sources_before_the_rows_that_reuse_them(tmp_p
     (done / "summary.json").write_text("{}")
     ready_now = {j.name for j in study.jobs(tmp_path) if j.ready()} - ready
     assert ready_now == {"soc-model-reuse-place-seed-seed-11"}
+    source_61 = next(j for j in study.jobs(tmp_path) if j.name == "lift-dense-soc4-seed-61")
+    assert not source_61.finished()  # trained, but its best.pt is not yet scored on fresh episodes
+    (done / "evaluate-best-seed30061-50ep.json").write_text("{}")
+    assert source_61.finished()
 
     def source(name):
         import shlex
 
         job = next(j for j in jobs if j.name == f"{name}-seed-60")
-        train, evaluate = (shlex.split(c) for c in job.argv[2].split(" && "))  # sh -c "train && evaluate"
+        trained, evaluate = job.argv[2].split(" && ")  # sh -c "{ [ -f summary.json ] || train; } && evaluate"
+        train, evaluate = shlex.split(trained.split(" || ")[1].removesuffix("; }")), shlex.split(evaluate)
         assert evaluate[1:] == ["evaluate", str(tmp_path / "sources" / name / "seed-60"), "--checkpoint", "best",
                                 "--episodes", "50"]
         flags = train[train.index("lift-dense") + 1:]

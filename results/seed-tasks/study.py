@@ -48,11 +48,12 @@ ORDER = [("source", "lift-dense-sac"), ("row", "pi-reuse-place-seed"), ("source"
 
 
 class Job:
-    def __init__(self, name: str, argv: list[str], outputs: list[Path], needs: list[Path], keep=None):
+    def __init__(self, name: str, argv: list[str], outputs: list[Path], needs: list[Path], keep=None, files=()):
         self.name, self.argv, self.outputs, self.needs, self.keep = name, argv, outputs, needs, keep
+        self.files = files  # globs every output must also hold once the job is finished
 
     def finished(self) -> bool:
-        return all((d / "summary.json").is_file() for d in self.outputs)
+        return all((d / "summary.json").is_file() and all(any(d.glob(f)) for f in self.files) for d in self.outputs)
 
     def ready(self) -> bool:
         return all((d / "summary.json").is_file() for d in self.needs)
@@ -66,8 +67,10 @@ def source_job(name: str, seed: int, runs: Path) -> Job:
     if (run / "config.yaml").is_file():
         argv.append("--resume")
     evaluate = [drltg, "evaluate", str(run), "--checkpoint", "best", "--episodes", str(BEST_EPISODES)]
-    argv = ["sh", "-c", f"{shlex.join(argv)} && {shlex.join(evaluate)}"]
-    return Job(f"{name}-seed-{seed}", argv, [run], [], keep=(run, HERE / "sources" / name / f"seed-{seed}"))
+    trained = shlex.quote(str(run / "summary.json"))
+    argv = ["sh", "-c", f"{{ [ -f {trained} ] || {shlex.join(argv)}; }} && {shlex.join(evaluate)}"]
+    return Job(f"{name}-seed-{seed}", argv, [run], [], keep=(run, HERE / "sources" / name / f"seed-{seed}"),
+               files=(f"evaluate-best-*-{BEST_EPISODES}ep.json",))
 
 
 def row_job(name: str, seed: int, runs: Path) -> Job:
