@@ -25,6 +25,7 @@ EARLIER = ROOT / "tests" / "data" / "sb3_runs" / "liftplace_sac"
 SB3 = ROOT / "tests" / "data" / "sb3_runs"
 EARLIER = SB3 / "liftplace_sac"
 TARGET, BUDGET = 50.0, 300_000
+SEEDS = (10, 11, 12)
 HOLD_LOWEST, HOLD_MEAN = 0.7, 0.9
 SOURCES = {  # folder: what it is
     "lift-dense-sac": "SAC + the demonstrator's episodes (LayerNorm critics, half of every batch)",
@@ -124,14 +125,15 @@ def sources() -> str:
     return "\n".join(lines) + "\n\n" + "\n".join(verdicts)
 
 
-def _mean_at(folder: Path, frames: int, key: str) -> float | None:
+def _mean_at(folder: Path, frames: int, key: str) -> str:
+    """Mean over the seeds under ``folder`` that reached ``frames``; how many, where not all 3 did."""
     values = []
-    for d in sorted(folder.glob("seed-*")):
-        rows = [r for r in read_eval_csv(d / "eval.csv") if r["frames"] == frames] if (d / "eval.csv").is_file() else []
-        if not rows:
-            return None
-        values.append(rows[0].get(key, float("nan")))
-    return float(np.mean(values)) if values else None
+    for d in sorted(folder.glob("seed-*/eval.csv")):
+        values += [r.get(key, float("nan")) for r in read_eval_csv(d) if r["frames"] == frames]
+    if not values:
+        return "—"
+    spec = ".1f" if key == "return_mean" else ".2f"
+    return format(float(np.mean(values)), spec) + (f" ({len(values)} seeds)" if len(values) < len(SEEDS) else "")
 
 
 def _earlier_at(log: str | None, frames: int) -> str:
@@ -144,16 +146,15 @@ def _earlier_at(log: str | None, frames: int) -> str:
 def side_by_side() -> str:
     lines = ["| row | frames | earlier: no transfer | earlier: transfer | drltg: no transfer | drltg: transfer "
              "| drltg transfer: placed / pushed / lifted |", "|---" * 7 + "|"]
-    fmt = lambda x, spec=".1f": "—" if x is None else format(x, spec)  # noqa: E731
     for row, (target, baseline, before, after) in ROWS.items():
         key = "success_rate" if row == "shaping-lift-seed" else "return_mean"
-        kept = HERE / row
+        kept = HERE / row  # a finished row; before that, its runs' curves so far (HERE / TARGET / ALGO / ...)
+        base, moved = (kept / "baseline", kept / "transfer") if kept.is_dir() else (HERE / target / baseline,
+                                                                                     HERE / target / row)
         for f in SIDE_BY_SIDE_FRAMES:
-            base = _mean_at(kept / "baseline" if kept.is_dir() else HERE / target / baseline, f, key)
-            moved = _mean_at(kept / "transfer", f, key)
-            rates = [_mean_at(kept / "transfer", f, f"{k}_rate") for k in ("success", "pushed", "lifted")]
-            lines.append(f"| `{row}` | {f:,} | {_earlier_at(before, f)} | {_earlier_at(after, f)} | {fmt(base)} | "
-                         f"{fmt(moved)} | {' / '.join(fmt(x, '.2f') for x in rates)} |")
+            rates = [_mean_at(moved, f, f"{k}_rate") for k in ("success", "pushed", "lifted")]
+            lines.append(f"| `{row}` | {f:,} | {_earlier_at(before, f)} | {_earlier_at(after, f)} | "
+                         f"{_mean_at(base, f, key)} | {_mean_at(moved, f, key)} | {' / '.join(rates)} |")
     return "\n".join(lines)
 
 
