@@ -18,6 +18,7 @@ reuses source seed s + 50.
 from __future__ import annotations
 
 import argparse
+import functools
 import importlib.util
 import shlex
 import shutil
@@ -73,8 +74,14 @@ def source_job(name: str, seed: int, runs: Path) -> Job:
                files=(f"evaluate-best-*-{BEST_EPISODES}ep.json",))
 
 
+@functools.cache
+def _sides(name: str, runs: Path) -> dict:
+    """``row.sides``, resolved once: the queue asks for its jobs every 30 s, and the rows' configs never change."""
+    return row.sides(name, runs)
+
+
 def row_job(name: str, seed: int, runs: Path) -> Job:
-    sides = row.sides(name, runs)
+    sides = _sides(name, runs)
     outputs = [dirs[row.SEEDS.index(seed)] for _, dirs in sides.values()]
     source = row.ROWS[name][3]
     needs = [runs / "sources" / source / f"seed-{seed + row.SOURCE_OFFSET}"] if source else []
