@@ -16,6 +16,9 @@ replay buffer holding the same 20k random transitions. Cases:
 * ``matmul_bound``: only the matrix products of one SAC update (forward and backward, see
   :func:`sac_matmuls`) into preallocated outputs: what this thread's BLAS allows for the update's
   arithmetic, a bound no eager float32 implementation reaches;
+* on CPU also ``drltg_bf16`` and ``matmul_bound_bf16``: the drltg step under
+  ``torch.autocast("cpu", dtype=torch.bfloat16)`` and the matrix products in bfloat16, what a CPU with
+  bfloat16 dot products (AVX512-BF16, AMX) gains from mixed precision;
 * on CUDA also ``drltg_cudagraphs``: the drltg step captured in a CUDA graph.
 
 Every learner's update (``drltg`` is SAC; ``discrete_sac``: 7 one-hot actions; ``td3``: its policy
@@ -98,15 +101,17 @@ def _config(**extra) -> config_lib.RunConfig:
     return config_lib.resolve({}, [f"network.hidden=[{HIDDEN},{HIDDEN}]"], **extra)
 
 
-def drltg_case(device: str, chunk: int, cudagraphs: bool = False):
+def drltg_case(device: str, chunk: int, cudagraphs: bool = False, autocast: torch.dtype | None = None):
     torch.manual_seed(0)
     agent = make_sac_agent(SpecEnv(device), _config(device=device))
     step = UpdateStep(agent, cudagraphs=cudagraphs)
     buffer = _buffer(transitions(), device)
+    precision = torch.autocast(device.split(":")[0], dtype=autocast, enabled=autocast is not None)
 
     def run() -> int:
         for batch in sample_batches(buffer, chunk):
-            step(batch)
+            with precision:
+                step(batch)
         return chunk
 
     return run
@@ -302,11 +307,11 @@ def sac_matmuls(
     return out
 
 
-def matmul_case(device: str, chunk: int):
+def matmul_case(device: str, chunk: int, dtype: torch.dtype = torch.float32):
     shapes = sac_matmuls()
     g = torch.Generator().manual_seed(0)
-    operands = [(torch.randn(m, k, generator=g).to(device), torch.randn(k, n, generator=g).to(device),
-                 torch.empty(m, n, device=device)) for m, k, n in shapes]
+    operands = [(torch.randn(m, k, generator=g).to(device, dtype), torch.randn(k, n, generator=g).to(device, dtype),
+                 torch.empty(m, n, device=device, dtype=dtype)) for m, k, n in shapes]
 
     def run() -> int:
         for _ in range(chunk):
@@ -326,6 +331,9 @@ def run(device: str = "cpu", quick: bool = False) -> dict:
         "matmul_bound": matmul_case(device, chunk),
     }
     missing = {}
+    if device == "cpu":
+        cases["drltg_bf16"] = drltg_case(device, chunk, autocast=torch.bfloat16)
+        cases["matmul_bound_bf16"] = matmul_case(device, chunk, torch.bfloat16)
     if device.startswith("cuda"):
         try:
             case = drltg_case(device, chunk, cudagraphs=True)
@@ -341,7 +349,8 @@ def run(device: str = "cpu", quick: bool = False) -> dict:
     results = interleaved(cases, rounds=rounds, warmup=1, device=device)
     pairs = [("drltg", "plain"), ("drltg", "torchrl"), ("drltg", "sb3"), ("torchrl", "plain"), ("sb3", "plain"),
              ("drltg_cudagraphs", "plain"), ("drltg_cudagraphs", "torchrl"), ("soc_k4", "drltg"),
-             ("drltg", "matmul_bound"), ("plain", "matmul_bound"), ("sb3", "matmul_bound"), ("torchrl", "matmul_bound")]
+             ("drltg", "matmul_bound"), ("plain", "matmul_bound"), ("sb3", "matmul_bound"), ("torchrl", "matmul_bound"),
+             ("drltg_bf16", "drltg"), ("matmul_bound_bf16", "matmul_bound")]
     flops = sum(2 * m * k * n for m, k, n in sac_matmuls())
     return {
         "unit": "updates/s",
