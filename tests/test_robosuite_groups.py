@@ -16,6 +16,7 @@ pytest.importorskip("robosuite")
 from drltg import config as config_lib  # noqa: E402
 from drltg.store.rundir import load_checkpoint  # noqa: E402
 from drltg.training.loop import build_env, make_envs, train  # noqa: E402
+from drltg.training.replay import load_buffer_state  # noqa: E402
 from drltg.training.seeds import _group_env, group_support, in_process, train_seeds  # noqa: E402
 
 TINY = ["network.hidden=[16,16]", "env.horizon=50", "env.parallel=false", "env.mp_start_method=fork",
@@ -75,8 +76,8 @@ def test_a_lift_group_writes_each_seeds_run_to_the_end(tmp_path):
     # starts, same random actions from its own stream, in the same buffer order
     alone = train(lift_cfg(), tmp_path / "alone", progress=False)
     grouped, single = (ReplayBuffer(storage=LazyTensorStorage(1000)) for _ in range(2))
-    grouped.load_state_dict(load_checkpoint(dirs[0])["buffer"])
-    single.load_state_dict(load_checkpoint(alone)["buffer"])
+    load_buffer_state(grouped, load_checkpoint(dirs[0])["buffer"])
+    load_buffer_state(single, load_checkpoint(alone)["buffer"])
     assert len(grouped) == len(single) == 400
     warm_grouped, warm_single = grouped.storage[:100], single.storage[:100]
     assert set(warm_grouped.keys(True, True)) == set(warm_single.keys(True, True))

@@ -125,3 +125,64 @@ def test_cli_unknown_subcommand_option(capsys):
     assert main(["train", "fourrooms/northeast", "--no-such-option"]) == 2  # returned, as every refusal is
     err = capsys.readouterr().err
     assert err == "drltg: error: unrecognized arguments: --no-such-option\n", err
+
+
+def _buffer(capacity):
+    from torchrl.data import LazyTensorStorage, ReplayBuffer
+
+    return ReplayBuffer(storage=LazyTensorStorage(capacity), batch_size=2)
+
+
+def _rows(start, n):
+    import torch
+    from tensordict import TensorDict
+
+    count = torch.arange(start, start + n, dtype=torch.float32)
+    return TensorDict({"observation": count[:, None].expand(n, 3), "next": {"reward": -count[:, None]}}, [n])
+
+
+@pytest.mark.parametrize("written", [7, 10, 13])  # part filled, exactly full, wrapped around
+def test_a_saved_buffer_holds_its_written_rows_and_resumes_row_for_row(written, tmp_path):
+    """The checkpoint's buffer keeps len(buffer) rows, not the capacity; loaded back, it is the same buffer:
+    the same rows, the same capacity and cursor, so the next writes land where they would have."""
+    import torch
+
+    from drltg.training.replay import buffer_state, load_buffer_state
+
+    saved = _buffer(10)
+    saved.extend(_rows(0, written))
+    torch.save(buffer_state(saved), tmp_path / "buffer.pt")
+    state = torch.load(tmp_path / "buffer.pt", weights_only=True)
+    assert state["_storage"]["_storage"]["observation"].shape[0] == min(written, 10)
+    resumed = _buffer(10)
+    load_buffer_state(resumed, state)
+    for buffer in (saved, resumed):
+        buffer.extend(_rows(100, 5))
+    assert len(resumed) == len(saved) == min(written + 5, 10)
+    assert torch.equal(resumed.storage[:10]["observation"], saved.storage[:10]["observation"])
+    assert resumed.writer.state_dict() == saved.writer.state_dict()
+
+
+def test_a_checkpoint_that_holds_the_whole_storage_still_loads(tmp_path):
+    import torch
+
+    from drltg.training.replay import load_buffer_state
+
+    saved = _buffer(10)
+    saved.extend(_rows(0, 4))
+    resumed = _buffer(10)
+    load_buffer_state(resumed, saved.state_dict())  # TorchRL's own form: all 10 rows, 4 of them written
+    assert len(resumed) == 4
+    assert torch.equal(resumed.storage[:4]["observation"], saved.storage[:4]["observation"])
+
+
+def test_a_runs_checkpoint_keeps_the_frames_it_stored_of_a_larger_buffer(tiny_run):
+    import torch
+
+    from drltg.store.rundir import load_checkpoint
+
+    buffer = load_checkpoint(tiny_run)["buffer"]
+    assert tiny_cfg().buffer.size > 1024
+    assert buffer["_storage"]["_len"] == 1024
+    tensors = [v for v in buffer["_storage"]["_storage"].values() if isinstance(v, torch.Tensor)]
+    assert tensors and all(v.shape[0] == 1024 for v in tensors)

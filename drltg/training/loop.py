@@ -38,6 +38,7 @@ from drltg.learners import Agent, UpdateStep, make_agent, sample_batches
 from drltg.store import rundir
 from drltg.store.rundir import EPISODE_FLAGS, RunWriter, is_complete, read_eval_csv
 from drltg.training import best, health, preflight
+from drltg.training.replay import buffer_state
 from drltg.training.session import RunSession
 from drltg.transfer import Transfer, get_method
 from drltg.transfer.source import check as check_source
@@ -290,7 +291,7 @@ class AgentLearner:
         return [{
             "loss": self.agent.loss.state_dict(),
             "optimizer": self.agent.optimizer.state_dict(),
-            "buffer": self.buffer.state_dict(),
+            "buffer": buffer_state(self.buffer),
             "rng": torch.get_rng_state(),
         }]
 

@@ -73,6 +73,7 @@ from drltg.training.loop import (
     run_loop,
     train,
 )
+from drltg.training.replay import buffer_state
 from drltg.training.session import RunSession
 from drltg.transfer import Transfer, get_method
 from drltg.transfer.source import check as check_source
@@ -187,7 +188,7 @@ class GroupLearner:
         rngs = [torch.get_rng_state()] * self.seeds if streams is None else [s.clone() for s in streams.states]
         return [
             {"loss": agent.loss.state_dict(), "optimizer": self.group.optimizer_state(k),
-             "buffer": buffer.state_dict(), "rng": rngs[k]}
+             "buffer": buffer_state(buffer), "rng": rngs[k]}
             for k, (agent, buffer) in enumerate(zip(self.group.agents, self.buffers))
         ]
 

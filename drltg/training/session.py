@@ -27,6 +27,7 @@ from drltg.errors import UsageError
 from drltg.store import manifest, rundir
 from drltg.store.rundir import CHECKPOINT, CONFIG, EVAL, RunWriter, is_complete, read_eval_csv
 from drltg.training import best, health
+from drltg.training.replay import load_buffer_state
 
 TRAINING_STATE = {"frames", "updates", "optimizer", "buffer", "rng"}
 
@@ -91,8 +92,8 @@ class RunSession(contextlib.ExitStack):
             try:
                 agent.loss.load_state_dict(ckpt["loss"])
                 agent.optimizer.load_state_dict(ckpt["optimizer"])
-                buffer.load_state_dict(ckpt["buffer"])
-            except (KeyError, RuntimeError, ValueError) as err:
+                load_buffer_state(buffer, ckpt["buffer"])
+            except (KeyError, IndexError, RuntimeError, ValueError) as err:
                 raise UsageError(
                     f"checkpoint '{d / CHECKPOINT}' does not fit the run's config ({type(err).__name__})."
                 ) from None
