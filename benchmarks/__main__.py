@@ -12,7 +12,8 @@ another, many minutes), ``lift-seeds`` (3 seeds of a Lift run as one seed group 
 after another, whole commands, about 20 minutes on one core), ``sweep`` (a FourRooms sweep with seed
 groups against every run alone, about 15 minutes on 2 cores) and ``threads`` (SAC steps under torch's
 default thread count against one thread, with a core idle and busy; it starts a spinning process) and
-``coverage`` (the report's intervals on simulated seeds, results/coverage's tables, a few minutes) run only
+``coverage`` (the report's intervals on simulated seeds, results/coverage's tables, a few minutes) and
+``checkpoint`` (saving a part-filled 1e6-transition Lift buffer whole and as a checkpoint keeps it) run only
 when named.
 """
 from __future__ import annotations
@@ -33,7 +34,7 @@ import torch
 from benchmarks.common import REPO, machine, versions
 
 DEFAULT = ("env", "robosuite", "sac", "train", "memory", "gymnasium")
-NAMED_ONLY = ("lift", "demo", "seeds", "lift-seeds", "sweep", "threads", "coverage")
+NAMED_ONLY = ("lift", "demo", "seeds", "lift-seeds", "sweep", "threads", "coverage", "checkpoint")
 
 
 def _suite(name: str):
@@ -47,6 +48,8 @@ def _suite(name: str):
         from benchmarks.e2e import run_train as run
     elif name == "memory":
         from benchmarks.e2e import run_memory as run
+    elif name == "checkpoint":
+        from benchmarks.e2e import run_checkpoint as run
     elif name == "gymnasium":
         from benchmarks.gymnasium_vec import run
     elif name == "lift":

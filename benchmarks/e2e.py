@@ -1,4 +1,5 @@
-"""Suites ``train`` and ``memory``: whole training runs, and the memory of a 1e6-transition replay buffer.
+"""Suites ``train``, ``memory`` and ``checkpoint``: whole training runs, and the memory and the checkpoint
+of a 1e6-transition replay buffer.
 
 ``train`` runs ``drltg.training.loop.train`` (what ``drltg train`` runs) on ``fourrooms/northeast`` with the
 task's own settings, alternating the training step as shipped with the reference step (TorchRL's
@@ -10,6 +11,11 @@ reports frames/s and wall time from each run's ``summary.json``. With robosuite 
 training loop stores them (only the keys the loss reads), and reports the growth of the peak resident
 memory against the raw bytes of the stored tensors; the same for every key a Lift collector batch
 carries (what the loop stored before it selected the loss's keys).
+
+``checkpoint`` fills such a buffer (the loss's keys) with 300k transitions, as a Lift run holds at 300k
+frames, and saves it with ``torch.save`` as TorchRL's ``state_dict`` holds it (the whole capacity) and as a
+drltg checkpoint holds it (``drltg.training.replay.buffer_state``: the written rows), alternating, and
+reports each file's size and save time and that the saved rows load back equal.
 """
 from __future__ import annotations
 
@@ -145,4 +151,44 @@ def run_memory(device: str = "cpu", quick: bool = False) -> dict:
         "all_collector_keys": _memory_child(size, None),
         "target": "peak RSS growth <= 1.3x the raw bytes of the stored transitions",
         "note": "CPU storage; peak RSS growth measured from just before the buffer is created",
+    }
+
+
+def run_checkpoint(device: str = "cpu", quick: bool = False) -> dict:
+    import statistics
+
+    import torch
+    from tensordict import TensorDict
+    from torchrl.data import LazyTensorStorage, ReplayBuffer
+
+    from drltg.training.replay import buffer_state, load_buffer_state
+
+    capacity, written, rounds = (200_000, 60_000, 2) if quick else (1_000_000, 300_000, 3)
+    buffer = ReplayBuffer(storage=LazyTensorStorage(capacity), batch_size=256)
+    g = torch.Generator().manual_seed(0)
+    for start in range(0, written, 10_000):
+        batch = TensorDict({}, [10_000])
+        for key in LOSS_KEYS:
+            shape, dtype = LIFT_KEYS[key]
+            batch.set(key, (torch.rand(10_000, *shape, generator=g) < 0.5).to(getattr(torch, dtype)))
+        buffer.extend(batch)
+    forms = {"whole_storage": buffer.state_dict, "written_rows": lambda: buffer_state(buffer)}
+    seconds, sizes = {name: [] for name in forms}, {}
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "buffer.pt"
+        for _ in range(rounds):
+            for name, state in forms.items():
+                start = time.perf_counter()
+                torch.save(state(), path)
+                seconds[name].append(time.perf_counter() - start)
+                sizes[name] = path.stat().st_size
+        resumed = ReplayBuffer(storage=LazyTensorStorage(capacity), batch_size=256)
+        load_buffer_state(resumed, torch.load(path, weights_only=True))
+        equal = len(resumed) == written and all(
+            torch.equal(resumed.storage[:written][k], buffer.storage[:written][k]) for k in LOSS_KEYS)
+    return {
+        "capacity": capacity, "written": written, "rounds": rounds, "loads_back_equal": equal,
+        "mib": {name: round(size / 2**20, 1) for name, size in sizes.items()},
+        "save_s": {name: round(statistics.median(s), 2) for name, s in seconds.items()},
+        "note": "torch.save to a temporary directory on the local disk, wall clock, median over rounds",
     }
