@@ -133,7 +133,8 @@ def _mean_at(folder: Path, frames: int, key: str) -> str:
     if not values:
         return "—"
     spec = ".1f" if key == "return_mean" else ".2f"
-    return format(float(np.mean(values)), spec) + (f" ({len(values)} seeds)" if len(values) < len(SEEDS) else "")
+    counted = f" ({len(values)} seed{'s' * (len(values) > 1)})" if len(values) < len(SEEDS) else ""
+    return format(float(np.mean(values)), spec) + counted
 
 
 def _earlier_at(log: str | None, frames: int) -> str:
