@@ -901,14 +901,14 @@ def _ends(report: dict) -> str:
     m, st = report["metrics"], report["settings"]
     if round(abs(m["jumpstart"]), 2) == 0 and round(abs(m["asymptotic_performance"]), 2) == 0:
         return ""
-    text = (f" (at the first evaluation {m['jumpstart']:+.2f}, over the last {st['asymptote_window']:.0%} of the "
-            f"budget {m['asymptotic_performance']:+.2f}")
+    text = (f" (at the first evaluation {cl.signed(m['jumpstart'])}, over the last {st['asymptote_window']:.0%} of "
+            f"the budget {cl.signed(m['asymptotic_performance'])}")
     b, t = _curves(report, "baseline"), _curves(report, "transfer")
     if round(abs(m["jumpstart"]), 2) and all(len(c.frames) > 1 for c in b + t):
         second = float(np.mean([c.values[1] for c in t]) - np.mean([c.values[1] for c in b]))
         if round(abs(second), 2) == 0:
-            text += (f"; gone by the second evaluation, {cl.frames(t[0].frames[1])} frames: {second:+.2f}, so this "
-                     "gain is the frame-0 jumpstart carried over the first interval, not a gain over the run")
+            text += (f"; gone by the second evaluation, {cl.frames(t[0].frames[1])} frames: {cl.signed(second)}, so "
+                     "this gain is the frame-0 jumpstart carried over the first interval, not a gain over the run")
     return text + ")"
 
 
