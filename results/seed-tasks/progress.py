@@ -21,7 +21,6 @@ from drltg.store.rundir import atomic_write, read_eval_csv  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 BASELINES = HERE / "lift-place-seed" / "sac" / "baseline"
-EARLIER = ROOT / "tests" / "data" / "sb3_runs" / "liftplace_sac"
 SB3 = ROOT / "tests" / "data" / "sb3_runs"
 EARLIER = SB3 / "liftplace_sac"
 TARGET, BUDGET = 50.0, 300_000
