@@ -902,3 +902,17 @@ def test_foreign_logs_in_seed_folders_are_paired_by_their_folder_names(tmp_path)
     res = report.compute(report.read_runs(str(tmp_path / "b"), report.ReportSettings()),
                          report.read_runs(str(tmp_path / "t"), report.ReportSettings()))
     assert res["settings"]["paired"] is False
+
+
+def test_a_difference_within_float32_rounding_of_the_curves_is_drawn_as_zero(tmp_path):
+    """Two sides that start equal, logged in float32, can differ by eps * |y| at frame 0; the kept metric stays
+    exact and the plot reads +0 rather than +4.77e-06 (returns near 40)."""
+    start = float(np.float32(40.0))
+    for side, nudge, slope in (("baseline", 0.0, 1.0), ("transfer", float(np.spacing(np.float32(40.0))), 2.0)):
+        write_run(tmp_path / side / "seed_0", [0, 10, 20], [start + nudge, 41.0, 40.0 + slope],
+                  task="fourrooms/northeast")
+    result = report.transfer_report(tmp_path / "baseline", tmp_path / "transfer", tmp_path / "o")
+    assert result["metrics"]["jumpstart"] == pytest.approx(3.814697265625e-06)
+    svg = (tmp_path / "o" / "transfer_plot.svg").read_text()
+    assert "jumpstart +0" in svg
+    assert "e-06" not in svg
