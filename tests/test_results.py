@@ -1,6 +1,7 @@
 """The committed reference results are re-analysable: their curves give back their reports."""
 import json
 import math
+import os
 from pathlib import Path
 
 import pytest
@@ -123,3 +124,21 @@ def test_the_seed_study_queues_its_sources_before_the_rows_that_reuse_them(tmp_p
     pi = study.row.sides("pi-reuse-place-seed", tmp_path)
     assert pi["baseline"][1][0] == tmp_path / "lift-place-seed" / "sac" / "baseline" / "seed-10"
     assert pi["baseline"][0][0].network.layer_norm == "none"
+
+
+def test_a_kept_transfer_run_names_its_kept_source(tmp_path):
+    """A transfer run in ``runs/`` names its source relative to itself; kept in ``results/seed-tasks/ROW``,
+    its config names the source's kept folder instead, so the report counts the source's frames."""
+    row = _study().row
+    runs = tmp_path / "runs"
+    run = runs / "lift-place-seed" / "sac" / "pi-reuse-place-seed" / "seed-10"
+    run.mkdir(parents=True)
+    config = "task: lift-place-seed\nenv:\n  source: keep/me\ntransfer:\n  method: policy-reuse\n  source: {}\n"
+    (run / "config.yaml").write_text(config.format("../../../../sources/lift-dense-sac/seed-60"))
+    (run / "eval.csv").write_text("frames,return_mean\n0,1.0\n")
+    kept = tmp_path / "kept" / "transfer" / "seed-10"
+    row.keep(run, kept, runs)
+    assert (kept / "eval.csv").read_text() == "frames,return_mean\n0,1.0\n"
+    source = os.path.relpath(RESULTS / "seed-tasks" / "sources" / "lift-dense-sac" / "seed-60", kept)
+    assert (kept / "config.yaml").read_text() == config.format(source)
+    assert (kept / source / "config.yaml").is_file()

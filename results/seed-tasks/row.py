@@ -18,6 +18,8 @@ and lifted rates (0.5 and 0.8; success alone on Lift).
 from __future__ import annotations
 
 import argparse
+import os
+import re
 import shutil
 import sys
 from pathlib import Path
@@ -73,15 +75,37 @@ def train_runs(cfgs: list, dirs: list[Path]) -> None:
             train(cfg, run, resume=(run / "config.yaml").is_file(), progress=False)
 
 
-def keep_and_report(row: str, groups: dict) -> None:
+HERE = Path(__file__).resolve().parent
+SOURCE_LINE = re.compile(r"^(  source: )(\S+)$", re.M)
+
+
+def keep(run: Path, kept: Path, runs: Path) -> None:
+    """Copy a run's ``KEPT`` files to ``kept``; a transfer's ``transfer.source`` (relative to its run) is
+    pointed at the source's kept folder (``sources/`` here, as in ``runs``), so a report finds the source's
+    frames and a reader its curve."""
+    kept.mkdir(parents=True, exist_ok=True)
+    for name in KEPT:
+        if (run / name).is_file():
+            shutil.copyfile(run / name, kept / name)
+
+    def moved(m: re.Match) -> str:
+        source = Path(os.path.normpath(run / m[2])) if not Path(m[2]).is_absolute() else Path(m[2])
+        if not source.is_relative_to(Path(os.path.normpath(runs / "sources"))):
+            return m[0]
+        where = HERE / "sources" / source.relative_to(os.path.normpath(runs / "sources"))
+        return m[1] + os.path.relpath(where, kept.resolve())
+
+    config = kept / "config.yaml"
+    if config.is_file():
+        config.write_text(SOURCE_LINE.sub(moved, config.read_text()))
+
+
+def keep_and_report(row: str, groups: dict, runs: Path) -> None:
     task = ROWS[row][0]
-    out = Path(__file__).resolve().parent / row
+    out = Path(os.path.relpath(HERE / row))  # the reports name their runs relative to the repository
     for side, (_, dirs) in groups.items():
         for d in dirs:
-            (out / side / d.name).mkdir(parents=True, exist_ok=True)
-            for name in KEPT:
-                if (d / name).is_file():
-                    shutil.copyfile(d / name, out / side / d.name / name)
+            keep(d, out / side / d.name, runs)
     stages = [("report", None, 50)] + [(f"report-{tag}", f"{tag}_rate", threshold) for tag, threshold in
                                          (("success", 0.5), ("lifted", 0.8)) if task != "lift" or tag == "success"]
     for folder, tag, threshold in stages:
@@ -110,7 +134,7 @@ def main() -> None:
         cfgs, dirs = groups[side]
         train_runs(*zip(*[(c, d) for c, d in zip(cfgs, dirs) if c.seed in args.seeds]))
     if all((d / "summary.json").is_file() for _, dirs in groups.values() for d in dirs):
-        keep_and_report(args.row, groups)
+        keep_and_report(args.row, groups, args.runs)
     else:
         print(f"{args.row}: runs of other seeds are not finished yet; the last process to finish reports the row")
 
