@@ -2,7 +2,7 @@
 
     python results/seed-tasks/study.py --cores 0 1          # re-running resumes; --dry-run lists the jobs
 
-A job is a source run (``drltg train lift-dense``, seed 60, 61 or 62, and SAC's seed 63) or one seed of a row
+A job is a source run (``drltg train lift-dense``, seed 60, 61 or 62) or one seed of a row
 (``row.py ROW --seeds S``: its baseline, then its transfer run). Each core takes the first job, in the order
 below, that is neither finished nor running and whose source is finished, and runs it pinned to that core
 (``taskset``), its output in ``RUNS/logs/JOB.log``. A finished source's curves are kept in
@@ -43,12 +43,9 @@ BEST_EPISODES = 50
 """Fresh episodes on which a finished source's best.pt, the checkpoint the rows reuse, is evaluated."""
 SOURCE_SETTINGS = ["eval.every=5000", "eval.episodes=10", "checkpoint.every=5000", "checkpoint.keep_best=true",
                    *DEMONSTRATIONS]
-EXTRA_SOURCE_SEEDS = {"lift-dense-sac": (63,)}
-"""Source seeds no row reuses. A SAC source must hold over its second half on 3 seeds; of seeds 60-62, seed 61
-did not (its mean 0.87), so a fourth seed is trained and all four are reported."""
 ORDER = [("source", "lift-dense-sac"), ("row", "pi-reuse-place-seed"), ("source", "lift-dense-soc4"),
-         ("extra source", "lift-dense-sac"), ("row", "model-reuse-place-seed"), ("row", "pi-reuse-barrier-seed"),
-         ("row", "shaping-lift-seed"), ("row", "soc-model-reuse-place-seed")]
+         ("row", "model-reuse-place-seed"), ("row", "pi-reuse-barrier-seed"), ("row", "shaping-lift-seed"),
+         ("row", "soc-model-reuse-place-seed")]
 
 
 class Job:
@@ -95,8 +92,8 @@ def row_job(name: str, seed: int, runs: Path) -> Job:
 def jobs(runs: Path) -> list[Job]:
     out = []
     for kind, name in ORDER:
-        if kind.endswith("source"):
-            out += [source_job(name, s, runs) for s in (SOURCE_SEEDS if kind == "source" else EXTRA_SOURCE_SEEDS[name])]
+        if kind == "source":
+            out += [source_job(name, s, runs) for s in SOURCE_SEEDS]
         else:
             out += [row_job(name, s, runs) for s in row.SEEDS]
     return out
