@@ -142,3 +142,28 @@ def test_a_kept_transfer_run_names_its_kept_source(tmp_path):
     source = os.path.relpath(RESULTS / "seed-tasks" / "sources" / "lift-dense-sac" / "seed-60", kept)
     assert (kept / "config.yaml").read_text() == config.format(source)
     assert (kept / source / "config.yaml").is_file()
+
+
+def test_a_finished_shaping_row_is_reported_on_lifts_success_alone(tmp_path, monkeypatch):
+    """Shaping's two sides are paid by different rewards (dense against sparse Lift), so its row is reported
+    on the success rate only, and its kept runs name no source."""
+    row = _study().row
+    monkeypatch.setattr(row, "HERE", tmp_path / "results")
+    monkeypatch.chdir(tmp_path)
+    groups = row.sides("shaping-lift-seed", tmp_path / "runs")
+    for side, (_, dirs) in groups.items():
+        for d, seed in zip(dirs, row.SEEDS):
+            d.mkdir(parents=True)
+            shaping = "true" if side == "transfer" else "false"
+            (d / "config.yaml").write_text(f"task: lift\nseed: {seed}\nframes: 20\nenv:\n  reward_shaping: {shaping}\n")
+            rate = 0.5 if side == "transfer" else 0.0
+            (d / "eval.csv").write_text("frames,return_mean,success_rate,lifted_rate\n"
+                                        f"0,0.0,0.0,0.0\n10,{seed},{rate},{rate}\n20,{seed},{rate},{rate}\n")
+            (d / "summary.json").write_text("{}")
+    row.keep_and_report("shaping-lift-seed", groups, tmp_path / "runs")
+    out = tmp_path / "results" / "shaping-lift-seed"
+    assert sorted(p.name for p in out.iterdir()) == ["baseline", "report-success", "transfer"]
+    metrics = json.loads((out / "report-success" / "transfer_metrics.json").read_text())
+    assert metrics["settings"]["transfer"][0] == "results/shaping-lift-seed/transfer/seed-10/eval.csv"
+    assert metrics["metrics"]["asymptotic_performance"] == pytest.approx(0.5)
+    assert (out / "transfer" / "seed-12" / "config.yaml").read_text().endswith("reward_shaping: true\n")
