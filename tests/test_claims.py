@@ -20,6 +20,12 @@ def generator():
     return module
 
 
+def regions(name: str):
+    """One study's module of ``results/regions/`` (``results/claims.py`` puts them on the path)."""
+    generator()
+    return importlib.import_module(f"regions.{name}")
+
+
 def report(times=(1000.0, None, 3000.0), crossing="sustained", value=0.4, ci=(0.1, 0.7), p_adjusted=0.01, **st):
     """A hand-made transfer_metrics.json: three transfer seeds with the given threshold times."""
     per_seed = [{"seed": 100 * i, "mean_return": 0.5 + i, "time_to_threshold": t} for i, t in enumerate(times)]
@@ -166,14 +172,13 @@ def test_every_generated_region_matches_the_committed_numbers(file):
     """Fails on any drift: regenerate with `python results/claims.py`."""
     g = generator()
     text = (ROOT / file).read_text()
-    regions = g.generated(file)
-    assert cl.fill_regions(text, regions) == text, f"{file} drifted from results/**: run python results/claims.py"
+    assert cl.fill_regions(text, g.generated(file)) == text, f"{file} drifted from results/**: run python results/claims.py"
 
 
 def test_a_changed_number_changes_the_sentences(tmp_path):
     g = generator()
-    for path in g.GRADED.rglob("transfer_metrics.json"):
-        target = tmp_path / path.relative_to(g.GRADED)
+    for path in g.sweeps.GRADED.rglob("transfer_metrics.json"):
+        target = tmp_path / path.relative_to(g.sweeps.GRADED)
         target.parent.mkdir(parents=True, exist_ok=True)
         shutil.copy(path, target)
     changed = tmp_path / "fourrooms-near" / "sac" / "model-reuse" / "report" / "transfer_metrics.json"
@@ -181,7 +186,7 @@ def test_a_changed_number_changes_the_sentences(tmp_path):
     data["metrics"]["mean_return_gain_ci"] = [-0.2, 2.3]
     changed.write_text(json.dumps(data))
     order = ["model-reuse", "value-shaping", "policy-reuse", "reward-shaping"]
-    before, after = g.sweep_verdicts(g.GRADED, order), g.sweep_verdicts(tmp_path, order)
+    before, after = g.sweeps.sweep_verdicts(g.sweeps.GRADED, order), g.sweeps.sweep_verdicts(tmp_path, order)
     assert "near +1.08 [\u22120.75, +2.00]: no verdict at 5 pairs; about 20 would decide it" in before
     assert "near +1.08 [\u22120.20, +2.30]: no verdict at 5 pairs; about 20 would decide it" in after
 
@@ -192,8 +197,8 @@ def test_the_registry_tables_list_every_builtin_task_method_and_key():
     from drltg.envs import PAIRS, TASKS
     from drltg.transfer.registry import METHODS
 
-    tasks = g.tasks_table("rooms") + g.tasks_table("robosuite") + g.tasks_table("gym")
-    methods, keys = g.methods_table(), g.config_table()
+    tasks = g.reference.tasks_table("rooms") + g.reference.tasks_table("robosuite") + g.reference.tasks_table("gym")
+    methods, keys = g.reference.methods_table(), g.reference.config_table()
     builtin = {n for n, m in METHODS.items() if m.build.__module__.startswith("drltg.")}
     assert {"none", "reward-shaping", "value-shaping", "policy-reuse", "jumpstart", "model-reuse",
             "demonstrations"} <= builtin
@@ -223,7 +228,7 @@ def test_the_report_command_ends_with_the_generated_headline(tmp_path, capsys):
 def test_the_run_rate_counts_a_baseline_kept_by_several_rows_once(tmp_path):
     """One baseline kept by two rows at 30 frames/s and two transfer runs at 40 and 50: the median of
     30, 40, 50 is 40 over 3 runs (counting the copy, 4 runs and a median of 35)."""
-    claims = generator()
+    claims = regions("manipulation")
 
     def finished(path, fps):
         path.mkdir(parents=True)
@@ -239,7 +244,7 @@ def test_the_run_rate_counts_a_baseline_kept_by_several_rows_once(tmp_path):
 def test_the_collapse_lines_count_where_each_unplaced_cube_ends(tmp_path, monkeypatch):
     """Two seeds, two episodes each per checkpoint: seed 0 places both at best.pt and none at last.pt (one
     cube off the table, one resting 10 cm away); seed 5 places one at both (its other cube held)."""
-    claims = generator()
+    claims = regions("manipulation")
     monkeypatch.setattr(claims, "MANIP", tmp_path)
     folder = tmp_path / "measurements" / "demo"
     folder.mkdir(parents=True)
@@ -277,11 +282,11 @@ def test_each_reported_row_gets_its_gains_holm_adjusted_within_the_row(tmp_path,
     ends (+1.00 at the first evaluation, +0.20 at the last), so only its gain says where it comes from."""
     from types import SimpleNamespace
 
-    claims = generator()
+    claims = regions("manipulation")
     monkeypatch.setattr(claims, "MANIP", tmp_path)
     shutil.copy(ROOT / "results" / "manipulation" / "queue.sh", tmp_path / "queue.sh")
     lifted = {"baseline": [0.0, 0.0], "transfer": [1.0, 0.9]}  # pi-reuse-place's jumpstart still there at 5k
-    monkeypatch.setattr(claims, "_curves", lambda report, side: [
+    monkeypatch.setattr(regions("common"), "report_curves", lambda report, side: [
         SimpleNamespace(frames=np.array([0.0, 5000.0]), values=np.array(lifted[side]))] * 3)
 
     def put(row, method, tag, value, ci, p, totals=(1.0, 1.0), reached=(0.0, 0.0), ends=(0.0, 0.0)):
@@ -324,7 +329,7 @@ def test_a_seed_row_reads_its_three_reports_as_one_family(tmp_path, monkeypatch)
     """pi-reuse-place-seed reported on return, success and lifted rate, each report with a jumpstart test beside
     its gain (p = 0.5): the gains' p = 0.01, 0.02 and 0.03 are read among 6 tests (Holm: 6 x 0.01 = 0.06, then
     5 x 0.02 = 0.10, then 4 x 0.03 = 0.12); the other four rows are not reported yet."""
-    claims = generator()
+    claims = regions("seed_tasks")
     monkeypatch.setattr(claims, "SEED", tmp_path)
 
     def put(sub, value, ci, p):
@@ -355,7 +360,7 @@ def test_a_seed_row_reads_its_three_reports_as_one_family(tmp_path, monkeypatch)
 def test_the_source_noise_sentence_sums_the_sources_episodes(tmp_path, monkeypatch):
     """Two sources: 9 + 10 of 20 lifted without noise, 5 + 0 at the largest sigma, where the scripted
     demonstrator's row of summary.json says it placed 7 of 10."""
-    claims = generator()
+    claims = regions("manipulation")
     monkeypatch.setattr(claims, "PLACEMENT", tmp_path)
     (tmp_path / "source-noise.csv").write_text(
         "source,sigma,episodes,lifted\nlift/seed-100,0.0,10,10\nlift/seed-100,0.1,10,0\n"
@@ -374,7 +379,7 @@ def test_the_rows_on_one_target_list_their_shared_baselines_once_and_refuse_two_
     """Row a keeps baseline seeds 0 and 100, row b a copy of seed 0 and its own seed 200: the target's
     baselines are seeds 0, 100 and 200 (seed 0 from a), named for both rows; a copy whose curve differs
     is an error, not a second baseline. Row c's soft option-critic baselines are another learner's, apart."""
-    claims = generator()
+    claims = regions("manipulation")
     monkeypatch.setattr(claims, "MANIP", tmp_path)
     curve = "frames,return_mean,return_std,episodes,success_rate,lifted_rate\n0,0.0,0.0,10,0.0,0.0\n"
     for row, algo, seed, text in [("a", "sac", 0, curve), ("a", "sac", 100, curve), ("b", "sac", 0, curve),
@@ -397,7 +402,7 @@ def test_the_rows_on_one_target_list_their_shared_baselines_once_and_refuse_two_
 def test_the_shaping_stages_sentence_averages_each_side_over_its_seeds(tmp_path, monkeypatch):
     """Two runs a side: without shaping the gripper never comes closer than it starts (0.2 m); with shaping
     one run comes 0.1 m closer and one 0.004 m (under 1 cm: not counted), grasping in 3 + 1 of 20 episodes."""
-    claims = generator()
+    claims = regions("manipulation")
     monkeypatch.setattr(claims, "SHAPING", tmp_path)
     head = "side,seed,episodes,start_m,closest_m,mean_m,grasped_share,grasped,lifted\n"
     (tmp_path / "stages.csv").write_text(
@@ -414,19 +419,19 @@ def test_the_shaping_stages_sentence_averages_each_side_over_its_seeds(tmp_path,
 
 
 def test_a_recipe_reported_on_the_seeds_that_chose_it_says_so():
-    g = generator()
+    g = regions("common")
     ran = {"settings": {"tuned_on": {"baseline": [], "transfer": [0, 100]}}}  # the report's reading of tuned_on
-    said = g._tuned("demonstrations-reference-place", ran)
+    said = g.tuned("demonstrations-reference-place", ran)
     assert said == ("; the placement reference's recipe (measurements/place-reference-ln-half-noisy): chosen on seeds "
                     "0, 100, which are reported here too (tuned on the seeds it reports, not a fresh-seed result)")
-    assert g._tuned("demonstrations-reference-place", {"settings": {"tuned_on": {"transfer": []}}}) == ""
-    assert g._tuned("model-reuse-place", ran).startswith("; its recipe: chosen on seeds 0, 100")
+    assert g.tuned("demonstrations-reference-place", {"settings": {"tuned_on": {"transfer": []}}}) == ""
+    assert g.tuned("model-reuse-place", ran).startswith("; its recipe: chosen on seeds 0, 100")
 
 
 def test_a_frame_0_jumpstart_gone_by_the_next_evaluation_is_said_to_be_one(monkeypatch):
     from types import SimpleNamespace
 
-    g = generator()
+    g = regions("common")
     r = {"metrics": {"jumpstart": 1.0, "asymptotic_performance": 0.0}, "settings": {"asymptote_window": 0.1}}
 
     def runs(*seconds):
@@ -434,11 +439,11 @@ def test_a_frame_0_jumpstart_gone_by_the_next_evaluation_is_said_to_be_one(monke
                 for v0, v1 in seconds]
 
     curves = {"baseline": runs((0, 0), (0, 0)), "transfer": runs((1, 0), (1, 0))}
-    monkeypatch.setattr(g, "_curves", lambda report, side: curves[side])
-    assert g._ends(r).endswith("; gone by the second evaluation, 5k frames: +0.00, so this gain is the frame-0 "
+    monkeypatch.setattr(g, "report_curves", lambda report, side: curves[side])
+    assert g.ends(r).endswith("; gone by the second evaluation, 5k frames: +0.00, so this gain is the frame-0 "
                                "jumpstart carried over the first interval, not a gain over the run)")
     curves["transfer"] = runs((1, 1), (1, 1))  # still there at the second evaluation: nothing more to say
-    assert g._ends(r) == " (at the first evaluation +1.00, over the last 10% of the budget +0.00)"
+    assert g.ends(r) == " (at the first evaluation +1.00, over the last 10% of the budget +0.00)"
 
 
 def test_a_betting_p_value_by_hand():
