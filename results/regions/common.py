@@ -16,8 +16,6 @@ ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "results"
 
 PRIMARY = "mean_return_gain"
-
-
 METHOD_NAMES = {"model-reuse": "model reuse", "value-shaping": "value shaping", "policy-reuse": "policy reuse",
                 "reward-shaping": "reward shaping (oracle potential)", "demonstrations": "demonstrations",
                 "jumpstart": "jumpstart"}

@@ -122,8 +122,6 @@ def lift_dense_peaks() -> str:
 
 
 LIFT = RESULTS / "sweep-lift-demonstrations" / "lift" / "sac"
-
-
 PLACE = RESULTS / "sweep-lift-to-place"
 
 

@@ -26,11 +26,7 @@ from regions.common import (
 )
 
 MANIP = RESULTS / "manipulation"
-
-
 ROW_SPECS = ROOT / "examples" / "sweeps" / "manipulation-rows"
-
-
 WORKERS = 2
 
 

@@ -5,12 +5,8 @@ from drltg.analysis import claims as cl
 from regions.common import PRIMARY, RESULTS, ends, load, said, whole_family
 
 SEED = RESULTS / "seed-tasks"
-
-
 SEED_ROWS = ("shaping-lift-seed", "pi-reuse-place-seed", "pi-reuse-barrier-seed", "model-reuse-place-seed",
              "soc-model-reuse-place-seed")
-
-
 SEED_REPORTS = {"return": "report", "success": "report-success", "lifted": "report-lifted"}
 
 

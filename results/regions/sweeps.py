@@ -143,8 +143,6 @@ def readme_others() -> str:
 
 
 OPTIONS = RESULTS / "sweep-options"
-
-
 GRADED = RESULTS / "sweep-fourrooms-graded"
 
 
