@@ -19,13 +19,11 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "results"
-for path in (ROOT, RESULTS):  # drltg, and the regions beside this script
-    if str(path) not in sys.path:
-        sys.path.insert(0, str(path))
-
-from regions import lift, manipulation, reference, seed_tasks, sweeps  # noqa: E402
+if str(ROOT) not in sys.path:  # drltg, and results.regions
+    sys.path.insert(0, str(ROOT))
 
 from drltg.analysis import claims as cl  # noqa: E402
+from results.regions import lift, manipulation, reference, seed_tasks, sweeps  # noqa: E402
 
 FOUR_METHODS = ["model-reuse", "value-shaping", "policy-reuse", "reward-shaping"]
 """The FourRooms sweeps' methods, in the order their verdicts are read."""

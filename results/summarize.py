@@ -9,9 +9,8 @@ that hold it.
 import sys
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-sys.path[:0] = [str(HERE), str(HERE.parent)]  # results/regions and drltg, also under runpy
-from regions.sweeps import sweep_table  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # drltg and results.regions, also under runpy
+from results.regions.sweeps import sweep_table  # noqa: E402
 
 root = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parent / "sweep-fourrooms-graded"
 print(sweep_table(root), end="")

@@ -21,9 +21,9 @@ def generator():
 
 
 def regions(name: str):
-    """One study's module of ``results/regions/`` (``results/claims.py`` puts them on the path)."""
+    """One study's module of ``results/regions/`` (``results/claims.py`` puts the repository on the path)."""
     generator()
-    return importlib.import_module(f"regions.{name}")
+    return importlib.import_module(f"results.regions.{name}")
 
 
 def report(times=(1000.0, None, 3000.0), crossing="sustained", value=0.4, ci=(0.1, 0.7), p_adjusted=0.01, **st):
@@ -172,7 +172,8 @@ def test_every_generated_region_matches_the_committed_numbers(file):
     """Fails on any drift: regenerate with `python results/claims.py`."""
     g = generator()
     text = (ROOT / file).read_text()
-    assert cl.fill_regions(text, g.generated(file)) == text, f"{file} drifted from results/**: run python results/claims.py"
+    drift = f"{file} drifted from results/**: run python results/claims.py"
+    assert cl.fill_regions(text, g.generated(file)) == text, drift
 
 
 def test_a_changed_number_changes_the_sentences(tmp_path):

@@ -7,7 +7,7 @@ from pathlib import Path
 from drltg.analysis import claims as cl
 from drltg.analysis import stats
 from drltg.analysis.tables import estimate, render
-from regions.common import (
+from results.regions.common import (
     PRIMARY,
     RESULTS,
     ROOT,

@@ -10,7 +10,7 @@ import yaml
 from drltg.analysis import claims as cl
 from drltg.analysis import metrics as mx
 from drltg.analysis.tables import estimate, render
-from regions.common import (
+from results.regions.common import (
     PRIMARY,
     RESULTS,
     ROOT,

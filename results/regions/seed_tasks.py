@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from drltg.analysis import claims as cl
-from regions.common import PRIMARY, RESULTS, ends, load, said, whole_family
+from results.regions.common import PRIMARY, RESULTS, ends, load, said, whole_family
 
 SEED = RESULTS / "seed-tasks"
 SEED_ROWS = ("shaping-lift-seed", "pi-reuse-place-seed", "pi-reuse-barrier-seed", "model-reuse-place-seed",

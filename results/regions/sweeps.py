@@ -6,8 +6,19 @@ from pathlib import Path
 
 from drltg.analysis import claims as cl
 from drltg.analysis.tables import estimate, render
-from regions.common import METHOD_NAMES, PRIMARY, RESULTS, cell, family, load, report_curves, said, seed_dirs, threshold
-from regions.lift import readme_lift
+from results.regions.common import (
+    METHOD_NAMES,
+    PRIMARY,
+    RESULTS,
+    cell,
+    family,
+    load,
+    report_curves,
+    said,
+    seed_dirs,
+    threshold,
+)
+from results.regions.lift import readme_lift
 
 
 def sweep_reports(root: Path, report: str = "report") -> dict[tuple[str, str], dict]:
