@@ -88,12 +88,13 @@ def keep(run: Path, kept: Path, runs: Path) -> None:
         if (run / name).is_file():
             shutil.copyfile(run / name, kept / name)
 
+    sources = Path(os.path.normpath(runs / "sources"))
+
     def moved(m: re.Match) -> str:
-        source = Path(os.path.normpath(run / m[2])) if not Path(m[2]).is_absolute() else Path(m[2])
-        if not source.is_relative_to(Path(os.path.normpath(runs / "sources"))):
+        source = Path(os.path.normpath(run / m[2]))  # an absolute path stays itself
+        if not source.is_relative_to(sources):
             return m[0]
-        where = HERE / "sources" / source.relative_to(os.path.normpath(runs / "sources"))
-        return m[1] + os.path.relpath(where, kept.resolve())
+        return m[1] + os.path.relpath(HERE / "sources" / source.relative_to(sources), kept.resolve())
 
     config = kept / "config.yaml"
     if config.is_file():
