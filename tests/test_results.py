@@ -126,6 +126,36 @@ def test_the_seed_study_queues_its_sources_before_the_rows_that_reuse_them(tmp_p
     assert pi["baseline"][0][0].network.layer_norm == "none"
 
 
+def test_stopping_the_seed_study_stops_each_job_s_processes_and_waits_for_them(tmp_path, capsys):
+    """A source job is ``sh -c "... drltg train ..."``: SIGTERM to the shell alone would leave its run
+    training. ``stop`` signals the job's whole process group and returns once the run has unwound."""
+    import shlex
+    import sys
+    import time
+
+    study = _study()
+    unwound = tmp_path / "unwound"
+    run = (f"import pathlib, signal, sys, time\n"
+           f"def unwind(signum, frame):\n"
+           f"    time.sleep(1)  # a checkpoint being saved\n"
+           f"    pathlib.Path({str(unwound)!r}).write_text('saved')\n"
+           f"    sys.exit(128 + signum)\n"
+           f"signal.signal(signal.SIGTERM, unwind)\n"
+           f"print('training', flush=True)\n"
+           f"time.sleep(60)\n")
+    job = study.Job("source-seed-60", ["sh", "-c", f"{shlex.quote(sys.executable)} -c {shlex.quote(run)}; sleep 60"],
+                    outputs=[], needs=[])
+    proc = study.start(job, 0, tmp_path)
+    log = tmp_path / "source-seed-60.log"
+    deadline = time.monotonic() + 60
+    while "training" not in log.read_text():
+        assert proc.poll() is None and time.monotonic() < deadline, log.read_text()
+        time.sleep(0.05)
+    study.stop({0: (job, proc)}, timeout=30)
+    assert unwound.read_text() == "saved"
+    assert "source-seed-60: stopped" in capsys.readouterr().out
+
+
 def test_a_kept_transfer_run_names_its_kept_source(tmp_path):
     """A transfer run in ``runs/`` names its source relative to itself; kept in ``results/seed-tasks/ROW``,
     its config names the source's kept folder instead, so the report counts the source's frames."""

@@ -1,7 +1,10 @@
 """The training loop and `drltg train`: run directory contract, determinism, resume, CLI errors."""
 import csv
+import os
+import signal
 
 import pytest
+import torch
 import yaml
 
 import drltg.training.loop as train_mod
@@ -85,6 +88,56 @@ def test_resume_after_interruption(tiny_run, tmp_path, monkeypatch):
     assert [r["frames"] for r in rows] == [r["frames"] for r in ref]
     assert rows[:2] == ref[:2]  # identical up to the checkpoint at 512 frames
     assert (run / "summary.json").is_file()
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_stopped_run_saves_a_checkpoint_at_the_frame_it_reached(signum, tiny_run, tmp_path, monkeypatch):
+    """Ctrl-C or SIGTERM at frame 640 (checkpoints every 512): the run saves one at 640 before it stops, so
+    the resumed run trains the 384 frames left; its curve is the uninterrupted one up to the signal."""
+    real, calls = train_mod._episode_stats, {"n": 0}
+
+    def signal_at_frame_640(data, stats):
+        calls["n"] += 1
+        if calls["n"] == 640 // 16:
+            os.kill(os.getpid(), signum)  # held by the loop until this batch is stored and learned from
+        return real(data, stats)
+
+    monkeypatch.setattr(train_mod, "_episode_stats", signal_at_frame_640)
+    previous = signal.signal(signal.SIGTERM, _exit_like_the_cli)
+    try:
+        with pytest.raises((KeyboardInterrupt, SystemExit)):
+            train(tiny_cfg(), tmp_path / "c", progress=False)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    checkpoint = torch.load(tmp_path / "c" / "checkpoints" / "last.pt", weights_only=True)
+    assert checkpoint["frames"] == 640
+    frames_trained = []
+    monkeypatch.setattr(train_mod, "_episode_stats", lambda data, stats: (frames_trained.append(data.numel()),
+                                                                          real(data, stats)))
+    run = train(tiny_cfg(), tmp_path / "c", resume=True, progress=False)
+    assert sum(frames_trained) == 1024 - 640
+    rows = read_eval_csv(run / "eval.csv")
+    assert [r["frames"] for r in rows] == [0, 512, 1024]
+    assert rows[:2] == read_eval_csv(tiny_run / "eval.csv")[:2]
+
+
+def _exit_like_the_cli(signum, frame):
+    raise SystemExit(128 + signum)
+
+
+def test_a_run_stopped_before_its_first_checkpoint_is_removed(tmp_path, monkeypatch):
+    real, calls = train_mod._episode_stats, {"n": 0}
+
+    def interrupt_at_frame_320(data, stats):
+        calls["n"] += 1
+        if calls["n"] == 320 // 16:
+            os.kill(os.getpid(), signal.SIGINT)
+        return real(data, stats)
+
+    monkeypatch.setattr(train_mod, "_episode_stats", interrupt_at_frame_320)
+    with pytest.raises(KeyboardInterrupt):
+        train(tiny_cfg(), tmp_path / "c", progress=False)
+    assert not (tmp_path / "c").exists()  # a failed start: the same command can run again
 
 
 def _cli(args, capsys):

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import logging
 import math
 import signal
 import sys
@@ -45,6 +46,8 @@ from drltg.transfer.source import check as check_source
 
 __all__ = ["train", "run_loop", "AgentLearner", "make_collector", "evaluate", "evaluate_seeds", "make_envs",
            "make_eval_env", "build_env", "check_config", "is_complete", "read_eval_csv"]
+
+log = logging.getLogger(__name__)
 
 
 # ----------------------------------------------------------------------------- envs
@@ -220,17 +223,20 @@ def make_collector(cfg: RunConfig, env: EnvBase, policy, frames: int = 0, seeds:
 def deferred_signals(signums=(signal.SIGINT, signal.SIGTERM)):
     """Hold SIGINT and SIGTERM while training and hand them to the handlers that were in place (Ctrl-C's
     KeyboardInterrupt, the CLI's SIGTERM unwinding) when the loop calls the yielded check, once per
-    batch, or at the end. Raised in the middle of a TorchRL loss, the exception does not always unwind:
+    batch, or at the end; ``check(before=f)`` calls ``f`` first when a signal is pending (the loop saves
+    a checkpoint there). Raised in the middle of a TorchRL loss, the exception does not always unwind:
     tensordict's context managers can turn it into another error, and a stopped run would end in a
     traceback instead of releasing its directory."""
     if threading.current_thread() is not threading.main_thread():  # handlers can only be set there
-        yield lambda: None
+        yield lambda before=None: None
         return
     received: list[int] = []
     previous = {s: signal.signal(s, lambda signum, frame: received.append(signum)) for s in signums}
 
-    def deliver() -> None:
+    def deliver(before: Callable[[], None] | None = None) -> None:
         if received:
+            if before is not None:
+                before()
             signum = received[0]
             handler = previous[signum]
             restore()
@@ -297,7 +303,7 @@ class AgentLearner:
 
 
 def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, frames: int = 0, updates: int = 0,
-             progress: bool = True, stop_if_signalled: Callable[[], None] = lambda: None,
+             progress: bool = True, stop_if_signalled: Callable[..., None] = lambda before=None: None,
              extra_summary: dict | list[dict] | None = None) -> None:
     """Collect, store, update, evaluate and checkpoint until ``cfg.frames`` frames per seed.
 
@@ -331,6 +337,13 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
             writer.checkpoint(state, frames, updates, last=last, best=bool(improved and improved[k]))
         saved = frames if last else saved
 
+    def save_on_stop() -> None:
+        """A stopped run that has a checkpoint saves one at the frame it reached, so a resume loses no
+        frames; one stopped before its first checkpoint stays a failed start (removed, see RunSession)."""
+        if 0 < saved < frames:
+            save_checkpoint()
+            log.info("stopped at frame %d with a checkpoint there: --resume continues from it", frames)
+
     bar = tqdm(total=cfg.frames, initial=frames, unit="frame", disable=None if progress else True,  # None: a TTY only
                dynamic_ncols=True)
     try:
@@ -343,7 +356,7 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
         start, start_frames = clock.start(), frames
 
         for data in collector:
-            stop_if_signalled()
+            stop_if_signalled(before=save_on_stop)
             pieces = learner.split(data)
             frames += pieces[0].numel()
             learner.store(pieces, frames)

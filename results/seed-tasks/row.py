@@ -21,6 +21,7 @@ import argparse
 import os
 import re
 import shutil
+import signal
 import sys
 from pathlib import Path
 
@@ -143,6 +144,7 @@ def main() -> None:
 if __name__ == "__main__":
     from drltg.errors import UsageError
 
+    signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))  # unwinds: the run's lock is released
     try:
         main()
     except UsageError as err:

@@ -1,6 +1,8 @@
 """The seed's tasks as one queue: the Lift sources, then the rows' runs, one run per core at a time.
 
     python results/seed-tasks/study.py --cores 0 1          # re-running resumes; --dry-run lists the jobs
+    kill PID                                                # (or Ctrl-C) stops it: each running run saves a
+                                                            # checkpoint at the frame it reached first
 
 A job is a source run (``drltg train lift-dense``, seed 60, 61 or 62) or one seed of a row
 (``row.py ROW --seeds S``: its baseline, then its transfer run). Each core takes the first job, in the order
@@ -18,10 +20,13 @@ reuses source seed s + 50.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import functools
 import importlib.util
+import os
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -122,6 +127,14 @@ def main() -> None:
         return
     (args.runs / "logs").mkdir(parents=True, exist_ok=True)
     running: dict[int, tuple[Job, subprocess.Popen]] = {}
+    signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
+    try:
+        queue(args, running)
+    finally:
+        stop(running)
+
+
+def queue(args: argparse.Namespace, running: dict[int, tuple[Job, subprocess.Popen]]) -> None:
     failed: set[str] = set()  # not tried again by this process: its log says why
     while True:
         for core, (job, proc) in list(running.items()):
@@ -139,9 +152,7 @@ def main() -> None:
                 break
             job = ready[0]
             todo.remove(job)
-            log = open(args.runs / "logs" / f"{job.name}.log", "a")
-            running[core] = (job, subprocess.Popen(["taskset", "-c", str(core), *job.argv], stdout=log,
-                                                   stderr=subprocess.STDOUT))
+            running[core] = (job, start(job, core, args.runs / "logs"))
             print(f"{time.strftime('%H:%M')} {job.name} on core {core}", flush=True)
         if not running:
             left = [j.name for j in jobs(args.runs) if not j.finished()]
@@ -149,6 +160,36 @@ def main() -> None:
                   f"failed): {', '.join(left)}", flush=True)
             return
         time.sleep(30)
+
+
+def start(job: Job, core: int, logs: Path) -> subprocess.Popen:
+    """``job`` pinned to ``core``, its output appended to ``logs/JOB.log``, in a process group of its own (a
+    source job is ``sh -c``, whose ``drltg`` commands are its children), so that :func:`stop` reaches them all."""
+    with open(logs / f"{job.name}.log", "a") as log:
+        return subprocess.Popen(["taskset", "-c", str(core), *job.argv], stdout=log, stderr=subprocess.STDOUT,
+                                start_new_session=True)
+
+
+def stop(running: dict[int, tuple[Job, subprocess.Popen]], timeout: float = 300.0) -> None:
+    """SIGTERM to every running job's process group: each run saves a checkpoint at the frame it reached and
+    unwinds; waits until every process of the groups has ended (or ``timeout`` seconds)."""
+    for _, proc in running.values():
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGTERM)
+    deadline = time.monotonic() + timeout
+    for job, proc in running.values():
+        code = proc.wait()
+        while time.monotonic() < deadline and _alive(proc.pid):
+            time.sleep(0.2)
+        print(f"{time.strftime('%H:%M')} {job.name}: stopped (exit {code}); a rerun resumes it", flush=True)
+
+
+def _alive(group: int) -> bool:
+    try:
+        os.killpg(group, 0)
+    except ProcessLookupError:
+        return False
+    return True
 
 
 if __name__ == "__main__":
