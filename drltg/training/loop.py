@@ -312,8 +312,7 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
     checkpoint and the summary (with ``extra_summary``, one for every writer or a list of one per writer):
     the loop itself writes no file. ``frames`` counts one seed's frames.
     """
-    col, opt = cfg.collector, cfg.optim
-    seeds = learner.seeds
+    col, opt, seeds = cfg.collector, cfg.optim, learner.seeds
     init_random = math.ceil(col.init_random_frames / col.frames_per_batch) * col.frames_per_batch
 
     saved = frames  # the frame of the latest last.pt (a resumed run's checkpoint; none yet at frame 0)
@@ -337,9 +336,7 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
             writer.checkpoint(state, frames, updates, last=last, best=bool(improved and improved[k]))
         saved = frames if last else saved
 
-    def save_on_stop() -> None:
-        """A stopped run that has a checkpoint saves one at the frame it reached, so a resume loses no
-        frames; one stopped before its first checkpoint stays a failed start (removed, see RunSession)."""
+    def save_on_stop() -> None:  # before its first checkpoint a stopped run is a failed start (RunSession)
         if 0 < saved < frames:
             save_checkpoint()
             log.info("stopped at frame %d with a checkpoint there: --resume continues from it", frames)
@@ -384,10 +381,16 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
     if writers[0].rows[-1]["frames"] != frames:
         run_eval()
     save_checkpoint()
+    _finish(cfg, writers, extra_summary, frames, updates, frames - start_frames, clock, start)
+
+
+def _finish(cfg: RunConfig, writers: list[RunWriter], extra_summary, frames: int, updates: int, trained: int,
+            clock: PhaseClock, start: float) -> None:
+    """Every writer's ``summary.json``: ``trained`` frames (this session's) in the wall time since ``start``."""
     wall = time.perf_counter() - start
     extras = extra_summary if isinstance(extra_summary, list) else [extra_summary] * len(writers)
     for writer, extra in zip(writers, extras):
-        writer.finish(frames, updates, wall, (frames - start_frames) / max(wall, 1e-9),
+        writer.finish(frames, updates, wall, trained / max(wall, 1e-9),
                       {**(extra or {}), **best.summary(cfg, writer.rows), "wall_time_split_s": clock.split(wall)})
 
 
