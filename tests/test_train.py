@@ -121,6 +121,38 @@ def test_a_stopped_run_saves_a_checkpoint_at_the_frame_it_reached(signum, tiny_r
     assert rows[:2] == read_eval_csv(tiny_run / "eval.csv")[:2]
 
 
+@pytest.mark.parametrize("stop_in_evaluation", [2, 3])
+def test_a_run_stopped_inside_an_evaluation_saves_a_checkpoint_and_evaluates_first_on_resume(
+        stop_in_evaluation, tiny_run, tmp_path, monkeypatch):
+    """Ctrl-C inside the evaluation at frame 512 or the final one at 1024 (checkpoints every 256): the run
+    saves a checkpoint at that frame; the resume makes that evaluation, then trains only the frames left."""
+    real_evaluate, real_stats, calls = train_mod.evaluate, train_mod._episode_stats, {"n": 0}
+
+    def interrupt_evaluation(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == stop_in_evaluation:
+            os.kill(os.getpid(), signal.SIGINT)  # held until the evaluation's first step checks for it
+        return real_evaluate(*args, **kwargs)
+
+    monkeypatch.setattr(train_mod, "evaluate", interrupt_evaluation)
+    cfg = config_lib.resolve({}, TINY + ["checkpoint.every=256"], task="fourrooms/northeast", frames=1024, seed=3)
+    with pytest.raises(KeyboardInterrupt):
+        train(cfg, tmp_path / "c", progress=False)
+    stopped_at = 512 * (stop_in_evaluation - 1)
+    checkpoint = torch.load(tmp_path / "c" / "checkpoints" / "last.pt", weights_only=True)
+    assert checkpoint["frames"] == stopped_at
+    assert [r["frames"] for r in read_eval_csv(tmp_path / "c" / "eval.csv")] == [0, 512][:stop_in_evaluation - 1]
+    frames_trained = []
+    monkeypatch.setattr(train_mod, "_episode_stats", lambda data, stats: (frames_trained.append(data.numel()),
+                                                                          real_stats(data, stats)))
+    run = train(cfg, tmp_path / "c", resume=True, progress=False)
+    assert sum(frames_trained) == 1024 - stopped_at
+    rows = read_eval_csv(run / "eval.csv")
+    assert [r["frames"] for r in rows] == [0, 512, 1024]
+    assert rows[0] == read_eval_csv(tiny_run / "eval.csv")[0]
+    assert (run / "summary.json").is_file()
+
+
 def _exit_like_the_cli(signum, frame):
     raise SystemExit(128 + signum)
 

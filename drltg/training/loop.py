@@ -320,7 +320,7 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
 
     @clock.timed("evaluate")
     def run_eval() -> None:
-        for writer, row in zip(writers, learner.evaluate(stop_if_signalled)):
+        for writer, row in zip(writers, learner.evaluate(lambda: stop_if_signalled(before=save_on_stop))):
             writer.evaluation({"frames": frames, **row})
         bar.set_postfix(eval_return=f"{writers[0].rows[-1]['return_mean']:.3f}", refresh=False)
         if cfg.checkpoint.keep_best:
@@ -337,14 +337,14 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
         saved = frames if last else saved
 
     def save_on_stop() -> None:  # before its first checkpoint a stopped run is a failed start (RunSession)
-        if 0 < saved < frames:
+        if 0 < saved < frames:  # inside an evaluation too: the resumed run evaluates first (_evaluation_due)
             save_checkpoint()
             log.info("stopped at frame %d with a checkpoint there: --resume continues from it", frames)
 
     bar = tqdm(total=cfg.frames, initial=frames, unit="frame", disable=None if progress else True,  # None: a TTY only
                dynamic_ncols=True)
     try:
-        if not writers[0].rows:
+        if _evaluation_due(cfg, writers[0].rows, frames):
             run_eval()
         next_eval = (frames // cfg.eval.every + 1) * cfg.eval.every
         next_ckpt = (frames // cfg.checkpoint.every + 1) * cfg.checkpoint.every
@@ -382,6 +382,16 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
         run_eval()
     save_checkpoint()
     _finish(cfg, writers, extra_summary, frames, updates, frames - start_frames, clock, start)
+
+
+def _evaluation_due(cfg: RunConfig, rows: list[dict], frames: int) -> bool:
+    """Whether the loop owes an evaluation at ``frames`` before collecting: at frame 0, and on resuming a
+    checkpoint saved by a stop inside the evaluation at its frame (eval.csv stops before the last
+    multiple of ``eval.every`` the checkpoint reached, or before the final frame)."""
+    if not rows:
+        return True
+    last = rows[-1]["frames"]
+    return last < frames and (frames >= cfg.frames or last < frames // cfg.eval.every * cfg.eval.every)
 
 
 def _finish(cfg: RunConfig, writers: list[RunWriter], extra_summary, frames: int, updates: int, trained: int,
