@@ -156,6 +156,28 @@ def test_stopping_the_seed_study_stops_each_job_s_processes_and_waits_for_them(t
     assert "source-seed-60: stopped" in capsys.readouterr().out
 
 
+def test_a_study_job_that_ignores_sigterm_is_killed_after_the_timeout(tmp_path, capsys):
+    import sys
+    import time
+
+    study = _study()
+    run = ("import signal, time\n"
+           "signal.signal(signal.SIGTERM, signal.SIG_IGN)\n"
+           "print('training', flush=True)\n"
+           "time.sleep(60)\n")
+    job = study.Job("stuck-seed-61", [sys.executable, "-c", run], outputs=[], needs=[])
+    proc = study.start(job, 0, tmp_path)
+    deadline = time.monotonic() + 60
+    while "training" not in (tmp_path / "stuck-seed-61.log").read_text():
+        assert proc.poll() is None and time.monotonic() < deadline
+        time.sleep(0.05)
+    began = time.monotonic()
+    study.stop({0: (job, proc)}, timeout=1)
+    assert time.monotonic() - began < 30
+    assert proc.returncode == -9
+    assert "stuck-seed-61: killed, still running 1 s after SIGTERM (exit -9)" in capsys.readouterr().out
+
+
 def test_a_kept_transfer_run_names_its_kept_source(tmp_path):
     """A transfer run in ``runs/`` names its source relative to itself; kept in ``results/seed-tasks/ROW``,
     its config names the source's kept folder instead, so the report counts the source's frames."""

@@ -172,21 +172,30 @@ def start(job: Job, core: int, logs: Path) -> subprocess.Popen:
 
 def stop(running: dict[int, tuple[Job, subprocess.Popen]], timeout: float = 300.0) -> None:
     """SIGTERM to every running job's process group: each run saves a checkpoint at the frame it reached and
-    unwinds; waits until every process of the groups has ended (or ``timeout`` seconds)."""
+    unwinds. Waits until every process of the groups has ended; a group still alive after ``timeout`` seconds
+    gets SIGKILL (its run resumes from its last checkpoint, as after ``kill -9``)."""
     for _, proc in running.values():
         with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGTERM)
     deadline = time.monotonic() + timeout
     for job, proc in running.values():
-        code = proc.wait()
-        while time.monotonic() < deadline and _alive(proc.pid):
+        while time.monotonic() < deadline and _running(proc):
             time.sleep(0.2)
-        print(f"{time.strftime('%H:%M')} {job.name}: stopped (exit {code}); a rerun resumes it", flush=True)
+        how = "stopped"
+        if _running(proc):
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(proc.pid, signal.SIGKILL)
+            how = f"killed, still running {timeout:g} s after SIGTERM"
+        code = proc.wait()
+        print(f"{time.strftime('%H:%M')} {job.name}: {how} (exit {code}); a rerun resumes it", flush=True)
 
 
-def _alive(group: int) -> bool:
+def _running(proc: subprocess.Popen) -> bool:
+    """Whether a process of ``proc``'s group is still running (``poll`` reaps the leader once it has ended)."""
+    if proc.poll() is None:
+        return True
     try:
-        os.killpg(group, 0)
+        os.killpg(proc.pid, 0)
     except ProcessLookupError:
         return False
     return True
