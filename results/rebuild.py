@@ -21,7 +21,7 @@ from pathlib import Path
 import yaml
 
 from drltg.analysis.report import transfer_report
-from drltg.experiments.sweep import plot_transfer_matrix, summary_tables
+from drltg.experiments.summary import plot_transfer_matrix, summary_tables
 from drltg.store import rundir
 
 KEPT = ("config.yaml", "eval.csv", "summary.json")

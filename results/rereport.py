@@ -17,7 +17,7 @@ import os
 from pathlib import Path
 
 from drltg.analysis.report import transfer_report
-from drltg.experiments.sweep import plot_transfer_matrix, summary_tables
+from drltg.experiments.summary import plot_transfer_matrix, summary_tables
 from drltg.store import rundir
 
 RESULTS = Path(__file__).resolve().parent

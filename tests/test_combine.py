@@ -111,7 +111,7 @@ def test_combined_run_trains_and_resumes_with_a_relative_source(source_run, tmp_
 
 
 def test_a_sweep_names_combinations_and_refuses_a_conflict():
-    from drltg.experiments.sweep import parse_spec
+    from drltg.experiments.spec import parse_spec
 
     spec = parse_spec({"pairs": ["fourrooms-near"], "methods": ["model-reuse+policy-reuse"], "frames": 100})
     assert spec.methods == ["model-reuse+policy-reuse"]

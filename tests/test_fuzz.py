@@ -54,7 +54,7 @@ def test_any_override_is_a_config_or_one_sentence(key, value):
 @given(data=st.dictionaries(st.sampled_from(["pairs", "methods", "algos", "seeds", "frames", "threshold", "grid",
                                              "overrides", "tasks", "source_frames"]) | texts, values, max_size=6))
 def test_any_sweep_spec_is_a_plan_or_one_sentence(data):
-    from drltg.experiments.sweep import parse_spec
+    from drltg.experiments.spec import parse_spec
 
     try:
         parse_spec(data)

@@ -154,7 +154,7 @@ register_pair("test-plugin-pendulum", "test-plugin/pendulum-light", "test-plugin
 
 def test_a_plugin_registers_gym_variants_that_a_sweep_and_gymnasium_take(tmp_path, monkeypatch):
     from drltg import plugins
-    from drltg.experiments.sweep import parse_spec
+    from drltg.experiments.spec import parse_spec
 
     (tmp_path / "drltg_test_gym_plugin.py").write_text(PLUGIN)
     monkeypatch.syspath_prepend(str(tmp_path))

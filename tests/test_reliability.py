@@ -413,7 +413,7 @@ def nested(key, value):
 
 def test_every_per_run_key_has_a_test_value():
     from drltg.experiments.experiment import PLAN_KEYS
-    from drltg.experiments.sweep import SET_BY_SWEEP
+    from drltg.experiments.spec import SET_BY_SWEEP
 
     assert set(PLAN_VALUES) == set(PLAN_KEYS) == set(SET_BY_SWEEP)
 
@@ -435,7 +435,7 @@ def test_experiment_refuses_an_override_of_a_per_run_key(key, form, tmp_path, ca
 @pytest.mark.parametrize("where, form", [("overrides", "dotted"), ("overrides", "nested"), ("grid", "dotted"),
                                          ("grid", "nested")])
 def test_sweep_refuses_an_override_of_a_per_run_key(key, where, form, tmp_path, capsys):
-    from drltg.experiments.sweep import SET_BY_SWEEP
+    from drltg.experiments.spec import SET_BY_SWEEP
 
     value = PLAN_VALUES[key]
     entry = {key: value} if form == "dotted" else nested(key, value)

@@ -11,7 +11,7 @@ import yaml
 
 from drltg import config as config_lib
 from drltg.cli import main
-from drltg.experiments import sweep
+from drltg.experiments import summary, sweep
 from drltg.store import rundir
 from drltg.training.loop import train
 
@@ -275,17 +275,17 @@ def _row(method, gain, p, poi=None, poi_p=None):
 def test_the_summary_counts_findings_after_holm_over_its_named_family():
     rows = [_row("a", 1.0, 0.001, 1.0, 0.0625), _row("b", -2.0, 0.02, 0.0, 0.0625), _row("c", 0.5, 0.04),
             {"pair": "p", "algo": "sac", "variant": "", "method": "d", "report": "r", "metrics": None}]
-    adjusted, headline = sweep.sweep_family(rows, "mean_return_gain")
+    adjusted, headline = summary.sweep_family(rows, "mean_return_gain")
     # three p-values 0.001, 0.02, 0.04: Holm 0.003, 0.04, 0.04 -> all three below 0.05
     assert adjusted == pytest.approx({(0, "mean_return_gain"): 0.003, (1, "mean_return_gain"): 0.04,
                                       (2, "mean_return_gain"): 0.04})
     assert "primary metric mean_return_gain (named in the spec) in 3 report(s)" in headline
     assert "3 finding(s) at 0.05 (2 positive, 1 negative); 3 before adjustment" in headline
     # no primary metric: all five p-values together; Holm 0.005, 0.08, 0.08, 0.1875, 0.1875 -> one finding
-    adjusted, headline = sweep.sweep_family(rows)
+    adjusted, headline = summary.sweep_family(rows)
     assert len(adjusted) == 5 and "the spec named no primary_metric" in headline
     assert "1 finding(s) at 0.05 (1 positive, 0 negative); 3 before adjustment" in headline
-    csv_text, md_text = sweep.summary_tables(rows, "mean_return_gain")
+    csv_text, md_text = summary.summary_tables(rows, "mean_return_gain")
     assert md_text.startswith("Family: the primary metric")
     assert "| 1 [0, 2]* |" in md_text and "| -2 [-3, -1]* |" in md_text
     header = csv_text.splitlines()[0].split(",")

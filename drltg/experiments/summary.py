@@ -1,0 +1,100 @@
+"""A sweep's summary: the metrics of its reports side by side, the sweep-wide Holm family that the headline
+counts findings in, and the transfer-matrix heatmap. Pure functions of the report rows: they write nothing."""
+from __future__ import annotations
+
+__all__ = ["SUMMARY_COLUMNS", "LEVEL", "sweep_family", "summary_tables", "plot_transfer_matrix"]
+
+SUMMARY_COLUMNS = ("mean_return_gain", "jumpstart", "asymptotic_performance", "transfer_ratio",
+                   "probability_of_improvement", "time_to_threshold_baseline", "time_to_threshold_transfer")
+
+
+LEVEL = 0.05
+"""The level at which the summary counts findings (the reports' 95 % intervals)."""
+
+
+def sweep_family(rows: list[dict], primary_metric: str | None = None) -> tuple[dict, str]:
+    """Holm-adjusted p-values over the summary's family, ``{(row index, metric): p}``, and its headline.
+
+    The family is the primary metric's p-value in every report when the spec named one in advance, else
+    every p-value the summary shows (each report's own adjustment covers only that report)."""
+    from drltg.analysis.stats import holm
+
+    metrics = [primary_metric] if primary_metric else [m for m in SUMMARY_COLUMNS if not m.startswith("time_to")]
+    members = [(i, name) for i, r in enumerate(rows) for name in metrics
+               if (r["metrics"] or {}).get(f"{name}_p_value") is not None]
+    adjusted = dict(zip(members, holm([rows[i]["metrics"][f"{name}_p_value"] for i, name in members])))
+    found = [(i, name) for (i, name), p in adjusted.items() if p < LEVEL]
+    raw = sum(rows[i]["metrics"][f"{name}_p_value"] < LEVEL for i, name in members)
+
+    def sign(i, name):
+        value = rows[i]["metrics"][name]
+        return value - 0.5 if name.startswith("probability_of_improvement") else value
+
+    up = sum(sign(i, name) > 0 for i, name in found)
+    if primary_metric:
+        family = (f"the primary metric {primary_metric} (named in the spec) in {len(members)} report(s)")
+    else:
+        family = (f"every interval of this table ({', '.join(metrics)}), {len(members)} p-values in "
+                  f"{len(rows)} report(s), as the spec named no primary_metric")
+    headline = (f"Family: {family}. Holm's adjustment over all {len(members)}: {len(found)} finding(s) at "
+                f"{LEVEL:g} ({up} positive, {len(found) - up} negative); {raw} before adjustment.")
+    return adjusted, headline
+
+
+def summary_tables(rows: list[dict], primary_metric: str | None = None) -> tuple[str, str]:
+    """The cells' metrics (value, CI bounds, p-value and the sweep-wide Holm-adjusted p-value) as CSV, and
+    as a Markdown table under the headline of :func:`sweep_family`."""
+    from drltg.analysis import tables
+
+    adjusted, headline = sweep_family(rows, primary_metric)
+    head = ["pair", "algo", "variant", "method", "seeds"]
+    csv_rows = [head + [f"{m}{s}" for m in SUMMARY_COLUMNS for s in ("", "_ci_low", "_ci_high", "_p_value",
+                                                                       "_p_holm_sweep")]
+                + ["report", "note"]]
+    md = [["pair", "algo", "method", *SUMMARY_COLUMNS, "seeds"]]
+    for i, r in enumerate(rows):
+        m = r["metrics"] or {}
+        seeds = f"{m['n_seeds_baseline']}+{m['n_seeds_transfer']}" if m else ""
+        line = [r["pair"], r["algo"], r["variant"], r["method"], seeds]
+        cells = []
+        for name in SUMMARY_COLUMNS:
+            value, ci = m.get(name), m.get(f"{name}_ci") or (None, None)
+            line += [value, *ci, m.get(f"{name}_p_value"), adjusted.get((i, name))]
+            if not m:
+                cells.append("-")
+            elif name.startswith("time_to"):
+                cells.append(tables.estimate(value, fmt=lambda x: f"{x / 1000:.3g}k", missing="not reached"))
+            else:
+                mark = "*" if adjusted.get((i, name), 1.0) < LEVEL else ""
+                cells.append(tables.estimate(value, ci, ".3g") + mark)
+        csv_rows.append(line + [r["report"] if m else "", r.get("note", "")])
+        md.append([f"{r['pair']} {r['variant']}".strip(), r["algo"], r["method"], *cells, seeds or r.get("note", "")])
+    md_text = (f"{headline}\n\n{tables.render(md, 'markdown')}\n"
+               f"\\* a finding: Holm-adjusted p < {LEVEL:g} within the family above.\n")
+    return tables.render(csv_rows, "csv"), md_text
+
+
+def plot_transfer_matrix(rows: list[dict], metric: str = "mean_return_gain") -> bytes:
+    """Heatmap PNG of ``metric`` over (pair, algo, variant) rows x method columns, mean and CI per cell."""
+    import numpy as np
+
+    from drltg.analysis.plot import plot_matrix
+
+    one_algo = len({r["algo"] for r in rows}) == 1
+
+    def label(r: dict) -> str:
+        return " / ".join(x for x in (r["pair"], None if one_algo else r["algo"], r["variant"]) if x)
+
+    labels = list(dict.fromkeys(map(label, rows)))
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    table = np.full((len(labels), len(methods)), np.nan)
+    text = np.full(table.shape, "n/a", dtype=object)
+    for r in rows:
+        i, j = labels.index(label(r)), methods.index(r["method"])
+        value = (r["metrics"] or {}).get(metric)
+        if value is not None:
+            ci = r["metrics"].get(f"{metric}_ci")
+            table[i, j] = value
+            text[i, j] = f"{value:+.2f}" + (f"\n[{ci[0]:+.2f}, {ci[1]:+.2f}]" if ci else "")
+    title = f"{metric}, transfer - baseline [95% CI; none below 3 seeds a side]"
+    return plot_matrix(table, labels, methods, metric, text=text, axis_labels=("pair", "method"), title=title)[0]
