@@ -341,8 +341,8 @@ def test_negative_frame_counts_are_refused(tmp_path, capsys):
 
 # ------------------------------------------------------------------------------- a prompt stop
 def test_ctrl_c_during_an_evaluation_stops_it_at_the_next_step(tmp_path, monkeypatch):
-    """SIGINT arriving in the middle of the second evaluation ends the run there (exit 130), with the
-    checkpoint kept and the lock released; a resume then finishes the run."""
+    """SIGINT arriving in the middle of the third evaluation (frame 256) ends the run there (exit 130), with
+    a checkpoint saved at that frame and the lock released; a resume makes that evaluation, then finishes."""
     real, steps = train_mod.evaluate, {"evaluations": 0, "after_signal": 0}
 
     def evaluate(env, actor, max_steps=100_000, check=lambda: None):
@@ -370,7 +370,7 @@ def test_ctrl_c_during_an_evaluation_stops_it_at_the_next_step(tmp_path, monkeyp
     assert steps["after_signal"] == 0
     assert not (run / rundir.LOCK).exists()
     assert [r["frames"] for r in rundir.read_eval_csv(run / "eval.csv")] == [0, 128]
-    assert rundir.load_checkpoint(run)["frames"] == 128
+    assert rundir.load_checkpoint(run)["frames"] == 256
     monkeypatch.setattr(train_mod, "evaluate", real)
     assert main(["train", "--resume", "--run-dir", str(run), "--no-progress"]) == 0
     assert [r["frames"] for r in rundir.read_eval_csv(run / "eval.csv")] == [0, 128, 256, 384, 512]
