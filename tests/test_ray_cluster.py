@@ -25,7 +25,8 @@ import yaml
 
 from drltg.cli import _terminate
 from drltg.experiments import sweep
-from drltg.experiments.executor import RayBackend, run_group, run_one, seed_groups
+from drltg.experiments.backends import RayBackend
+from drltg.experiments.executor import run_group, run_one, seed_groups
 from drltg.store import rundir
 
 REPO = Path(__file__).resolve().parents[1]

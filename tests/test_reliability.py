@@ -885,7 +885,7 @@ def test_a_ray_address_that_stays_silent_is_one_sentence(tmp_path):
     import socket
     import threading
 
-    from drltg.experiments.executor import RayBackend
+    from drltg.experiments.backends import RayBackend
 
     server = socket.socket()
     server.bind(("127.0.0.1", 0))

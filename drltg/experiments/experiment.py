@@ -307,7 +307,8 @@ def execute_and_report(runs, out: Path, saved: Path, settings: dict, *, workers:
     processes, then report the transfer runs against the baselines (the report's dict, with ``"diverged"``:
     the runs left out of it). Raises :class:`~drltg.errors.RunFailed` if a run failed: no report then."""
     from drltg.analysis.report import transfer_report
-    from drltg.experiments.executor import LocalBackend, execute
+    from drltg.experiments.backends import LocalBackend
+    from drltg.experiments.executor import execute
 
     with rundir.lock(out, f"{name} folder"):
         _check_settings(saved, settings)  # another process may have started it meanwhile

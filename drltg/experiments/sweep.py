@@ -56,7 +56,8 @@ import yaml
 
 from drltg.config import RunConfig
 from drltg.errors import UsageError
-from drltg.experiments.executor import LocalBackend, RayBackend, Run, execute, registrations, seed_groups
+from drltg.experiments.backends import LocalBackend, RayBackend
+from drltg.experiments.executor import Run, execute, registrations, seed_groups
 from drltg.experiments.spec import Spec, load_spec, parse_spec
 from drltg.experiments.summary import plot_transfer_matrix, summary_tables
 from drltg.store import rundir
