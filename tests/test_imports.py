@@ -19,6 +19,7 @@ layer import nothing from each other)::
 Every import counts, those inside functions included: a lazy import is still a dependency.
 """
 import ast
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -179,6 +180,24 @@ def test_cli_answers_without_importing_torch(argv, rc, stream, text):
     assert done.returncode == 0, done.stderr
     assert done.stdout.splitlines()[-1] == f"rc {rc}"
     assert text in getattr(done, stream)
+
+
+def test_a_report_of_manipulation_runs_bounds_by_the_task_s_return_range_without_importing_robosuite(tmp_path):
+    """The range [0, horizon] comes from the task's defaults: neither torch nor robosuite is imported for it."""
+    for side, values in (("b", (1.0, 40.0)), ("t", (3.0, 60.0))):
+        for seed in (0, 1):
+            run = tmp_path / side / f"seed-{seed}"
+            run.mkdir(parents=True)
+            (run / "config.yaml").write_text(f"task: lift-place-seed\nseed: {seed}\nenv:\n  horizon: 200\n")
+            (run / "eval.csv").write_text(f"frames,return_mean\n0,{values[0] + seed}\n1000,{values[1] + seed}\n")
+    code = (f"from drltg.cli import main; rc = main(['report', '--baseline', {str(tmp_path / 'b')!r}, '--transfer', "
+            f"{str(tmp_path / 't')!r}, '--out', {str(tmp_path / 'r')!r}]); {NO_TORCH}; "
+            "assert 'robosuite' not in sys.modules; print('rc', rc)")
+    done = _python(code)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines()[-1] == "rc 0"
+    settings = json.loads((tmp_path / "r" / "transfer_metrics.json").read_text())["settings"]
+    assert settings["value_range"] == [0.0, 200.0]
 
 
 def test_the_parts_register_nothing_and_load_no_upper_layer():

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Sequence
 
+from drltg.envs.limits import ROBOSUITE_HORIZON
 from drltg.errors import UsageError
 
 if TYPE_CHECKING:
@@ -54,8 +55,7 @@ class TaskSpec:
         under them); ``None`` where the task does not declare one."""
         if self.returns is None:
             return None
-        declared = {k: v for k, v in self.keywords()[0].items() if v is not inspect.Parameter.empty}
-        low, high = self.returns({**declared, **self.defaults, **(env_options or {})})
+        low, high = self.returns(_Options({**self.defaults, **(env_options or {})}, self))
         return float(low), float(high)
 
     @property
@@ -81,6 +81,22 @@ class TaskSpec:
         declared = {name: p.default for name, p in params.items()
                     if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY) and name != "self"}
         return declared, any(p.kind is p.VAR_KEYWORD for p in params.values())
+
+
+class _Options(dict):
+    """Env options as a task's ``returns`` reads them: ``options[key]`` for a key they lack is the factory's
+    declared default, looked up only then (``get`` does not look), so that a report of runs whose range needs
+    no factory default imports no env."""
+
+    def __init__(self, given: dict[str, Any], spec: TaskSpec):
+        super().__init__(given)
+        self.spec = spec
+
+    def __missing__(self, key: str) -> Any:
+        default = self.spec.keywords()[0].get(key, inspect.Parameter.empty)
+        if default is inspect.Parameter.empty:
+            raise KeyError(key)
+        return default
 
 
 @functools.lru_cache(maxsize=None)
@@ -418,7 +434,7 @@ register_pair(
 # (Stable-Baselines3's SAC defaults; results/README.md's lift-dense study found none better at 30k frames).
 def _manipulation_returns(o: dict) -> tuple[float, float]:
     """Every manipulation reward pays between 0 and ``reward_scale`` (1) per step."""
-    return 0.0, o["horizon"] * (1.0 if o.get("reward_scale") is None else o["reward_scale"])
+    return 0.0, o.get("horizon", ROBOSUITE_HORIZON) * (1.0 if o.get("reward_scale") is None else o["reward_scale"])
 
 
 ROBOSUITE_TRAIN = {
