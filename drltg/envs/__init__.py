@@ -5,6 +5,7 @@ The registry imports no torch: the environment classes are imported when first u
 """
 import importlib
 
+import drltg.envs.tasks  # noqa: F401  (registers the built-in tasks and pairs)
 from drltg.envs.gym import register_gym_task, resolve
 from drltg.envs.registry import (
     PAIRS,
