@@ -83,8 +83,8 @@ class TaskSpec:
 
 class _Options(dict):
     """Env options as a task's ``returns`` reads them: ``options[key]`` for a key they lack is the factory's
-    declared default, looked up only then (``get`` does not look), so that a report of runs whose range needs
-    no factory default imports no env."""
+    declared default, looked up only then (``get`` and ``in`` see the options alone). A run's config holds every
+    declared keyword, so a report of drltg runs imports no env for their range."""
 
     def __init__(self, given: dict[str, Any], spec: TaskSpec):
         super().__init__(given)

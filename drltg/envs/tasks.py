@@ -9,7 +9,6 @@ import importlib
 import math
 from typing import Any
 
-from drltg.envs.limits import ROBOSUITE_HORIZON
 from drltg.envs.registry import register_pair, register_task
 
 # Measured: with SAC's default alpha_init=1.0 the entropy bonus outweighs the sparse goal reward and
@@ -178,8 +177,9 @@ register_pair(
 # SAC settings known to work on Lift: replay 1e6, batch 256, 2x256 nets, lr 3e-4, one update per frame
 # (Stable-Baselines3's SAC defaults; results/README.md's lift-dense study found none better at 30k frames).
 def _manipulation_returns(o: dict) -> tuple[float, float]:
-    """Every manipulation reward pays between 0 and ``reward_scale`` (1) per step."""
-    return 0.0, o.get("horizon", ROBOSUITE_HORIZON) * (1.0 if o.get("reward_scale") is None else o["reward_scale"])
+    """Every manipulation reward pays between 0 and ``reward_scale`` (1) per step; ``reward_scale`` is robosuite's
+    own keyword, which the factory does not declare."""
+    return 0.0, o["horizon"] * (1.0 if o.get("reward_scale") is None else o["reward_scale"])
 
 
 ROBOSUITE_TRAIN = {

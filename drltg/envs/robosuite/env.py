@@ -21,7 +21,7 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
-from drltg.envs.limits import MAX_HORIZON, ROBOSUITE_HORIZON, usable_cpus
+from drltg.envs.limits import MAX_HORIZON, usable_cpus
 from drltg.envs.robosuite.layout import OBSERVABLES, layout_of
 from drltg.errors import UsageError
 
@@ -103,7 +103,7 @@ class RobosuiteEnv(EnvBase):
         task="lift",
         *,
         observables: Sequence[str] = tuple(OBSERVABLES),
-        horizon: int = ROBOSUITE_HORIZON,
+        horizon: int = 500,
         control_freq: int = 20,
         robot: str = "Panda",
         terminate_on_success: bool = False,
