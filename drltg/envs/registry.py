@@ -4,7 +4,8 @@ A task is a factory of :class:`~torchrl.envs.EnvBase` plus default keyword argum
 a source task and a target task. Factories are called as
 ``factory(batch_size=..., device=..., **defaults, **overrides)``. A factory may be given as a string
 ``"module:attr"``, imported when the task is first built or inspected: listing and validating tasks
-then imports neither torch nor the task's simulator.
+then imports neither torch nor the task's simulator. The built-in tasks and pairs are registered by
+:mod:`drltg.envs.tasks`.
 
 Examples:
     >>> from drltg.envs import make_env, register_task, register_pair, FourRoomsEnv
