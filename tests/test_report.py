@@ -126,6 +126,15 @@ def test_smoothing_shapes_time_to_threshold_only():
     assert any("at least 3 seeds" in w for w in raw["settings"]["warnings"])
 
 
+def test_a_report_written_twice_is_the_same_bytes(two_by_two, tmp_path):
+    """Its plot included: the SVG's element ids do not change from one writing to the next."""
+    b, t = two_by_two
+    for out in ("first", "second"):
+        assert report_cli.main(["--baseline", str(b), "--transfer", str(t), "--out", str(tmp_path / out)]) == 0
+    for name in FILES:
+        assert (tmp_path / "first" / name).read_bytes() == (tmp_path / "second" / name).read_bytes(), name
+
+
 def test_bootstrap_is_reproducible_and_seeded(tmp_path):
     rng = np.random.default_rng(0)
     f = np.arange(0, 101, 10.0)

@@ -34,12 +34,17 @@ def _plain_text(draw):
 
 
 def _save(plt, fig) -> tuple[bytes, bytes]:
+    """The figure as PNG and SVG bytes, the same bytes for the same figure: no date, and the SVG's element
+    ids hashed with a fixed salt (matplotlib draws a random one per figure otherwise)."""
+    import matplotlib
+
     out = []
-    for fmt in ("png", "svg"):
-        buf = io.BytesIO()
-        fig.savefig(buf, format=fmt, dpi=130, bbox_inches="tight",
-                    metadata={"Date": None} if fmt == "svg" else None)
-        out.append(buf.getvalue())
+    with matplotlib.rc_context({"svg.hashsalt": "drltg"}):
+        for fmt in ("png", "svg"):
+            buf = io.BytesIO()
+            fig.savefig(buf, format=fmt, dpi=130, bbox_inches="tight",
+                        metadata={"Date": None} if fmt == "svg" else None)
+            out.append(buf.getvalue())
     plt.close(fig)
     return out[0], out[1]
 
