@@ -213,6 +213,39 @@ def test_a_group_resumes_from_its_seeds_checkpoints(group_run, tmp_path, monkeyp
         assert (tmp_path / f"seed-{seed}" / "summary.json").is_file()
 
 
+def test_a_group_stopped_inside_an_evaluation_saves_each_seed_there_and_evaluates_first_on_resume(
+        tmp_path, monkeypatch):
+    """Ctrl-C inside the group's evaluation at frame 256 (checkpoints every 128): every seed's checkpoint is at
+    256, and the resumed group makes that evaluation before it trains the 256 frames left."""
+    import os
+    import signal
+
+    import drltg.training.loop as loop
+    import drltg.training.seeds as seeds_mod
+    from drltg.store.rundir import load_checkpoint, read_eval_csv
+
+    real_evaluate, real_stats, calls = seeds_mod.evaluate_seeds, loop._episode_stats, {"n": 0}
+
+    def interrupt_second_evaluation(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            os.kill(os.getpid(), signal.SIGINT)  # held until the evaluation's first step checks for it
+        return real_evaluate(*args, **kwargs)
+
+    monkeypatch.setattr(seeds_mod, "evaluate_seeds", interrupt_second_evaluation)
+    cfg = config_lib.resolve({}, TINY + ["checkpoint.every=128"], task="fourrooms/northeast", frames=512, seed=3)
+    with pytest.raises(KeyboardInterrupt):
+        seeds_mod.train_seeds(cfg, tmp_path, 2, progress=False)
+    assert [load_checkpoint(tmp_path / f"seed-{s}")["frames"] for s in (3, 4)] == [256, 256]
+    trained = []
+    monkeypatch.setattr(loop, "_episode_stats", lambda data, stats: (trained.append(data.numel()),
+                                                                      real_stats(data, stats)))
+    seeds_mod.train_seeds(cfg, tmp_path, 2, resume=True, progress=False)
+    assert sum(trained) == 2 * (512 - 256)  # both seeds' pieces of every batch, from frame 256 on
+    for seed in (3, 4):
+        assert [r["frames"] for r in read_eval_csv(tmp_path / f"seed-{seed}" / "eval.csv")] == [0, 256, 512]
+
+
 def test_a_method_without_a_grouped_form_trains_its_seeds_one_after_another(group_run, tmp_path, capsys):
     from drltg.training.seeds import train_seeds
 
