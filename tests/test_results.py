@@ -196,6 +196,41 @@ def test_a_kept_transfer_run_names_its_kept_source(tmp_path):
     assert (kept / source / "config.yaml").is_file()
 
 
+def test_a_new_clone_restores_the_kept_finished_runs_and_trains_only_what_is_left(tmp_path):
+    """``--restore`` copies each finished row run kept in ``results/seed-tasks/`` back to its folder in RUNS,
+    its source named in RUNS again: keeping it a second time gives the kept files back. A run
+    kept unfinished (no summary) or a folder that already holds a run is left alone."""
+    study = _study()
+    runs = tmp_path / "runs"
+    busy = runs / "lift-place-barrier-seed" / "sac" / "baseline" / "seed-10"
+    busy.mkdir(parents=True)
+    (busy / "config.yaml").write_text("mine\n")
+    restored = study.restore(runs)
+    assert (busy / "config.yaml").read_text() == "mine\n" and busy not in restored
+    place = runs / "lift-place-seed" / "sac"
+    assert place / "model-reuse-place-seed" / "seed-12" not in restored  # kept at 200k frames, unfinished
+    assert {place / "pi-reuse-place-seed" / "seed-10", place / "model-reuse-place-seed" / "seed-11"} <= set(restored)
+    run = place / "model-reuse-place-seed" / "seed-11"
+    assert "  source: ../../../../sources/lift-dense-sac/seed-61\n" in (run / "config.yaml").read_text()
+    def kept_again(run, kept):  # the kept files, the source named from the new place
+        again = tmp_path / "again" / run.name
+        study.row.keep(run, again, runs)
+        sources = os.path.relpath(RESULTS / "seed-tasks" / "sources", kept) + "/"
+        assert (again / "config.yaml").read_text() == (kept / "config.yaml").read_text().replace(
+            sources, os.path.relpath(RESULTS / "seed-tasks" / "sources", again) + "/")
+        for name in ("eval.csv", "summary.json"):
+            assert (again / name).read_bytes() == (kept / name).read_bytes(), name
+
+    kept_again(run, RESULTS / "seed-tasks" / "lift-place-seed" / "sac" / "model-reuse-place-seed" / "seed-11")
+    kept_again(place / "pi-reuse-place-seed" / "seed-10",  # kept by its row, at another depth
+               RESULTS / "seed-tasks" / "pi-reuse-place-seed" / "transfer" / "seed-10")
+    jobs = {j.name: j for j in study.jobs(runs)}
+    assert all(jobs[f"pi-reuse-place-seed-seed-{s}"].finished() for s in (10, 11, 12))
+    assert not jobs["model-reuse-place-seed-seed-12"].finished()
+    only = study.jobs(runs, ["shaping-lift-seed-seed-11", "lift-dense-sac-seed-62"])
+    assert [j.name for j in only] == ["lift-dense-sac-seed-62", "shaping-lift-seed-seed-11"]  # in queue order
+
+
 def test_a_finished_shaping_row_is_reported_on_lifts_success_alone(tmp_path, monkeypatch):
     """Shaping's two sides are paid by different rewards (dense against sparse Lift), so its row is reported
     on the success rate only, and its kept runs name no source."""

@@ -1,6 +1,8 @@
 """The seed's tasks as one queue: the Lift sources, then the rows' runs, one run per core at a time.
 
     python results/seed-tasks/study.py --cores 0 1          # re-running resumes; --dry-run lists the jobs
+    python results/seed-tasks/study.py --only JOB ...       # just these jobs (those that fit a time slot)
+    python results/seed-tasks/study.py --restore            # a new clone: the kept finished runs into RUNS
     kill PID                                                # (or Ctrl-C) stops it: each running run saves a
                                                             # checkpoint at the frame it reached first
 
@@ -94,14 +96,15 @@ def row_job(name: str, seed: int, runs: Path) -> Job:
     return Job(f"{name}-seed-{seed}", argv, outputs, needs)
 
 
-def jobs(runs: Path) -> list[Job]:
+def jobs(runs: Path, only=None) -> list[Job]:
+    """The study's jobs in queue order; with ``only``, just the jobs of those names."""
     out = []
     for kind, name in ORDER:
         if kind == "source":
             out += [source_job(name, s, runs) for s in SOURCE_SEEDS]
         else:
             out += [row_job(name, s, runs) for s in row.SEEDS]
-    return out
+    return [job for job in out if only is None or job.name in only]
 
 
 def keep(job: Job) -> None:
@@ -114,12 +117,53 @@ def keep(job: Job) -> None:
             shutil.copyfile(path, kept / path.name)
 
 
+def restore(runs: Path) -> list[Path]:
+    """Copy every finished row run kept here (its ``row.KEPT`` files) to its folder in ``runs``, unless that
+    folder already holds a run: a fresh clone's queue then trains only what is left. A transfer's
+    ``transfer.source`` is pointed back at ``runs/sources/`` (``row.keep`` pointed it here). The sources are not
+    restored: their ``best.pt``, which the rows reuse, is not kept, so a source still needed is trained again."""
+    restored = []
+    for kind, name in ORDER:
+        if kind != "row":
+            continue
+        for side, (_, dirs) in _sides(name, runs).items():
+            for run in dirs:
+                kept = [k for k in (HERE / name / side / run.name, HERE / run.relative_to(runs))
+                        if (k / "summary.json").is_file()]
+                if not kept or (run / "config.yaml").exists():
+                    continue
+                run.mkdir(parents=True)
+                for file in row.KEPT:
+                    shutil.copyfile(kept[0] / file, run / file)
+                config = run / "config.yaml"
+                config.write_text(row.SOURCE_LINE.sub(functools.partial(_to_runs, kept[0], run, runs),
+                                                      config.read_text()))
+                restored.append(run)
+    return restored
+
+
+def _to_runs(kept: Path, run: Path, runs: Path, m) -> str:
+    source = Path(os.path.normpath(kept / m[2]))
+    if not source.is_relative_to(HERE / "sources"):
+        return m[0]
+    return m[1] + os.path.relpath(runs.resolve() / "sources" / source.relative_to(HERE / "sources"), run.resolve())
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cores", type=int, nargs="+", default=[1], help="the cores that take jobs, one each")
     parser.add_argument("--runs", type=Path, default=Path("runs/seed-tasks"))
+    parser.add_argument("--only", nargs="+", metavar="JOB", help="take only these jobs (names as --dry-run lists)")
     parser.add_argument("--dry-run", action="store_true", help="list the jobs and whether each is finished")
+    parser.add_argument("--restore", action="store_true",
+                        help="copy the finished runs kept in results/seed-tasks/ to RUNS first (a new clone)")
     args = parser.parse_args()
+    unknown = set(args.only or ()) - {job.name for job in jobs(args.runs)}
+    if unknown:
+        parser.error(f"no such job: {', '.join(sorted(unknown))} (--dry-run lists them)")
+    if args.restore:
+        for run in restore(args.runs):
+            print(f"restored {run}")
     if args.dry_run:
         for job in jobs(args.runs):
             state = "finished" if job.finished() else "ready" if job.ready() else "waits for its source"
@@ -145,7 +189,7 @@ def queue(args: argparse.Namespace, running: dict[int, tuple[Job, subprocess.Pop
                 print(f"{time.strftime('%H:%M')} {job.name}: exit {proc.returncode}", flush=True)
                 del running[core]
         skip = failed | {job.name for job, _ in running.values()}
-        todo = [j for j in jobs(args.runs) if not j.finished() and j.name not in skip]
+        todo = [j for j in jobs(args.runs, args.only) if not j.finished() and j.name not in skip]
         for core in [c for c in args.cores if c not in running]:
             ready = [j for j in todo if j.ready()]
             if not ready:
@@ -155,7 +199,7 @@ def queue(args: argparse.Namespace, running: dict[int, tuple[Job, subprocess.Pop
             running[core] = (job, start(job, core, args.runs / "logs"))
             print(f"{time.strftime('%H:%M')} {job.name} on core {core}", flush=True)
         if not running:
-            left = [j.name for j in jobs(args.runs) if not j.finished()]
+            left = [j.name for j in jobs(args.runs, args.only) if not j.finished()]
             print("every job is finished" if not left else f"not finished (failed, or waiting for a source that "
                   f"failed): {', '.join(left)}", flush=True)
             return
