@@ -231,6 +231,61 @@ def test_a_new_clone_restores_the_kept_finished_runs_and_trains_only_what_is_lef
     assert [j.name for j in only] == ["lift-dense-sac-seed-62", "shaping-lift-seed-seed-11"]  # in queue order
 
 
+def test_a_finished_source_is_kept_with_the_networks_the_rows_reuse_and_a_clone_reuses_it(tmp_path, monkeypatch):
+    """A source's ``best.pt`` is kept as its networks alone, which rebuild the same learner; a second training
+    of the seed is kept beside the first (``-retrained``), a transfer kept later names the training it reused,
+    and a new clone's queue restores the last training and reuses it instead of training the source again."""
+    import torch
+
+    from drltg import config as config_lib
+    from drltg.store.rundir import load_checkpoint
+    from drltg.training.loop import train
+    from drltg.transfer.source import rebuild
+
+    study = _study()
+    kept_root = tmp_path / "kept"
+    monkeypatch.setattr(study, "HERE", kept_root)
+    monkeypatch.setattr(study.row, "HERE", kept_root)
+    runs = tmp_path / "runs"
+    run = runs / "sources" / "lift-dense-sac" / "seed-60"
+    tiny = ["network.hidden=[16,16]", "collector.num_envs=4", "collector.frames_per_batch=16", "eval.every=128",
+            "collector.init_random_frames=64", "buffer.batch_size=32", "eval.episodes=2", "checkpoint.keep_best=true",
+            "log.tensorboard=false"]
+    train(config_lib.resolve({}, tiny, task="fourrooms/northeast", frames=256, seed=3), run, progress=False)
+    job = study.source_job("lift-dense-sac", 60, runs)
+    study.keep(job)
+    assert not (kept_root / "sources").exists()  # not finished: best.pt is not scored on fresh episodes yet
+    (run / "evaluate-best-seed30060-50ep.json").write_text("{}")
+    study.keep(job)
+    first = kept_root / "sources" / "lift-dense-sac" / "seed-60"
+    weights, full = load_checkpoint(first, checkpoint="best"), load_checkpoint(run, checkpoint="best")
+    assert set(weights) == set(study.SOURCE_WEIGHTS) and "buffer" in full
+    assert all(torch.equal(weights["loss"][k], v) for k, v in full["loss"].items())
+    rebuilt = rebuild(first, checkpoint="best")
+    assert rebuilt.frames == full["frames"]
+    assert all(torch.equal(v, full["loss"][k]) for k, v in rebuilt.agent.loss.state_dict().items())
+
+    study.keep(job)  # the same training again: kept where it is
+    with open(run / "eval.csv", "a") as f:  # another training of the seed
+        f.write("256,1.0,0.0,2,1.0\n")
+    study.keep(job)
+    again = first.with_name("seed-60-retrained")
+    assert sorted(p.name for p in first.parent.iterdir()) == ["seed-60", "seed-60-retrained"]
+    assert (again / "eval.csv").read_bytes() == (run / "eval.csv").read_bytes() != (first / "eval.csv").read_bytes()
+
+    clone = tmp_path / "clone"
+    assert clone / "sources" / "lift-dense-sac" / "seed-60" in study.restore(clone)
+    restored = next(j for j in study.jobs(clone) if j.name == "lift-dense-sac-seed-60")
+    assert restored.finished() and (restored.keep / "eval.csv").read_bytes() == (again / "eval.csv").read_bytes()
+    assert next(j for j in study.jobs(clone) if j.name == "pi-reuse-place-seed-seed-10").ready()
+    transfer = clone / "lift-place-seed" / "sac" / "pi-reuse-place-seed" / "seed-10"
+    transfer.mkdir(parents=True)
+    (transfer / "config.yaml").write_text("transfer:\n  source: ../../../../sources/lift-dense-sac/seed-60\n")
+    study.row.keep(transfer, tmp_path / "row" / "seed-10", clone)
+    assert (tmp_path / "row" / "seed-10" / "config.yaml").read_text() == (
+        f"transfer:\n  source: {os.path.relpath(again, tmp_path / 'row' / 'seed-10')}\n")
+
+
 def test_a_finished_shaping_row_is_reported_on_lifts_success_alone(tmp_path, monkeypatch):
     """Shaping's two sides are paid by different rewards (dense against sparse Lift), so its row is reported
     on the success rate only, and its kept runs name no source."""

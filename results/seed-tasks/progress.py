@@ -85,9 +85,10 @@ def sources() -> str:
              "(95% Clopper-Pearson) | second half: lowest / mean | holds |", "|---|---|---|---|---|---|---|"]
     verdicts = []
     for name, what in SOURCES.items():
-        seeds = sorted((HERE / "sources" / name).glob("seed-*"))
-        held = 0
-        for d in seeds:
+        trainings = sorted((HERE / "sources" / name).glob("seed-*"))
+        seeds = [d for d in trainings if "-retrained" not in d.name]  # the rule judges each seed's first training
+        held, again = 0, []
+        for d in trainings:
             rows = read_eval_csv(d / "eval.csv")
             planned = int(load_yaml(d / "config.yaml")["frames"])
             done = (d / "summary.json").is_file()
@@ -98,20 +99,25 @@ def sources() -> str:
                 r = json.loads(fresh.read_text())
                 lo, hi = r["success_rate_ci95"]
                 reused += f"; {r['success_rate']:.2f} [{lo:.2f}, {hi:.2f}] on {r['episodes']} fresh episodes"
+            seed = d.name.removeprefix("seed-").replace("-retrained", ", trained again")
             if done:
                 holds = min(half) >= HOLD_LOWEST and np.mean(half) >= HOLD_MEAN
-                held += holds
+                if d in seeds:
+                    held += holds
+                else:
+                    again.append(f"seed {seed.split(',')[0]} {'holds' if holds else 'does not hold'}")
                 cells = f"{min(half):.1f} / {np.mean(half):.2f} | {'yes' if holds else 'no'}"
             else:
                 cells = "— | not finished"
-            lines.append(f"| `{name}` | {d.name.removeprefix('seed-')} | {rows[-1]['frames']:,} of {planned:,} | "
+            lines.append(f"| `{name}` | {seed} | {rows[-1]['frames']:,} of {planned:,} | "
                          f"{rows[-1]['success_rate']:.1f} | {reused} | {cells} |")
         finished = sum((d / "summary.json").is_file() for d in seeds)
         if seeds and not finished:
             verdicts.append(f"- `{name}`, {what}: no seed finished, so none is judged.")
         elif seeds:
             verdicts.append(f"- `{name}`, {what}: {held} of {finished} finished seeds hold"
-                            + (f" ({len(seeds) - finished} not finished)" if finished < len(seeds) else "") + ".")
+                            + (f" ({len(seeds) - finished} not finished)" if finished < len(seeds) else "")
+                            + (f"; trained again, {', '.join(again)}" if again else "") + ".")
     earlier = read_curves(SB3 / "lift_shaped_sac")[0]
     late = earlier.frames >= earlier.frames[-1] / 2
     low = int(np.argmin(earlier.values[late]))

@@ -80,10 +80,26 @@ HERE = Path(__file__).resolve().parent
 SOURCE_LINE = re.compile(r"^(  source: )(\S+)$", re.M)
 
 
+def kept_source(source: Path) -> Path:
+    """The folder in ``results/seed-tasks/sources/`` that keeps the training of ``source`` (a source run in
+    ``runs/sources/NAME/seed-S``): ``seed-S``, or ``seed-S-retrained`` (``-retrained-2``, ...) where ``seed-S``
+    keeps another training of that seed, told apart by their evaluations. A training kept nowhere yet gets
+    the first free name."""
+    base = HERE / "sources" / source.parent.name / source.name
+    if not (source / "eval.csv").is_file():
+        return base
+    curve = (source / "eval.csv").read_bytes()
+    names = [base] + [base.with_name(f"{base.name}-retrained{'' if i == 1 else f'-{i}'}") for i in range(1, 100)]
+    for kept in names:
+        if not (kept / "eval.csv").is_file() or (kept / "eval.csv").read_bytes() == curve:
+            return kept
+    raise RuntimeError(f"{source}: 100 trainings kept already")
+
+
 def keep(run: Path, kept: Path, runs: Path) -> None:
     """Copy a run's ``KEPT`` files to ``kept``; a transfer's ``transfer.source`` (relative to its run) is
-    pointed at the source's kept folder (``sources/`` here, as in ``runs``), so a report finds the source's
-    frames and a reader its curve."""
+    pointed at the folder that keeps that source's training (:func:`kept_source`), so a report finds the
+    source's frames and a reader its curve."""
     kept.mkdir(parents=True, exist_ok=True)
     for name in KEPT:
         if (run / name).is_file():
@@ -95,7 +111,7 @@ def keep(run: Path, kept: Path, runs: Path) -> None:
         source = Path(os.path.normpath(run / m[2]))  # an absolute path stays itself
         if not source.is_relative_to(sources):
             return m[0]
-        return m[1] + os.path.relpath(HERE / "sources" / source.relative_to(sources), kept.resolve())
+        return m[1] + os.path.relpath(kept_source(source), kept.resolve())
 
     config = kept / "config.yaml"
     if config.is_file():

@@ -34,6 +34,8 @@ import sys
 import time
 from pathlib import Path
 
+from drltg.store.rundir import atomic_torch_save, checkpoint_path, load_checkpoint
+
 HERE = Path(__file__).resolve().parent
 _spec = importlib.util.spec_from_file_location("seed_rows", HERE / "row.py")
 row = importlib.util.module_from_spec(_spec)
@@ -47,6 +49,9 @@ SOURCES = {  # folder: learner flags
     "lift-dense-soc4": ["--algo", "soc", "-o", "soc.num_options=4"],
 }
 BEST_EPISODES = 50
+SOURCE_WEIGHTS = ("loss", "frames", "evaluations")
+"""What a kept source's ``best.pt`` holds: the learner's networks, the frame and the evaluations so far
+(1.6 MB for SAC, against 30 MB with the replay buffer and optimizer a run needs to resume)."""
 """Fresh episodes on which a finished source's best.pt, the checkpoint the rows reuse, is evaluated."""
 SOURCE_SETTINGS = ["eval.every=5000", "eval.episodes=10", "checkpoint.every=5000", "checkpoint.keep_best=true",
                    *DEMONSTRATIONS]
@@ -77,8 +82,7 @@ def source_job(name: str, seed: int, runs: Path) -> Job:
     evaluate = [drltg, "evaluate", str(run), "--checkpoint", "best", "--episodes", str(BEST_EPISODES)]
     trained = shlex.quote(str(run / "summary.json"))
     argv = ["sh", "-c", f"{{ [ -f {trained} ] || {shlex.join(argv)}; }} && {shlex.join(evaluate)}"]
-    return Job(f"{name}-seed-{seed}", argv, [run], [], keep=(run, HERE / "sources" / name / f"seed-{seed}"),
-               files=(f"evaluate-best-*-{BEST_EPISODES}ep.json",))
+    return Job(f"{name}-seed-{seed}", argv, [run], [], keep=run, files=(f"evaluate-best-*-{BEST_EPISODES}ep.json",))
 
 
 @functools.cache
@@ -108,21 +112,33 @@ def jobs(runs: Path, only=None) -> list[Job]:
 
 
 def keep(job: Job) -> None:
-    if job.keep is None:
+    """A finished source's curves and configs in ``results/seed-tasks/sources/`` (:func:`row.kept_source`),
+    and its ``best.pt`` as the rows reuse it: the networks alone (``SOURCE_WEIGHTS``), without the replay
+    buffer and optimizer, so that a clone's queue reuses this very source instead of training it again."""
+    if job.keep is None or not job.finished():
         return
-    run, kept = job.keep
+    run = job.keep
+    kept = row.kept_source(run)
     kept.mkdir(parents=True, exist_ok=True)
     for path in [run / name for name in row.KEPT] + sorted(run.glob(f"evaluate-best-*-{BEST_EPISODES}ep.json")):
-        if path.is_file():
-            shutil.copyfile(path, kept / path.name)
+        shutil.copyfile(path, kept / path.name)
+    best = load_checkpoint(run, checkpoint="best")
+    atomic_torch_save({k: best[k] for k in SOURCE_WEIGHTS}, kept / checkpoint_path("best"))
 
 
 def restore(runs: Path) -> list[Path]:
-    """Copy every finished row run kept here (its ``row.KEPT`` files) to its folder in ``runs``, unless that
-    folder already holds a run: a fresh clone's queue then trains only what is left. A transfer's
-    ``transfer.source`` is pointed back at ``runs/sources/`` (``row.keep`` pointed it here). The sources are not
-    restored: their ``best.pt``, which the rows reuse, is not kept, so a source still needed is trained again."""
+    """Copy what is kept here of finished runs to their folders in ``runs``, unless a folder already holds a
+    run, so that a fresh clone's queue trains only what is left: each source whose networks are kept (its
+    last training, :func:`keep`), then each row run (``row.KEPT``), its ``transfer.source`` pointed back at
+    ``runs/sources/`` (``row.keep`` pointed it here)."""
     restored = []
+    for job in jobs(runs):
+        if job.keep is not None:
+            trainings = [k for k in sorted(HERE.glob(f"sources/{job.keep.parent.name}/{job.keep.name}*"))
+                         if (k / checkpoint_path("best")).is_file()]
+            if trainings and not (job.keep / "config.yaml").exists():
+                shutil.copytree(trainings[-1], job.keep)
+                restored.append(job.keep)
     for kind, name in ORDER:
         if kind != "row":
             continue
