@@ -198,7 +198,7 @@ def test_a_kept_transfer_run_names_its_kept_source(tmp_path):
 
 def test_a_new_clone_restores_the_kept_finished_runs_and_trains_only_what_is_left(tmp_path):
     """``--restore`` copies each finished row run kept in ``results/seed-tasks/`` back to its folder in RUNS,
-    its source named in RUNS again: keeping it a second time gives the kept files back. A run
+    naming the kept source training it reused: keeping it a second time gives the kept files back. A run
     kept unfinished (no summary) or a folder that already holds a run is left alone."""
     study = _study()
     runs = tmp_path / "runs"
@@ -211,7 +211,10 @@ def test_a_new_clone_restores_the_kept_finished_runs_and_trains_only_what_is_lef
     assert place / "model-reuse-place-seed" / "seed-12" not in restored  # kept at 200k frames, unfinished
     assert {place / "pi-reuse-place-seed" / "seed-10", place / "model-reuse-place-seed" / "seed-11"} <= set(restored)
     run = place / "model-reuse-place-seed" / "seed-11"
-    assert "  source: ../../../../sources/lift-dense-sac/seed-61\n" in (run / "config.yaml").read_text()
+    source = RESULTS / "seed-tasks" / "sources" / "lift-dense-sac" / "seed-61"
+    assert f"  source: {source}\n" in (run / "config.yaml").read_text()  # the training it reused, kept
+    assert "  source: null\n" in (place / "baseline-ln" / "seed-11" / "config.yaml").read_text()
+
     def kept_again(run, kept):  # the kept files, the source named from the new place
         again = tmp_path / "again" / run.name
         study.row.keep(run, again, runs)

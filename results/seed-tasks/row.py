@@ -105,13 +105,15 @@ def keep(run: Path, kept: Path, runs: Path) -> None:
         if (run / name).is_file():
             shutil.copyfile(run / name, kept / name)
 
-    sources = Path(os.path.normpath(runs / "sources"))
+    sources = Path(os.path.normpath(runs.resolve() / "sources"))
 
     def moved(m: re.Match) -> str:
-        source = Path(os.path.normpath(run / m[2]))  # an absolute path stays itself
-        if not source.is_relative_to(sources):
+        source = Path(os.path.normpath(run.resolve() / m[2]))  # an absolute path stays itself
+        if source.is_relative_to(sources):
+            source = kept_source(source)
+        elif not source.is_relative_to(HERE / "sources"):  # (a restored run names its kept source already)
             return m[0]
-        return m[1] + os.path.relpath(kept_source(source), kept.resolve())
+        return m[1] + os.path.relpath(source, kept.resolve())
 
     config = kept / "config.yaml"
     if config.is_file():

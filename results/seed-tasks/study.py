@@ -152,17 +152,16 @@ def restore(runs: Path) -> list[Path]:
                 for file in row.KEPT:
                     shutil.copyfile(kept[0] / file, run / file)
                 config = run / "config.yaml"
-                config.write_text(row.SOURCE_LINE.sub(functools.partial(_to_runs, kept[0], run, runs),
+                config.write_text(row.SOURCE_LINE.sub(functools.partial(_absolute, kept[0]),
                                                       config.read_text()))
                 restored.append(run)
     return restored
 
 
-def _to_runs(kept: Path, run: Path, runs: Path, m) -> str:
-    source = Path(os.path.normpath(kept / m[2]))
-    if not source.is_relative_to(HERE / "sources"):
-        return m[0]
-    return m[1] + os.path.relpath(runs.resolve() / "sources" / source.relative_to(HERE / "sources"), run.resolve())
+def _absolute(kept: Path, m) -> str:
+    """A kept run's source, the training it reused kept here, as an absolute path (anything else as it is)."""
+    source = Path(os.path.normpath(kept.resolve() / m[2]))
+    return m[1] + str(source) if source.is_relative_to(HERE / "sources") else m[0]
 
 
 def main() -> None:
