@@ -49,10 +49,10 @@ SOURCES = {  # folder: learner flags
     "lift-dense-soc4": ["--algo", "soc", "-o", "soc.num_options=4"],
 }
 BEST_EPISODES = 50
-SOURCE_WEIGHTS = ("loss", "frames", "evaluations")
-"""What a kept source's ``best.pt`` holds: the learner's networks, the frame and the evaluations so far
-(1.6 MB for SAC, against 30 MB with the replay buffer and optimizer a run needs to resume)."""
 """Fresh episodes on which a finished source's best.pt, the checkpoint the rows reuse, is evaluated."""
+SOURCE_WEIGHTS = ("loss", "frames", "evaluations")
+"""What a kept source's ``best.pt`` holds: the learner's networks, its frame and the evaluations so far, not
+the replay buffer and optimizer state that a run needs to resume."""
 SOURCE_SETTINGS = ["eval.every=5000", "eval.episodes=10", "checkpoint.every=5000", "checkpoint.keep_best=true",
                    *DEMONSTRATIONS]
 ORDER = [("source", "lift-dense-sac"), ("row", "pi-reuse-place-seed"), ("source", "lift-dense-soc4"),
@@ -129,8 +129,8 @@ def keep(job: Job) -> None:
 def restore(runs: Path) -> list[Path]:
     """Copy what is kept here of finished runs to their folders in ``runs``, unless a folder already holds a
     run, so that a fresh clone's queue trains only what is left: each source whose networks are kept (its
-    last training, :func:`keep`), then each row run (``row.KEPT``), its ``transfer.source`` pointed back at
-    ``runs/sources/`` (``row.keep`` pointed it here)."""
+    last training, :func:`keep`), then each row run (``row.KEPT``), its ``transfer.source`` the kept source
+    training it reused, as an absolute path (a source trained again in ``runs/sources/`` is another one)."""
     restored = []
     for job in jobs(runs):
         if job.keep is not None:
