@@ -289,6 +289,23 @@ def test_a_finished_source_is_kept_with_the_networks_the_rows_reuse_and_a_clone_
         f"transfer:\n  source: {os.path.relpath(again, tmp_path / 'row' / 'seed-10')}\n")
 
 
+def test_the_retrained_sources_paragraph_states_the_kept_numbers():
+    """The seed study's README and docs/training.md say how far a second training of SAC source seed 60 was
+    from its first before any update, and what a kept source's best.pt weighs: the kept files' numbers."""
+    import re
+
+    from drltg.store.rundir import read_eval_csv
+
+    sources = RESULTS / "seed-tasks" / "sources" / "lift-dense-sac"
+    again, first = (read_eval_csv(sources / name / "eval.csv")[0] for name in ("seed-60-retrained", "seed-60"))
+    assert again["frames"] == first["frames"] == 0
+    said = f"mean return {again['return_mean']:.3f} against {first['return_mean']:.3f} before any update"
+    readme = " ".join((RESULTS / "seed-tasks" / "README.md").read_text().split())
+    assert said in readme and said in " ".join((RESULTS.parent / "docs" / "training.md").read_text().split())
+    weighs = (sources / "seed-60-retrained" / "checkpoints" / "best.pt").stat().st_size / 1e6
+    assert re.search(r"reduced to the networks the rows reuse \((\S+) MB for SAC", readme)[1] == f"{weighs:.1f}"
+
+
 def test_a_finished_shaping_row_is_reported_on_lifts_success_alone(tmp_path, monkeypatch):
     """Shaping's two sides are paid by different rewards (dense against sparse Lift), so its row is reported
     on the success rate only, and its kept runs name no source."""
