@@ -306,6 +306,35 @@ def test_the_retrained_sources_paragraph_states_the_kept_numbers():
     assert re.search(r"reduced to the networks the rows reuse \((\S+) MB for SAC", readme)[1] == f"{weighs:.1f}"
 
 
+def test_a_row_run_is_kept_as_soon_as_it_finishes(tmp_path, monkeypatch):
+    """A row keeps each finished run at once (its seed's transfer run may outlast the session that trained
+    its baseline); a run that was finished before is not copied again, and an unfinished one is not kept."""
+    import drltg.training.loop as loop
+
+    row = _study().row
+    monkeypatch.setattr(row, "HERE", tmp_path / "kept")
+    runs = tmp_path / "runs"
+    trained = []
+
+    def train(cfg, run, resume, progress):
+        trained.append(run)
+        run.mkdir(parents=True)
+        (run / "config.yaml").write_text("transfer:\n  source: null\n")
+        (run / "eval.csv").write_text("frames,return_mean\n0,1.0\n")
+        if run.name != "seed-12":  # stopped before its end
+            (run / "summary.json").write_text("{}")
+
+    monkeypatch.setattr(loop, "train", train)
+    cfgs, dirs = row.sides("shaping-lift-seed", runs)["transfer"]
+    dirs[0].mkdir(parents=True)
+    (dirs[0] / "summary.json").write_text("{}")  # finished before
+    row.train_runs(cfgs, dirs, runs)
+    assert trained == dirs[1:]
+    kept = [tmp_path / "kept" / d.relative_to(runs) for d in dirs]
+    assert [k.is_dir() for k in kept] == [False, True, False]
+    assert (kept[1] / "eval.csv").read_text() == "frames,return_mean\n0,1.0\n"
+
+
 def test_a_finished_shaping_row_is_reported_on_lifts_success_alone(tmp_path, monkeypatch):
     """Shaping's two sides are paid by different rewards (dense against sparse Lift), so its row is reported
     on the success rate only, and its kept runs name no source."""

@@ -8,7 +8,8 @@ checkpoints every 20k. A transfer run of seed s reuses the source run of seed s 
 (``study.py`` trains them, and runs every row a seed at a time). The runs of the seeds given train one
 after another in this process, each alone (on one core that is faster than a seed group: benchmarks/README.md,
 "Lift seeds on one core"); a finished run is reused (the lift-place-seed SAC baselines are
-``results/seed_tasks.sh``'s). Once every run of the row is finished, its curves and configs are kept in
+``results/seed_tasks.sh``'s). Each run is kept as it finishes (its curve and config, in the same place under
+``results/seed-tasks/`` as under the runs folder); once every run of the row is finished, they are kept in
 ``results/seed-tasks/ROW/`` and reported: the return on the task's reward (threshold 50), and the success
 and lifted rates (0.5 and 0.8; success alone on Lift).
 
@@ -68,12 +69,16 @@ def sides(row: str, runs: Path) -> dict[str, tuple[list, list[Path]]]:
     return out
 
 
-def train_runs(cfgs: list, dirs: list[Path]) -> None:
+def train_runs(cfgs: list, dirs: list[Path], runs: Path) -> None:
+    """Train each run not finished yet; a run that finishes is kept at once, in the same place under
+    ``results/seed-tasks/`` as under ``runs`` (``study.py --restore`` reuses it in a new clone)."""
     from drltg.training.loop import train
 
     for cfg, run in zip(cfgs, dirs):
         if not (run / "summary.json").is_file():
             train(cfg, run, resume=(run / "config.yaml").is_file(), progress=False)
+            if (run / "summary.json").is_file():
+                keep(run, HERE / run.relative_to(runs), runs)
 
 
 HERE = Path(__file__).resolve().parent
@@ -152,7 +157,7 @@ def main() -> None:
         return
     for side in ("baseline", "transfer"):
         cfgs, dirs = groups[side]
-        train_runs(*zip(*[(c, d) for c, d in zip(cfgs, dirs) if c.seed in args.seeds]))
+        train_runs(*zip(*[(c, d) for c, d in zip(cfgs, dirs) if c.seed in args.seeds]), args.runs)
     if all((d / "summary.json").is_file() for _, dirs in groups.values() for d in dirs):
         keep_and_report(args.row, groups, args.runs)
     else:
