@@ -172,6 +172,38 @@ def test_a_run_stopped_before_its_first_checkpoint_is_removed(tmp_path, monkeypa
     assert not (tmp_path / "c").exists()  # a failed start: the same command can run again
 
 
+def test_a_run_started_with_sigint_ignored_keeps_ignoring_it(tmp_path, monkeypatch):
+    """A run started in the background (``nohup``, ``&`` in a script) inherits SIGINT ignored: a SIGINT at
+    frame 640 then neither stops it nor makes it save a checkpoint there (checkpoints every 512), and the
+    disposition is the same after the run."""
+    from drltg.store.rundir import RunWriter
+
+    real, calls = train_mod._episode_stats, {"n": 0}
+
+    def interrupt_at_frame_640(data, stats):
+        calls["n"] += 1
+        if calls["n"] == 640 // 16:
+            os.kill(os.getpid(), signal.SIGINT)
+        return real(data, stats)
+
+    monkeypatch.setattr(train_mod, "_episode_stats", interrupt_at_frame_640)
+    saves, real_checkpoint = [], RunWriter.checkpoint
+
+    def checkpoint(self, state, frames, *args, **kwargs):
+        saves.append(frames)
+        return real_checkpoint(self, state, frames, *args, **kwargs)
+
+    monkeypatch.setattr(RunWriter, "checkpoint", checkpoint)
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        run = train(tiny_cfg(), tmp_path / "c", progress=False)
+        assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert (run / "summary.json").is_file() and calls["n"] > 640 // 16
+    assert sorted(set(saves)) == [512, 1024]
+
+
 def _cli(args, capsys):
     code = main(args)
     return code, capsys.readouterr().err

@@ -226,12 +226,14 @@ def deferred_signals(signums=(signal.SIGINT, signal.SIGTERM)):
     batch, or at the end; ``check(before=f)`` calls ``f`` first when a signal is pending (the loop saves
     a checkpoint there). Raised in the middle of a TorchRL loss, the exception does not always unwind:
     tensordict's context managers can turn it into another error, and a stopped run would end in a
-    traceback instead of releasing its directory."""
+    traceback instead of releasing its directory. A signal the process ignores (SIGINT in a job started
+    in the background, ``nohup``) stays ignored."""
     if threading.current_thread() is not threading.main_thread():  # handlers can only be set there
         yield lambda before=None: None
         return
     received: list[int] = []
-    previous = {s: signal.signal(s, lambda signum, frame: received.append(signum)) for s in signums}
+    previous = {s: signal.signal(s, lambda signum, frame: received.append(signum)) for s in signums
+                if signal.getsignal(s) != signal.SIG_IGN}
 
     def deliver(before: Callable[[], None] | None = None) -> None:
         if received:
