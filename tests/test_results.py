@@ -266,6 +266,11 @@ def test_a_finished_source_is_kept_with_the_networks_the_rows_reuse_and_a_clone_
     assert all(torch.equal(weights["loss"][k], v) for k, v in full["loss"].items())
     rebuilt = rebuild(first, checkpoint="best")
     assert rebuilt.frames == full["frames"]
+    import drltg.transfer  # noqa: F401  (registers model-reuse)
+    from drltg.transfer.source import check
+
+    check(config_lib.resolve({}, tiny + ["transfer.method=model-reuse", f"transfer.source={first}",
+                                         "transfer.source_checkpoint=best"], task="fourrooms/northeast", seed=4))
     assert all(torch.equal(v, full["loss"][k]) for k, v in rebuilt.agent.loss.state_dict().items())
 
     study.keep(job)  # the same training again: kept where it is
