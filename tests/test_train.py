@@ -157,16 +157,22 @@ def _exit_like_the_cli(signum, frame):
     raise SystemExit(128 + signum)
 
 
-def test_a_run_stopped_before_its_first_checkpoint_is_removed(tmp_path, monkeypatch):
+def _sigint_at_frame(frame, monkeypatch):
+    """SIGINT to this process once the run has collected ``frame`` frames (16 a batch); the batch count."""
     real, calls = train_mod._episode_stats, {"n": 0}
 
-    def interrupt_at_frame_320(data, stats):
+    def interrupt(data, stats):
         calls["n"] += 1
-        if calls["n"] == 320 // 16:
+        if calls["n"] == frame // 16:
             os.kill(os.getpid(), signal.SIGINT)
         return real(data, stats)
 
-    monkeypatch.setattr(train_mod, "_episode_stats", interrupt_at_frame_320)
+    monkeypatch.setattr(train_mod, "_episode_stats", interrupt)
+    return calls
+
+
+def test_a_run_stopped_before_its_first_checkpoint_is_removed(tmp_path, monkeypatch):
+    _sigint_at_frame(320, monkeypatch)
     with pytest.raises(KeyboardInterrupt):
         train(tiny_cfg(), tmp_path / "c", progress=False)
     assert not (tmp_path / "c").exists()  # a failed start: the same command can run again
@@ -178,15 +184,7 @@ def test_a_run_started_with_sigint_ignored_keeps_ignoring_it(tmp_path, monkeypat
     disposition is the same after the run."""
     from drltg.store.rundir import RunWriter
 
-    real, calls = train_mod._episode_stats, {"n": 0}
-
-    def interrupt_at_frame_640(data, stats):
-        calls["n"] += 1
-        if calls["n"] == 640 // 16:
-            os.kill(os.getpid(), signal.SIGINT)
-        return real(data, stats)
-
-    monkeypatch.setattr(train_mod, "_episode_stats", interrupt_at_frame_640)
+    calls = _sigint_at_frame(640, monkeypatch)
     saves, real_checkpoint = [], RunWriter.checkpoint
 
     def checkpoint(self, state, frames, *args, **kwargs):
