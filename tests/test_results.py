@@ -194,12 +194,20 @@ def test_a_kept_transfer_run_names_its_kept_source(tmp_path):
     source = os.path.relpath(RESULTS / "seed-tasks" / "sources" / "lift-dense-sac" / "seed-60", kept)
     assert (kept / "config.yaml").read_text() == config.format(source)
     assert (kept / source / "config.yaml").is_file()
+    # restored by another checkout of the study, the run names that checkout's kept source: kept here, this one's
+    elsewhere = "/elsewhere/results/seed-tasks/sources/lift-dense-sac/seed-60"
+    (run / "config.yaml").write_text(config.format(elsewhere))
+    row.keep(run, kept, runs)
+    assert (kept / "config.yaml").read_text() == config.format(source)
+    (run / "config.yaml").write_text(config.format("/elsewhere/sources/lift-dense-sac/seed-99"))  # kept nowhere
+    row.keep(run, kept, runs)
+    assert "  source: /elsewhere/sources/lift-dense-sac/seed-99\n" in (kept / "config.yaml").read_text()
 
 
 def test_a_new_clone_restores_the_kept_finished_runs_and_trains_only_what_is_left(tmp_path):
     """``--restore`` copies each finished row run kept in ``results/seed-tasks/`` back to its folder in RUNS,
-    naming the kept source training it reused: keeping it a second time gives the kept files back. A run
-    kept unfinished (no summary) or a folder that already holds a run is left alone."""
+    naming the kept source training it reused: keeping it a second time gives the kept files back. A folder
+    that already holds a run is left alone."""
     study = _study()
     runs = tmp_path / "runs"
     busy = runs / "lift-place-barrier-seed" / "sac" / "baseline" / "seed-10"
@@ -207,31 +215,49 @@ def test_a_new_clone_restores_the_kept_finished_runs_and_trains_only_what_is_lef
     (busy / "config.yaml").write_text("mine\n")
     restored = study.restore(runs)
     assert (busy / "config.yaml").read_text() == "mine\n" and busy not in restored
+    kept_runs = {}  # every finished row run kept here, by the folder it trains in
+    for kind, name in study.ORDER:
+        for side, (_, dirs) in study._sides(name, runs).items() if kind == "row" else ():
+            for run in dirs:
+                for kept in (study.HERE / name / side / run.name, study.HERE / run.relative_to(runs)):
+                    if (kept / "summary.json").is_file():
+                        kept_runs.setdefault(run, kept)
+    assert set(restored) - {j.keep for j in study.jobs(runs)} == set(kept_runs) - {busy}
     place = runs / "lift-place-seed" / "sac"
-    assert place / "model-reuse-place-seed" / "seed-12" not in restored  # kept at 200k frames, unfinished
-    assert {place / "pi-reuse-place-seed" / "seed-10", place / "model-reuse-place-seed" / "seed-11"} <= set(restored)
     run = place / "model-reuse-place-seed" / "seed-11"
     source = RESULTS / "seed-tasks" / "sources" / "lift-dense-sac" / "seed-61"
     assert f"  source: {source}\n" in (run / "config.yaml").read_text()  # the training it reused, kept
     assert "  source: null\n" in (place / "baseline-ln" / "seed-11" / "config.yaml").read_text()
-
-    def kept_again(run, kept):  # the kept files, the source named from the new place
-        again = tmp_path / "again" / run.name
+    for run, kept in kept_runs.items():  # the kept files again, the source named from the new place
+        if run == busy:
+            continue
+        again = tmp_path / "again" / run.relative_to(runs)
         study.row.keep(run, again, runs)
         sources = os.path.relpath(RESULTS / "seed-tasks" / "sources", kept) + "/"
         assert (again / "config.yaml").read_text() == (kept / "config.yaml").read_text().replace(
             sources, os.path.relpath(RESULTS / "seed-tasks" / "sources", again) + "/")
         for name in ("eval.csv", "summary.json"):
             assert (again / name).read_bytes() == (kept / name).read_bytes(), name
-
-    kept_again(run, RESULTS / "seed-tasks" / "lift-place-seed" / "sac" / "model-reuse-place-seed" / "seed-11")
-    kept_again(place / "pi-reuse-place-seed" / "seed-10",  # kept by its row, at another depth
-               RESULTS / "seed-tasks" / "pi-reuse-place-seed" / "transfer" / "seed-10")
     jobs = {j.name: j for j in study.jobs(runs)}
-    assert all(jobs[f"pi-reuse-place-seed-seed-{s}"].finished() for s in (10, 11, 12))
-    assert not jobs["model-reuse-place-seed-seed-12"].finished()
+    assert all(jobs[f"{row}-seed-{s}"].finished() for row in ("pi-reuse-place-seed", "model-reuse-place-seed")
+               for s in (10, 11, 12))
     only = study.jobs(runs, ["shaping-lift-seed-seed-11", "lift-dense-sac-seed-62"])
     assert [j.name for j in only] == ["lift-dense-sac-seed-62", "shaping-lift-seed-seed-11"]  # in queue order
+
+
+def test_a_run_kept_unfinished_is_not_restored_and_trains_again(tmp_path, monkeypatch):
+    """A run whose curves are kept while it trains (no ``summary.json`` yet) is not restored: its job is left
+    to train, from its checkpoint where this machine has one."""
+    study = _study()
+    kept = tmp_path / "kept" / "lift-place-seed" / "sac" / "model-reuse-place-seed" / "seed-12"
+    kept.mkdir(parents=True)
+    (kept / "config.yaml").write_text("task: lift-place-seed\n")
+    (kept / "eval.csv").write_text("frames,return_mean\n0,1.0\n")
+    monkeypatch.setattr(study, "HERE", tmp_path / "kept")
+    runs = tmp_path / "runs"
+    assert study.restore(runs) == []
+    assert not (runs / "lift-place-seed" / "sac" / "model-reuse-place-seed" / "seed-12").exists()
+    assert not {j.name: j for j in study.jobs(runs)}["model-reuse-place-seed-seed-12"].finished()
 
 
 def test_a_finished_source_is_kept_with_the_networks_the_rows_reuse_and_a_clone_reuses_it(tmp_path, monkeypatch):

@@ -116,7 +116,10 @@ def keep(run: Path, kept: Path, runs: Path) -> None:
         source = Path(os.path.normpath(run.resolve() / m[2]))  # an absolute path stays itself
         if source.is_relative_to(sources):
             source = kept_source(source)
-        elif not source.is_relative_to(HERE / "sources"):  # (a restored run names its kept source already)
+        elif source.parent.parent.name == "sources" and (HERE / "sources" / source.parent.name / source.name).is_dir():
+            # a restored run names a kept source: this checkout's, or another checkout's of this study
+            source = HERE / "sources" / source.parent.name / source.name
+        else:
             return m[0]
         return m[1] + os.path.relpath(source, kept.resolve())
 
