@@ -4,6 +4,7 @@ import math
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from drltg.analysis.report import transfer_report
@@ -68,6 +69,27 @@ def test_the_seed_tasks_progress_table_is_generated_from_its_kept_curves():
     text = (RESULTS / "seed-tasks" / "README.md").read_text()
     assert progress.filled(text) == text, "run python results/seed-tasks/progress.py"
     assert "earlier SAC (1 run)" in text and "| 10,000 |" in text
+
+
+def test_the_side_by_side_figure_draws_the_earlier_runs_as_window_means_at_drltgs_interval():
+    """An earlier run evaluated every 5k frames is drawn as the mean of its evaluations in each (end - 10k,
+    end], cut at its last evaluation and at the budget; the figure is a PNG the README shows."""
+    import importlib.util
+
+    from drltg.analysis.curves import Curve
+
+    spec = importlib.util.spec_from_file_location("progress", RESULTS / "seed-tasks" / "progress.py")
+    progress = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(progress)
+    frames = np.arange(0, 30_001, 5_000)  # 0, 5k, ..., 30k
+    curve = Curve(frames=frames, values=frames / 1_000, source=Path("x"), label="x")  # 0, 5, ..., 30
+    ends, means = progress.binned(curve)
+    assert ends.tolist() == [10_000, 20_000, 30_000]
+    assert means.tolist() == [7.5, 17.5, 27.5]  # (5 + 10) / 2, (15 + 20) / 2, (25 + 30) / 2
+    long = Curve(frames=np.arange(0, 1_000_001, 500), values=np.ones(2001), source=Path("x"), label="x")
+    assert progress.binned(long)[0][-1] == progress.BUDGET
+    assert progress.figure()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "![" in (RESULTS / "seed-tasks" / "README.md").read_text().split("<!-- side-by-side -->")[0]
 
 
 def _study():

@@ -6,6 +6,7 @@ implementation's logs (tests/data/sb3_runs), read at the same frames: the baseli
 """
 from __future__ import annotations
 
+import io
 import json
 import sys
 from pathlib import Path
@@ -149,20 +150,82 @@ def _earlier_at(log: str | None, frames: int) -> str:
     return f"{np.interp(frames, curve.frames, curve.values):.1f}" if curve.frames[0] <= frames else "—"
 
 
+def _metric(row: str) -> str:
+    """The quantity a row is read in: Lift's success for shaping (its sides are paid by different rewards),
+    else the return on the seed's reward."""
+    return "success_rate" if row == "shaping-lift-seed" else "return_mean"
+
+
+def _sides(row: str) -> tuple[Path, Path]:
+    """A row's baseline and transfer folders: the finished row's, or before that its runs' curves so far."""
+    target, baseline = ROWS[row][:2]
+    kept = HERE / row
+    return (kept / "baseline", kept / "transfer") if kept.is_dir() else (HERE / target / baseline, HERE / target / row)
+
+
 def side_by_side() -> str:
     lines = ["| row | frames | earlier: no transfer | earlier: transfer | drltg: no transfer | drltg: transfer "
              "| drltg transfer: placed / pushed / lifted |", "|---" * 7 + "|"]
-    for row, (target, baseline, before, after) in ROWS.items():
-        key = "success_rate" if row == "shaping-lift-seed" else "return_mean"
-        kept = HERE / row  # a finished row; before that, its runs' curves so far (HERE / TARGET / ALGO / ...)
-        base, moved = (kept / "baseline", kept / "transfer") if kept.is_dir() else (HERE / target / baseline,
-                                                                                     HERE / target / row)
+    for row, (_, _, before, after) in ROWS.items():
+        key = _metric(row)
+        base, moved = _sides(row)
         for f in SIDE_BY_SIDE_FRAMES:
             rates = [_mean_at(moved, f, f"{k}_rate") for k in ("success", "pushed", "lifted")]
             lines.append(f"| `{row}` | {f:,} | {_earlier_at(before, f)} | {_earlier_at(after, f)} | "
                          f"{_mean_at(base, f, key)} | {_mean_at(moved, f, key)} | {' / '.join(rates)} |")
     return "\n".join(lines)
 
+
+def binned(curve, width: int = 10_000) -> tuple[np.ndarray, np.ndarray]:
+    """A curve's mean in each ``width`` frames up to the budget, ``(end - width, end]``, at each window's end."""
+    ends = np.arange(width, min(BUDGET, curve.frames[-1]) + 1, width)
+    return ends, np.array([curve.values[(curve.frames > f - width) & (curve.frames <= f)].mean() for f in ends])
+
+
+def figure() -> bytes:
+    """Each row's curves beside the earlier runs', cut at the row's budget: drltg's seeds (thin) and their mean
+    (thick) per side; the earlier single runs (evaluated every 500 frames) dashed, as the mean of their
+    evaluations in each 10k frames, drltg's evaluation interval. PNG bytes."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    colors = {"no transfer": "#0072B2", "transfer": "#D55E00"}
+    fig, axes = plt.subplots(2, 3, figsize=(13, 7.5))
+    for ax, (row, (_, _, before, after)) in zip(axes.flat, ROWS.items()):
+        key, trained = _metric(row), 0
+        for (side, color), folder, log in zip(colors.items(), _sides(row), (before, after)):
+            curves = [read_eval_csv(d) for d in sorted(folder.glob("seed-*/eval.csv"))]
+            trained += len(curves)
+            for rows in curves:
+                ax.plot([r["frames"] for r in rows], [r[key] for r in rows], color=color, lw=0.6, alpha=0.35)
+            if curves:
+                common = sorted(set.intersection(*({r["frames"] for r in rows} for rows in curves)))
+                mean = [np.mean([next(r[key] for r in rows if r["frames"] == f) for rows in curves]) for f in common]
+                seeds = f"{len(curves)} seed{'s' * (len(curves) > 1)}"
+                ax.plot(common, mean, color=color, lw=2, label=f"drltg, {side} ({seeds})")
+            if log is not None and key == "return_mean":
+                ends, means = binned(read_curves(SB3 / log)[0])
+                ax.plot(ends, means, color=color, lw=1.2, ls="--", label=f"earlier, {side} (1 run)")
+        if not trained:
+            ax.text(0.5, 0.5, "drltg: not trained yet", ha="center", va="center", transform=ax.transAxes, color="0.4")
+        ax.set_title(f"{row}\n" + ("Lift success (the earlier runs logged return, each on its own reward)"
+                                    if key == "success_rate" else "return on the seed's reward"), fontsize=9)
+        ax.set_xlim(0, BUDGET)
+        ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda x, _: f"{x / 1000:.0f}k"))
+        ax.set_xlabel("frames")
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7, loc="upper left")
+    axes.flat[-1].axis("off")
+    axes.flat[-1].text(0, 0.5, "thin: drltg's seeds; thick: their mean at the\nframes every seed reached.\n"
+                       "dashed: the earlier implementation's single run,\nthe mean of its evaluations in each "
+                       "10k frames.\ndrltg evaluates on 10 episodes every 10k frames.", fontsize=8, va="center")
+    fig.tight_layout()
+    out = io.BytesIO()
+    fig.savefig(out, format="png", dpi=110, metadata={"Software": None})
+    plt.close(fig)
+    return out.getvalue()
 
 REGIONS = {"progress": region, "sources": sources, "side-by-side": side_by_side}
 
@@ -180,6 +243,7 @@ def filled(text: str) -> str:
 def main() -> None:
     path = HERE / "README.md"
     atomic_write(path, filled(path.read_text()))
+    atomic_write(HERE / "side-by-side.png", figure())
 
 
 if __name__ == "__main__":
