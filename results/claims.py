@@ -70,6 +70,7 @@ REGIONS = {
         "results-table": sweeps.results_table,
         "results-verdicts": lambda: sweeps.sweep_verdicts(sweeps.GRADED, FOUR_METHODS),
         "results-others": sweeps.readme_others,
+        "seed-rows": seed_tasks.seed_rows,
     },
     "results/seed-tasks/README.md": {"seed-rows": seed_tasks.seed_rows},
     "results/manipulation/README.md": {
