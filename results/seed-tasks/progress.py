@@ -227,6 +227,7 @@ def figure() -> bytes:
     plt.close(fig)
     return out.getvalue()
 
+
 REGIONS = {"progress": region, "sources": sources, "side-by-side": side_by_side}
 
 
