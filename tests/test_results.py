@@ -71,9 +71,11 @@ def test_the_seed_tasks_progress_table_is_generated_from_its_kept_curves():
     assert "earlier SAC (1 run)" in text and "| 10,000 |" in text
 
 
-def test_the_side_by_side_figure_draws_the_earlier_runs_as_window_means_at_drltgs_interval():
+def test_the_side_by_side_averages_the_seeds_at_a_frame_and_draws_the_earlier_runs_per_10k_frames(tmp_path):
     """An earlier run evaluated every 5k frames is drawn as the mean of its evaluations in each (end - 10k,
-    end], cut at its last evaluation and at the budget; the figure is a PNG the README shows."""
+    end], cut at its last evaluation and at the budget; the figure is a PNG the README shows. A table cell is
+    the mean over the seeds that reached the frames, says how many where not all did, and "n/a" for a rate the
+    task does not record."""
     import importlib.util
 
     from drltg.analysis.curves import Curve
@@ -89,6 +91,14 @@ def test_the_side_by_side_figure_draws_the_earlier_runs_as_window_means_at_drltg
     long = Curve(frames=np.arange(0, 1_000_001, 500), values=np.ones(2001), source=Path("x"), label="x")
     assert progress.binned(long)[0][-1] == progress.BUDGET
     assert progress.figure()[:8] == b"\x89PNG\r\n\x1a\n"
+    row = tmp_path / "row"
+    for seed, (ret, success) in {10: (100.0, 0.2), 11: (50.0, 0.7)}.items():  # seed 12 not trained yet
+        (row / f"seed-{seed}").mkdir(parents=True)
+        (row / f"seed-{seed}" / "eval.csv").write_text(
+            f"frames,return_mean,return_std,episodes,success_rate,lifted_rate\n0,0,0,10,0,0\n10000,{ret},0,10,{success},1\n")
+    assert progress._mean_at(row, 10_000, "return_mean") == "75.0 (2 seeds)"
+    assert progress._mean_at(row, 10_000, "success_rate", "pushed_rate", "lifted_rate") == "0.45 / n/a / 1.00 (2 seeds)"
+    assert progress._mean_at(row, 20_000, "success_rate", "lifted_rate") == "— / —"
     assert "![" in (RESULTS / "seed-tasks" / "README.md").read_text().split("<!-- side-by-side -->")[0]
 
 

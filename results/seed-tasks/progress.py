@@ -131,16 +131,15 @@ def sources() -> str:
     return "\n".join(lines) + "\n\n" + "\n".join(verdicts)
 
 
-def _mean_at(folder: Path, frames: int, key: str) -> str:
-    """Mean over the seeds under ``folder`` that reached ``frames``; how many, where not all 3 did."""
-    values = []
-    for d in sorted(folder.glob("seed-*/eval.csv")):
-        values += [r.get(key, float("nan")) for r in read_eval_csv(d) if r["frames"] == frames]
-    if not values:
-        return "—"
-    spec = ".1f" if key == "return_mean" else ".2f"
-    counted = f" ({len(values)} seed{'s' * (len(values) > 1)})" if len(values) < len(SEEDS) else ""
-    return format(float(np.mean(values)), spec) + counted
+def _mean_at(folder: Path, frames: int, *keys: str) -> str:
+    """Mean over the seeds under ``folder`` that reached ``frames``, of each key (joined by " / "); how many
+    seeds, where not all 3 did."""
+    rows = [r for d in sorted(folder.glob("seed-*/eval.csv")) for r in read_eval_csv(d) if r["frames"] == frames]
+    if not rows:
+        return " / ".join("—" for _ in keys)
+    means = [format(float(np.mean([r[k] for r in rows])), ".1f" if k == "return_mean" else ".2f")
+             if k in rows[0] else "n/a" for k in keys]  # (Lift has no target, so no pushed rate)
+    return " / ".join(means) + (f" ({len(rows)} seed{'s' * (len(rows) > 1)})" if len(rows) < len(SEEDS) else "")
 
 
 def _earlier_at(log: str | None, frames: int) -> str:
@@ -165,14 +164,15 @@ def _sides(row: str) -> tuple[Path, Path]:
 
 def side_by_side() -> str:
     lines = ["| row | frames | earlier: no transfer | earlier: transfer | drltg: no transfer | drltg: transfer "
-             "| drltg transfer: placed / pushed / lifted |", "|---" * 7 + "|"]
+             "| drltg no transfer: placed / pushed / lifted | drltg transfer: placed / pushed / lifted |",
+             "|---" * 8 + "|"]
     for row, (_, _, before, after) in ROWS.items():
         key = _metric(row)
         base, moved = _sides(row)
         for f in SIDE_BY_SIDE_FRAMES:
-            rates = [_mean_at(moved, f, f"{k}_rate") for k in ("success", "pushed", "lifted")]
+            rates = [_mean_at(side, f, "success_rate", "pushed_rate", "lifted_rate") for side in (base, moved)]
             lines.append(f"| `{row}` | {f:,} | {_earlier_at(before, f)} | {_earlier_at(after, f)} | "
-                         f"{_mean_at(base, f, key)} | {_mean_at(moved, f, key)} | {' / '.join(rates)} |")
+                         f"{_mean_at(base, f, key)} | {_mean_at(moved, f, key)} | {rates[0]} | {rates[1]} |")
     return "\n".join(lines)
 
 
