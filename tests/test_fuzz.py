@@ -11,6 +11,7 @@ import math
 import os
 from pathlib import Path
 
+import pytest
 import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -80,6 +81,7 @@ def curves(draw, side: str):
 
 @FUZZ
 @given(baseline=curves("baseline"), transfer=curves("transfer"), same=st.booleans())
+@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")  # squares of returns near 1e308
 def test_any_curves_give_a_report_or_one_sentence(baseline, transfer, same):
     if same:  # a method with no effect: the transfer runs equal their paired baselines
         transfer = [Curve(c.frames, c.values, Path(f"/transfer/{c.source.name}"), f"transfer/{c.source.name}")
