@@ -600,7 +600,7 @@ def test_settings_define_the_cli_options(capsys):
 
 
 def test_sb3_fixture_first_crossing_reproduces(sb3_runs, tmp_path):
-    """``--crossing first`` keeps the seed project's rule: the first evaluation at or above 150."""
+    """``--crossing first`` keeps the earlier implementation's rule: the first evaluation at or above 150."""
     import csv as csv_
 
     res = report.compute(_read(sb3_runs / "liftplace_sac"), _read(sb3_runs / "liftplace_sac_policyreuse"),

@@ -38,8 +38,8 @@ def readme_lift() -> str:
         "(`results/sweep-lift-to-place/`), "
         f"mean lifted-rate gain (Holm over the {len(adj_p)} targets): "
         + "; ".join(f"{pair}: {said(r, PRIMARY, adj_p.get(pair))}" for pair, r in place.items()) + ".",
-        f"- Lift on the dense reward against the seed project's one SB3 run (`results/lift-dense/`): mean return gain "
-        f"{cl.signed(dense['metrics'][PRIMARY], 1)} over frames {dense['settings']['start']:,} to "
+        "- Lift on the dense reward against the earlier implementation's one SB3 run (`results/lift-dense/`): "
+        f"mean return gain {cl.signed(dense['metrics'][PRIMARY], 1)} over frames {dense['settings']['start']:,} to "
         f"{dense['settings']['budget']:,}, with no interval and no verdict (one run on one side); the SB3 curve is "
         f"{dense['settings']['convergence']['baseline']} where the comparison stops.",
     ]
@@ -72,7 +72,7 @@ def _placed(run: Path, frame: float) -> str:
 
 def lift_dense_curves() -> str:
     rows = [(f"drltg SAC, {p.name.replace('-', ' ')}", [p]) for p in seed_dirs(DENSE / "sac")]
-    rows.append(("seed project, SB3 SAC", [ROOT / "tests" / "data" / "sb3_runs" / "lift_shaped_sac"]))
+    rows.append(("earlier implementation, SB3 SAC", [ROOT / "tests" / "data" / "sb3_runs" / "lift_shaped_sac"]))
     return curve_table(rows, "return_mean", [float(f) for f in range(0, 150_001, 10_000)])
 
 
@@ -214,11 +214,12 @@ def lift_dense_verdicts() -> str:
     m, st = r["metrics"], r["settings"]
     trend = st["convergence"]["baseline"]
     rising = cl.estimate(m["final_trend_baseline"], m.get("final_trend_baseline_ci"), 1)
-    return (f"Over the overlapping range, frames {st['start']:,} to {st['budget']:,} (the seed project's run is "
-            f"longer; it is cut there), drltg's {m['n_seeds_transfer']} seeds minus the seed project's "
-            f"{m['n_seeds_baseline']} run give a mean return gain of {cl.signed(m[PRIMARY], 1)}, with no interval "
-            f"(one run on one side) and so no verdict. The seed project's curve is {trend} at the end of that "
-            f"range ({rising} per window of the last quarter), so the comparison stops while it climbs; the two "
+    earlier = "the earlier implementation's"
+    return (f"Over the overlapping range, frames {st['start']:,} to {st['budget']:,} ({earlier} run is longer; it "
+            f"is cut there), drltg's {m['n_seeds_transfer']} seeds minus {earlier} {m['n_seeds_baseline']} run give "
+            f"a mean return gain of {cl.signed(m[PRIMARY], 1)}, with no interval (one run on one side) and so no "
+            f"verdict. {earlier.capitalize()} curve is {trend} at the end of that range ({rising} per window of "
+            "the last quarter), so the comparison stops while it climbs; the two "
             "curves were also evaluated on different grids and protocols. This is not a comparison of the two "
             "SAC implementations.\n")
 
