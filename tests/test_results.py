@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from drltg.analysis.report import transfer_report
 
@@ -247,13 +248,19 @@ def test_a_new_clone_restores_the_kept_finished_runs_and_trains_only_what_is_lef
     (busy / "config.yaml").write_text("mine\n")
     restored = study.restore(runs)
     assert (busy / "config.yaml").read_text() == "mine\n" and busy not in restored
-    kept_runs = {}  # every finished row run kept here, by the folder it trains in
-    for kind, name in study.ORDER:
-        for side, (_, dirs) in study._sides(name, runs).items() if kind == "row" else ():
-            for run in dirs:
-                for kept in (study.HERE / name / side / run.name, study.HERE / run.relative_to(runs)):
-                    if (kept / "summary.json").is_file():
-                        kept_runs.setdefault(run, kept)
+    kept_runs = {}  # every finished row run kept here, by the folder its own config trains it in
+    for summary in sorted(study.HERE.glob("*/**/summary.json")):
+        kept = summary.parent
+        part = kept.relative_to(study.HERE).parts
+        if part[0] == "sources":
+            continue
+        if part[0] not in study.row.ROWS:  # a run kept where it trains, while its row is in progress
+            kept_runs.setdefault(runs.joinpath(*part), kept)
+            continue
+        cfg = yaml.safe_load((kept / "config.yaml").read_text())
+        side = part[0] if part[1] == "transfer" else "baseline-ln" if cfg["network"]["layer_norm"] != "none" \
+            else "baseline"
+        kept_runs.setdefault(runs / cfg["task"] / cfg["algo"] / side / part[2], kept)
     assert set(restored) - {j.keep for j in study.jobs(runs)} == set(kept_runs) - {busy}
     place = runs / "lift-place-seed" / "sac"
     run = place / "model-reuse-place-seed" / "seed-11"
