@@ -3,6 +3,7 @@ import contextlib
 import csv
 import io
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -239,6 +240,28 @@ def test_complete_runs_are_skipped_and_a_failure_is_isolated(rerun):
         states = {r["run"]: r["status"] for r in csv.DictReader(f)}
     assert sorted(states.values()) == ["done", "done", "failed", "failed", "failed", "skipped", "skipped"]
     assert states["fourrooms-far/sac/model-reuse/transfer/seed-0"] == "failed"  # its source failed
+
+
+def test_a_dry_run_says_what_each_run_holds_and_what_is_left(tmp_path, capsys):
+    """``--dry-run`` on a sweep's folder tells finished, started (its last evaluation) and untouched runs
+    apart and sums the frames left, writing nothing; a fresh folder has everything left."""
+    spec = write_spec(tmp_path / "spec.yaml", {**GRID, "pairs": ["fourrooms-near"], "methods": ["model-reuse"]})
+    out = tmp_path / "out"
+    assert main(["sweep", str(spec), "--out", str(out), "--dry-run"]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == "left to train: about 768 of 768 frames (3 not started)"
+    assert not out.exists()
+    source, baseline, transfer = sweep.plan(sweep.load_spec(spec), out)[0]
+    train(source.cfg, source.path, progress=False)
+    train(config_lib.build({**baseline.cfg.model_dump(), "frames": 128}), baseline.path, progress=False)
+    (baseline.path / "summary.json").unlink()  # what a kill after the evaluation at frame 128 leaves
+    assert main(["sweep", str(spec), "--out", str(out), "--dry-run"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert [re.split(r"\s{2,}", line.strip()) for line in lines[:3]] == [
+        ["source", "256 frames", "fourrooms-near/sac/source/seed-50", "finished"],
+        ["baseline", "256 frames", "fourrooms-near/sac/baseline/seed-0", "started: last evaluated at 128 frames"],
+        ["transfer", "256 frames", "fourrooms-near/sac/model-reuse/transfer/seed-0", "not started"]]
+    assert lines[-1] == "left to train: about 384 of 768 frames (1 finished, 1 started, 1 not started)"
+    assert not transfer.path.exists()
 
 
 # ----------------------------------------------------------------------------------------- Ray

@@ -136,7 +136,7 @@ def seed_groups(runs: list[Run]) -> list[list[Run]]:
     return units
 
 
-def _frames_done(run: Run) -> int:
+def frames_done(run: Run) -> int:
     """Frames a run has reached so far (its last evaluation; 0 before the first)."""
     try:
         rows = rundir.read_eval_csv(run.path / rundir.EVAL)
@@ -215,7 +215,7 @@ def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs", pro
         if finished is not None:
             status[r.path] = ("skipped", "") if finished[0] == "complete" else finished
     todo = [r for r in runs if r.path not in status]
-    reached = {r.path: _frames_done(r) for r in todo}
+    reached = {r.path: frames_done(r) for r in todo}
     units = seed_groups(todo) if group_seeds else [[r] for r in todo]
     bar = tqdm(total=sum(r.frames for r in todo), initial=sum(reached.values()), unit="frame",
                desc=desc, dynamic_ncols=True, smoothing=0.05, disable=None if progress else True)
@@ -256,7 +256,7 @@ def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs", pro
                     reached[run.path] = run.frames
             for unit in running.values():
                 for run in unit:
-                    now = _frames_done(run)
+                    now = frames_done(run)
                     bar.update(max(now - reached[run.path], 0))
                     reached[run.path] = max(now, reached[run.path])
             postfix()

@@ -57,7 +57,7 @@ import yaml
 from drltg.config import RunConfig
 from drltg.errors import UsageError
 from drltg.experiments.backends import LocalBackend, RayBackend
-from drltg.experiments.executor import Run, execute, registrations, seed_groups
+from drltg.experiments.executor import Run, execute, frames_done, registrations, seed_groups
 from drltg.experiments.spec import Spec, load_spec, parse_spec
 from drltg.experiments.summary import plot_transfer_matrix, summary_tables
 from drltg.store import rundir
@@ -182,7 +182,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--num-gpus", type=float, help="ray: GPUs per run (overrides the spec's resources)")
     p.add_argument("--metric", default="mean_return_gain",
                    help="the metric of the transfer-matrix heatmap (default: mean_return_gain)")
-    p.add_argument("--dry-run", action="store_true", help="list the runs and reports, run nothing")
+    p.add_argument("--dry-run", action="store_true", help="list the runs and reports, what each run's folder "
+                   "holds already and the frames left; run nothing")
     p.add_argument("--no-progress", action="store_true", help="no progress bar (none is drawn when stderr is not "
                    "a terminal)")
 
@@ -258,7 +259,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _dry_run(args: argparse.Namespace) -> int:
-    """List the runs and reports of the spec and the units of work they train in; run nothing."""
+    """List the runs and reports of the spec, what each run's folder holds already, the units of work they
+    train in and the frames left; run nothing."""
     from drltg.analysis.report import check_metric
 
     check_metric(args.metric)
@@ -267,13 +269,33 @@ def _dry_run(args: argparse.Namespace) -> int:
     out = rundir.check_directory(args.out, "--out")
     rundir.refuse_run_directory(out, "--out")
     runs, cells = plan(spec, out)
+    states = {r.path: _state(r) for r in runs}
+    width = max(len(str(r.path.relative_to(out))) for r in runs)
     for r in runs:
-        print(f"{r.role:<9} {r.frames:>9} frames  {r.path.relative_to(out)}")
+        print(f"{r.role:<9} {r.frames:>9} frames  {str(r.path.relative_to(out)):<{width}}  {states[r.path][0]}")
     units = [[r] for r in runs] if args.no_seed_groups else seed_groups(runs)
     groups = [u for u in units if len(u) > 1]
     print(f"{len(runs)} runs, {len(cells)} reports; {len(units)} units of work: {len(groups)} seed groups "
           f"of {sum(map(len, groups))} runs, {len(units) - len(groups)} runs alone")
+    kinds = [words.split(":")[0] for words, _ in states.values()]
+    counts = ", ".join(f"{kinds.count(k)} {k}" for k in ("finished", "started", "not started", "diverged",
+                                                           "unreadable") if k in kinds)
+    print(f"left to train: about {sum(left for _, left in states.values()):,} of {sum(r.frames for r in runs):,} "
+          f"frames ({counts})")
     return 0
+
+
+def _state(run: Run) -> tuple[str, int]:
+    """What a run's folder holds, in words, and about how many frames a sweep would still train in it: none
+    once it ended (``summary.json``: finished, diverged, or unreadable and so failed), else from its last
+    checkpoint, which is at or before its last evaluation (:func:`frames_done`)."""
+    ended = rundir.summary_status(run.path)
+    if ended is not None:
+        return ("finished" if ended[0] == "complete" else ended[0]), 0
+    if not (run.path / rundir.CONFIG).is_file():
+        return "not started", run.frames
+    done = frames_done(run)
+    return f"started: last evaluated at {done:,} frames", run.frames - done
 
 
 def _resources_for(spec: Spec, num_cpus: float | None, num_gpus: float | None, backend: str,
