@@ -177,7 +177,7 @@ def test_stopping_the_seed_study_stops_each_job_s_processes_and_waits_for_them(t
            f"print('training', flush=True)\n"
            f"time.sleep(60)\n")
     job = study.Job("source-seed-60", ["sh", "-c", f"{shlex.quote(sys.executable)} -c {shlex.quote(run)}; sleep 60"],
-                    outputs=[], needs=[])
+                    outputs=[], needs=[], frames=1)
     proc = study.start(job, 0, tmp_path)
     log = tmp_path / "source-seed-60.log"
     deadline = time.monotonic() + 60
@@ -198,7 +198,7 @@ def test_a_study_job_that_ignores_sigterm_is_killed_after_the_timeout(tmp_path, 
            "signal.signal(signal.SIGTERM, signal.SIG_IGN)\n"
            "print('training', flush=True)\n"
            "time.sleep(60)\n")
-    job = study.Job("stuck-seed-61", [sys.executable, "-c", run], outputs=[], needs=[])
+    job = study.Job("stuck-seed-61", [sys.executable, "-c", run], outputs=[], needs=[], frames=1)
     proc = study.start(job, 0, tmp_path)
     deadline = time.monotonic() + 60
     while "training" not in (tmp_path / "stuck-seed-61.log").read_text():
@@ -282,6 +282,28 @@ def test_a_new_clone_restores_the_kept_finished_runs_and_trains_only_what_is_lef
                for s in (10, 11, 12))
     only = study.jobs(runs, ["shaping-lift-seed-seed-11", "lift-dense-sac-seed-62"])
     assert [j.name for j in only] == ["lift-dense-sac-seed-62", "shaping-lift-seed-seed-11"]  # in queue order
+
+
+def test_the_study_s_dry_run_counts_the_frames_each_run_reached_and_those_left(tmp_path, capsys):
+    """A run in progress counts to its last evaluation, a finished one to its budget; the last line sums what
+    is left of the whole study: 6 sources of 60k frames and 5 rows of 3 seeds x 2 sides x 300k."""
+    from drltg.store.rundir import write_eval_csv
+
+    study = _study()
+    runs = tmp_path / "runs"
+    source = runs / "sources" / "lift-dense-sac" / "seed-61"
+    source.mkdir(parents=True)
+    (source / "summary.json").write_text("{}")
+    transfer = runs / "lift-place-barrier-seed" / "sac" / "pi-reuse-barrier-seed" / "seed-11"
+    transfer.mkdir(parents=True)
+    write_eval_csv(transfer / "eval.csv", [{"frames": 0, "return_mean": 1.0, "return_std": 0.0, "episodes": 10},
+                                           {"frames": 10_000, "return_mean": 2.0, "return_std": 0.0, "episodes": 10}])
+    study.dry_run(runs)
+    lines = dict(line.split(maxsplit=1) for line in capsys.readouterr().out.splitlines())
+    assert lines["pi-reuse-barrier-seed-seed-11"] == "ready: baseline 0, pi-reuse-barrier-seed 10,000 of 300,000 frames"
+    assert lines["pi-reuse-barrier-seed-seed-12"].startswith("waits for its source: ")
+    assert lines["lift-dense-sac-seed-61"] == "ready: 60,000 of 60,000 frames"  # trained, best.pt not scored yet
+    assert lines["left"] == f"to train: about {6 * 60_000 + 5 * 3 * 2 * 300_000 - 10_000 - 60_000:,} frames"
 
 
 def test_a_run_kept_unfinished_is_not_restored_and_trains_again(tmp_path, monkeypatch):

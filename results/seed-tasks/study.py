@@ -34,7 +34,8 @@ import sys
 import time
 from pathlib import Path
 
-from drltg.store.rundir import atomic_torch_save, checkpoint_path, load_checkpoint
+from drltg.errors import UsageError
+from drltg.store.rundir import atomic_torch_save, checkpoint_path, load_checkpoint, read_eval_csv
 
 HERE = Path(__file__).resolve().parent
 _spec = importlib.util.spec_from_file_location("seed_rows", HERE / "row.py")
@@ -61,8 +62,10 @@ ORDER = [("source", "lift-dense-sac"), ("row", "pi-reuse-place-seed"), ("source"
 
 
 class Job:
-    def __init__(self, name: str, argv: list[str], outputs: list[Path], needs: list[Path], keep=None, files=()):
+    def __init__(self, name: str, argv: list[str], outputs: list[Path], needs: list[Path], frames: int, keep=None,
+                 files=()):
         self.name, self.argv, self.outputs, self.needs, self.keep = name, argv, outputs, needs, keep
+        self.frames = frames  # each output's budget
         self.files = files  # globs every output must also hold once the job is finished
 
     def finished(self) -> bool:
@@ -82,7 +85,8 @@ def source_job(name: str, seed: int, runs: Path) -> Job:
     evaluate = [drltg, "evaluate", str(run), "--checkpoint", "best", "--episodes", str(BEST_EPISODES)]
     trained = shlex.quote(str(run / "summary.json"))
     argv = ["sh", "-c", f"{{ [ -f {trained} ] || {shlex.join(argv)}; }} && {shlex.join(evaluate)}"]
-    return Job(f"{name}-seed-{seed}", argv, [run], [], keep=run, files=(f"evaluate-best-*-{BEST_EPISODES}ep.json",))
+    return Job(f"{name}-seed-{seed}", argv, [run], [], SOURCE_FRAMES, keep=run,
+               files=(f"evaluate-best-*-{BEST_EPISODES}ep.json",))
 
 
 @functools.cache
@@ -97,7 +101,7 @@ def row_job(name: str, seed: int, runs: Path) -> Job:
     source = row.ROWS[name][3]
     needs = [runs / "sources" / source / f"seed-{seed + row.SOURCE_OFFSET}"] if source else []
     argv = [sys.executable, str(HERE / "row.py"), name, "--seeds", str(seed), "--runs", str(runs)]
-    return Job(f"{name}-seed-{seed}", argv, outputs, needs)
+    return Job(f"{name}-seed-{seed}", argv, outputs, needs, row.FRAMES)
 
 
 def jobs(runs: Path, only=None) -> list[Job]:
@@ -169,7 +173,8 @@ def main() -> None:
     parser.add_argument("--cores", type=int, nargs="+", default=[1], help="the cores that take jobs, one each")
     parser.add_argument("--runs", type=Path, default=Path("runs/seed-tasks"))
     parser.add_argument("--only", nargs="+", metavar="JOB", help="take only these jobs (names as --dry-run lists)")
-    parser.add_argument("--dry-run", action="store_true", help="list the jobs and whether each is finished")
+    parser.add_argument("--dry-run", action="store_true",
+                        help="list the jobs, the frames each run has reached and the frames left")
     parser.add_argument("--restore", action="store_true",
                         help="copy the finished runs kept in results/seed-tasks/ to RUNS first (a new clone)")
     args = parser.parse_args()
@@ -180,9 +185,7 @@ def main() -> None:
         for run in restore(args.runs):
             print(f"restored {run}")
     if args.dry_run:
-        for job in jobs(args.runs):
-            state = "finished" if job.finished() else "ready" if job.ready() else "waits for its source"
-            print(f"{job.name:36} {state}")
+        dry_run(args.runs)
         return
     (args.runs / "logs").mkdir(parents=True, exist_ok=True)
     running: dict[int, tuple[Job, subprocess.Popen]] = {}
@@ -191,6 +194,31 @@ def main() -> None:
         queue(args, running)
     finally:
         stop(running)
+
+
+def dry_run(runs: Path) -> None:
+    """Each job's state, with the frames each of its runs has reached, and the frames left to train."""
+    left = 0
+    for job in jobs(runs):
+        if job.finished():
+            print(f"{job.name:36} finished")
+            continue
+        done = {d: job.frames if (d / "summary.json").is_file() else _reached(d) for d in job.outputs}
+        left += sum(job.frames - n for n in done.values())
+        state = "ready" if job.ready() else "waits for its source"
+        side = (lambda d: f"{d.parent.name} ") if len(done) > 1 else (lambda d: "")  # a row's two runs
+        print(f"{job.name:36} {state}: " + ", ".join(f"{side(d)}{n:,}" for d, n in done.items())
+              + f" of {job.frames:,} frames")
+    print(f"left to train: about {left:,} frames")
+
+
+def _reached(run: Path) -> int:
+    """The frames of a run's last evaluation (0 before the first); it resumes from its last checkpoint."""
+    try:
+        rows = read_eval_csv(run / "eval.csv")
+    except UsageError:
+        return 0
+    return rows[-1]["frames"] if rows else 0
 
 
 def queue(args: argparse.Namespace, running: dict[int, tuple[Job, subprocess.Popen]]) -> None:
