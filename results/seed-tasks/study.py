@@ -206,9 +206,8 @@ def dry_run(runs: Path) -> None:
         done = {d: job.frames if (d / "summary.json").is_file() else _reached(d) for d in job.outputs}
         left += sum(job.frames - n for n in done.values())
         state = "ready" if job.ready() else "waits for its source"
-        side = (lambda d: f"{d.parent.name} ") if len(done) > 1 else (lambda d: "")  # a row's two runs
-        print(f"{job.name:36} {state}: " + ", ".join(f"{side(d)}{n:,}" for d, n in done.items())
-              + f" of {job.frames:,} frames")
+        reached = ", ".join(f"{d.parent.name} {n:,}" if len(done) > 1 else f"{n:,}" for d, n in done.items())
+        print(f"{job.name:36} {state}: {reached} of {job.frames:,} frames")
     print(f"left to train: about {left:,} frames")
 
 
