@@ -87,6 +87,22 @@ def copy_of_killed(killed, tmp_path):
     return run
 
 
+@pytest.mark.parametrize("text, frames", [
+    (None, 0),  # no eval.csv yet
+    ("frames,return_mean\n", 0),  # before the first evaluation
+    ("frames,return_mean\n0,1.0\n128,2.0\n", 128),
+    ("frames,return_mean\n0,1.0\n128,2.", 0),  # torn: unreadable, so nothing is counted
+])
+def test_frames_evaluated_is_the_last_evaluation_or_zero(text, frames, tmp_path):
+    if text is not None:
+        (tmp_path / "eval.csv").write_text(text)
+    assert rundir.frames_evaluated(tmp_path) == frames
+
+
+def test_a_killed_run_has_reached_its_last_evaluation(killed):
+    assert rundir.frames_evaluated(killed) == 384
+
+
 # -------------------------------------------------------------------------------- 1: ownership
 def test_two_processes_into_one_run_dir_one_is_refused(tmp_path):
     run = tmp_path / "run"

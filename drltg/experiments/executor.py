@@ -138,11 +138,7 @@ def seed_groups(runs: list[Run]) -> list[list[Run]]:
 
 def frames_done(run: Run) -> int:
     """Frames a run has reached so far (its last evaluation; 0 before the first)."""
-    try:
-        rows = rundir.read_eval_csv(run.path / rundir.EVAL)
-    except (OSError, UsageError):
-        return 0
-    return min(rows[-1]["frames"], run.frames) if rows else 0
+    return min(rundir.frames_evaluated(run.path), run.frames)
 
 
 def register(registered: tuple) -> None:

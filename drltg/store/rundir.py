@@ -271,6 +271,16 @@ def read_eval_csv(path: str | Path) -> list[dict]:
     return rows
 
 
+def frames_evaluated(run: str | Path) -> int:
+    """The frames of a run's last evaluation (0 before the first, or when eval.csv is unreadable);
+    a stopped run resumes from its last checkpoint, at or before that frame."""
+    try:
+        rows = read_eval_csv(Path(run) / EVAL)
+    except (OSError, UsageError):
+        return 0
+    return rows[-1]["frames"] if rows else 0
+
+
 def _optional(column: str) -> bool:
     """A column a row may leave empty (written before the run reported it, or nothing to report)."""
     return column.endswith("_rate") or column == "unfinished"

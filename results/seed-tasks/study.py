@@ -34,8 +34,7 @@ import sys
 import time
 from pathlib import Path
 
-from drltg.errors import UsageError
-from drltg.store.rundir import atomic_torch_save, checkpoint_path, load_checkpoint, read_eval_csv
+from drltg.store.rundir import atomic_torch_save, checkpoint_path, frames_evaluated, load_checkpoint
 
 HERE = Path(__file__).resolve().parent
 _spec = importlib.util.spec_from_file_location("seed_rows", HERE / "row.py")
@@ -203,21 +202,12 @@ def dry_run(runs: Path) -> None:
         if job.finished():
             print(f"{job.name:36} finished")
             continue
-        done = {d: job.frames if (d / "summary.json").is_file() else _reached(d) for d in job.outputs}
+        done = {d: job.frames if (d / "summary.json").is_file() else frames_evaluated(d) for d in job.outputs}
         left += sum(job.frames - n for n in done.values())
         state = "ready" if job.ready() else "waits for its source"
         reached = ", ".join(f"{d.parent.name} {n:,}" if len(done) > 1 else f"{n:,}" for d, n in done.items())
         print(f"{job.name:36} {state}: {reached} of {job.frames:,} frames")
     print(f"left to train: about {left:,} frames")
-
-
-def _reached(run: Path) -> int:
-    """The frames of a run's last evaluation (0 before the first); it resumes from its last checkpoint."""
-    try:
-        rows = read_eval_csv(run / "eval.csv")
-    except UsageError:
-        return 0
-    return rows[-1]["frames"] if rows else 0
 
 
 def queue(args: argparse.Namespace, running: dict[int, tuple[Job, subprocess.Popen]]) -> None:
