@@ -213,6 +213,8 @@ def figure() -> bytes:
         ax.set_title(f"{row}\n" + ("Lift success (the earlier runs logged return, each on its own reward)"
                                     if key == "success_rate" else "return on the seed's reward"), fontsize=9)
         ax.set_xlim(0, BUDGET)
+        if key == "success_rate":
+            ax.set_ylim(-0.03, 1.03)
         ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda x, _: f"{x / 1000:.0f}k"))
         ax.set_xlabel("frames")
         if ax.get_legend_handles_labels()[0]:
