@@ -113,23 +113,26 @@ def _study():
 
 
 def test_the_seed_study_queues_its_sources_before_the_rows_that_reuse_them(tmp_path):
-    """6 sources and 5 rows of 3 seeds; a row's seed s waits for source seed s + 50 of its learner, and only
-    for it; model reuse, which copies the SAC source's LayerNorm critics, has LayerNorm baselines of its own."""
+    """6 sources and 5 rows of 3 seeds x 2 sides, a job a run; a row's transfer run of seed s waits for source
+    seed s + 50 of its learner, and only for it, its baseline for nothing; no two jobs train the same run; model
+    reuse, which copies the SAC source's LayerNorm critics, has LayerNorm baselines of its own."""
     from drltg import config as config_lib
 
     study = _study()
     jobs = study.jobs(tmp_path)
     assert [j.name for j in jobs][:4] == ["lift-dense-sac-seed-60", "lift-dense-sac-seed-61", "lift-dense-sac-seed-62",
-                                          "pi-reuse-place-seed-seed-10"]
-    assert len(jobs) == 6 + 5 * 3 and not any(j.finished() for j in jobs)
+                                          "pi-reuse-place-seed-seed-10-baseline"]
+    assert len(jobs) == 6 + 5 * 3 * 2 and not any(j.finished() for j in jobs)
+    assert len({run for j in jobs for run in j.outputs}) == len(jobs)
     ready = {j.name for j in jobs if j.ready()}
     assert ready == {f"{name}-seed-{s}" for name in ("lift-dense-sac", "lift-dense-soc4") for s in (60, 61, 62)} | {
-        f"shaping-lift-seed-seed-{s}" for s in (10, 11, 12)}
+        f"{row}-seed-{s}-baseline" for row in study.row.ROWS for s in (10, 11, 12)} | {
+        f"shaping-lift-seed-seed-{s}-transfer" for s in (10, 11, 12)}
     done = tmp_path / "sources" / "lift-dense-soc4" / "seed-61"
     done.mkdir(parents=True)
     (done / "summary.json").write_text("{}")
     ready_now = {j.name for j in study.jobs(tmp_path) if j.ready()} - ready
-    assert ready_now == {"soc-model-reuse-place-seed-seed-11"}
+    assert ready_now == {"soc-model-reuse-place-seed-seed-11-transfer"}
     source_61 = next(j for j in study.jobs(tmp_path) if j.name == "lift-dense-soc4-seed-61")
     assert not source_61.finished()  # trained, but its best.pt is not yet scored on fresh episodes
     (done / "evaluate-best-seed30061-50ep.json").write_text("{}")
@@ -278,10 +281,10 @@ def test_a_new_clone_restores_the_kept_finished_runs_and_trains_only_what_is_lef
         for name in ("eval.csv", "summary.json"):
             assert (again / name).read_bytes() == (kept / name).read_bytes(), name
     jobs = {j.name: j for j in study.jobs(runs)}
-    assert all(jobs[f"{row}-seed-{s}"].finished() for row in ("pi-reuse-place-seed", "model-reuse-place-seed")
-               for s in (10, 11, 12))
-    only = study.jobs(runs, ["shaping-lift-seed-seed-11", "lift-dense-sac-seed-62"])
-    assert [j.name for j in only] == ["lift-dense-sac-seed-62", "shaping-lift-seed-seed-11"]  # in queue order
+    assert all(jobs[f"{row}-seed-{s}-{side}"].finished() for row in ("pi-reuse-place-seed", "model-reuse-place-seed")
+               for s in (10, 11, 12) for side in ("baseline", "transfer"))
+    only = study.jobs(runs, ["shaping-lift-seed-seed-11-transfer", "lift-dense-sac-seed-62"])
+    assert [j.name for j in only] == ["lift-dense-sac-seed-62", "shaping-lift-seed-seed-11-transfer"]  # queue order
 
 
 def test_the_study_s_dry_run_counts_the_frames_each_run_reached_and_those_left(tmp_path, capsys):
@@ -300,8 +303,9 @@ def test_the_study_s_dry_run_counts_the_frames_each_run_reached_and_those_left(t
                                            {"frames": 10_000, "return_mean": 2.0, "return_std": 0.0, "episodes": 10}])
     study.dry_run(runs)
     lines = dict(line.split(maxsplit=1) for line in capsys.readouterr().out.splitlines())
-    assert lines["pi-reuse-barrier-seed-seed-11"] == "ready: baseline 0, pi-reuse-barrier-seed 10,000 of 300,000 frames"
-    assert lines["pi-reuse-barrier-seed-seed-12"].startswith("waits for its source: ")
+    assert lines["pi-reuse-barrier-seed-seed-11-baseline"] == "ready: 0 of 300,000 frames"
+    assert lines["pi-reuse-barrier-seed-seed-11-transfer"] == "ready: 10,000 of 300,000 frames"
+    assert lines["pi-reuse-barrier-seed-seed-12-transfer"].startswith("waits for its source: ")
     assert lines["lift-dense-sac-seed-61"] == "ready: 60,000 of 60,000 frames"  # trained, best.pt not scored yet
     assert lines["left"] == f"to train: about {6 * 60_000 + 5 * 3 * 2 * 300_000 - 10_000 - 60_000:,} frames"
 
@@ -318,7 +322,7 @@ def test_a_run_kept_unfinished_is_not_restored_and_trains_again(tmp_path, monkey
     runs = tmp_path / "runs"
     assert study.restore(runs) == []
     assert not (runs / "lift-place-seed" / "sac" / "model-reuse-place-seed" / "seed-12").exists()
-    assert not {j.name: j for j in study.jobs(runs)}["model-reuse-place-seed-seed-12"].finished()
+    assert not {j.name: j for j in study.jobs(runs)}["model-reuse-place-seed-seed-12-transfer"].finished()
 
 
 def test_a_finished_source_is_kept_with_the_networks_the_rows_reuse_and_a_clone_reuses_it(tmp_path, monkeypatch):
@@ -372,7 +376,7 @@ def test_a_finished_source_is_kept_with_the_networks_the_rows_reuse_and_a_clone_
     assert clone / "sources" / "lift-dense-sac" / "seed-60" in study.restore(clone)
     restored = next(j for j in study.jobs(clone) if j.name == "lift-dense-sac-seed-60")
     assert restored.finished() and (restored.keep / "eval.csv").read_bytes() == (again / "eval.csv").read_bytes()
-    assert next(j for j in study.jobs(clone) if j.name == "pi-reuse-place-seed-seed-10").ready()
+    assert next(j for j in study.jobs(clone) if j.name == "pi-reuse-place-seed-seed-10-transfer").ready()
     transfer = clone / "lift-place-seed" / "sac" / "pi-reuse-place-seed" / "seed-10"
     transfer.mkdir(parents=True)
     (transfer / "config.yaml").write_text("transfer:\n  source: ../../../../sources/lift-dense-sac/seed-60\n")
@@ -425,6 +429,25 @@ def test_a_row_run_is_kept_as_soon_as_it_finishes(tmp_path, monkeypatch):
     kept = [tmp_path / "kept" / d.relative_to(runs) for d in dirs]
     assert [k.is_dir() for k in kept] == [False, True, False]
     assert (kept[1] / "eval.csv").read_text() == "frames,return_mean\n0,1.0\n"
+
+
+def test_a_row_process_trains_only_the_sides_and_seeds_it_is_given(tmp_path, monkeypatch, capsys):
+    """``row.py ROW --seeds 12 --sides transfer`` trains that one run; a row with runs left is not reported."""
+    import sys
+
+    import drltg.training.loop as loop
+
+    row = _study().row
+    monkeypatch.setattr(row, "HERE", tmp_path / "kept")
+    runs = tmp_path / "runs"
+    trained = []
+    monkeypatch.setattr(loop, "train", lambda cfg, run, resume, progress: trained.append((cfg.seed, run)))
+    monkeypatch.setattr(sys, "argv", ["row.py", "shaping-lift-seed", "--seeds", "12", "--sides", "transfer",
+                                      "--runs", str(runs)])
+    row.main()
+    assert trained == [(12, runs / "lift" / "sac" / "shaping-lift-seed" / "seed-12")]
+    assert "other runs of the row are not finished yet" in capsys.readouterr().out
+    assert not (tmp_path / "kept").exists()
 
 
 def test_a_finished_shaping_row_is_reported_on_lifts_success_alone(tmp_path, monkeypatch):

@@ -1,7 +1,7 @@
 """One row of the seed's tasks: its baseline and transfer runs, then its reports.
 
-    taskset -c 0 python results/seed-tasks/row.py ROW --seeds 10 12 &     # re-running resumes
-    taskset -c 1 python results/seed-tasks/row.py ROW --seeds 11          # one process per core
+    taskset -c 0 python results/seed-tasks/row.py ROW --seeds 10 12 &               # re-running resumes
+    taskset -c 1 python results/seed-tasks/row.py ROW --seeds 11 --sides transfer   # one process per core
 
 Seeds 10, 11, 12 (never used to choose a recipe), 300k frames, evaluated every 10k frames on 10 episodes,
 checkpoints every 20k. A transfer run of seed s reuses the source run of seed s + 50 at its best evaluation
@@ -149,6 +149,8 @@ def main() -> None:
     parser.add_argument("--runs", type=Path, default=Path("runs/seed-tasks"))
     parser.add_argument("--seeds", type=int, nargs="+", default=list(SEEDS), choices=SEEDS,
                         help="the seeds whose baseline and transfer runs this process trains (default: all)")
+    parser.add_argument("--sides", nargs="+", default=["baseline", "transfer"], choices=("baseline", "transfer"),
+                        help="the sides this process trains, in this order (default: both)")
     parser.add_argument("--dry-run", action="store_true", help="list the runs and their settings, train nothing")
     args = parser.parse_args()
     groups = sides(args.row, args.runs)
@@ -158,13 +160,13 @@ def main() -> None:
                 print(f"{side:9} {d}  task={c.task} algo={c.algo} seed={c.seed} method={c.transfer.method} "
                       f"source={c.transfer.source} env.reward_shaping={c.env.get('reward_shaping')}")
         return
-    for side in ("baseline", "transfer"):
+    for side in args.sides:
         cfgs, dirs = groups[side]
         train_runs(*zip(*[(c, d) for c, d in zip(cfgs, dirs) if c.seed in args.seeds]), args.runs)
     if all((d / "summary.json").is_file() for _, dirs in groups.values() for d in dirs):
         keep_and_report(args.row, groups, args.runs)
     else:
-        print(f"{args.row}: runs of other seeds are not finished yet; the last process to finish reports the row")
+        print(f"{args.row}: other runs of the row are not finished yet; the last process to finish reports the row")
 
 
 if __name__ == "__main__":

@@ -6,11 +6,12 @@
     kill PID                                                # (or Ctrl-C) stops it: each running run saves a
                                                             # checkpoint at the frame it reached first
 
-A job is a source run (``drltg train lift-dense``, seed 60, 61 or 62) or one seed of a row
-(``row.py ROW --seeds S``: its baseline, then its transfer run). Each core takes the first job, in the order
+A job is a source run (``drltg train lift-dense``, seed 60, 61 or 62) or one run of a row (``row.py ROW --seeds S
+--sides SIDE``: the baseline or the transfer run of seed S), so the two sides of a seed can train side by side
+and no core idles while another finishes a seed's second run. Each core takes the first job, in the order
 below, that is neither finished nor running and whose source is finished, and runs it pinned to that core
 (``taskset``), its output in ``RUNS/logs/JOB.log``. A finished source's curves are kept in
-``results/seed-tasks/sources/``; the process that finishes a row's last seed reports the row.
+``results/seed-tasks/sources/``; the process that finishes a row's last run reports the row.
 
 The sources: SAC, or the soft option-critic with 4 options, on ``lift-dense`` (robosuite's dense Lift reward, as
 the earlier implementation trained its source) with the scripted demonstrator's 50 episodes (the recipe that
@@ -94,13 +95,13 @@ def _sides(name: str, runs: Path) -> dict:
     return row.sides(name, runs)
 
 
-def row_job(name: str, seed: int, runs: Path) -> Job:
-    sides = _sides(name, runs)
-    outputs = [dirs[row.SEEDS.index(seed)] for _, dirs in sides.values()]
+def row_job(name: str, seed: int, side: str, runs: Path) -> Job:
+    """The ``side`` run of seed ``seed`` of row ``name``; a transfer run waits for its source."""
+    run = _sides(name, runs)[side][1][row.SEEDS.index(seed)]
     source = row.ROWS[name][3]
-    needs = [runs / "sources" / source / f"seed-{seed + row.SOURCE_OFFSET}"] if source else []
-    argv = [sys.executable, str(HERE / "row.py"), name, "--seeds", str(seed), "--runs", str(runs)]
-    return Job(f"{name}-seed-{seed}", argv, outputs, needs, row.FRAMES)
+    needs = [runs / "sources" / source / f"seed-{seed + row.SOURCE_OFFSET}"] if source and side == "transfer" else []
+    argv = [sys.executable, str(HERE / "row.py"), name, "--seeds", str(seed), "--sides", side, "--runs", str(runs)]
+    return Job(f"{name}-seed-{seed}-{side}", argv, [run], needs, row.FRAMES)
 
 
 def jobs(runs: Path, only=None) -> list[Job]:
@@ -110,7 +111,7 @@ def jobs(runs: Path, only=None) -> list[Job]:
         if kind == "source":
             out += [source_job(name, s, runs) for s in SOURCE_SEEDS]
         else:
-            out += [row_job(name, s, runs) for s in row.SEEDS]
+            out += [row_job(name, s, side, runs) for s in row.SEEDS for side in ("baseline", "transfer")]
     return [job for job in out if only is None or job.name in only]
 
 
@@ -200,13 +201,13 @@ def dry_run(runs: Path) -> None:
     left = 0
     for job in jobs(runs):
         if job.finished():
-            print(f"{job.name:36} finished")
+            print(f"{job.name:44} finished")
             continue
         done = {d: job.frames if (d / "summary.json").is_file() else frames_evaluated(d) for d in job.outputs}
         left += sum(job.frames - n for n in done.values())
         state = "ready" if job.ready() else "waits for its source"
-        reached = ", ".join(f"{d.parent.name} {n:,}" if len(done) > 1 else f"{n:,}" for d, n in done.items())
-        print(f"{job.name:36} {state}: {reached} of {job.frames:,} frames")
+        reached = ", ".join(f"{n:,}" for n in done.values())
+        print(f"{job.name:44} {state}: {reached} of {job.frames:,} frames")
     print(f"left to train: about {left:,} frames")
 
 
