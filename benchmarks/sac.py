@@ -24,8 +24,9 @@ replay buffer holding the same 20k random transitions. Cases:
 Every learner's update (``drltg`` is SAC; ``discrete_sac``: 7 one-hot actions; ``td3``: its policy
 delay of 2; ``soc_k4``: 4 options): ``UpdateStep`` on the agent ``drltg train`` builds (critic copies
 in a loop, TorchRL's ``deactivate_vmap=True``), against the same with TorchRL's default ``torch.vmap``
-critics (``*_vmap``). ``torch.compile`` of the step is not a case: on the 2-core CPU it compiled for
-ten minutes and was not faster (``benchmarks/README.md``).
+critics (``*_vmap``); ``soc_k4_per_copy``: the SOC update with every option's copy of a state through
+the networks' trunk, as before ``OptionHeads`` ran a repeated state once. ``torch.compile`` of the step
+is not a case: on the 2-core CPU it compiled for ten minutes and was not faster (``benchmarks/README.md``).
 """
 from __future__ import annotations
 
@@ -42,6 +43,7 @@ from benchmarks.common import interleaved, ratios
 from drltg import config as config_lib
 from drltg import learners
 from drltg.learners import UpdateStep, make_agent, make_sac_agent, sample_batches
+from drltg.modules import OptionHeads
 
 OBS, ACT, HIDDEN, BATCH, N_DATA = 50, 7, 256, 256, 20_000
 LR, GAMMA, TAU = 3e-4, 0.99, 0.005
@@ -242,15 +244,29 @@ def sb3_case(device: str, chunk: int):
     return run
 
 
+class _PerCopyHeads(OptionHeads):
+    """``OptionHeads`` with its inputs materialised: a state repeated for each option goes through the trunk
+    once per copy (the peer of ``OptionHeads``' repeated-state shortcut)."""
+
+    def forward(self, *inputs: torch.Tensor):
+        *inputs, option = inputs
+        return super().forward(*[x.contiguous() for x in inputs], option)
+
+
 LEARNERS = {"sac": ("sac", False), "discrete_sac": ("sac", True), "td3": ("td3", False), "soc_k4": ("soc", False)}
 
 
-def learner_case(learner: str, device: str, chunk: int, *, vmap: bool = False):
-    """The training loop's ``UpdateStep`` on the agent of ``learner`` (TD3 with its policy delay)."""
+def learner_case(learner: str, device: str, chunk: int, *, vmap: bool = False, per_copy: bool = False):
+    """The training loop's ``UpdateStep`` on the agent of ``learner`` (TD3 with its policy delay); with
+    ``per_copy``, its option heads run every copy of a repeated state (:class:`_PerCopyHeads`)."""
     algo, discrete = LEARNERS[learner]
     torch.manual_seed(0)
     cfg = _config(algo=algo, device=device, **({"soc.num_options": 4} if algo == "soc" else {}))
     agent = (_vmap_agent if vmap else make_agent)(SpecEnv(device, discrete), cfg)
+    if per_copy:
+        networks = (agent.loss.actor_network, agent.loss.qvalue_network, agent.loss.termination_network)
+        for module in (m for net in networks for m in net.modules() if isinstance(m, OptionHeads)):
+            module.__class__ = _PerCopyHeads
     step = UpdateStep(agent)
     buffer = _buffer(transitions(options=4 if algo == "soc" else 0, discrete=discrete), device)
     updates = 0
@@ -273,11 +289,12 @@ def learner_cases(device: str, chunk: int) -> dict:
         if learner != "sac":
             cases[learner] = learner_case(learner, device, n)
         cases[f"{learner}_vmap"] = learner_case(learner, device, n, vmap=True)
+    cases["soc_k4_per_copy"] = learner_case("soc_k4", device, max(chunk // 4, 2), per_copy=True)
     return cases
 
 
 LEARNER_PAIRS = [("drltg", "sac_vmap"), ("discrete_sac", "discrete_sac_vmap"), ("td3", "td3_vmap"),
-                 ("soc_k4", "soc_k4_vmap")]
+                 ("soc_k4", "soc_k4_vmap"), ("soc_k4", "soc_k4_per_copy")]
 
 
 def _mlp_matmuls(dims: list[int], batch: int, forward: bool, weight_grads: bool, input_grads: str) -> list[tuple]:

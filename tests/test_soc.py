@@ -90,6 +90,30 @@ def test_option_heads_return_the_head_of_the_option():
     torch.testing.assert_close(heads(xk, ok), full.gather(1, torch.arange(3).view(1, 3, 1).expand(5, 3, 2)))
 
 
+def test_option_heads_run_a_repeated_state_once_with_the_same_values_and_gradients():
+    """A state expanded over the options (stride 0) goes through the trunk once, not once per option; the
+    values and the weights' gradients equal those of the same states materialised, copy by copy."""
+    torch.manual_seed(0)
+    net = nn.Sequential(nn.Linear(4, 8), nn.ReLU(), nn.Linear(8, 3 * 2))
+    heads = OptionHeads(net, num_options=3)
+    rows = []
+    net.register_forward_hook(lambda module, args, out: rows.append(args[0].shape[:-1]))
+    xk = torch.randn(5, 1, 4).expand(5, 3, 4)
+    ok = torch.tensor([[0, 2, 1]] * 5).unsqueeze(-1)
+    grads = []
+    for x in (xk, xk.contiguous()):
+        net.zero_grad()
+        out = heads(x, ok)
+        (out * torch.arange(out.numel()).view_as(out)).sum().backward()
+        grads.append([p.grad.clone() for p in net.parameters()])
+        if x is xk:
+            shortcut = out
+    assert rows == [(5,), (5, 3)]
+    torch.testing.assert_close(shortcut, out)
+    for a, b in zip(*grads):
+        torch.testing.assert_close(a, b)
+
+
 # ------------------------------------------------------------------------------------------ K = 1 is SAC
 def _sac_twin(soc: SoftOptionCriticLoss, alpha_init: float, deactivate_vmap: bool = False) -> SACLoss:
     """TorchRL's SACLoss on plain MLPs holding exactly the K = 1 option networks' weights."""

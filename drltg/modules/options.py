@@ -51,6 +51,9 @@ class OptionHeads(nn.Module):
     ``net(*inputs)`` has ``num_options * F`` features, read as ``[*, num_options, F]``; the row of
     ``option`` (int64 ``[*, 1]``) is kept and ``post`` (e.g. ``NormalParamExtractor``) applied to it.
     All options share one forward pass; with ``num_options=1`` this is ``post(net(*inputs))``.
+
+    Inputs expanded along their next-to-last dimension (stride 0: one state repeated for each option, as
+    the option values read it) go through ``net`` once, not once per copy.
     """
 
     def __init__(self, net: nn.Module, num_options: int, post: nn.Module | None = None):
@@ -61,7 +64,13 @@ class OptionHeads(nn.Module):
 
     def forward(self, *inputs: torch.Tensor):
         *inputs, option = inputs
-        heads = self.net(*inputs).unflatten(-1, (self.num_options, -1))
+        if all(x.dim() > 1 and x.stride(-2) == 0 for x in inputs):
+            copies = inputs[0].shape[-2]
+            out = self.net(*[x.select(-2, 0) for x in inputs])
+            heads = out.unsqueeze(-2).expand(*out.shape[:-1], copies, out.shape[-1])
+        else:
+            heads = self.net(*inputs)
+        heads = heads.unflatten(-1, (self.num_options, -1))
         index = option.unsqueeze(-1).expand(*option.shape[:-1], 1, heads.shape[-1])
         out = heads.gather(-2, index).squeeze(-2)
         return out if self.post is None else self.post(out)
