@@ -450,6 +450,23 @@ def test_a_row_process_trains_only_the_sides_and_seeds_it_is_given(tmp_path, mon
     assert not (tmp_path / "kept").exists()
 
 
+def test_of_two_processes_finishing_a_row_at_once_one_reports_it(tmp_path, monkeypatch, capsys):
+    """The row's folder is locked while a process reports it; a second process leaves the report to it."""
+    from drltg.store.lock import lock
+
+    row = _study().row
+    monkeypatch.setattr(row, "HERE", tmp_path / "results")
+    reported = []
+    monkeypatch.setattr(row, "keep_and_report", lambda name, groups, runs: reported.append(name))
+    folder = tmp_path / "results" / "shaping-lift-seed"
+    folder.mkdir(parents=True)
+    with lock(folder):
+        row.report_once("shaping-lift-seed", {}, tmp_path / "runs")
+    assert reported == [] and "another process is reporting the row" in capsys.readouterr().out
+    row.report_once("shaping-lift-seed", {}, tmp_path / "runs")
+    assert reported == ["shaping-lift-seed"] and list(folder.iterdir()) == []  # the lock is gone with its owner
+
+
 def test_a_finished_shaping_row_is_reported_on_lifts_success_alone(tmp_path, monkeypatch):
     """Shaping's two sides are paid by different rewards (dense against sparse Lift), so its row is reported
     on the success rate only, and its kept runs name no source."""

@@ -19,6 +19,7 @@ and lifted rates (0.5 and 0.8; success alone on Lift).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import re
 import shutil
@@ -29,6 +30,8 @@ from pathlib import Path
 import drltg.transfer  # noqa: F401  (registers the transfer methods the rows name)
 from drltg import config as config_lib
 from drltg.analysis.report import transfer_report
+from drltg.errors import UsageError
+from drltg.store.lock import lock
 
 SEEDS = (10, 11, 12)
 SOURCE_OFFSET = 50
@@ -143,6 +146,20 @@ def keep_and_report(row: str, groups: dict, runs: Path) -> None:
                         baseline_label="no transfer", transfer_label=row, allow_mismatch=task == "lift")
 
 
+def report_once(row: str, groups: dict, runs: Path) -> None:
+    """:func:`keep_and_report`, by one process: of two that finish a row's last runs at the same time, the
+    second finds the row's folder locked and leaves the report to the first."""
+    folder = HERE / row
+    folder.mkdir(parents=True, exist_ok=True)
+    with contextlib.ExitStack() as held:
+        try:
+            held.enter_context(lock(folder, "row folder"))
+        except UsageError:
+            print(f"{row}: another process is reporting the row")
+            return
+        keep_and_report(row, groups, runs)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("row", choices=sorted(ROWS))
@@ -164,14 +181,12 @@ def main() -> None:
         cfgs, dirs = groups[side]
         train_runs(*zip(*[(c, d) for c, d in zip(cfgs, dirs) if c.seed in args.seeds]), args.runs)
     if all((d / "summary.json").is_file() for _, dirs in groups.values() for d in dirs):
-        keep_and_report(args.row, groups, args.runs)
+        report_once(args.row, groups, args.runs)
     else:
         print(f"{args.row}: other runs of the row are not finished yet; the last process to finish reports the row")
 
 
 if __name__ == "__main__":
-    from drltg.errors import UsageError
-
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))  # unwinds: the run's lock is released
     try:
         main()
