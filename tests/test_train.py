@@ -1,5 +1,6 @@
 """The training loop and `drltg train`: run directory contract, determinism, resume, CLI errors."""
 import csv
+import json
 import os
 import signal
 
@@ -60,6 +61,7 @@ def test_the_summary_splits_the_wall_time_by_phase(tiny_run):
     assert all(v >= 0 for v in split.values())
     assert split["update"] > 0 and split["evaluate"] > 0 and split["checkpoint"] > 0  # 2 evaluations, 2 saves
     assert abs(sum(split.values()) - summary["wall_time_s"]) <= 0.05
+    assert summary["timed_frames"] == summary["frames"]  # one start: the wall time covers every frame
 
 
 def test_same_seed_same_curve(tiny_run, tmp_path):
@@ -116,6 +118,9 @@ def test_a_stopped_run_saves_a_checkpoint_at_the_frame_it_reached(signum, tiny_r
                                                                           real(data, stats)))
     run = train(tiny_cfg(), tmp_path / "c", resume=True, progress=False)
     assert sum(frames_trained) == 1024 - 640
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["frames"] == 1024 and summary["timed_frames"] == 1024 - 640  # the wall time is this start's
+    assert summary["frames_per_s"] == pytest.approx(summary["timed_frames"] / summary["wall_time_s"], rel=0.02)
     rows = read_eval_csv(run / "eval.csv")
     assert [r["frames"] for r in rows] == [0, 512, 1024]
     assert rows[:2] == read_eval_csv(tiny_run / "eval.csv")[:2]

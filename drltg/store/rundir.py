@@ -512,8 +512,9 @@ class RunWriter:
             atomic_torch_save({**state, "frames": frames, "updates": updates, "evaluations": evaluations},
                               self.run_dir / name)
 
-    def finish(self, frames: int, updates: int, wall: float, frames_per_s: float, extra: dict | None = None) -> None:
-        """Write summary.json: the run is complete."""
+    def finish(self, frames: int, updates: int, wall: float, timed_frames: int, extra: dict | None = None) -> None:
+        """Write summary.json: the run is complete. ``wall`` is the time of the last start (a resumed run's
+        earlier starts are not in it), which trained ``timed_frames`` of the ``frames``."""
         import json
 
         summary = {
@@ -524,7 +525,8 @@ class RunWriter:
             "frames": frames,
             "updates": updates,
             "wall_time_s": round(wall, 2),
-            "frames_per_s": round(frames_per_s, 1),
+            "timed_frames": timed_frames,
+            "frames_per_s": round(timed_frames / max(wall, 1e-9), 1),
             "final_eval": self.rows[-1],
             **({"note": "no update was made: every frame lay within the random warm-up "
                         "(collector.init_random_frames)"} if updates == 0 else {}),

@@ -402,7 +402,7 @@ def _finish(cfg: RunConfig, writers: list[RunWriter], extra_summary, frames: int
     wall = time.perf_counter() - start
     extras = extra_summary if isinstance(extra_summary, list) else [extra_summary] * len(writers)
     for writer, extra in zip(writers, extras):
-        writer.finish(frames, updates, wall, trained / max(wall, 1e-9),
+        writer.finish(frames, updates, wall, trained,
                       {**(extra or {}), **best.summary(cfg, writer.rows), "wall_time_split_s": clock.split(wall)})
 
 
