@@ -836,6 +836,27 @@ def test_convergence_needs_the_equivalence_test():
     assert short["settings"]["convergence"]["baseline"].startswith("undetermined (too few evaluations")
 
 
+def test_a_learner_section_that_a_run_does_not_read_is_no_mismatch():
+    """A SAC run's ``soc.*`` keys are defaults that never reach its learner: against SOC runs only ``algo`` and
+    the sections both read are named; within one side, SAC runs that differ only there are one configuration."""
+    def runs(name, algo, options, **sac):
+        return [Curve((0, 10, 20), [0, 1, 2], f"{name}{i}", f"{name}{i}",
+                      config={"seed": i, "algo": algo, "soc": {"num_options": options}, "sac": sac})
+                for i in range(3)]
+
+    sac, soc = runs("b", "sac", 4), runs("t", "soc", 2)
+    warnings = report.compute(sac, soc, allow_mismatch=True)["settings"]["warnings"]
+    assert "baseline and transfer settings differ (--allow-mismatch): algo (sac vs soc)" in warnings
+    hot = runs("t", "soc", 2, alpha_init=0.5)  # the sac section: SOC's action temperature, read by both
+    with pytest.raises(UsageError, match=r"algo \(sac vs soc\), sac.alpha_init \(\(unset\) vs 0.5\);"):
+        report.compute(sac, hot)
+    mixed = sac[:2] + runs("b", "sac", 8)[2:]
+    warnings = report.compute(mixed, runs("t", "sac", 4))["settings"]["warnings"]
+    assert not any("mix configurations" in w for w in warnings)
+    with pytest.raises(UsageError, match=r"mix configurations: .* soc.num_options=2 .* soc.num_options=8"):
+        report.compute(soc[:2] + runs("t", "soc", 8)[2:], sac)
+
+
 def test_runs_on_different_grids_or_episode_counts_are_named():
     coarse = [Curve((0, 20, 40), [0, 1, 2], f"c{i}", f"c{i}", config={"seed": i, "eval": {"episodes": 8}})
               for i in range(3)]

@@ -9,7 +9,7 @@ from drltg.config.values import MAX_EPISODES, Bool, Float, Int, Probability, Sec
 
 __all__ = [
     "CollectorConfig", "BufferConfig", "OptimConfig", "NetworkConfig", "SACConfig", "TD3Config", "SOCConfig",
-    "EvalConfig", "CheckpointConfig", "LogConfig", "ALGOS", "OPTION_POLICIES",
+    "EvalConfig", "CheckpointConfig", "LogConfig", "ALGOS", "ALGO_SECTIONS", "OPTION_POLICIES",
 ]
 
 
@@ -93,5 +93,7 @@ class LogConfig(Section):
 
 
 ALGOS = ("sac", "td3", "soc")
+ALGO_SECTIONS = {"sac": ("sac",), "td3": ("td3",), "soc": ("sac", "soc")}
+"""The learner sections each algorithm reads: another algorithm's section does not change its runs."""
 
 ENV_HELP = "keyword arguments of the task's env factory, checked against its declared defaults"
