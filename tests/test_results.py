@@ -72,6 +72,25 @@ def test_the_seed_tasks_progress_table_is_generated_from_its_kept_curves():
     assert "earlier SAC (1 run)" in text and "| 10,000 |" in text
 
 
+def test_the_hold_rule_is_read_as_a_test_of_the_success_probability():
+    """One evaluation of 10 episodes passes with 9 or 10 successes (mean >= 0.9); one-episode evaluations pass
+    only with a success each (>= 0.7); two evaluations of 10 episodes need 7 or more each and 18 together,
+    the pairs of counts enumerated."""
+    import importlib.util
+
+    from scipy.stats import binom
+
+    spec = importlib.util.spec_from_file_location("progress", RESULTS / "seed-tasks" / "progress.py")
+    progress = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(progress)
+    assert progress.pass_probability(0.9, 1, 10) == pytest.approx(binom.sf(8, 10, 0.9), abs=1e-12)
+    assert progress.pass_probability(0.8, 3, 1) == pytest.approx(0.8 ** 3, abs=1e-12)
+    pmf = {k: binom.pmf(k, 10, 0.9) for k in range(7, 11)}
+    by_hand = sum(pmf[a] * pmf[b] for a in pmf for b in pmf if a + b >= 18)
+    assert progress.pass_probability(0.9, 2, 10) == pytest.approx(by_hand, abs=1e-12)
+    assert progress.pass_probability(1.0, 7, 10) == pytest.approx(1.0) and progress.pass_probability(0.5, 7, 10) < 1e-6
+
+
 def test_the_side_by_side_averages_the_seeds_at_a_frame_and_draws_the_earlier_runs_per_10k_frames(tmp_path):
     """An earlier run evaluated every 5k frames is drawn as the mean of its evaluations in each (end - 10k,
     end], cut at its last evaluation and at the budget; the figure is a PNG the README shows. A table cell is

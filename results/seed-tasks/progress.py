@@ -81,6 +81,34 @@ def second_half(rows: list[dict], frames: int) -> list[float]:
     return [round(r["success_rate"], 6) for r in rows if r["frames"] >= frames / 2]
 
 
+def pass_probability(p: float, evaluations: int, episodes: int) -> float:
+    """The chance that a policy succeeding in each episode with probability ``p`` passes the hold rule: each of
+    ``evaluations`` evaluations of ``episodes`` episodes at least HOLD_LOWEST, their mean at least HOLD_MEAN.
+    An evaluation's successes are Binomial(episodes, p), independent; their sum is the convolution of that law
+    cut below HOLD_LOWEST * episodes."""
+    from scipy.stats import binom
+
+    k = np.arange(episodes + 1)
+    one = np.where(k >= np.ceil(HOLD_LOWEST * episodes - 1e-9), binom.pmf(k, episodes, p), 0.0)
+    total = np.ones(1)
+    for _ in range(evaluations):
+        total = np.convolve(total, one)
+    return float(total[int(np.ceil(HOLD_MEAN * episodes * evaluations - 1e-9)):].sum())
+
+
+def what_the_rule_asks(run: Path) -> str:
+    """The hold rule read as a test of the source's success probability, on the evaluations ``run`` made."""
+    rows = read_eval_csv(run / "eval.csv")
+    n, episodes = len(second_half(rows, int(load_yaml(run / "config.yaml")["frames"]))), int(rows[-1]["episodes"])
+    at = ", ".join(f"{pass_probability(p, n, episodes):.2f} if p = {p:.2f}" for p in (0.85, 0.90, 0.95, 0.99))
+    grid = np.round(np.arange(0.5, 1.0, 0.01), 2)
+    reliable = next(p for p in grid if pass_probability(p, n, episodes) >= 0.9)
+    return (f"- What the rule asks: a source's second half holds {n} evaluations of {episodes} episodes, so a policy "
+            f"that succeeds in an episode with probability p passes it with probability {at} (binomial, "
+            f"evaluations independent): 9 times in 10 only from p = {reliable:.2f}. A seed that misses it need not "
+            "have collapsed; its policy may succeed in 9 episodes of 10.")
+
+
 def sources() -> str:
     lines = ["| source | seed | frames | success, last evaluation | best.pt, which the rows reuse "
              "(95% Clopper-Pearson) | second half: lowest / mean | holds |", "|---|---|---|---|---|---|---|"]
@@ -119,6 +147,7 @@ def sources() -> str:
             verdicts.append(f"- `{name}`, {what}: {held} of {finished} finished seeds hold"
                             + (f" ({len(seeds) - finished} not finished)" if finished < len(seeds) else "")
                             + (f"; trained again, {', '.join(again)}" if again else "") + ".")
+    verdicts.append(what_the_rule_asks(HERE / "sources" / "lift-dense-sac" / "seed-60"))
     earlier = read_curves(SB3 / "lift_shaped_sac")[0]
     late = earlier.frames >= earlier.frames[-1] / 2
     low = int(np.argmin(earlier.values[late]))
