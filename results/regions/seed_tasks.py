@@ -33,4 +33,5 @@ def seed_rows() -> str:
     left = len(SEED_ROWS) - len(lines)
     if not lines:
         return f"No row of the {len(SEED_ROWS)} is reported yet: the table above shows their runs so far.\n"
-    return "\n".join(lines) + "\n" + (f"{left} of the {len(SEED_ROWS)} rows are not reported yet.\n" if left else "")
+    return "\n".join(lines) + "\n" + (
+        f"{left} of the {len(SEED_ROWS)} rows {'is' if left == 1 else 'are'} not reported yet.\n" if left else "")
