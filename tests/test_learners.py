@@ -167,6 +167,27 @@ def test_update_step_follows_the_reference_step(name):
         assert torch.allclose(t, u, rtol=1e-4, atol=1e-6), buffer_name
 
 
+@pytest.mark.parametrize("name", LEARNERS)
+def test_a_learner_reads_only_the_sections_of_its_algorithm(name):
+    """A report takes a difference in a section that a run's algorithm does not read (``ALGO_SECTIONS``) for
+    no difference at all: building a learner and stepping it must never read one."""
+    from drltg.config.sections import ALGO_SECTIONS
+
+    class Unread:
+        def __getattr__(self, key):
+            if key.startswith("__"):
+                raise AttributeError(key)
+            raise AssertionError(f"{name} read {key} of a section its algorithm does not read")
+
+    algo, task = LEARNERS[name]
+    cfg = config_lib.resolve({}, ["network.hidden=[32, 32]"], task=task, algo=algo)
+    unread = {s for sections in ALGO_SECTIONS.values() for s in sections} - set(ALGO_SECTIONS[algo])
+    assert unread, algo
+    cfg = cfg.model_copy(update={s: Unread() for s in unread})
+    agent = make_agent(make_env(task, seed=0, **cfg.env), cfg)
+    UpdateStep(agent)(random_batch(task), update_actor=True)
+
+
 cuda = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
 
 
