@@ -308,7 +308,8 @@ def test_a_new_clone_restores_the_kept_finished_runs_and_trains_only_what_is_lef
 
 def test_the_study_s_dry_run_counts_the_frames_each_run_reached_and_those_left(tmp_path, capsys):
     """A run in progress counts to its last evaluation, a finished one to its budget; the last line sums what
-    is left of the whole study: 6 sources of 60k frames and 5 rows of 3 seeds x 2 sides x 300k."""
+    is left of the whole study (6 sources of 60k frames and 5 rows of 3 seeds x 2 sides x 300k) and the time
+    it takes at the rates logged so far."""
     from drltg.store.rundir import write_eval_csv
 
     study = _study()
@@ -320,13 +321,24 @@ def test_the_study_s_dry_run_counts_the_frames_each_run_reached_and_those_left(t
     transfer.mkdir(parents=True)
     write_eval_csv(transfer / "eval.csv", [{"frames": 0, "return_mean": 1.0, "return_std": 0.0, "episodes": 10},
                                            {"frames": 10_000, "return_mean": 2.0, "return_std": 0.0, "episodes": 10}])
+    fps = transfer / "logs" / "csv" / "scalars" / "train" / "fps.csv"
+    fps.parent.mkdir(parents=True)
+    fps.write_text("".join(f"{1000 * i},{900.0 if i < 3 else 50.0}\n" for i in range(1, 14)))  # warm-up, then 50
     study.dry_run(runs)
     lines = dict(line.split(maxsplit=1) for line in capsys.readouterr().out.splitlines())
     assert lines["pi-reuse-barrier-seed-seed-11-baseline"] == "ready: 0 of 300,000 frames"
     assert lines["pi-reuse-barrier-seed-seed-11-transfer"] == "ready: 10,000 of 300,000 frames"
     assert lines["pi-reuse-barrier-seed-seed-12-transfer"].startswith("waits for its source: ")
     assert lines["lift-dense-sac-seed-61"] == "ready: 60,000 of 60,000 frames"  # trained, best.pt not scored yet
-    assert lines["left"] == f"to train: about {6 * 60_000 + 5 * 3 * 2 * 300_000 - 10_000 - 60_000:,} frames"
+    # the transfer's 290k frames at the 50 frames/s it logged last (the median of its last 10), its row's other 5
+    # runs at the same 50; the other 5 sources' and 4 rows' runs have no run that logged a rate yet
+    hours = (290_000 + 5 * 300_000) / 50 / 3600
+    assert lines["left"] == (f"to train: about {6 * 60_000 + 5 * 3 * 2 * 300_000 - 10_000 - 60_000:,} frames; at the "
+                             f"frames/s the runs last logged, about {hours:.1f} core-hours, {hours:.1f} h on 1 core "
+                             "(29 runs with nothing yet to time them by left out)")
+    study.dry_run(runs, cores=2)
+    assert capsys.readouterr().out.splitlines()[-1].endswith(f", {hours / 2:.1f} h on 2 cores (29 runs with nothing "
+                                                             "yet to time them by left out)")
 
 
 def test_a_run_kept_unfinished_is_not_restored_and_trains_again(tmp_path, monkeypatch):

@@ -26,10 +26,12 @@ import argparse
 import contextlib
 import functools
 import importlib.util
+import json
 import os
 import shlex
 import shutil
 import signal
+import statistics
 import subprocess
 import sys
 import time
@@ -174,7 +176,8 @@ def main() -> None:
     parser.add_argument("--runs", type=Path, default=Path("runs/seed-tasks"))
     parser.add_argument("--only", nargs="+", metavar="JOB", help="take only these jobs (names as --dry-run lists)")
     parser.add_argument("--dry-run", action="store_true",
-                        help="list the jobs, the frames each run has reached and the frames left")
+                        help="list the jobs, the frames each run has reached, the frames left and the time "
+                             "they take on --cores at the frames/s the runs last logged")
     parser.add_argument("--restore", action="store_true",
                         help="copy the finished runs kept in results/seed-tasks/ to RUNS first (a new clone)")
     args = parser.parse_args()
@@ -185,7 +188,7 @@ def main() -> None:
         for run in restore(args.runs):
             print(f"restored {run}")
     if args.dry_run:
-        dry_run(args.runs)
+        dry_run(args.runs, len(args.cores))
         return
     (args.runs / "logs").mkdir(parents=True, exist_ok=True)
     running: dict[int, tuple[Job, subprocess.Popen]] = {}
@@ -196,19 +199,43 @@ def main() -> None:
         stop(running)
 
 
-def dry_run(runs: Path) -> None:
-    """Each job's state, with the frames each of its runs has reached, and the frames left to train."""
-    left = 0
+def dry_run(runs: Path, cores: int = 1) -> None:
+    """Each job's state, with the frames each of its runs has reached, and the frames left to train; with the
+    frames/s its runs (or, before a run starts, the other runs of its row or source) last logged, the time left."""
+    left, seconds, untimed = 0, 0.0, 0
+    rates: dict[str, list[float]] = {}
+    for job in jobs(runs):
+        rates.setdefault(_family(job), []).extend(r for d in job.outputs if (r := rate(d)))
     for job in jobs(runs):
         if job.finished():
             print(f"{job.name:44} finished")
             continue
         done = {d: job.frames if (d / "summary.json").is_file() else frames_evaluated(d) for d in job.outputs}
         left += sum(job.frames - n for n in done.values())
+        for d, n in done.items():
+            fps = rate(d) or (sum(rates[_family(job)]) / len(rates[_family(job)]) if rates[_family(job)] else None)
+            seconds += (job.frames - n) / fps if fps else 0.0
+            untimed += fps is None and n < job.frames
         state = "ready" if job.ready() else "waits for its source"
         reached = ", ".join(f"{n:,}" for n in done.values())
         print(f"{job.name:44} {state}: {reached} of {job.frames:,} frames")
-    print(f"left to train: about {left:,} frames")
+    timed = f" ({untimed} runs with nothing yet to time them by left out)" if untimed else ""
+    print(f"left to train: about {left:,} frames; at the frames/s the runs last logged, about "
+          f"{seconds / 3600:.1f} core-hours, {seconds / 3600 / cores:.1f} h on {cores} core{'s' * (cores > 1)}{timed}")
+
+
+def _family(job: Job) -> str:
+    """The row or source a job belongs to: its runs train at about one rate."""
+    return job.name.rsplit("-seed-", 1)[0]
+
+
+def rate(run: Path) -> float | None:
+    """A run's frames/s: its summary's once finished, else the median of the last 10 it logged (``train/fps``)."""
+    if (run / "summary.json").is_file():
+        return json.loads((run / "summary.json").read_text()).get("frames_per_s")
+    log = run / "logs" / "csv" / "scalars" / "train" / "fps.csv"
+    values = [float(line.split(",")[1]) for line in log.read_text().split()] if log.is_file() else []
+    return statistics.median(values[-10:]) if values else None
 
 
 def queue(args: argparse.Namespace, running: dict[int, tuple[Job, subprocess.Popen]]) -> None:
