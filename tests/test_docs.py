@@ -22,6 +22,15 @@ def test_the_site_builds_strictly(tmp_path):
         assert f"{name}" in api, name
     home = (tmp_path / "site" / "index.html").read_text()
     assert "Quickstart" in home and "One composed example" in home  # README's front, included
+    figures = {page.stem: re.findall(r"\]\(\.\./(results/[^)]+\.png)\)", page.read_text())
+               for page in (ROOT / "docs").glob("*.md")}
+    assert sum(map(len, figures.values())) >= 4
+    for page, paths in figures.items():  # each figure results/ keeps is served from there, and shown
+        folder = "" if page == "index" else page
+        html = (tmp_path / "site" / folder / "index.html").read_text()
+        for path in paths:
+            assert (tmp_path / "site" / path).read_bytes() == (ROOT / path).read_bytes(), path
+            assert f'src="{os.path.relpath(path, folder or ".")}"' in html, (page, path)
 
 
 def test_every_page_is_in_the_navigation():
