@@ -22,6 +22,7 @@ def test_the_site_builds_strictly(tmp_path):
         assert f"{name}" in api, name
     home = (tmp_path / "site" / "index.html").read_text()
     assert "Quickstart" in home and "One composed example" in home  # README's front, included
+    assert 'src="results/demo/report/transfer_plot.png"' in home  # README's figure, served from results/
     figures = {page.stem: re.findall(r"\]\(\.\./(results/[^)]+\.png)\)", page.read_text())
                for page in (ROOT / "docs").glob("*.md")}
     assert sum(map(len, figures.values())) >= 4
