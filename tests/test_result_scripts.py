@@ -47,7 +47,7 @@ def recorded(script: Path, tmp_path: Path) -> list[list[str]]:
         (bin_dir / name).write_text(RECORDER.format(python=sys.executable))
         (bin_dir / name).chmod(0o755)
     env = {**os.environ, "RECORD": str(tmp_path / "calls.jsonl"), "DRLTG": str(bin_dir / "drltg"),
-           "PYTHON": str(bin_dir / "python"), "CORES": "0", "WORKERS": "1"}
+           "PYTHON": str(bin_dir / "python"), "CORES": str(min(os.sched_getaffinity(0))), "WORKERS": "1"}
     done = subprocess.run(["bash", str(script)], cwd=work, env=env, capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     return [json.loads(line) for line in (tmp_path / "calls.jsonl").read_text().splitlines()]
