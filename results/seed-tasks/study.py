@@ -206,6 +206,7 @@ def dry_run(runs: Path, cores: int = 1) -> None:
     rates: dict[str, list[float]] = {}
     for job in jobs(runs):
         rates.setdefault(_family(job), []).extend(r for d in job.outputs if (r := rate(d)))
+    family_rate = {family: statistics.fmean(r) for family, r in rates.items() if r}
     for job in jobs(runs):
         if job.finished():
             print(f"{job.name:44} finished")
@@ -213,7 +214,7 @@ def dry_run(runs: Path, cores: int = 1) -> None:
         done = {d: job.frames if (d / "summary.json").is_file() else frames_evaluated(d) for d in job.outputs}
         left += sum(job.frames - n for n in done.values())
         for d, n in done.items():
-            fps = rate(d) or (sum(rates[_family(job)]) / len(rates[_family(job)]) if rates[_family(job)] else None)
+            fps = rate(d) or family_rate.get(_family(job))
             seconds += (job.frames - n) / fps if fps else 0.0
             untimed += fps is None and n < job.frames
         state = "ready" if job.ready() else "waits for its source"
