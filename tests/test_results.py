@@ -323,15 +323,15 @@ def test_the_study_s_dry_run_counts_the_frames_each_run_reached_and_those_left(t
                                            {"frames": 10_000, "return_mean": 2.0, "return_std": 0.0, "episodes": 10}])
     fps = transfer / "logs" / "csv" / "scalars" / "train" / "fps.csv"
     fps.parent.mkdir(parents=True)
-    fps.write_text("".join(f"{1000 * i},{900.0 if i < 3 else 50.0}\n" for i in range(1, 14)))  # warm-up, then 50
+    fps.write_text("".join(f"{1000 * i},{900.0 if i < 3 else 50.0}\n" for i in range(1, 14)))  # 50 logged last
     study.dry_run(runs)
     lines = dict(line.split(maxsplit=1) for line in capsys.readouterr().out.splitlines())
     assert lines["pi-reuse-barrier-seed-seed-11-baseline"] == "ready: 0 of 300,000 frames"
     assert lines["pi-reuse-barrier-seed-seed-11-transfer"] == "ready: 10,000 of 300,000 frames"
     assert lines["pi-reuse-barrier-seed-seed-12-transfer"].startswith("waits for its source: ")
     assert lines["lift-dense-sac-seed-61"] == "ready: 60,000 of 60,000 frames"  # trained, best.pt not scored yet
-    # the transfer's 290k frames at the 50 frames/s it logged last (the median of its last 10), its row's other 5
-    # runs at the same 50; the other 5 sources' and 4 rows' runs have no run that logged a rate yet
+    # the transfer's 290k frames at the 50 frames/s it logged last, its row's other 5 runs at the same 50; the
+    # other 5 sources' and 4 rows' runs have no run that logged a rate yet
     hours = (290_000 + 5 * 300_000) / 50 / 3600
     assert lines["left"] == (f"to train: about {6 * 60_000 + 5 * 3 * 2 * 300_000 - 10_000 - 60_000:,} frames; at the "
                              f"frames/s the runs last logged, about {hours:.1f} core-hours, {hours:.1f} h on 1 core "
@@ -339,6 +339,16 @@ def test_the_study_s_dry_run_counts_the_frames_each_run_reached_and_those_left(t
     study.dry_run(runs, cores=2)
     assert capsys.readouterr().out.splitlines()[-1].endswith(f", {hours / 2:.1f} h on 2 cores (29 runs with nothing "
                                                              "yet to time them by left out)")
+    # once a run of the row has finished, its whole-run rate (warm-up included) times the row's others: a run's
+    # own logged rate is frames over seconds since its process started, inflated early on by the warm-up
+    finished = transfer.parent.parent / "baseline" / "seed-10"
+    finished.mkdir(parents=True)
+    (finished / "summary.json").write_text('{"frames_per_s": 40.0}')
+    study.dry_run(runs)
+    hours = (290_000 + 4 * 300_000) / 40 / 3600
+    assert capsys.readouterr().out.splitlines()[-1].startswith(
+        f"left to train: about {6 * 60_000 + 5 * 3 * 2 * 300_000 - 10_000 - 60_000 - 300_000:,} frames; at the "
+        f"frames/s the runs last logged, about {hours:.1f} core-hours")
 
 
 def test_a_run_kept_unfinished_is_not_restored_and_trains_again(tmp_path, monkeypatch):

@@ -201,12 +201,15 @@ def main() -> None:
 
 def dry_run(runs: Path, cores: int = 1) -> None:
     """Each job's state, with the frames each of its runs has reached, and the frames left to train; with the
-    frames/s its runs (or, before a run starts, the other runs of its row or source) last logged, the time left."""
+    time left at the frames/s of the finished runs of its row or source (whole runs, warm-up included), else at
+    the rate the run itself, or before it starts the other runs of its family, last logged."""
     left, seconds, untimed = 0, 0.0, 0
-    rates: dict[str, list[float]] = {}
+    rates: dict[bool, dict[str, list[float]]] = {True: {}, False: {}}
     for job in jobs(runs):
-        rates.setdefault(_family(job), []).extend(r for d in job.outputs if (r := rate(d)))
-    family_rate = {family: statistics.fmean(r) for family, r in rates.items() if r}
+        for d in job.outputs:
+            if r := rate(d):
+                rates[(d / "summary.json").is_file()].setdefault(_family(job), []).append(r)
+    finished_rate, logged_rate = ({f: statistics.fmean(r) for f, r in rates[k].items()} for k in (True, False))
     for job in jobs(runs):
         if job.finished():
             print(f"{job.name:44} finished")
@@ -214,7 +217,7 @@ def dry_run(runs: Path, cores: int = 1) -> None:
         done = {d: job.frames if (d / "summary.json").is_file() else frames_evaluated(d) for d in job.outputs}
         left += sum(job.frames - n for n in done.values())
         for d, n in done.items():
-            fps = rate(d) or family_rate.get(_family(job))
+            fps = finished_rate.get(_family(job)) or rate(d) or logged_rate.get(_family(job))
             seconds += (job.frames - n) / fps if fps else 0.0
             untimed += fps is None and n < job.frames
         state = "ready" if job.ready() else "waits for its source"
@@ -231,12 +234,13 @@ def _family(job: Job) -> str:
 
 
 def rate(run: Path) -> float | None:
-    """A run's frames/s: its summary's once finished, else the median of the last 10 it logged (``train/fps``)."""
+    """A run's frames/s: its summary's once finished, else the last it logged (``train/fps``, frames over seconds
+    since the process started, so early on the fast random warm-up inflates it)."""
     if (run / "summary.json").is_file():
         return json.loads((run / "summary.json").read_text()).get("frames_per_s")
     log = run / "logs" / "csv" / "scalars" / "train" / "fps.csv"
     values = [float(line.split(",")[1]) for line in log.read_text().split()] if log.is_file() else []
-    return statistics.median(values[-10:]) if values else None
+    return values[-1] if values else None
 
 
 def queue(args: argparse.Namespace, running: dict[int, tuple[Job, subprocess.Popen]]) -> None:
