@@ -605,3 +605,18 @@ def test_an_unknown_key_of_a_known_section_is_answered_with_its_keys(capsys):
     assert main(["train", "fourrooms/northeast", "-o", "optim.lr", "1e-3"]) == 2
     assert capsys.readouterr().err == ("drltg: error: unrecognized arguments: 1e-3; -o takes KEY=VALUE as one "
                                        "argument, e.g. -o optim.lr=VALUE\n")
+
+
+def test_a_learner_section_one_run_does_not_read_is_not_a_change():
+    """``soc.*`` never reaches a SAC learner (``ALGO_SECTIONS``): a SAC run resumed with another option count is
+    the same run; between two SOC runs it is a change, and between SAC and SOC ``algo`` says it."""
+    from drltg.config import config_changes
+
+    def cfg(algo, *overrides):
+        return config_lib.resolve(None, list(overrides), task="fourrooms/northeast", algo=algo)
+
+    assert config_changes(cfg("sac"), cfg("sac", "soc.num_options=2")) == []
+    assert config_changes(cfg("soc"), cfg("soc", "soc.num_options=2")) == ["soc.num_options"]
+    assert config_changes(cfg("sac"), cfg("soc", "soc.num_options=2")) == ["algo"]
+    assert config_changes(cfg("sac"), cfg("soc", "sac.alpha_init=0.5")) == ["algo", "sac.alpha_init"]  # both read it
+    assert config_changes(cfg("td3"), cfg("td3", "sac.alpha_init=0.5")) == []

@@ -8,6 +8,7 @@ from drltg.config.methods import BUILTIN_METHOD_OPTIONS
 from drltg.config.overrides import ENV_EXECUTION_KEYS, _flatten
 from drltg.config.registered import METHOD_OPTIONS
 from drltg.config.run import RunConfig, _fields, defaults
+from drltg.config.sections import ALGO_SECTIONS
 from drltg.config.values import _expected, _lookup
 from drltg.errors import UsageError
 
@@ -18,7 +19,9 @@ def config_changes(saved: dict | RunConfig, cfg: dict | RunConfig, *, env_defaul
     task's: runs saved before the key existed, or before env settings were saved in full, stay the
     same run (resumable, and comparable in one report). Options of a transfer method that neither
     config uses do not count (a baseline is the same run whatever another method's defaults are), nor
-    does ``transfer.source_checkpoint`` where neither has a source, nor do ``ENV_EXECUTION_KEYS``.
+    does a learner section one of them does not read (``soc.*`` of a SAC run: ``algo`` already says
+    the runs differ, :data:`ALGO_SECTIONS`), nor ``transfer.source_checkpoint`` where neither has a
+    source, nor ``ENV_EXECUTION_KEYS``.
 
     ``env_defaults=False`` leaves the task registry (and torch with it) unimported: an ``env.*`` key
     only one config sets is then not compared, its default being unknown (:func:`env_keys_set_once`
@@ -44,10 +47,14 @@ def config_changes(saved: dict | RunConfig, cfg: dict | RunConfig, *, env_defaul
         return _lookup(a, key) is KeyError and _lookup(b, key) == _lookup(base, key)
 
     sourceless = all(_lookup(c, "transfer.source") in (None, KeyError) for c in (saved, cfg))
+    every = {s for sections in ALGO_SECTIONS.values() for s in sections}
+    unread = {s for c in (saved, cfg) for s in every - set(ALGO_SECTIONS.get(_lookup(c, "algo"), every))}
 
     def unused(key):  # an option of a method neither run uses changes nothing they do, nor does the
         if key == "transfer.source_checkpoint":  # checkpoint of a source neither of them reads
             return sourceless
+        if key.split(".")[0] in unread:
+            return True
         owner = owners.get(key.removeprefix("transfer.")) if key.startswith("transfer.") else None
         return owner is not None and owner not in methods
 

@@ -138,16 +138,6 @@ def _flat(config: dict, prefix: str = "") -> dict:
     return out
 
 
-def _unread(*configs: dict) -> set[str]:
-    """The learner sections that the algorithm of one of ``configs`` does not read (``soc`` for a SAC run): a
-    difference there changes no curve, and ``algo`` already says that the runs differ. An unknown algorithm
-    reads them all."""
-    from drltg.config.sections import ALGO_SECTIONS
-
-    every = {s for sections in ALGO_SECTIONS.values() for s in sections}
-    return {s for c in configs for s in every - set(ALGO_SECTIONS.get(c.get("algo"), every))}
-
-
 def _check_configs(side: str, curves: Sequence[Curve], allow_mixed: bool, warnings: list[str]) -> None:
     """One side must be one method and one configuration (seeds, lengths, devices and sources may differ;
     a key a config saved by an older drltg lacks stands for its default, the built-in methods' options
@@ -166,10 +156,8 @@ def _check_configs(side: str, curves: Sequence[Curve], allow_mixed: bool, warnin
             continue
         ref, other = _flat(first.config), _flat(c.config)
         unchecked.update(env_keys_set_once(first.config, c.config))
-        unread = _unread(first.config, c.config)
         diff = [k for k in config_changes(first.config, c.config, env_defaults=False)
-                if not any(k == p or k.startswith(p + ".") for p in CONFIG_KEYS_PER_RUN)
-                and k.split(".")[0] not in unread]
+                if not any(k == p or k.startswith(p + ".") for p in CONFIG_KEYS_PER_RUN)]
         if diff:
             k = diff[0]
             more = f" ({len(diff)} keys differ)" if len(diff) > 1 else ""
@@ -202,8 +190,7 @@ def _check_sides(baseline: Sequence[Curve], transfer: Sequence[Curve], allow: bo
     if None in configs:
         return
     b, t = configs
-    ignored = set(PER_RUN) | _unread(b.config, t.config)
-    keys = [k for k in config_changes(b.config, t.config, env_defaults=False) if k.split(".")[0] not in ignored]
+    keys = [k for k in config_changes(b.config, t.config, env_defaults=False) if k.split(".")[0] not in PER_RUN]
     if not keys:
         return
     ref, other = _flat(b.config), _flat(t.config)
