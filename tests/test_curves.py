@@ -1,5 +1,6 @@
 import csv
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -192,6 +193,9 @@ def test_no_runs_missing_paths_and_unknown_formats(tmp_path):
         read_curves(tmp_path / "empty")
     with pytest.raises(UsageError, match="does not exist"):
         read_curves(tmp_path / "nowhere")
+    os.mkfifo(tmp_path / "pipe")  # exists, but is no file to read whole and no folder to search
+    with pytest.raises(UsageError, match="'.*pipe' is neither a log file nor a directory of runs"):
+        read_curves(tmp_path / "pipe")
     with pytest.raises(UsageError, match="matches no file"):
         read_curves(str(tmp_path / "run_*"))
     with pytest.raises(UsageError, match="unknown log format"):

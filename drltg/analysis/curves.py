@@ -100,6 +100,8 @@ def _expand(pattern: str) -> list[Path]:
 def _read_path(path: Path, format: str, tag: str | None) -> list[Curve]:
     if path.is_file():
         return [_read_file(path, format, tag)]
+    if not path.is_dir():
+        raise UsageError(f"'{path}' is neither a log file nor a directory of runs.")
     runs = find_runs(path, format)
     if not runs:
         raise UsageError(

@@ -142,7 +142,8 @@ def refuse_special(path: str | Path, option: str) -> None:
         raise UsageError(f"{option} '{path}' cannot be read ({err.strerror or err}).") from None
     if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
         kind = "a FIFO" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else "a device"
-        raise UsageError(f"{option} '{path}' is {kind}; drltg writes only regular files, so choose a file path.")
+        raise UsageError(f"{option} '{path}' is {kind}; drltg writes only regular files and folders, so choose "
+                         "another path.")
 
 
 def atomic_write(path: str | Path, data: str | bytes) -> None:
