@@ -279,9 +279,12 @@ def test_reset_with_set_state_honours_the_position():
     assert torch.allclose(td["observation"], torch.tensor([[-0.8, -0.8], [0.8, -0.8]]))
 
 
-@pytest.mark.parametrize("bad", [dict(goal=(5.0, 3.0)), dict(goal=(11.0, 1.0)), dict(start_room="attic")])
-def test_fourrooms_rejects_bad_options(bad):
-    with pytest.raises(UsageError):
+@pytest.mark.parametrize("bad, message", [
+    (dict(goal=(5.0, 3.0)), r"goal \(5.0, 3.0\) is not a point"), (dict(goal=(11.0, 1.0)), "goal"),
+    (dict(start_room="attic"), "start_room 'attic'"), (dict(goal_radius=0.0), "goal_radius 0.0 must be positive"),
+    (dict(max_step=float("nan")), "max_step nan must be positive"), (dict(horizon=0), "horizon 0 must be at least 1")])
+def test_fourrooms_rejects_bad_options_naming_them(bad, message):
+    with pytest.raises(UsageError, match=message):
         FourRoomsEnv(**bad)
 
 
@@ -377,9 +380,12 @@ def test_grid_observations():
     assert coords._observe(torch.tensor([6, 3])).tolist() == [0.0, -0.5]
 
 
-@pytest.mark.parametrize("bad", [dict(goal=(0, 0)), dict(goal=(6, 6)), dict(observation="pixels"), dict(slip=1.5)])
-def test_grid_rejects_bad_options(bad):
-    with pytest.raises(UsageError):
+@pytest.mark.parametrize("bad, message", [
+    (dict(goal=(0, 0)), r"goal \(0, 0\) is not a free cell"), (dict(goal=(6, 6)), "goal"),
+    (dict(observation="pixels"), "observation 'pixels'"), (dict(slip=1.5), r"slip 1.5 .* \[0, 1\]"),
+    (dict(horizon=0), "horizon 0 must be at least 1")])
+def test_grid_rejects_bad_options_naming_them(bad, message):
+    with pytest.raises(UsageError, match=message):
         GridFourRoomsEnv(**bad)
 
 

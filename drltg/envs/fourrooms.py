@@ -193,8 +193,11 @@ class FourRoomsEnv(GoalEnv):
             raise UsageError(f"goal {tuple(goal)} is not a point (x, y) in the free space of the 10x10 arena.")
         if start_room is not None and start_room not in ROOMS:
             raise UsageError(f"start_room {start_room!r} is not one of {', '.join(ROOM_NAMES)}.")
-        if goal_radius <= 0 or max_step <= 0 or horizon < 1:
-            raise UsageError("goal_radius and max_step must be positive and horizon at least 1.")
+        for name, value in (("goal_radius", goal_radius), ("max_step", max_step)):
+            if not value > 0:
+                raise UsageError(f"{name} {value} must be positive.")
+        if horizon < 1:
+            raise UsageError(f"horizon {horizon} must be at least 1 step.")
         if horizon > MAX_HORIZON:
             raise UsageError(f"horizon {horizon} is more than the {MAX_HORIZON:,} steps an evaluation runs an episode.")
         if not 16 <= render_size <= 4096:

@@ -154,8 +154,10 @@ class GridFourRoomsEnv(GoalEnv):
             raise UsageError(f"start_room {start_room!r} is not one of {', '.join(ROOMS)}.")
         if observation not in ("onehot", "coords"):
             raise UsageError(f"observation {observation!r} is not 'onehot' or 'coords'.")
-        if not 0.0 <= slip <= 1.0 or horizon < 1:
-            raise UsageError("slip must lie in [0, 1] and horizon be at least 1.")
+        if not 0.0 <= slip <= 1.0:
+            raise UsageError(f"slip {slip} is a probability, so it must lie in [0, 1].")
+        if horizon < 1:
+            raise UsageError(f"horizon {horizon} must be at least 1 step.")
         if horizon > MAX_HORIZON:
             raise UsageError(f"horizon {horizon} is more than the {MAX_HORIZON:,} steps an evaluation runs an episode.")
         if not 1 <= cell_pixels <= 256:
