@@ -334,7 +334,7 @@ def test_the_study_s_dry_run_counts_the_frames_each_run_reached_and_those_left(t
     # other 5 sources' and 4 rows' runs have no run that logged a rate yet
     hours = (290_000 + 5 * 300_000) / 50 / 3600
     assert lines["left"] == (f"to train: about {6 * 60_000 + 5 * 3 * 2 * 300_000 - 10_000 - 60_000:,} frames; at the "
-                             f"frames/s the runs last logged, about {hours:.1f} core-hours, {hours:.1f} h on 1 core "
+                             f"frames/s the runs trained at, about {hours:.1f} core-hours, {hours:.1f} h on 1 core "
                              "(29 runs with nothing yet to time them by left out)")
     study.dry_run(runs, cores=2)
     assert capsys.readouterr().out.splitlines()[-1].endswith(f", {hours / 2:.1f} h on 2 cores (29 runs with nothing "
@@ -348,7 +348,7 @@ def test_the_study_s_dry_run_counts_the_frames_each_run_reached_and_those_left(t
     hours = (290_000 + 4 * 300_000) / 40 / 3600
     assert capsys.readouterr().out.splitlines()[-1].startswith(
         f"left to train: about {6 * 60_000 + 5 * 3 * 2 * 300_000 - 10_000 - 60_000 - 300_000:,} frames; at the "
-        f"frames/s the runs last logged, about {hours:.1f} core-hours")
+        f"frames/s the runs trained at, about {hours:.1f} core-hours")
 
 
 def test_a_run_kept_unfinished_is_not_restored_and_trains_again(tmp_path, monkeypatch):

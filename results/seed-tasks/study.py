@@ -176,8 +176,8 @@ def main() -> None:
     parser.add_argument("--runs", type=Path, default=Path("runs/seed-tasks"))
     parser.add_argument("--only", nargs="+", metavar="JOB", help="take only these jobs (names as --dry-run lists)")
     parser.add_argument("--dry-run", action="store_true",
-                        help="list the jobs, the frames each run has reached, the frames left and the time "
-                             "they take on --cores at the frames/s the runs last logged")
+                        help="list the jobs, the frames each run has reached, the frames left and the time they "
+                             "take on --cores at the frames/s of each row's finished runs (else the last logged)")
     parser.add_argument("--restore", action="store_true",
                         help="copy the finished runs kept in results/seed-tasks/ to RUNS first (a new clone)")
     args = parser.parse_args()
@@ -224,7 +224,7 @@ def dry_run(runs: Path, cores: int = 1) -> None:
         reached = ", ".join(f"{n:,}" for n in done.values())
         print(f"{job.name:44} {state}: {reached} of {job.frames:,} frames")
     timed = f" ({untimed} runs with nothing yet to time them by left out)" if untimed else ""
-    print(f"left to train: about {left:,} frames; at the frames/s the runs last logged, about "
+    print(f"left to train: about {left:,} frames; at the frames/s the runs trained at, about "
           f"{seconds / 3600:.1f} core-hours, {seconds / 3600 / cores:.1f} h on {cores} core{'s' * (cores > 1)}{timed}")
 
 
