@@ -112,6 +112,7 @@ def test_swept_axes_name_the_variant_directories(tmp_path):
     ({"primary_metric": "mean_return_gian"}, "unknown primary_metric 'mean_return_gian'"),
     ({"primary_metric": "n_seeds_baseline"}, "primary_metric 'n_seeds_baseline' is not a comparison"),
     ({"resources": {"gpus": 1}}, "unknown resource 'gpus'; did you mean 'num_gpus'?"),
+    ({"name": "mine"}, "unknown key 'name'; choose from: pairs, methods, algos, seeds"),
 ])
 def test_spec_errors_are_one_sentence_and_write_nothing(tmp_path, capsys, change, message):
     data = {k: v for k, v in GRID.items() if k not in ("pairs",) or "pair" not in change}

@@ -40,7 +40,11 @@ class Spec:
 
 
 def _hint(word: str, choices) -> str:
-    close = difflib.get_close_matches(str(word), list(choices), n=1)
+    """A close choice as a suggestion: a near spelling (similarity >= 0.75) or one that holds the word
+    (``gpus`` -> ``num_gpus``); else the choices, since a loose match (``name`` -> ``frames``) says little."""
+    word = str(word)
+    close = [c for c in difflib.get_close_matches(word, list(choices), n=3)
+             if word in c or c in word or difflib.SequenceMatcher(None, word, c).ratio() >= 0.75]
     return f"; did you mean '{close[0]}'?" if close else f"; choose from: {', '.join(choices)}."
 
 
