@@ -1,3 +1,4 @@
+import difflib
 import re
 
 _CONTROL = re.compile(r"[\x00-\x1f\x7f]")
@@ -16,3 +17,14 @@ class UsageError(ValueError):
 
 class RunFailed(RuntimeError):
     """A run that ended without a usable result (its losses diverged): one sentence, exit code 1."""
+
+
+def closest(word, choices) -> str | None:
+    """The choice a mistyped ``word`` most likely meant, or None: a near spelling (similarity >= 0.75) or one
+    that holds the word (``gpus`` -> ``num_gpus``). A loose match (``name`` -> ``frames``) says little, so a
+    message lists the choices instead."""
+    word = str(word)
+    for choice in difflib.get_close_matches(word, [str(c) for c in choices], n=3):
+        if word in choice or choice in word or difflib.SequenceMatcher(None, word, choice).ratio() >= 0.75:
+            return choice
+    return None

@@ -620,3 +620,16 @@ def test_a_learner_section_one_run_does_not_read_is_not_a_change():
     assert config_changes(cfg("sac"), cfg("soc", "soc.num_options=2")) == ["algo"]
     assert config_changes(cfg("sac"), cfg("soc", "sac.alpha_init=0.5")) == ["algo", "sac.alpha_init"]  # both read it
     assert config_changes(cfg("td3"), cfg("td3", "sac.alpha_init=0.5")) == []
+
+
+@pytest.mark.parametrize("word, choices, hint", [
+    ("optim.lrr", ["optim.lr", "optim.batch_size"], "optim.lr"),  # a near spelling
+    ("gpus", ["num_cpus", "num_gpus"], "num_gpus"),  # a choice that holds the word
+    ("lift-place-seed", ["lift-place-seed-barrier", "lift"], "lift-place-seed-barrier"),
+    ("name", ["pairs", "frames", "seeds"], None),  # 'ame' alone: similarity 0.6, no suggestion
+    ("zzz", ["pairs"], None),
+])
+def test_a_suggestion_is_a_near_spelling_or_a_containing_choice(word, choices, hint):
+    from drltg.errors import closest
+
+    assert closest(word, choices) == hint

@@ -2,7 +2,6 @@
 a mapping with every error as one sentence naming the key."""
 from __future__ import annotations
 
-import difflib
 import functools
 import re
 from typing import Annotated, Any, Literal, Optional
@@ -46,7 +45,7 @@ from drltg.config.values import (
     _suggest,
     _what,
 )
-from drltg.errors import UsageError
+from drltg.errors import UsageError, closest
 
 
 class TransferConfig(Section):
@@ -239,7 +238,7 @@ def _unknown(dotted: str) -> str:
                 "registered; import drltg.transfer first.")
     known = _flat_keys(_model(), _section_models())
     section = [k for k in known if k.startswith(dotted.split(".")[0] + ".")]
-    if "." in dotted and section and not difflib.get_close_matches(dotted, known, n=1):  # no close key: list them
+    if "." in dotted and section and not closest(dotted, known):  # no close key: list them
         return f"unknown config key '{dotted}'; the keys of {dotted.split('.')[0]} are {', '.join(section)}."
     return f"unknown config key '{dotted}'" + _suggest(dotted, known)
 
@@ -318,8 +317,8 @@ def _task_spec(task: Any):
     if not isinstance(task, str):
         raise UsageError(f"config key 'task' must be a registered task name, got {_short(task)}.")
     if task not in TASKS:
-        hint = difflib.get_close_matches(task, list(TASKS), n=1)
+        hint = closest(task, TASKS)
         raise UsageError(
-            f"unknown task '{task}'" + (f"; did you mean '{hint[0]}'?" if hint else "; see `drltg tasks`.")
+            f"unknown task '{task}'" + (f"; did you mean '{hint}'?" if hint else "; see `drltg tasks`.")
         )
     return TASKS[task]

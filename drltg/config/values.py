@@ -2,7 +2,6 @@
 words an error sentence uses to say what a key takes."""
 from __future__ import annotations
 
-import difflib
 import math
 import types
 from typing import Annotated, Any, Iterable, Literal, Union, get_args, get_origin
@@ -17,6 +16,7 @@ from pydantic import (
 from pydantic.fields import FieldInfo
 
 from drltg.config.registered import method_names
+from drltg.errors import closest
 
 
 def _finite_number(value: Any) -> Any:
@@ -162,5 +162,5 @@ def _lookup(cfg: Any, dotted: str):
 
 
 def _suggest(key: str, known: Iterable[str]) -> str:
-    hint = difflib.get_close_matches(key, list(known), n=1)
-    return f"; did you mean '{hint[0]}'?" if hint else "."
+    hint = closest(key, known)
+    return f"; did you mean '{hint}'?" if hint else "."

@@ -16,7 +16,6 @@ Examples:
 from __future__ import annotations
 
 import ast
-import difflib
 import functools
 import importlib
 import importlib.util
@@ -26,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Sequence
 
-from drltg.errors import UsageError
+from drltg.errors import UsageError, closest
 
 if TYPE_CHECKING:
     import torch
@@ -169,8 +168,8 @@ PAIRS: dict[str, PairSpec] = {}
 def _lookup(table: dict, name: str, kind: str):
     if name in table:
         return table[name]
-    close = difflib.get_close_matches(name, list(table), n=1)
-    hint = f"; did you mean {close[0]!r}?" if close else f"; known {kind}s: {', '.join(sorted(table))}."
+    close = closest(name, table)
+    hint = f"; did you mean {close!r}?" if close else f"; known {kind}s: {', '.join(sorted(table))}."
     raise UsageError(f"unknown {kind} {name!r}{hint} (`drltg tasks` lists them)")
 
 

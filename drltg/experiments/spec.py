@@ -2,13 +2,12 @@
 checked before anything is planned; every mistake is one :class:`~drltg.errors.UsageError` sentence."""
 from __future__ import annotations
 
-import difflib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from drltg.errors import UsageError
+from drltg.errors import UsageError, closest
 from drltg.experiments.summary import SUMMARY_COLUMNS
 
 __all__ = ["Spec", "parse_spec", "load_spec", "KEYS", "MAX_RUNS", "SET_BY_SWEEP"]
@@ -40,12 +39,8 @@ class Spec:
 
 
 def _hint(word: str, choices) -> str:
-    """A close choice as a suggestion: a near spelling (similarity >= 0.75) or one that holds the word
-    (``gpus`` -> ``num_gpus``); else the choices, since a loose match (``name`` -> ``frames``) says little."""
-    word = str(word)
-    close = [c for c in difflib.get_close_matches(word, list(choices), n=3)
-             if word in c or c in word or difflib.SequenceMatcher(None, word, c).ratio() >= 0.75]
-    return f"; did you mean '{close[0]}'?" if close else f"; choose from: {', '.join(choices)}."
+    close = closest(word, choices)
+    return f"; did you mean '{close}'?" if close else f"; choose from: {', '.join(choices)}."
 
 
 def _axis(data: dict, key: str, kind: type, where: str) -> list:

@@ -30,7 +30,7 @@ from typing import Any, Callable, Iterable
 
 from drltg import config
 from drltg.config import RunConfig
-from drltg.errors import UsageError
+from drltg.errors import UsageError, closest
 
 __all__ = ["Transfer", "TransferMethod", "METHODS", "register_method", "get_method", "combine"]
 
@@ -150,12 +150,10 @@ def get_method(name: str) -> TransferMethod:
     if "+" in name:
         return combine(*(get_method(part) for part in name.split("+")))
     if name not in METHODS:
-        import difflib
-
-        hint = difflib.get_close_matches(name, list(METHODS), n=1)
+        hint = closest(name, METHODS)
         raise UsageError(
             f"unknown transfer method '{name}'"
-            + (f"; did you mean '{hint[0]}'?" if hint else f"; choose one of: {', '.join(METHODS)}.")
+            + (f"; did you mean '{hint}'?" if hint else f"; choose one of: {', '.join(METHODS)}.")
         )
     return METHODS[name]
 
