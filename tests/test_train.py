@@ -247,6 +247,16 @@ def test_cli_unknown_subcommand_option(capsys):
     assert err == "drltg: error: unrecognized arguments: --no-such-option\n", err
 
 
+@pytest.mark.parametrize("argv, err", [
+    (["train", "fourrooms/northeast", "--frames", "-5"], "drltg train: error: argument --frames: '-5' is not a whole"),
+    (["experiment", "fourrooms-near"], "drltg experiment: error: the following arguments are required: --method"),
+])
+def test_cli_a_refused_option_names_the_command_that_refused_it(capsys, argv, err):
+    assert main(argv) == 2
+    printed = capsys.readouterr().err
+    assert printed.startswith(err) and printed.count("\n") == 1, printed
+
+
 def _buffer(capacity):
     from torchrl.data import LazyTensorStorage, ReplayBuffer
 

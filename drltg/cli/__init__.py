@@ -27,12 +27,13 @@ SUBCOMMANDS = {
 
 
 class _BadArguments(Exception):
-    """What argparse refused: :func:`main` prints it as one sentence and returns 2 (argparse's convention)."""
+    """What argparse refused, after the name of the parser that refused it (``drltg train`` for a train
+    option): :func:`main` prints it as one sentence and returns 2 (argparse's convention)."""
 
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str):
-        raise _BadArguments(message)
+        raise _BadArguments(f"{self.prog}: error: {message}")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -54,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
     except _BadArguments as err:
         bare = [argv[i + 1] for i, a in enumerate(argv[:-1]) if a in ("-o", "--set") and "=" not in argv[i + 1]]
         hint = f"; -o takes KEY=VALUE as one argument, e.g. -o {bare[0]}=VALUE" if bare else ""
-        print(f"drltg: error: {err}{hint}", file=sys.stderr)
+        print(f"{err}{hint}", file=sys.stderr)
         return 2
     previous = signal.signal(signal.SIGTERM, _terminate)
     messages = logging.StreamHandler(sys.stdout)  # what the library logs (e.g. model reuse's summary) shows here
