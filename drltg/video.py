@@ -157,6 +157,8 @@ def run(args: argparse.Namespace) -> int:
     check_gl_backend()
     if args.episodes < 1 or args.strip < 1 or args.fps < 1 or args.size < 16:
         raise UsageError("--episodes, --strip and --fps must be positive and --size at least 16.")
+    if args.max_steps is not None and args.max_steps < 1:
+        raise UsageError(f"--max-steps must be at least 1 (the steps an episode may take), got {args.max_steps}.")
     if args.out is None and args.source == "demonstrator":
         raise UsageError("the demonstrator needs --out, the folder to write the videos to.")
     policy, env, render_env, name, task = _policy_and_env(args)

@@ -277,14 +277,21 @@ def test_choices_match_the_implementations():
     assert set(config_lib.OPTION_POLICIES) == set(OPTION_POLICIES)
 
 
-def test_env_keys_of_an_open_factory_are_checked_where_declared(monkeypatch):
+def test_env_keys_of_an_open_factory_are_only_those_the_task_declares(monkeypatch):
     def factory(*, batch_size=(), device=None, size: int = 3, **rest):
         raise AssertionError("resolve must not build the env")
 
-    spec = register_task("test/open-factory", factory, "a factory taking any keyword")
+    spec = register_task("test/open-factory", factory, "a factory taking any keyword", colour="red",
+                         fixed={"kind": "box"})
     monkeypatch.setitem(TASKS, spec.name, TASKS.pop(spec.name))
-    assert _resolve("env.anything=[1, 2]", "env.size=4", task=spec.name).env == {"anything": [1, 2], "size": 4}
+    assert _resolve("env.colour=blue", "env.size=4", task=spec.name).env == {"colour": "blue", "size": 4}
     assert "declares size=3" in _refused("env.size", "env.size=abc", task=spec.name)
+    assert _refused("env.anything", "env.anything=[1, 2]", task=spec.name) == (
+        "config key 'env.anything' is not an option of task 'test/open-factory'; its options are: colour, size.")
+    assert _refused("env.kind", "env.kind=sphere", task=spec.name) == (
+        "config key 'env.kind' cannot be set: it is part of the task 'test/open-factory' as registered (kind='box'), "
+        "not an option, got 'sphere'.")
+    assert _resolve("env.kind=box", task=spec.name).env == {"colour": "red", "size": 3}  # as older configs said it
 
 
 def test_build_fills_defaults_and_checks_types_like_resolve():
@@ -518,7 +525,7 @@ def test_env_options_read_from_source_are_those_of_the_imported_signature():
                 params = inspect.signature(factory.__init__ if inspect.isclass(factory) else factory).parameters
                 declared = {n: p.default for n, p in params.items()
                             if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY) and n != "self"}
-                assert read[spec.entry] == (declared, any(p.kind is p.VAR_KEYWORD for p in params.values()))
+                assert read[spec.entry] == declared
     assert read["drltg.envs.fourrooms:FourRoomsEnv"] is not None and read["drltg.envs.gridrooms:GridFourRoomsEnv"]
     assert read["drltg.envs.robosuite.env:robosuite_task"] is None  # its __signature__ is built: imported instead
 

@@ -141,12 +141,14 @@ def _has_format(directory: Path, format: str) -> bool:
 
 
 def find_runs(directory: str | Path, format: str = "auto") -> list[Path]:
-    """Run directories at or below ``directory`` (sorted; a run's own subfolders are not searched)."""
+    """Run directories at or below ``directory`` (sorted; a run's own subfolders are not searched, nor is a
+    folder reached through a symbolic link: a link to ``..`` or ``/`` would make the search endless or read
+    the whole machine)."""
     directory = Path(directory)
     if _has_format(directory, format):
         return [directory]
     runs: list[Path] = []
-    for child in sorted(p for p in directory.iterdir() if p.is_dir()):
+    for child in sorted(p for p in directory.iterdir() if p.is_dir() and not p.is_symlink()):
         runs.extend(find_runs(child, format))
     return runs
 
@@ -252,10 +254,13 @@ def _verify(path: Path) -> None:
     """Refuse a file of a drltg run whose ``manifest.json`` records another digest for it."""
     from drltg.store import manifest
 
-    folder = path.resolve().parent
+    folder = path.parent.resolve()
     for run in [folder, *folder.parents][:6]:  # logs/csv/scalars/<group>/<tag>.csv lies 4 folders down
         if (run / manifest.MANIFEST).is_file():
-            manifest.verify(run, path.resolve().relative_to(run).as_posix())
+            if path.is_symlink():  # its digest would be checked for a file the manifest does not cover
+                raise UsageError(f"'{path}' is a symbolic link inside the run '{run}'; a run's files are read where "
+                                 "they lie: replace the link with the file it stands for.")
+            manifest.verify(run, (folder / path.name).relative_to(run).as_posix())
             return
 
 

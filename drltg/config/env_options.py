@@ -18,13 +18,11 @@ from drltg.errors import UsageError
 _ENV_RESERVED = {"batch_size": "collector.num_envs and eval.episodes", "device": "device", "seed": "seed"}
 
 
-def env_defaults(task: str) -> tuple[dict[str, Any], bool]:
-    """The keyword arguments task ``task``'s factory declares with a default (its registered defaults
-    win), and whether it also takes other keywords (``**kwargs``); read without importing the env where
-    the registry can (:meth:`drltg.envs.TaskSpec.keywords`)."""
-    spec = _task_spec(task)
-    declared, open_ended = spec.keywords()
-    return {**declared, **spec.defaults}, open_ended
+def env_defaults(task: str) -> dict[str, Any]:
+    """The options of task ``task``: its factory's declared keywords (its registered defaults win), less
+    its registration fields; read without importing the env where the registry can
+    (:meth:`drltg.envs.TaskSpec.keywords`)."""
+    return _task_spec(task).keywords()
 
 
 def task_env(task: str) -> dict[str, Any]:
@@ -32,7 +30,7 @@ def task_env(task: str) -> dict[str, Any]:
     registered values over them), as plain YAML values: ``resolve`` writes them all into the config,
     so a run's ``config.yaml`` says exactly which env it trained on and a changed default is a
     changed config."""
-    declared, _ = env_defaults(task)
+    declared = env_defaults(task)
     return {k: _plain(v) for k, v in declared.items() if k not in _ENV_RESERVED}
 
 
@@ -59,24 +57,30 @@ def _env_type(ref: Any) -> Any:
 
 
 def env_model(task: str) -> type[BaseModel]:
-    """The model of task ``task``'s ``env`` section: one optional field per keyword its factory declares,
-    typed by the declared default; other keys are refused unless the factory takes ``**kwargs``."""
-    declared, open_ended = env_defaults(task)
+    """The model of task ``task``'s ``env`` section: one optional field per option the task declares,
+    typed by the declared default; other keys are refused."""
     fields = {}
-    for name, ref in declared.items():
+    for name, ref in env_defaults(task).items():
         kind = _env_type(ref)
         fields[name] = (Any if kind is None else kind, None)
-    return create_model("EnvOptions", __config__=ConfigDict(extra="allow" if open_ended else "forbid"), **fields)
+    return create_model("EnvOptions", __config__=ConfigDict(extra="forbid"), **fields)
 
 
 def _check_env(task: str, env: dict) -> dict:
     """``env`` with its values read as the types of the task's declared defaults; an unknown or reserved
-    key, or a value of another type, is one sentence naming the key."""
-    declared, open_ended = env_defaults(task)
+    key, or a value of another type, is one sentence naming the key. A registration field of the task
+    (:attr:`drltg.envs.TaskSpec.fixed`, e.g. a Gymnasium id) is no option: stated with the task's own value
+    (as configs saved before the distinction did) it is dropped, with any other value refused."""
+    spec = _task_spec(task)
+    env = spec.options(env)
+    declared = env_defaults(task)
     for name in env:
         if name in _ENV_RESERVED:
             raise UsageError(f"config key 'env.{name}' cannot be set: the run sets it from {_ENV_RESERVED[name]}.")
-        if name not in declared and not open_ended:
+        if name in spec.fixed:
+            raise UsageError(f"config key 'env.{name}' cannot be set: it is part of the task '{task}' as registered "
+                             f"({name}={spec.fixed[name]!r}), not an option, got {_short(env[name])}.")
+        if name not in declared:
             known = ", ".join(sorted(set(declared) - set(_ENV_RESERVED)))
             raise UsageError(f"config key 'env.{name}' is not an option of task '{task}'; its options are: {known}.")
     model = env_model(task)

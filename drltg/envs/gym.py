@@ -104,7 +104,10 @@ def register_gym_task(
     """Registers the Gymnasium env ``gym_id`` made with ``make_kwargs`` as the drltg task ``name``.
 
     The task is batched like drltg's own (``SerialEnv`` of ``GymWrapper``), so ``register_pair``,
-    ``drltg experiment`` and sweeps take it as any other; ``make_kwargs`` become its ``env.*`` settings.
+    ``drltg experiment`` and sweeps take it as any other; ``make_kwargs`` become its ``env.*`` settings,
+    its only options. ``gym_id`` and ``info_keys`` are what the task is (:attr:`~drltg.envs.TaskSpec.fixed`):
+    no config sets them, so a run directory cannot name the module ``gymnasium.make`` would import for an
+    id ``"module:Env-v0"``.
     ``potential(env_options)`` builds its reward-shaping potential, as for :func:`~drltg.envs.register_task`
     (``--method reward-shaping``). Gymnasium is not imported here: a plugin registering tasks stays cheap
     to import.
@@ -115,9 +118,33 @@ def register_gym_task(
         raise UsageError(f"register_gym_task({name!r}, ...): gym_id must be a Gymnasium id such as 'Pendulum-v1'.")
     options = ", ".join(f"{k}={v!r}" for k, v in make_kwargs.items())
     description = description or f"Gymnasium {gym_id}" + (f" with {options}" if options else "")
-    extra = {"info_keys": list(info_keys)} if info_keys else {}
     return register_task(name, make_gym_env, description, train=train, potential=potential, replace=replace,
-                         gym_id=gym_id, **extra, **make_kwargs)
+                         fixed=fixed(gym_id, info_keys), **make_kwargs)
+
+
+def fixed(gym_id: str, info_keys: Sequence[str] = ()) -> dict[str, Any]:
+    """The registration fields of a Gymnasium task (``register_task(..., fixed=...)``)."""
+    return {"gym_id": gym_id, "info_keys": list(info_keys)}
+
+
+def declared_options(gym_id: str) -> dict[str, Any]:
+    """What a Gymnasium id's ``make`` takes as keywords with their defaults: its env's constructor
+    keywords (``render_mode`` aside: drltg renders through its own path), the keywords it is registered
+    with over them, and ``max_episode_steps``. The entry point is the one a registered id already names."""
+    import inspect
+
+    import gymnasium
+    from gymnasium.envs.registration import load_env_creator
+
+    spec = gymnasium.spec(gym_id)
+    creator = spec.entry_point if callable(spec.entry_point) else load_env_creator(spec.entry_point)
+    try:
+        params = inspect.signature(creator).parameters.values()
+    except (TypeError, ValueError):
+        params = ()
+    declared = {p.name: p.default for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)
+                and p.default is not p.empty and p.name not in ("self", "render_mode")}
+    return {**declared, **spec.kwargs, "max_episode_steps": spec.max_episode_steps}
 
 
 def resolve(name: str) -> bool:
@@ -129,7 +156,7 @@ def resolve(name: str) -> bool:
     except ImportError:
         return False
     gym_id = name[len(PREFIX):]
-    if gym_id not in gymnasium.registry:
+    if ":" in gym_id or gym_id not in gymnasium.registry:  # "module:Env-v0" would make Gymnasium import module
         return False
-    register_gym_task(name, gym_id, f"Gymnasium {gym_id} with its registered defaults")
+    register_gym_task(name, gym_id, f"Gymnasium {gym_id} with its registered defaults", **declared_options(gym_id))
     return True

@@ -47,6 +47,10 @@ class TaskSpec:
     returns: Callable[[dict[str, Any]], tuple[float, float]] | None = None
     """``returns(options)``: the range every episode's return lies in, from the factory's keywords (a report
     bounds its intervals by it: ``drltg.analysis.stats.betting_interval``)."""
+    fixed: dict[str, Any] = field(default_factory=dict)
+    """Registration fields (a Gymnasium id, the info keys read as flags): passed to the factory on every
+    build and never options, so a config (a run directory's ``config.yaml``) cannot change what the task
+    is made of, nor make :func:`gymnasium.make` import a module it names."""
 
     def return_range(self, env_options: dict[str, Any] | None = None) -> tuple[float, float] | None:
         """The range of an episode's return with these env options (the factory's and the task's defaults
@@ -66,19 +70,28 @@ class TaskSpec:
         except (ImportError, AttributeError) as err:
             raise UsageError(f"task {self.name!r}: its factory {self.entry!r} cannot be imported ({err}).") from None
 
-    def keywords(self) -> tuple[dict[str, Any], bool]:
-        """The keyword arguments the factory declares (name -> default; ``inspect.Parameter.empty``: none)
-        and whether it also takes other keywords (``**kwargs``). A factory named ``"module:attr"`` is read
-        from its module's source where that suffices (:func:`_read_keywords`), so that checking a config
-        imports neither the env nor torch."""
+    def options(self, given: dict[str, Any]) -> dict[str, Any]:
+        """``given`` less the registration fields it states with the task's own value (configs saved before
+        :attr:`fixed` existed hold them); one stated with any other value stays, for the check to refuse."""
+        def plain(value):
+            return [plain(v) for v in value] if isinstance(value, (list, tuple)) else value
+
+        return {k: v for k, v in given.items() if not (k in self.fixed and plain(v) == plain(self.fixed[k]))}
+
+    def keywords(self) -> dict[str, Any]:
+        """The task's options: the keyword arguments its factory declares (name -> default;
+        ``inspect.Parameter.empty``: none) less its registration fields (:attr:`fixed`), and its registered
+        defaults. A factory that also takes ``**kwargs`` (Gymnasium's ``make`` keywords) takes no more
+        options than these: every key a config sets is one the task declares. A factory named
+        ``"module:attr"`` is read from its module's source where that suffices (:func:`_read_keywords`), so
+        that checking a config imports neither the env nor torch."""
         read = _read_keywords(self.entry) if isinstance(self.entry, str) else None
-        if read is not None:
-            return read
-        factory = self.factory
-        params = inspect.signature(factory.__init__ if inspect.isclass(factory) else factory).parameters
-        declared = {name: p.default for name, p in params.items()
+        if read is None:
+            factory = self.factory
+            params = inspect.signature(factory.__init__ if inspect.isclass(factory) else factory).parameters
+            read = {name: p.default for name, p in params.items()
                     if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY) and name != "self"}
-        return declared, any(p.kind is p.VAR_KEYWORD for p in params.values())
+        return {name: default for name, default in {**read, **self.defaults}.items() if name not in self.fixed}
 
 
 class _Options(dict):
@@ -91,14 +104,14 @@ class _Options(dict):
         self.spec = spec
 
     def __missing__(self, key: str) -> Any:
-        default = self.spec.keywords()[0].get(key, inspect.Parameter.empty)
+        default = self.spec.keywords().get(key, inspect.Parameter.empty)
         if default is inspect.Parameter.empty:
             raise KeyError(key)
         return default
 
 
 @functools.lru_cache(maxsize=None)
-def _read_keywords(entry: str) -> tuple[dict[str, Any], bool] | None:
+def _read_keywords(entry: str) -> dict[str, Any] | None:
     """What :meth:`TaskSpec.keywords` says of the function or class ``"module:attr"``, read from the
     module's source: its own ``def`` (a class's ``__init__``), undecorated, every default a literal, no
     ``__signature__`` assigned; ``None`` when any of that does not hold (the factory is imported instead)."""
@@ -126,7 +139,7 @@ def _read_keywords(entry: str) -> tuple[dict[str, Any], bool] | None:
             declared[arg.arg] = inspect.Parameter.empty if default is None else ast.literal_eval(default)
     except ValueError:  # a default that is not a literal: the imported signature says what it is
         return None
-    return declared, args.kwarg is not None
+    return declared
 
 
 @dataclass(frozen=True)
@@ -191,19 +204,24 @@ def register_task(
     train: dict[str, Any] | None = None,
     potential: Callable[[dict[str, Any]], Callable] | None = None,
     returns: Callable[[dict[str, Any]], tuple[float, float]] | None = None,
+    fixed: dict[str, Any] | None = None,
     replace: bool = False,
     **defaults,
 ) -> TaskSpec:
     """Registers a task; ``factory`` is a callable or ``"module:attr"`` (imported when the task is first
-    built); ``defaults`` are keyword arguments of ``factory``, ``train`` config overrides,
-    ``potential(env_options)`` builds its reward-shaping potential, ``returns(options)`` gives the range of an
-    episode's return (:attr:`TaskSpec.returns`). ``replace=True`` redefines a
-    registered task (a notebook cell run twice)."""
+    built); ``defaults`` are keyword arguments of ``factory`` (the task's options, which a config may set),
+    ``fixed`` keyword arguments that make the task what it is and that no config may set
+    (:attr:`TaskSpec.fixed`), ``train`` config overrides, ``potential(env_options)`` builds its reward-shaping
+    potential, ``returns(options)`` gives the range of an episode's return (:attr:`TaskSpec.returns`).
+    ``replace=True`` redefines a registered task (a notebook cell run twice)."""
     if dict.__contains__(TASKS, name) and not replace:
         raise UsageError(f"task {name!r} is already registered; pass replace=True to redefine it.")
     if isinstance(factory, str) and not all(factory.partition(":")[::2]):
         raise UsageError(f"task {name!r}: a factory named by a string is 'module:attr', got {factory!r}.")
-    spec = TaskSpec(name, factory, description, dict(defaults), dict(train or {}), potential, returns)
+    both = sorted(set(defaults) & set(fixed or {}))
+    if both:
+        raise UsageError(f"task {name!r}: {both[0]!r} is given both as an option and as a registration field.")
+    spec = TaskSpec(name, factory, description, dict(defaults), dict(train or {}), potential, returns, dict(fixed or {}))
     TASKS[name] = spec
     for hook in ON_REGISTER:
         hook(spec)
@@ -221,16 +239,17 @@ def register_pair(name: str, source: str, target: str, description: str, *, repl
 
 
 def _check_options(spec: TaskSpec, options: dict[str, Any]) -> None:
-    factory = spec.factory
-    params = inspect.signature(factory.__init__ if inspect.isclass(factory) else factory).parameters
-    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
-        return
-    unknown = sorted(set(options) - set(params))
+    fixed = sorted(set(options) & set(spec.fixed))
+    if fixed:
+        raise UsageError(f"task {spec.name!r}: {fixed[0]!r} is part of the task as registered "
+                         f"({spec.fixed[fixed[0]]!r}), not an option; register another task to change it.")
+    declared = spec.keywords()
+    unknown = sorted(set(options) - set(declared))
     if unknown:
-        known = ", ".join(sorted(set(params) - {"self", "batch_size", "device", "seed"}))
+        known = ", ".join(sorted(set(declared) - {"batch_size", "device", "seed"})) or "none"
         raise UsageError(f"task {spec.name!r} has no option {unknown[0]!r}; its options are: {known}.")
     for name, value in options.items():
-        default = params[name].default
+        default = declared[name]
         kinds = _SCALAR_KINDS.get(type(default))
         if kinds and value is not None and (not isinstance(value, kinds) or
                                             (isinstance(value, bool) and not isinstance(default, bool))):
@@ -252,9 +271,9 @@ def make_env(
 ) -> EnvBase:
     """Builds the task ``name`` with its defaults updated by ``overrides``, then seeds it."""
     spec = get_task(name)
-    options = {**spec.defaults, **overrides}
+    options = {**spec.defaults, **spec.options(overrides)}
     _check_options(spec, options)
-    env = spec.factory(batch_size=batch_size, device=device, **options)
+    env = spec.factory(batch_size=batch_size, device=device, **spec.fixed, **options)
     from torchrl.envs import EnvBase
 
     if not isinstance(env, EnvBase):

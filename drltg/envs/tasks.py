@@ -280,8 +280,9 @@ def _pendulum_returns(o: dict) -> tuple[float, float]:
 
 
 _GYM = "drltg.envs.gym:make_gym_env"  # drltg.envs.gym.register_gym_task's factory
+_PENDULUM = {"gym_id": "Pendulum-v1", "info_keys": []}  # drltg.envs.gym.fixed("Pendulum-v1")
 register_task("pendulum/g10", _GYM, "Gymnasium Pendulum-v1, gravity g = 10 (its default)",
-              gym_id="Pendulum-v1", g=10.0, train=PENDULUM_TRAIN, returns=_pendulum_returns)
+              fixed=_PENDULUM, g=10.0, train=PENDULUM_TRAIN, returns=_pendulum_returns)
 register_task("pendulum/g15", _GYM, "Gymnasium Pendulum-v1, gravity g = 15: a heavier swing-up",
-              gym_id="Pendulum-v1", g=15.0, train=PENDULUM_TRAIN, returns=_pendulum_returns)
+              fixed=_PENDULUM, g=15.0, train=PENDULUM_TRAIN, returns=_pendulum_returns)
 register_pair("pendulum-heavier", "pendulum/g10", "pendulum/g15", "Pendulum's gravity rises from 10 to 15")

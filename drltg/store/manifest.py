@@ -43,6 +43,10 @@ def read(run_dir: str | Path) -> dict[str, list[str]]:
     files = data.get("sha256") if isinstance(data, dict) else None
     if not isinstance(files, dict):
         raise UsageError(f"'{path}' holds no 'sha256' mapping; restore it or delete it to read the run unchecked.")
+    for name, digests in files.items():
+        if not isinstance(digests, list) or not all(isinstance(d, str) for d in digests):
+            raise UsageError(f"'{path}' gives '{name}' digests {digests!r}, not a list of SHA-256 strings; restore it "
+                             "or delete it to read the run unchecked.")
     return files
 
 

@@ -48,7 +48,8 @@ EVAL_COLUMNS = ["frames", "return_mean", "return_std", "episodes", *(f"{flag}_ra
 
 
 __all__ = ["atomic_write", "atomic_torch_save", "atomic_path", "write_files", "read_eval_csv", "write_eval_csv",
-           "read_config", "write_config", "absolute_source", "is_complete", "check_directory", "refuse_special", "lock",
+           "read_config", "write_config", "absolute_source", "is_complete", "check_directory", "check_contents",
+           "refuse_special", "lock",
            "load_checkpoint", "checkpoint_path", "missing_checkpoint", "truncate_logs", "RunWriter"]
 
 
@@ -144,6 +145,30 @@ def refuse_special(path: str | Path, option: str) -> None:
         kind = "a FIFO" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else "a device"
         raise UsageError(f"{option} '{path}' is {kind}; drltg writes only regular files and folders, so choose "
                          "another path.")
+
+
+def check_contents(run_dir: str | Path) -> None:
+    """Refuse a run directory that holds anything but regular files and folders: a symbolic link (its
+    ``logs`` pointing at a user's data, its ``eval.csv`` at a file the manifest does not cover), a FIFO, a
+    device or a socket. Reading or rewriting a run then never reaches outside it, nor blocks on a pipe.
+    The directory itself may be reached through a link (``runs/latest``); what it holds may not."""
+    import stat
+
+    root = Path(run_dir)
+    for folder, dirs, files in os.walk(root, followlinks=False):
+        for name in sorted(dirs + files):
+            path = Path(folder) / name
+            try:
+                mode = os.lstat(path).st_mode
+            except FileNotFoundError:  # removed meanwhile (a temporary file renamed)
+                continue
+            if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+                continue
+            kind = ("a symbolic link" if stat.S_ISLNK(mode) else "a FIFO" if stat.S_ISFIFO(mode) else
+                    "a socket" if stat.S_ISSOCK(mode) else "a device")
+            raise UsageError(f"run directory '{run_dir}' holds {kind}, '{path.relative_to(root).as_posix()}'; a run "
+                             "holds regular files and folders only, and drltg follows nothing out of it: replace it "
+                             "with the file it stands for.")
 
 
 def atomic_write(path: str | Path, data: str | bytes) -> None:
@@ -399,6 +424,7 @@ def load_checkpoint(run_dir: str | Path, map_location="cpu", mmap: bool = False,
 
     name = checkpoint_path(checkpoint)
     path = Path(run_dir) / name
+    check_contents(run_dir)
     if not path.is_file():
         raise UsageError(missing_checkpoint(run_dir, checkpoint))
     manifest.verify(run_dir, name.as_posix())

@@ -252,7 +252,7 @@ def _worker_env(cfg: RunConfig, seeds: list[int], per_seed: int, seed_offset: in
     from drltg.envs import get_task
     from drltg.envs.limits import usable_cpus
 
-    serial = ("parallel" in get_task(cfg.task).keywords()[0] and cfg.env.get("parallel") is None
+    serial = ("parallel" in get_task(cfg.task).keywords() and cfg.env.get("parallel") is None
               and len(seeds) * per_seed > usable_cpus())
     build = functools.partial(build_env, cfg, batch_size=(per_seed,), **({"parallel": False} if serial else {}))
     workers = ParallelEnv(len(seeds), build,

@@ -64,6 +64,7 @@ class RunSession(contextlib.ExitStack):
                 refuse_existing(d)
             return
         for c, d in zip(self.cfgs, self.dirs):
+            rundir.check_contents(d)
             if not (d / CONFIG).is_file():
                 raise UsageError(f"cannot resume: '{d}' holds no {CONFIG} (is it a drltg run directory?).")
             check_saved_config(c, d)
@@ -157,12 +158,18 @@ def resume_state(cfg: RunConfig, run_dir: Path) -> tuple[dict | None, list[dict]
     ckpt = rundir.load_checkpoint(run_dir, map_location=cfg.device)
     if not TRAINING_STATE <= set(ckpt):
         raise UsageError(f"cannot resume '{run_dir}': its checkpoint is not a training checkpoint of drltg train.")
-    frames = ckpt["frames"]
+    frames, updates = ckpt["frames"], ckpt["updates"]
+    for name, value, most in (("frames", frames, cfg.frames), ("updates", updates, None)):
+        if not isinstance(value, int) or isinstance(value, bool) or value < 0 or (most is not None and value > most):
+            bound = f"0 to the budget of {most}" if most is not None else "0 or more"
+            raise UsageError(f"cannot resume '{run_dir}': its checkpoint's {name} is {value!r}, not a whole number "
+                             f"from {bound}; it is not this run's checkpoint.")
     if not (run_dir / EVAL).is_file():
         raise UsageError(
             f"cannot resume '{run_dir}': its {EVAL} is missing, so the curve up to the checkpoint at frame "
             f"{frames} is lost; start the run again in another --run-dir."
         )
+    manifest.verify(run_dir, EVAL)  # the curve is carried forward: an edited one must not be
     rows = [r for r in read_eval_csv(run_dir / EVAL) if r["frames"] <= frames]
     found, expected = [r["frames"] for r in rows], ckpt.get("evaluations", [0])
     missing = sorted(set(expected) - set(found))

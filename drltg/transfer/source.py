@@ -18,7 +18,15 @@ from drltg.config import RunConfig, TransferConfig
 from drltg.envs import make_env
 from drltg.envs.robosuite.layout import TASKS as MANIPULATION
 from drltg.errors import UsageError
-from drltg.store.rundir import CONFIG, SUMMARY, checkpoint_path, is_complete, load_checkpoint, missing_checkpoint
+from drltg.store.rundir import (
+    CONFIG,
+    SUMMARY,
+    check_contents,
+    checkpoint_path,
+    is_complete,
+    load_checkpoint,
+    missing_checkpoint,
+)
 from drltg.transfer.registry import get_method
 
 if TYPE_CHECKING:
@@ -111,6 +119,7 @@ def rebuild(run_dir, device: str = "cpu", checkpoint: str = "last") -> Rebuilt:
     from drltg.learners import make_agent
 
     run = Path(run_dir).expanduser()
+    check_contents(run)
     if not (run / CONFIG).is_file():
         raise UsageError(f"'{run_dir}' is not a drltg run directory: it holds no {CONFIG}.")
     ckpt = checkpoint_path(checkpoint)

@@ -12,7 +12,7 @@ def _builtin(obj) -> bool:
 def _kind(name: str, task) -> str:
     if name.startswith(("fourrooms", "gridrooms")):
         return "rooms"
-    return "gym" if "gym_id" in task.defaults else "robosuite"
+    return "gym" if "gym_id" in task.fixed else "robosuite"
 
 
 def tasks_table(kind: str) -> str:

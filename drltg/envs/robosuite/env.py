@@ -95,7 +95,10 @@ class RobosuiteEnv(EnvBase):
             once per model, 0.020-0.022 m) is the same in every env and worker.
         fast: step with :class:`~drltg.envs.robosuite.fast_osc.LeanStep` (the same trajectories as
             robosuite's ``env.step``, several times faster); ``False`` calls robosuite's ``env.step``.
-        **task_kwargs: passed to the robosuite environment (e.g. ``reward_shaping=True`` for ``lift``).
+        reward_shaping: robosuite's dense staged reward instead of the task's sparse one (``lift-dense``).
+        reward_scale: robosuite's scale of the reward (``None``: unscaled).
+        **task_kwargs: passed to the robosuite environment as they are (from code only: a config's ``env``
+            keys are the keywords above, :meth:`drltg.envs.TaskSpec.keywords`).
     """
 
     def __init__(
@@ -111,6 +114,8 @@ class RobosuiteEnv(EnvBase):
         render_size: tuple[int, int] = (256, 256),
         seed: int | None = None,
         fast: bool = True,
+        reward_shaping: bool = False,
+        reward_scale: float | None = 1.0,
         device=None,
         **task_kwargs,
     ):
@@ -136,6 +141,8 @@ class RobosuiteEnv(EnvBase):
             ignore_done=True,
             hard_reset=False,
             seed=0,
+            reward_shaping=reward_shaping,
+            reward_scale=reward_scale,
             **task_kwargs,
         )
         self.observables = tuple(observables)
@@ -308,8 +315,7 @@ def robosuite_task(**options) -> EnvBase:
 
 
 def _robosuite_signature() -> inspect.Signature:
-    """``make_robosuite_env``'s keywords and ``RobosuiteEnv``'s, so configs can check their types
-    (robosuite's own task keywords stay open: ``**task_kwargs``)."""
+    """``make_robosuite_env``'s keywords and ``RobosuiteEnv``'s, so configs can check their types."""
     outer = [p for p in inspect.signature(make_robosuite_env).parameters.values() if p.kind is not p.VAR_KEYWORD]
     names = {p.name for p in outer}
     inner = [

@@ -1,0 +1,225 @@
+"""A run directory is data: nothing its config names is imported.
+
+A shared run whose ``config.yaml`` sets a Gymnasium task's id to ``"<run>.payload:Hostile-v0"`` would make
+``gymnasium.make`` import the module ``payload.py`` shipped inside the run. Every command and API that opens
+a run is given such a run, from a working directory where its folder is importable: each refuses it in one
+sentence and the module never runs.
+"""
+import shutil
+import sys
+
+import pytest
+import yaml
+
+from drltg.cli import main
+from drltg.errors import UsageError
+from drltg.store import manifest
+from tests.test_reliability import one_sentence, train_args
+
+PAYLOAD = """\
+import pathlib
+pathlib.Path(__file__).with_name("marker").write_text("ran")
+"""
+HOSTILE_ID = "sharedrun.payload:Hostile-v0"
+REFUSAL = ("gym_id", "part of the task", "not an option")  # said by the config check or by make_env
+
+
+@pytest.fixture(scope="module")
+def pendulum(tmp_path_factory):
+    """A finished tiny SAC run on the Gymnasium task pendulum/g10."""
+    run = tmp_path_factory.mktemp("pendulum") / "run"
+    assert main(train_args(run, "-o", "eval.episodes=1", task="pendulum/g10", frames=64)) == 0
+    return run
+
+
+@pytest.fixture
+def shared(pendulum, tmp_path, monkeypatch):
+    """``tmp_path/sharedrun``: the run with the hostile id in its config (manifest updated to match, as an
+    attacker would) and ``payload.py`` beside it; the working directory and ``sys.path`` see the folder."""
+    run = tmp_path / "sharedrun"
+    shutil.copytree(pendulum, run)
+    (run / "payload.py").write_text(PAYLOAD)
+    config = yaml.safe_load((run / "config.yaml").read_text())
+    config["env"]["gym_id"] = HOSTILE_ID
+    (run / "config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
+    files = manifest.read(run)
+    files["config.yaml"] = [manifest.digest(run / "config.yaml")]
+    (run / manifest.MANIFEST).write_text(manifest.dumps(files))
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    yield run
+    assert not (run / "marker").exists(), "a module named by the run's config was imported"
+    sys.modules.pop("sharedrun.payload", None), sys.modules.pop("sharedrun", None)
+
+
+def test_the_payload_is_real(shared):
+    """What the tests guard: Gymnasium imports the module an id's prefix names."""
+    import gymnasium
+
+    with pytest.raises(gymnasium.error.Error):
+        gymnasium.make(HOSTILE_ID)
+    assert (shared / "marker").read_text() == "ran"
+    (shared / "marker").unlink()
+
+
+@pytest.mark.parametrize("args", [
+    ["evaluate", "sharedrun", "--episodes", "1"],
+    ["video", "sharedrun", "--out", "v", "--max-steps", "5"],
+    ["train", "--resume", "--run-dir", "sharedrun", "--no-progress"],
+], ids=["evaluate", "video", "resume"])
+def test_a_command_that_opens_the_run_refuses_it(shared, args, capsys):
+    one_sentence(capsys, main(args), 2, *REFUSAL)
+
+
+@pytest.mark.parametrize("method", ["policy-reuse", "value-shaping"])
+def test_a_method_that_rebuilds_the_run_s_policy_refuses_it(shared, method, tmp_path, capsys):
+    args = train_args(tmp_path / "t", "-o", f"transfer.method={method}", "-o", "transfer.source=sharedrun",
+                      task="pendulum/g15")
+    one_sentence(capsys, main(args), 2, *REFUSAL)
+
+
+def test_model_reuse_reads_only_the_run_s_weights(shared, tmp_path, capsys):
+    """Model reuse copies the checkpoint's tensors into the target's own learner and never builds the
+    source's env: it trains, and nothing the config names is imported (the fixture checks)."""
+    args = train_args(tmp_path / "t", "-o", "transfer.method=model-reuse", "-o", "transfer.source=sharedrun",
+                      task="pendulum/g15")
+    assert main(args) == 0
+
+
+@pytest.mark.parametrize("loader", ["load_actor", "load_critic", "load_agent"])
+def test_the_python_loaders_refuse_it(shared, loader):
+    import drltg.transfer
+
+    with pytest.raises(UsageError) as err:
+        getattr(drltg.transfer, loader)("sharedrun")
+    assert all(fragment in str(err.value) for fragment in REFUSAL), err.value
+
+
+def test_the_report_reads_it_without_importing_anything(shared, tmp_path, capsys):
+    code = main(["report", "--baseline", "sharedrun", "--transfer", "sharedrun", "--out", str(tmp_path / "r")])
+    assert "Traceback" not in capsys.readouterr().err and code in (0, 2)
+
+
+def test_a_gym_name_with_a_module_prefix_is_no_task(shared, capsys):
+    one_sentence(capsys, main(["train", f"gym/{HOSTILE_ID}", "--frames", "64", "--run-dir", "x"]), 2,
+                 f"unknown task 'gym/{HOSTILE_ID}'")
+
+
+def test_the_registration_is_no_override_either(tmp_path, capsys):
+    """The same field from the command line: `-o env.gym_id=Acrobot-v1` would train Acrobot under Pendulum's
+    name, and `env.info_keys` would read other flags."""
+    for key, value in [("gym_id", "Acrobot-v1"), ("info_keys", "[success]")]:
+        code = main(train_args(tmp_path / key, "-o", f"env.{key}={value}", task="pendulum/g10"))
+        one_sentence(capsys, code, 2, f"config key 'env.{key}' cannot be set")
+
+
+# ----------------------------------------------------------------------------- nothing out of the run
+@pytest.fixture(scope="module")
+def stopped(tmp_path_factory):
+    """A run stopped at its checkpoint at frame 128 of a 256-frame budget, its manifest kept."""
+    run = tmp_path_factory.mktemp("stopped") / "run"
+    assert main(train_args(run, "-o", "checkpoint.every=128", "-o", "eval.every=64", frames=128)) == 0
+    config = yaml.safe_load((run / "config.yaml").read_text())
+    config["frames"] = 256
+    (run / "config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
+    (run / "summary.json").unlink()
+    files = manifest.read(run)
+    files["config.yaml"] = [manifest.digest(run / "config.yaml")]
+    files.pop("summary.json", None)
+    (run / manifest.MANIFEST).write_text(manifest.dumps(files))
+    return run
+
+
+@pytest.fixture
+def copy(stopped, tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(stopped, run)
+    return run
+
+
+def _resume(run):
+    return main(["train", "--resume", "--run-dir", str(run), "--no-progress"])
+
+
+def test_the_stopped_run_resumes(copy):
+    """What the refusals below guard: the untouched copy resumes to its budget."""
+    assert _resume(copy) == 0 and (copy / "summary.json").is_file()
+
+
+def test_resume_rewrites_no_logs_a_link_points_at(copy, tmp_path, capsys):
+    elsewhere = tmp_path / "my-data"
+    shutil.move(copy / "logs", elsewhere)
+    (copy / "logs").symlink_to(elsewhere)
+    before = {p: p.read_bytes() for p in elsewhere.rglob("*") if p.is_file()}
+    one_sentence(capsys, _resume(copy), 2, "holds a symbolic link, 'logs'")
+    assert {p: p.read_bytes() for p in elsewhere.rglob("*") if p.is_file()} == before
+
+
+@pytest.mark.parametrize("args", [["evaluate", "{run}", "--episodes", "1"], ["video", "{run}", "--max-steps", "2"]],
+                         ids=["evaluate", "video"])
+def test_a_linked_file_or_folder_in_a_run_is_refused(copy, tmp_path, args, capsys):
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (copy / "videos").symlink_to(outside)
+    one_sentence(capsys, main([a.format(run=copy) for a in args]), 2, "holds a symbolic link, 'videos'")
+    assert not any(outside.iterdir())
+
+
+def test_a_fifo_in_a_run_is_refused_before_anything_opens_it(copy, capsys):
+    os = pytest.importorskip("os")
+    os.mkfifo(copy / "logs" / "csv" / "pipe.csv")
+    one_sentence(capsys, _resume(copy), 2, "holds a FIFO, 'logs/csv/pipe.csv'")
+
+
+def test_a_linked_curve_is_refused_by_the_report(copy, tmp_path_factory, capsys):
+    """The manifest was checked beside the file the link points at (or none), so a changed curve was reported."""
+    elsewhere = tmp_path_factory.mktemp("elsewhere") / "eval.csv"
+    shutil.move(copy / "eval.csv", elsewhere)
+    (copy / "eval.csv").symlink_to(elsewhere)
+    out = tmp_path_factory.mktemp("reports") / "r"
+    code = main(["report", "--baseline", str(copy), "--transfer", str(copy), "--out", str(out)])
+    one_sentence(capsys, code, 2, "is a symbolic link inside the run")
+
+
+def test_the_report_does_not_follow_links_between_folders(copy, tmp_path, capsys):
+    """Two links to ``..`` made the search for runs endless; a link is not searched."""
+    (copy.parent / "up").symlink_to("..")
+    (copy / "checkpoints" / "up").symlink_to("../..")
+    from drltg.analysis.curves import find_runs
+
+    assert find_runs(copy.parent) == [copy]
+
+
+def test_resume_verifies_the_curve_it_carries_forward(copy, capsys):
+    text = (copy / "eval.csv").read_text().splitlines(keepends=True)
+    first = text[1].split(",")
+    text[1] = ",".join([first[0], "0.999", *first[2:]])
+    (copy / "eval.csv").write_text("".join(text))
+    one_sentence(capsys, _resume(copy), 2, "eval.csv': it does not match its SHA-256")
+
+
+@pytest.mark.parametrize("frames, shown", [(10**9, "1000000000"), ("abc", "'abc'"), (-5, "-5"), (True, "True")])
+def test_a_checkpoint_counter_outside_the_run_s_budget_is_refused(copy, frames, shown, capsys):
+    """A checkpoint beyond the budget made resume train forever (TorchRL reads a negative remainder as no end)."""
+    import torch
+
+    path = copy / "checkpoints" / "last.pt"
+    torch.save({**torch.load(path, weights_only=True), "frames": frames}, path)
+    files = manifest.read(copy)
+    files["checkpoints/last.pt"] = [manifest.digest(path)]
+    (copy / manifest.MANIFEST).write_text(manifest.dumps(files))
+    one_sentence(capsys, _resume(copy), 2, f"its checkpoint's frames is {shown}, not a whole number from 0 to the "
+                                           "budget of 256")
+
+
+def test_a_manifest_digest_that_is_not_text_is_one_sentence(copy, capsys):
+    files = manifest.read(copy)
+    files["checkpoints/last.pt"] = 12345
+    (copy / manifest.MANIFEST).write_text(manifest.dumps(files))
+    one_sentence(capsys, main(["evaluate", str(copy), "--episodes", "1"]), 2,
+                 "gives 'checkpoints/last.pt' digests 12345, not a list of SHA-256 strings")
+
+
+def test_a_video_of_no_steps_is_refused(copy, capsys):
+    one_sentence(capsys, main(["video", str(copy), "--max-steps", "-1"]), 2, "--max-steps must be at least 1")
+    assert not (copy / "videos").exists()
