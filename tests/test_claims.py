@@ -41,13 +41,24 @@ def report(times=(1000.0, None, 3000.0), crossing="sustained", value=0.4, ci=(0.
 
 
 # ------------------------------------------------------------------------------------------ rules
-@pytest.mark.parametrize("ci, p_adjusted, expected", [
-    ((0.1, 0.5), None, 1), ((-0.5, -0.1), None, -1), ((-0.1, 0.5), None, 0), (None, None, 0),
-    ((0.1, 0.5), 0.2, 0),  # excludes 0 alone, not after Holm: no verdict
-    ((0.1, 0.5), 0.049, 1),
+@pytest.mark.parametrize("value, ci, p_adjusted, expected", [
+    (0.3, (0.1, 0.5), None, 1), (-0.3, (-0.5, -0.1), None, -1), (0.2, (-0.1, 0.5), None, 0), (0.0, None, None, 0),
+    (0.3, (0.1, 0.5), 0.2, 0),  # no exact test: the interval excludes 0 alone, not after Holm: no verdict
+    (0.3, (0.1, 0.5), 0.049, 1),
 ])
-def test_a_difference_has_a_direction_only_when_its_interval_excludes_zero(ci, p_adjusted, expected):
-    assert cl.direction(ci, p_adjusted) == expected
+def test_without_an_exact_test_the_interval_decides(value, ci, p_adjusted, expected):
+    assert cl.direction(value, ci, p_adjusted) == expected
+
+
+@pytest.mark.parametrize("value, ci, p_adjusted, expected", [
+    (0.3, (0.1, 0.5), cl.Adjusted(0.01, 0.03), 1),
+    (0.3, (0.1, 0.5), cl.Adjusted(0.01, 0.25), 0),   # the interval excludes 0, the exact test does not decide
+    (0.3, (-0.9, 1.5), cl.Adjusted(0.9, 0.03), 1),   # a range-bounded interval holds 0, the exact test decides
+    (-0.3, None, cl.Adjusted(None, 0.002), -1),      # no interval at all: the test still decides
+    (0.0, (-0.1, 0.1), cl.Adjusted(0.9, 0.01), 0),   # no direction to give
+])
+def test_the_exact_test_decides_and_the_interval_does_not(value, ci, p_adjusted, expected):
+    assert cl.direction(value, ci, p_adjusted) == expected
 
 
 def test_verdicts_read_higher_lower_or_no_evidence():
@@ -110,7 +121,7 @@ def test_a_crossing_too_late_to_confirm_is_unconfirmed_never_not_held():
     assert "unconfirmed" not in cl.threshold_sentence(first, late=1)
 
 
-def test_best_needs_every_paired_difference_to_exclude_zero():
+def test_best_needs_the_exact_test_to_decide_every_paired_difference():
     def method(scores):  # reports read with the t interval (--interval t)
         return {"per_seed": {"transfer": [{"seed": s, "mean_return": v} for s, v in enumerate(scores)]},
                 "settings": {"interval_method": "t"}}
@@ -120,10 +131,10 @@ def test_best_needs_every_paired_difference_to_exclude_zero():
     # 4 pairs: the t test separates A from B, but no sign-flip test of 4 pairs goes below 2 / 2^4 = 0.125
     four = cl.best_sentence({"A": a, "B": b}, "near")
     assert four == ("near: no method is best at 4 pairs; A leads, and its paired difference to B, "
-                    "+2.00 [+1.74, +2.26], has the exact test's p = 0.125")
+                    "+2.00 [+1.74, +2.26], has the exact sign-flip test's p = 0.125")
     level = cl.best_sentence({"A": a, "B": b, "C": c}, "near")
-    assert level == ("near: no method is best; A leads, and its paired difference to C is +0.25 [\u22121.32, +1.82]: "
-                     "no evidence of a difference at this budget")
+    assert level == ("near: no method is best at 4 pairs; A leads, and its paired difference to C, +0.25 [\u22121.32, "
+                     "+1.82], has the exact sign-flip test's p = 0.75 after Holm")
     a6, b6 = method([3.0, 4.2, 4.8, 6.0, 5.1, 7.0]), method([1.0, 2.0, 3.0, 4.0, 3.0, 5.1])  # 6 pairs: p = 2 / 64
     best = cl.best_sentence({"A": a6, "B": b6}, "near")
     assert best.startswith("near: A is best, ahead of every other method (paired by seed, Holm over 1): B +2.00 [")
@@ -139,17 +150,25 @@ def test_seeds_to_decide_is_the_power_estimate_or_the_exact_tests_floor(value, c
     assert cl.seeds_to_decide(value, ci, n, paired, family) == expected
 
 
-def test_a_verdict_needs_the_exact_test_to_agree():
-    agreed = cl.Adjusted(0.01, 0.03)
-    assert cl.direction((0.1, 0.5), agreed) == 1
-    assert cl.direction((0.1, 0.5), cl.Adjusted(0.01, 0.25)) == 0
-    assert cl.verdict(0.4, (0.1, 0.7), agreed) == "+0.40 [+0.10, +0.70], higher with transfer"
+def test_a_verdict_names_the_exact_test_that_decided_it():
+    assert cl.verdict(0.4, (0.1, 0.7), cl.Adjusted(0.01, 0.03)) == (
+        "+0.40 [+0.10, +0.70], higher with transfer (exact test, p = 0.03)")
+    assert cl.verdict(0.4, (-0.1, 0.7), cl.Adjusted(0.2, 0.03), design=(6, True)) == (
+        "+0.40 [\u22120.10, +0.70], higher with transfer (exact sign-flip test, p = 0.03)")
+    assert cl.verdict(0.4, (0.1, 0.7), cl.Adjusted(0.01, 0.2), design=(10, True)) == (
+        "+0.40 [+0.10, +0.70]: undecided at 10 pairs (exact sign-flip test, p = 0.2)")
+    # 3 pairs: the sign-flip test's smallest p is 2 / 2^3 = 0.25, so no data could decide
     assert cl.verdict(0.4, (0.1, 0.7), cl.Adjusted(0.01, 0.25), design=(3, True)) == (
-        "+0.40 [+0.10, +0.70]: no verdict at 3 pairs (the exact test's p = 0.25); about 6 would decide it (estimate)")
+        "+0.40 [+0.10, +0.70]: undecided at 3 pairs, which cannot decide (the exact sign-flip test gives no p below "
+        "0.25; p = 0.25)")
+    # 5 + 5 runs: the permutation test's smallest p is 2 / C(10, 5) = 0.0079, below 0.05 / 4
     assert cl.verdict(-0.4, (-0.7, -0.1), cl.Adjusted(0.02, 0.2, 4), design=(5, False)) == (
-        "\u22120.40 [\u22120.70, \u22120.10]: no verdict at 5 seeds a side (the exact test's p = 0.2 after Holm); "
-        "about 5 would decide it (estimate)")
-    assert cl.verdict(0.4, (-0.1, 0.7), cl.Adjusted(0.2, 0.25)).endswith("no evidence of a difference at this budget")
+        "\u22120.40 [\u22120.70, \u22120.10]: undecided at 5 seeds a side (exact permutation test, p = 0.2 after Holm)")
+
+
+def test_the_smallest_exact_p_is_the_two_extreme_arrangements():
+    assert [cl.smallest_exact_p(n, True) for n in (3, 5, 6, 10)] == [0.25, 0.0625, 0.03125, 2 / 1024]
+    assert cl.smallest_exact_p(4, False) == pytest.approx(2 / 70) and cl.smallest_exact_p(3, False, 5) == 2 / 56
 
 
 def test_the_headline_concludes_or_says_there_is_no_evidence():
@@ -188,8 +207,8 @@ def test_a_changed_number_changes_the_sentences(tmp_path):
     changed.write_text(json.dumps(data))
     order = ["model-reuse", "value-shaping", "policy-reuse", "reward-shaping"]
     before, after = g.sweeps.sweep_verdicts(g.sweeps.GRADED, order), g.sweeps.sweep_verdicts(tmp_path, order)
-    assert "near +1.08 [\u22120.75, +2.00]: no verdict at 5 pairs; about 20 would decide it" in before
-    assert "near +1.08 [\u22120.20, +2.30]: no verdict at 5 pairs; about 20 would decide it" in after
+    assert "near +1.08 [\u22120.75, +2.00]: undecided at 5 pairs, which cannot decide" in before
+    assert "near +1.08 [\u22120.20, +2.30]: undecided at 5 pairs, which cannot decide" in after
 
 
 def test_the_registry_tables_list_every_builtin_task_method_and_key():
@@ -275,7 +294,8 @@ def test_the_collapse_lines_count_where_each_unplaced_cube_ends(tmp_path, monkey
 
 
 def test_each_reported_row_gets_its_gains_holm_adjusted_within_the_row(tmp_path, monkeypatch):
-    """Two rows of the queue reported, each report with a jumpstart test beside its gain (p = 0.5), so a row's
+    """Two rows of the queue reported (8 pairs each, so the exact test could decide), each report with a jumpstart
+    test beside its gain (p = 0.5), so a row's
     family holds every test of its two reports: pi-reuse-place, where no run placed and the success gain has
     no p-value, so the lifted gain's 0.02 is read among 3 tests (Holm: 3 x 0.02 = 0.06); model-reuse-place,
     whose 0.03 and 0.04 are read among 4 (4 x 0.03, then the larger of that and 3 x 0.04: 0.12 both), and
@@ -294,31 +314,32 @@ def test_each_reported_row_gets_its_gains_holm_adjusted_within_the_row(tmp_path,
         folder = tmp_path / row / "lift-to-place" / "sac" / method / f"report-{tag}"
         folder.mkdir(parents=True)
         metrics = {"mean_return_gain": value, "mean_return_gain_ci": ci, "mean_return_gain_p_value": p,
-                   "n_seeds_transfer": 3, "n_seeds_baseline": 3, "total_reward_baseline": totals[0],
+                   "mean_return_gain_p_exact": p, "n_seeds_transfer": 8, "n_seeds_baseline": 8,
+                   "total_reward_baseline": totals[0],
                    "total_reward_transfer": totals[1], "threshold_reached_baseline": reached[0],
                    "threshold_reached_transfer": reached[1], "jumpstart": ends[0], "asymptotic_performance": ends[1],
-                   "jumpstart_p_value": 0.5}
+                   "jumpstart_p_value": 0.5, "jumpstart_p_exact": 0.5}
         settings = {"task": "lift-place", "transfer_label": method, "baseline_label": "no transfer", "budget": 100000,
+                    "paired": True,
                     "threshold": 0.5, "asymptote_window": 0.1, "family": {"metrics": ["mean_return_gain", "jumpstart"]}}
         (folder / "transfer_metrics.json").write_text(json.dumps({"metrics": metrics, "settings": settings}))
 
     put("pi-reuse-place", "policy-reuse", "success", 0.0, None, None, totals=(0.0, 0.0))
     put("pi-reuse-place", "policy-reuse", "lifted", 0.3, [0.1, 0.5], 0.02, ends=(1.0, 0.2))
-    put("model-reuse-place", "model-reuse", "success", 0.2, [0.05, 0.35], 0.03, totals=(0.0, 2.0), reached=(0, 2 / 3))
+    put("model-reuse-place", "model-reuse", "success", 0.2, [0.05, 0.35], 0.03, totals=(0.0, 2.0), reached=(0, 0.25))
     put("model-reuse-place", "model-reuse", "lifted", 0.4, [0.1, 0.7], 0.04)
     rows = len(claims._queue()[0])
     assert claims.manipulation_rows().splitlines() == [
-        "- `pi-reuse-place` (lift-place, policy-reuse against no transfer, 3 paired seeds × 100k frames), mean gain "
-        "in success rate +0.00: no evidence of a difference at this budget; lifted rate +0.30 [+0.10, +0.50]: no "
-        "evidence of a difference at this budget after Holm's adjustment (adjusted p = 0.06) (at the first evaluation "
-        "+1.00, over the last 10% of the budget +0.20) (Holm over all 3 tests of its 2 reports); no run on either side "
-        "placed a cube in any evaluation.",
-        "- `model-reuse-place` (lift-place, model-reuse against no transfer, 3 paired seeds × 100k frames), mean gain "
-        "in success rate +0.20 [+0.05, +0.35]: no evidence of a difference at this budget after Holm's adjustment "
-        "(adjusted p = 0.12); lifted rate +0.40 [+0.10, +0.70]: no evidence of a difference at this budget after "
-        "Holm's adjustment (adjusted p = 0.12) (Holm over all 4 tests of its 2 reports); success rate ≥ 0.5 held to "
-        "the end by 2 of 3 seeds with transfer and 0 of 3 without; no run without transfer placed a cube in any "
-        "evaluation.",
+        "- `pi-reuse-place` (lift-place, policy-reuse against no transfer, 8 paired seeds × 100k frames), mean gain "
+        "in success rate +0.00: no evidence of a difference at this budget; lifted rate +0.30 [+0.10, +0.50]: "
+        "undecided at 8 pairs (exact sign-flip test, p = 0.06 after Holm) (at the first evaluation +1.00, over the "
+        "last 10% of the budget +0.20) (Holm over all 3 tests of its 2 reports); no run on either side placed a cube "
+        "in any evaluation.",
+        "- `model-reuse-place` (lift-place, model-reuse against no transfer, 8 paired seeds × 100k frames), mean gain "
+        "in success rate +0.20 [+0.05, +0.35]: undecided at 8 pairs (exact sign-flip test, p = 0.12 after Holm); "
+        "lifted rate +0.40 [+0.10, +0.70]: undecided at 8 pairs (exact sign-flip test, p = 0.12 after Holm) (Holm "
+        "over all 4 tests of its 2 reports); success rate ≥ 0.5 held to the end by 2 of 8 seeds with transfer and 0 "
+        "of 8 without; no run without transfer placed a cube in any evaluation.",
         f"{rows - 2} of the queue's {rows} rows are not complete yet (the runs finished so far are below).",
     ]
     shutil.rmtree(tmp_path / "pi-reuse-place")
@@ -337,9 +358,9 @@ def test_a_seed_row_reads_its_three_reports_as_one_family(tmp_path, monkeypatch)
         folder = tmp_path / "pi-reuse-place-seed" / sub
         folder.mkdir(parents=True)
         metrics = {"mean_return_gain": value, "mean_return_gain_ci": ci, "mean_return_gain_p_value": p,
-                   "n_seeds_transfer": 3, "n_seeds_baseline": 3, "jumpstart": 0.0, "asymptotic_performance": 0.0,
-                   "jumpstart_p_value": 0.5}
-        settings = {"task": "lift-place-seed", "transfer_label": "pi-reuse-place-seed", "baseline_label":
+                   "mean_return_gain_p_exact": p, "n_seeds_transfer": 8, "n_seeds_baseline": 8, "jumpstart": 0.0,
+                   "asymptotic_performance": 0.0, "jumpstart_p_value": 0.5, "jumpstart_p_exact": 0.5}
+        settings = {"paired": True, "task": "lift-place-seed", "transfer_label": "pi-reuse-place-seed", "baseline_label":
                     "no transfer", "budget": 300000, "family": {"metrics": ["mean_return_gain", "jumpstart"]}}
         (folder / "transfer_metrics.json").write_text(json.dumps({"metrics": metrics, "settings": settings}))
 
@@ -348,12 +369,11 @@ def test_a_seed_row_reads_its_three_reports_as_one_family(tmp_path, monkeypatch)
     put("report-success", 0.1, [0.02, 0.18], 0.02)
     put("report-lifted", 0.2, [0.05, 0.35], 0.03)
     assert claims.seed_rows().splitlines() == [
-        "- `pi-reuse-place-seed` (lift-place-seed, pi-reuse-place-seed against no transfer, 3 paired seeds × 300k "
-        "frames), mean gain in return +40.00 [+10.00, +70.00]: no evidence of a difference at this budget after "
-        "Holm's adjustment (adjusted p = 0.06); success rate +0.10 [+0.02, +0.18]: no evidence of a difference at "
-        "this budget after Holm's adjustment (adjusted p = 0.1); lifted rate +0.20 [+0.05, +0.35]: no evidence of a "
-        "difference at this budget after Holm's adjustment (adjusted p = 0.12) (Holm over all 6 tests of its 3 "
-        "reports).",
+        "- `pi-reuse-place-seed` (lift-place-seed, pi-reuse-place-seed against no transfer, 8 paired seeds × 300k "
+        "frames), mean gain in return +40.00 [+10.00, +70.00]: undecided at 8 pairs (exact sign-flip test, p = 0.06 "
+        "after Holm); success rate +0.10 [+0.02, +0.18]: undecided at 8 pairs (exact sign-flip test, p = 0.1 after "
+        "Holm); lifted rate +0.20 [+0.05, +0.35]: undecided at 8 pairs (exact sign-flip test, p = 0.12 after Holm) "
+        "(Holm over all 6 tests of its 3 reports).",
         "4 of the 5 rows are not reported yet.",
     ]
 
@@ -465,17 +485,21 @@ def test_a_betting_interval_holds_0_and_says_how_many_seeds_would_decide():
               "settings": {"paired": True, "interval_method": "auto", "value_range": [0, 1]}, "per_seed": rows}
     # 7 pairs like these reach p = 2 / 1.75^7 < 0.05 (and a sign-flip test of 7 pairs can: 2/128)
     assert cl.betting_seeds([0.0] * 3, [1.0] * 3, (0, 1), paired=True) == 7
-    assert cl.verdict_of(ranged, "mean_return_gain") == (
+    assert cl.verdict_of(ranged, "mean_return_gain") == (  # the exact test decides: 3 pairs cannot
+        "+1.00 [\u22120.20, +1.00]: undecided at 3 pairs, which cannot decide (the exact sign-flip test gives no p "
+        "below 0.25; p = 0.25)")
+    no_exact = {**ranged, "metrics": {k: v for k, v in ranged["metrics"].items() if not k.endswith("_p_exact")}}
+    assert cl.verdict_of(no_exact, "mean_return_gain") == (
         "+1.00 [\u22120.20, +1.00]: no verdict at 3 pairs; about 7 would decide it if further seeds scored like these "
         "(estimate)")
-    unknown = {**ranged, "metrics": {k: v for k, v in ranged["metrics"].items() if not k.endswith("_ci")},
+    unknown = {**no_exact, "metrics": {k: v for k, v in no_exact["metrics"].items() if not k.endswith("_ci")},
                "settings": {**ranged["settings"], "value_range": None}}
     assert cl.verdict_of(unknown, "mean_return_gain") == (
         "+1.00: no interval without the curves' range (--value-range), so no verdict")
     assert cl.betting_seeds([0.5] * 3, [0.5] * 3, (0, 1), paired=True) is None  # alike: no number decides
 
 
-def test_best_under_the_betting_interval_says_how_many_pairs_would_decide():
+def test_best_under_the_betting_interval_is_decided_by_the_exact_test():
     def method(scores):  # reports read with --interval auto, returns in [0, 1]
         return {"per_seed": {"transfer": [{"seed": s, "mean_return": v} for s, v in enumerate(scores)]},
                 "settings": {"interval_method": "auto", "value_range": [0, 1]}}
@@ -484,4 +508,4 @@ def test_best_under_the_betting_interval_says_how_many_pairs_would_decide():
     # 1.75^3), and 7 such pairs reach p = 2 / 1.75^7 < 0.05 (cl.betting_seeds)
     said = cl.best_sentence({"A": method([1.0, 1.0, 1.0]), "B": method([0.0, 0.0, 0.0])}, "near")
     assert said.startswith("near: no method is best at 3 pairs; A leads, and its paired difference to B, +1.00 [")
-    assert said.endswith("would take about 7 pairs like these to decide (estimate)")
+    assert said.endswith("has the exact sign-flip test's p = 0.25")

@@ -661,7 +661,8 @@ def test_a_new_metric_is_one_entry(monkeypatch):
 def test_json_keys_keep_their_published_order():
     res = report.compute(flat([1.0, 2.0, 3.0], seeds=[0, 1, 2], prefix="b"),
                          flat([2.0, 4.0, 7.0], seeds=[0, 1, 2], prefix="t"), threshold=1.5)
-    keys = [k for k in res["metrics"] if not k.endswith(("_ci", "_iqm", "_p_value", "_p_adjusted", "_p_exact"))]
+    keys = [k for k in res["metrics"] if not k.endswith(("_ci", "_iqm", "_p_value", "_p_adjusted", "_p_exact",
+                                                         "_verdict", "_verdict_test", "_verdict_p"))]
     assert keys == [
         "n_seeds_baseline", "n_seeds_transfer", "mean_return_gain", "jumpstart", "asymptotic_performance",
         "transfer_ratio", "probability_of_improvement", "probability_of_improvement_initial",
@@ -673,6 +674,29 @@ def test_json_keys_keep_their_published_order():
         "final_trend_baseline", "final_trend_transfer"]
     assert [r[0] for r in report.metrics_rows(res["metrics"])][:4] == [
         "mean_return_gain", "jumpstart", "asymptotic_performance", "transfer_ratio"]
+
+
+@pytest.mark.parametrize("gains, paired, verdict, p", [
+    ([1, 2, 3, 1, 2, 3], True, "higher", 2 / 2**6),   # every pair above: the two extreme sign patterns of 64
+    ([1, 2, 3, 1, 2], True, "undecided", 2 / 2**5),   # 5 pairs can give no p below 0.0625
+    ([-1, -2, -3, -1, -2, -3, -4], True, "lower", 2 / 2**7),
+    # sum 8 of |d| 12: a pattern reaches |sum| >= 8 by flipping |d|s summing to <= 2 (6 subsets) or >= 10 (6)
+    ([1, -2, 3, 1, 2, 3], True, "undecided", 12 / 64),
+    ([5, 5, 5, 5], False, "higher", 2 / 70),           # 4 + 4 runs fully separated: 2 of C(8, 4) = 70 splits
+])
+def test_every_comparison_carries_the_exact_test_s_verdict(gains, paired, verdict, p):
+    """Hand-counted: the sign-flip test over n pairs has 2^n equally likely sign patterns under no effect,
+    and the two-sided p counts those whose |mean| is at least the observed one."""
+    n = len(gains)
+    base = [float(i % 3) for i in range(n)]
+    seeds = list(range(n)) if paired else None
+    b = flat(base, seeds=seeds, prefix="b")
+    t = flat([x + g for x, g in zip(base, gains)], seeds=seeds if paired else [100 + i for i in range(n)], prefix="t")
+    m = report.compute(b, t, value_range=(-10.0, 10.0))["metrics"]
+    for name in ("mean_return_gain", "jumpstart", "asymptotic_performance"):
+        assert m[f"{name}_verdict"] == verdict
+        assert m[f"{name}_verdict_test"] == ("sign-flip" if paired else "permutation")
+        assert m[f"{name}_verdict_p"] == pytest.approx(p)
 
 
 def test_runs_of_two_methods_under_one_side_need_allow_mixed(tmp_path, capsys):

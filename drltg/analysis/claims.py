@@ -3,15 +3,16 @@
 A researcher quotes sentences, not tables, so every sentence that states a result is built here from the
 ``transfer_metrics.json`` (or sweep summary) it summarises, and only these words carry a verdict:
 
-- **a difference** is called higher / lower only when its interval excludes 0 and, where a family of
-  intervals is read together, its Holm-adjusted p-value is below ``LEVEL`` too, and the exact test that
-  assumes no normality (sign-flip over pairs, permutation of runs) agrees at the same adjusted level;
-  where only the interval's test finds one, or a range-bounded (betting) interval holds 0 for a non-zero
-  difference, the sentence says "no verdict at N pairs" and about how many would decide it; otherwise "no
-  evidence of a difference at this budget" (or, for a non-zero difference that has no interval, "no
-  interval, so no verdict", and, where the report knew no range for its curves, "no interval without the
+- **a difference** is called higher / lower only when the exact randomization test (sign-flip over pairs,
+  permutation of runs), which keeps its level at any seed count and assumes no range or normality, rejects
+  "no effect" at ``LEVEL``, Holm-adjusted where a family is read together; its interval is the magnitude
+  beside it, labelled by the report with what it assumes, not the gate. Otherwise the difference is
+  "undecided at N pairs", naming the test's p-value, and a design too small for the test to reach the
+  level at all (fewer than 6 pairs) says so. Only where no exact test exists does an interval decide ("no
+  evidence of a difference at this budget", "no interval, so no verdict", "no interval without the
   curves' range");
-- **best** only when every pairwise difference to the others passes both tests (after Holm over those pairs);
+- **best** only when every pairwise difference to the others is decided by the exact test (after Holm
+  over those pairs);
 - **every seed** only when every seed does; otherwise the count ("3 of 5 seeds") is given;
 - **a threshold** is "first reached" for a first crossing, and "held" (sustained) only under the report's
   sustained rule, whose sentence states how many evaluations after the crossing confirm it; a run at or
@@ -88,27 +89,38 @@ def exact_p(metrics: Mapping, name: str) -> float | None:
     return metrics.get(f"{name}_p_exact")
 
 
-def direction(ci: Sequence | None, p_adjusted: float | Adjusted | None = None, level: float = LEVEL) -> int:
-    """+1 / −1 when the interval lies above / below 0 (and the family's adjusted p is below ``level``
-    where one is given; for an :class:`Adjusted` pair, the exact test's too), else 0: the one rule
-    behind every higher / lower / no-evidence word."""
+def direction(value: float, ci: Sequence | None, p_adjusted: float | Adjusted | None = None,
+              level: float = LEVEL) -> int:
+    """+1 / −1 by the sign of ``value`` when the exact randomization test (``p_adjusted.exact``: sign-flip over
+    pairs, permutation of runs; Holm-adjusted in its family) rejects "no effect" at ``level``, else 0: the one
+    rule behind every higher / lower word. The test keeps its level at any seed count and needs no range or
+    normality; the interval beside it is a magnitude, not the gate. Only where no exact test was made (a plain
+    p-value given, or none) does the interval decide: +1 / −1 when it lies above / below 0 and the p-value,
+    where given, is below ``level``."""
     t, exact, _ = p_adjusted if isinstance(p_adjusted, Adjusted) else (p_adjusted, None, 1)
-    if not excludes_zero(ci):
-        return 0
-    if t is not None and not t < level:
-        return 0
-    if exact is not None and not exact < level:
+    if exact is not None:
+        return (1 if value > 0 else -1) if exact < level and signed(value) != signed(0) else 0
+    if not excludes_zero(ci) or (t is not None and not t < level):
         return 0
     return 1 if ci[0] > 0 else -1
 
 
+def smallest_exact_p(n: int, paired: bool, n_other: int | None = None) -> float:
+    """The smallest two-sided p-value the exact test can give: :math:`2/2^n` for the sign-flip test over ``n``
+    pairs, :math:`2/\binom{n + m}{n}` for the permutation test of ``n`` and ``m`` runs. Below ``level`` only
+    from 6 pairs (0.031; 5 give 0.0625) or 4 + 4 runs (0.029)."""
+    if paired:
+        return min(1.0, 2 / 2 ** n)
+    return min(1.0, 2 / math.comb(n + (n if n_other is None else n_other), n))
+
+
 def seeds_to_decide(value: float, ci: Sequence, n: int, paired: bool, family: int = 1,
                     level: float = LEVEL, confidence: float = 0.95) -> int:
-    r"""About how many seeds a side (pairs, when paired) would let both tests decide a difference, an
+    r"""About how many seeds a side (pairs, when paired) would let the exact test decide a difference, an
     estimate: the t test's sample size for 80% power at the observed effect and spread,
     :math:`n\,((z_{1-\alpha/2} + z_{0.8})\,\mathrm{se}/|\hat\delta|)^2` with the standard error read back from
     the interval, and at least the fewest seeds at which the exact test can reach ``level / family`` at
-    all (paired: :math:`2/2^n`; unpaired: :math:`2/\binom{2n}{n}`)."""
+    all (:func:`smallest_exact_p`)."""
     from scipy import stats as sst
 
     df = max(n - 1, 1)
@@ -116,7 +128,7 @@ def seeds_to_decide(value: float, ci: Sequence, n: int, paired: bool, family: in
     z = sst.norm.ppf(1 - level / 2) + sst.norm.ppf(0.8)
     power = math.ceil(n * (z * se / abs(value)) ** 2) if value else n
     exact = 2
-    while (2 / 2 ** exact if paired else 2 / math.comb(2 * exact, exact)) >= level / family:
+    while smallest_exact_p(exact, paired) >= level / family:
         exact += 1
     return max(power, exact)
 
@@ -124,24 +136,32 @@ def seeds_to_decide(value: float, ci: Sequence, n: int, paired: bool, family: in
 def verdict(value: float, ci: Sequence | None, p_adjusted: float | Adjusted | None = None,
             family: int | None = None, higher: str = "higher with transfer", lower: str = "lower with transfer",
             design: tuple[int, bool] | None = None, about: int | None = None) -> str:
-    """``+1.08 [+0.91, +1.24], higher with transfer`` or ``...: no evidence of a difference at this budget``;
-    an interval that excludes 0 but is held back by the family's adjustment says so, naming the adjusted
-    p-value (and the family's size when given). Where the t test finds a difference and the exact test
-    (``p_adjusted.exact``) does not, there is no verdict at these seeds, and ``design`` (seeds per side,
-    paired) gives about how many would decide it. A non-zero difference without an interval (every pair
-    gave the same one, or the ratio is unbounded) has no verdict either way. ``about``: the seeds at which a
-    range-bounded interval that holds 0 would decide (:func:`betting_seeds`), said in place of "no evidence"."""
+    """``+1.08 [+0.91, +1.24], higher with transfer (exact sign-flip test, p = 0.031)`` or ``...: undecided at 5
+    pairs (...)``: the word comes from :func:`direction`, the exact test's p-value (Holm-adjusted where a
+    family is read together) is named beside it. A design too small for the exact test to reach the level at
+    all says so (3 pairs: p >= 0.25). Where no exact test was made, the interval decides as before: "no
+    evidence of a difference at this budget" for one holding 0, "no interval, so no verdict" for a non-zero
+    difference without one; ``about``: the seeds at which a range-bounded interval that holds 0 would decide
+    (:func:`betting_seeds`)."""
     t, exact, size = p_adjusted if isinstance(p_adjusted, Adjusted) else (p_adjusted, None, 1)
-    sign = direction(ci, t)
+    sign = direction(value, ci, p_adjusted)
     text = estimate(value, ci)
-    if sign and exact is not None and not exact < LEVEL:
-        after = " after Holm" if max(family or 1, size) > 1 else ""
+    if exact is not None:
+        k = max(family or 1, size)
+        after = " after Holm" if k > 1 else ""
+        test = "exact test" if design is None else f"exact {'sign-flip' if design[1] else 'permutation'} test"
+        said = f"{test}, p = {p_text(exact)}{after}"
+        if sign:
+            return f"{text}, {higher if sign > 0 else lower} ({said})"
         if design is None:
-            return f"{text}: no verdict (the exact test's p = {p_text(exact)}{after})"
+            return f"{text}: undecided ({said})"
         n, paired = design
-        about = seeds_to_decide(value, ci, n, paired, max(family or 1, size))
-        return (f"{text}: no verdict at {n} {'pairs' if paired else 'seeds a side'} (the exact test's p = "
-                f"{p_text(exact)}{after}); about {about} would decide it (estimate)")
+        seeds_ = f"{n} {'pairs' if paired else 'seeds a side'}"
+        floor = smallest_exact_p(n, paired)
+        if floor >= LEVEL / k:
+            return (f"{text}: undecided at {seeds_}, which cannot decide (the {test} gives no p below "
+                    f"{p_text(floor)}; p = {p_text(exact)}{after})")
+        return f"{text}: undecided at {seeds_} ({said})"
     if sign > 0:
         return f"{text}, {higher}"
     if sign < 0:
@@ -171,6 +191,8 @@ def verdict_of(report: Mapping, name: str, p_adjusted: Adjusted | None = None, f
     m, st = report["metrics"], report["settings"]
     ci, design = m.get(f"{name}_ci"), design_of(report)
     p = p_adjusted if p_adjusted is not None else Adjusted(None, exact_p(m, name))
+    if p.exact is not None:
+        return verdict(m[name], ci, p, family, design=design, **words)
     auto = st.get("interval_method") == "auto" and design[0] >= 3
     if auto and not has_interval(ci) and st.get("value_range") is None and m.get(name) is not None:
         return f"{estimate(m[name])}: {NO_RANGE}"
@@ -363,8 +385,8 @@ def pairwise(a: Mapping, b: Mapping, score: str = "mean_return") -> tuple[float,
 
 def best_sentence(reports: Mapping[str, Mapping], where: str, score: str = "mean_return") -> str:
     """Which method, if any, is best on one target: the one whose transfer runs beat every other's, each
-    paired difference excluding 0 with the t test and the exact sign-flip test agreeing after Holm over all
-    the pairs read; otherwise it names the leader and the rival it is not separated from."""
+    paired difference decided by the exact sign-flip test after Holm over all the pairs read; otherwise it
+    names the leader and the rival it is not separated from."""
     names = sorted(reports)
     if len(names) < 2:
         raise ValueError("best needs at least two methods")
@@ -375,29 +397,18 @@ def best_sentence(reports: Mapping[str, Mapping], where: str, score: str = "mean
                                                            stats.holm([p[5] for p in pairs]))]
     weakest = None
     for (_, other, diff, ci, *_), p_adj in zip(pairs, adjusted):
-        if direction(ci, p_adj) <= 0 and (weakest is None or diff < weakest[1]):
+        if direction(diff, ci, p_adj) <= 0 and (weakest is None or diff < weakest[1]):
             weakest = (other, diff, ci, p_adj)
     if weakest is None:
         diffs = "; ".join(f"{other} {estimate(diff, ci)}" for _, other, diff, ci, *_ in pairs)
         return (f"{where}: {leader} is best, ahead of every other method (paired by seed, Holm over "
                 f"{len(pairs)}): {diffs}")
     other, diff, ci, p_adj = weakest
-    if direction(ci, p_adj.t) and not p_adj.exact < LEVEL:
-        n = len(set(per_seed_scores(reports[leader], "transfer", score)) & set(per_seed_scores(reports[other],
-                                                                                              "transfer", score)))
-        return (f"{where}: no method is best at {n} pairs; {leader} leads, and its paired difference to {other}, "
-                f"{estimate(diff, ci)}, has the exact test's p = {p_text(p_adj.exact)}"
-                + (" after Holm" if len(pairs) > 1 else ""))
-    st = reports[leader]["settings"]
-    if has_interval(ci) and st.get("interval_method") == "auto" and signed(diff) != signed(0):
-        sa, so = per_seed_scores(reports[leader], "transfer", score), per_seed_scores(reports[other], "transfer", score)
-        shared = sorted(set(sa) & set(so))
-        about = betting_seeds([so[k] for k in shared], [sa[k] for k in shared], st["value_range"], True, len(pairs))
-        if about is not None:
-            return (f"{where}: no method is best at {len(shared)} pairs; {leader} leads, and its paired difference "
-                    f"to {other}, {estimate(diff, ci)}, would take about {about} pairs like these to decide (estimate)")
-    return (f"{where}: no method is best; {leader} leads, and its paired difference to {other} is "
-            f"{estimate(diff, ci)}: {NO_EVIDENCE if has_interval(ci) else NO_RANGE}")
+    n = len(set(per_seed_scores(reports[leader], "transfer", score)) & set(per_seed_scores(reports[other],
+                                                                                          "transfer", score)))
+    return (f"{where}: no method is best at {n} pairs; {leader} leads, and its paired difference to {other}, "
+            f"{estimate(diff, ci)}, has the exact sign-flip test's p = {p_text(p_adj.exact)}"
+            + (" after Holm" if len(pairs) > 1 else ""))
 
 
 def headline(report: Mapping, metric: str = "mean_return_gain") -> str:

@@ -405,7 +405,7 @@ def permutation_test(baseline, transfer, paired: bool = False, statistic: str = 
             return ((diff > 0) + 0.5 * (diff == 0)).mean(axis=(-2, -1)) - 0.5
     else:
         raise ValueError(f"unknown statistic '{statistic}'")
-    if np.ptp(np.concatenate([b, t])) == 0:
+    if np.ptp(np.concatenate([b, t])) == 0 or min(len(b), len(t)) < 2:  # one run a side: no test to make
         return 1.0
     res = stats.permutation_test((b, t), stat, permutation_type="samples" if paired else "independent",
                                  vectorized=True, n_resamples=n_resamples, alternative="two-sided",

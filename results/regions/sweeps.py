@@ -125,7 +125,7 @@ def results_table() -> str:
             m = reports[key]["metrics"]
             ci = m.get(f"{PRIMARY}_ci")
             value = cl.signed(m[PRIMARY])
-            if cl.direction(ci, adjusted.get(key)):
+            if cl.direction(m[PRIMARY], ci, adjusted.get(key)):
                 value = f"**{value}**"
             cells.append(f"{value} [{cl.signed(ci[0])}, {cl.signed(ci[1])}]" if ci else value)
         rows.append((label, *cells))
