@@ -156,3 +156,58 @@ def test_tasks_registered_inside_a_script_s_function_reach_the_workers(tmp_path,
         last = done.stderr.strip().splitlines()[-1]
         assert "the task 'mine/a' cannot reach the worker processes" in last and "--import" in last, last
         assert not (tmp_path / "out").exists()
+
+
+# ----------------------------------------------------------------------------- seeds until decided
+def test_seeds_auto_runs_the_plan_s_looks_and_records_why_it_stopped(tmp_path, capsys):
+    """A real (tiny) experiment capped at 2 pairs: one look, at the whole level, that 2 pairs cannot pass."""
+    out = tmp_path / "auto"
+    args = ["experiment", "fourrooms-near", "--method", "model-reuse", "--seeds", "auto", "--max-seeds", "2",
+            "--frames", "256", "--out", str(out)] + TINY
+    assert main(args) == 0
+    printed = capsys.readouterr()
+    report = json.loads((out / "report" / "transfer_metrics.json").read_text())
+    seq = report["settings"]["sequential"]
+    assert seq["looks"] == [{"pairs": 2, "alpha": 0.05}] and seq["stopped"] == "cap" and seq["pairs"] == 2
+    assert report["metrics"]["mean_return_gain_verdict"] == "undecided"
+    assert report["metrics"]["mean_return_gain_verdict_test"] == "sign-flip, sequential"
+    assert "undecided at the cap of 2 pairs (exact sign-flip test at look 1 of 1, 2 pairs" in printed.out
+    assert "look 1 of 1: 2 pairs" in printed.err
+    assert yaml.safe_load((out / "experiment.yaml").read_text())["seeds"] == "auto"
+
+
+@pytest.mark.parametrize("p_values, stopped, pairs, verdict", [
+    ([0.2, 0.004], "decided", 12, "higher"),        # look 2 of 4 passes its share 0.0125
+    ([0.2, 0.02, 0.3, 0.04], "cap", 20, "undecided"),  # 0.04 < 0.05 alone, not below its share
+])
+def test_seeds_auto_stops_at_the_first_look_below_its_share(monkeypatch, tmp_path, p_values, stopped, pairs, verdict):
+    from drltg.experiments import experiment as ex
+
+    trained = []
+
+    def fake_run(pair, method, frames, out, seeds, *rest):
+        trained.append(seeds)
+        folder = tmp_path / "report"
+        folder.mkdir(exist_ok=True)
+        metrics = {"mean_return_gain": 0.5, "mean_return_gain_verdict_p": p_values[len(trained) - 1],
+                   "n_seeds_baseline": seeds, "n_seeds_transfer": seeds}
+        (folder / "transfer_metrics.json").write_text(json.dumps({"metrics": metrics, "settings": {}}))
+        return {"metrics": dict(metrics), "settings": {}, "out_dir": str(folder), "diverged": []}
+
+    monkeypatch.setattr(ex, "_run", fake_run)
+    result = ex.experiment("fourrooms-near", "model-reuse", frames=256, out=tmp_path / "x", seeds="auto",
+                           progress=False)
+    assert trained == [8, 12, 16, 20][:len(p_values)]
+    seq = result["settings"]["sequential"]
+    assert (seq["stopped"], seq["pairs"], result["metrics"]["mean_return_gain_verdict"]) == (stopped, pairs, verdict)
+    saved = json.loads((tmp_path / "report" / "transfer_metrics.json").read_text())
+    assert saved["settings"]["sequential"] == seq and saved["metrics"]["mean_return_gain_verdict"] == verdict
+
+
+def test_seeds_is_a_count_or_auto(tmp_path, capsys):
+    code = main(["experiment", "fourrooms-near", "--method", "model-reuse", "--seeds", "many", "--frames", "256",
+                 "--out", str(tmp_path / "x")])
+    assert code == 2 and "--seeds: must be a whole number or 'auto', got 'many'" in capsys.readouterr().err
+    code = main(["experiment", "fourrooms-near", "--method", "model-reuse", "--seeds", "auto", "--max-seeds", "0",
+                 "--frames", "256", "--out", str(tmp_path / "x")])
+    assert code == 2 and "--max-seeds must be a whole number from 1" in capsys.readouterr().err

@@ -411,6 +411,21 @@ def best_sentence(reports: Mapping[str, Mapping], where: str, score: str = "mean
             + (" after Holm" if len(pairs) > 1 else ""))
 
 
+def sequential_verdict(report: Mapping) -> str:
+    """The mean return gain of an experiment run with ``--seeds auto`` (``settings.sequential``,
+    :mod:`drltg.analysis.sequential`): decided at the look that stopped it, at that look's share of the level,
+    or undecided at the cap; it says which look and why it stopped."""
+    m, seq = report["metrics"], report["settings"]["sequential"]
+    last, k, total = seq["taken"][-1], len(seq["taken"]), len(seq["looks"])
+    text = estimate(m["mean_return_gain"], m.get("mean_return_gain_ci"))
+    look = (f"exact sign-flip test at look {k} of {total}, {last['pairs']} pairs: p = {p_text(last['p'])} against "
+            f"its share {p_text(last['alpha'])} of {LEVEL:g}")
+    if seq["stopped"] == "decided" and signed(m["mean_return_gain"]) != signed(0):
+        word = "higher with transfer" if m["mean_return_gain"] > 0 else "lower with transfer"
+        return f"{text}, {word} ({look}; seeds added until decided)"
+    return f"{text}: undecided at the cap of {last['pairs']} pairs ({look}; seeds added until the cap)"
+
+
 def headline(report: Mapping, metric: str = "mean_return_gain") -> str:
     """One sentence that concludes a report: its headline metric, named in advance and read alone (the
     report's other metrics form the family that its p (Holm) column adjusts)."""
@@ -421,7 +436,8 @@ def headline(report: Mapping, metric: str = "mean_return_gain") -> str:
     where = f"{st['transfer_label']} vs {st['baseline_label']}, {design}, {frames(st['budget'])} frames"
     if m.get(metric) is None:
         return f"Headline ({where}): {label} is not available."
-    said = verdict_of(report, metric)
+    seq = st.get("sequential")
+    said = sequential_verdict(report) if seq is not None and metric == "mean_return_gain" else verdict_of(report, metric)
     return f"Headline ({where}): {label} {said}."
 
 

@@ -34,6 +34,7 @@ import yaml
 
 from drltg import config as config_lib
 from drltg import safe_yaml
+from drltg.analysis import sequential
 from drltg.config import RunConfig
 from drltg.errors import RunFailed, UsageError
 from drltg.store import rundir
@@ -46,7 +47,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "source, or with -o transfer.source=...")
     p.add_argument("--method", required=True, help="transfer method (`drltg tasks` lists them)")
     p.add_argument("--algo", default="sac", help="learner (default sac)")
-    p.add_argument("--seeds", type=int, default=5, help="runs per side (default 5)")
+    p.add_argument("--seeds", type=seed_count, default=5,
+                   help="runs per side (default 5), or 'auto': paired seeds in rounds until the exact sign-flip "
+                        "test decides the mean return gain, at most --max-seeds (drltg.analysis.sequential)")
+    p.add_argument("--max-seeds", type=int, default=20, help="the most pairs --seeds auto trains (default 20)")
     p.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
     p.add_argument("--frames", type=config_lib.frame_count, required=True,
                    help="frame budget of each target run (50000, 50k, 1e4, 1.5M)")
@@ -62,6 +66,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--threshold", help="report threshold: a value, or a fraction of the best baseline like 80%%")
     p.add_argument("--no-progress", action="store_true", help="no progress bar (none is drawn when stderr is not "
                    "a terminal)")
+
+
+def seed_count(text: str) -> int | str:
+    """``--seeds``: a whole number or ``auto``."""
+    if text == "auto":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number or 'auto', got {text!r}") from None
 
 
 MAX_SEEDS = config_lib.MAX_SEEDS
@@ -227,10 +241,10 @@ def _check_settings(path: Path, settings: dict) -> None:
         raise UsageError(f"'{path.parent}' holds an experiment with other settings; choose another --out.")
 
 
-def experiment(pair: str, method: str, *, frames: int | str, out: str | Path, seeds: int = 5, seed: int = 0,
+def experiment(pair: str, method: str, *, frames: int | str, out: str | Path, seeds: int | str = 5, seed: int = 0,
                algo: str = "sac", source_frames: int | str | None = None, overrides: Sequence[str] = (),
                threshold: float | str | None = None, workers: int = 1, group_seeds: bool = True,
-               progress: bool = True) -> dict:
+               progress: bool = True, max_seeds: int = 20) -> dict:
     """Train one experiment's source, baseline and transfer runs into ``out`` and report the transfer runs
     against the baselines; what is finished is reused and what was interrupted resumes.
 
@@ -240,15 +254,65 @@ def experiment(pair: str, method: str, *, frames: int | str, out: str | Path, se
     Raises :class:`~drltg.errors.UsageError` for a bad setting, before anything is written, and
     :class:`~drltg.errors.RunFailed` naming every run that failed.
 
+    ``seeds="auto"`` trains paired seeds in rounds, as :mod:`drltg.analysis.sequential` plans them up to
+    ``max_seeds`` pairs, and stops at the first round whose exact sign-flip test of the mean return gain
+    decides at its share of the level; the report's ``settings.sequential`` records the plan, the looks
+    taken and why it stopped, and ``mean_return_gain_verdict`` is the plan's verdict.
+
         >>> report = drltg.experiment("fourrooms-near", "policy-reuse", seeds=3, frames="20k", out="runs/near")
         >>> report["metrics"]["mean_return_gain"], report["out_dir"]
     """
-    from drltg.analysis.report import parse_threshold
-    from drltg.experiments.executor import check_order, registrations
-
     frames, source_frames = (None if f is None else config_lib.frame_count(str(f)) for f in (frames, source_frames))
     if workers < 1:
         raise UsageError("--workers must be at least 1.")
+    if seeds == "auto":
+        if isinstance(max_seeds, bool) or not isinstance(max_seeds, int) or not 1 <= max_seeds <= MAX_SEEDS:
+            raise UsageError(f"--max-seeds must be a whole number from 1 to {MAX_SEEDS}, got {max_seeds!r}.")
+        plan = sequential.looks(max_seeds)
+        taken, result = [], {}
+        for k, look in enumerate(plan, 1):
+            result = _run(pair, method, frames, out, look.pairs, seed, algo, source_frames, overrides, threshold,
+                          workers, group_seeds, progress, {"seeds": "auto", "max_seeds": max_seeds})
+            p = result["metrics"].get("mean_return_gain_verdict_p", 1.0)
+            taken.append(p)
+            if progress:
+                went = "decided" if p < look.alpha else ("at the cap" if k == len(plan) else "adding seeds")
+                print(f"look {k} of {len(plan)}: {look.pairs} pairs, exact sign-flip p = {p:.3g} against its share "
+                      f"{look.alpha:.3g} of 0.05: {went}", file=sys.stderr)
+            if p < look.alpha:
+                break
+        return _with_sequential(result, sequential.record(plan, taken))
+    if isinstance(seeds, bool) or not isinstance(seeds, int):
+        raise UsageError(f"--seeds must be a whole number or 'auto', got {seeds!r}.")
+    return _run(pair, method, frames, out, seeds, seed, algo, source_frames, overrides, threshold, workers,
+                group_seeds, progress, {"seeds": seeds})
+
+
+def _with_sequential(result: dict, record: dict) -> dict:
+    """The last look's report with the plan's record and verdict, written back to its transfer_metrics.json."""
+    from drltg.analysis.report.outputs import json_text
+
+    m = result["metrics"]
+    gain = m.get("mean_return_gain") or 0.0
+    verdict = ("higher" if gain > 0 else "lower") if record["stopped"] == "decided" and gain != 0 else "undecided"
+    m.update({"mean_return_gain_verdict": verdict, "mean_return_gain_verdict_test": "sign-flip, sequential",
+              "mean_return_gain_verdict_p": record["taken"][-1]["p"]})
+    result["settings"]["sequential"] = record
+    path = Path(result["out_dir"]) / "transfer_metrics.json"
+    saved = json.loads(path.read_text())
+    saved["metrics"].update({k: m[k] for k in ("mean_return_gain_verdict", "mean_return_gain_verdict_test",
+                                               "mean_return_gain_verdict_p")})
+    saved["settings"]["sequential"] = record
+    rundir.atomic_write(path, json_text(saved))
+    return result
+
+
+def _run(pair, method, frames, out, seeds, seed, algo, source_frames, overrides, threshold, workers, group_seeds,
+         progress, counted: dict) -> dict:
+    """One experiment of ``seeds`` pairs (``counted``: how its settings name the seed count)."""
+    from drltg.analysis.report import parse_threshold
+    from drltg.experiments.executor import check_order, registrations
+
     parse_threshold(threshold)
     out = rundir.check_directory(out, "--out")
     rundir.refuse_run_directory(out, "--out")
@@ -257,7 +321,7 @@ def experiment(pair: str, method: str, *, frames: int | str, out: str | Path, se
     runs = plan_runs(pair, method, algo=algo, seeds=seeds, seed=seed, frames=frames, source_frames=source_frames,
                      overrides=overrides, out=out)
     check_runs(runs)
-    settings = {"pair": pair, "method": method, "algo": algo, "seeds": seeds, "seed": seed, "frames": frames,
+    settings = {"pair": pair, "method": method, "algo": algo, **counted, "seed": seed, "frames": frames,
                 "source_frames": source_frames, "overrides": overrides}
     saved = out / "experiment.yaml"
     _check_settings(saved, settings)
@@ -278,7 +342,8 @@ def run(args: argparse.Namespace) -> int:
         result = experiment(args.pair, args.method, frames=args.frames, out=args.out, seeds=args.seeds,
                             seed=args.seed, algo=args.algo, source_frames=args.source_frames,
                             overrides=args.overrides, threshold=args.threshold, workers=args.workers,
-                            group_seeds=not args.no_seed_groups, progress=not args.no_progress)
+                            group_seeds=not args.no_seed_groups, progress=not args.no_progress,
+                            max_seeds=args.max_seeds)
     except RunFailed as err:
         print(err)
         return 1
