@@ -14,11 +14,16 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 from pathlib import Path
 
-from drltg.analysis.report import transfer_report
-from drltg.experiments.summary import plot_transfer_matrix, summary_tables
-from drltg.store import rundir
+# Python puts this script's folder first on the path, where results/coverage/ would shadow the coverage
+# package that numba (imported by rliable's bootstrap library) probes for.
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+
+from drltg.analysis.report import transfer_report  # noqa: E402
+from drltg.experiments.summary import plot_transfer_matrix, summary_aggregates, summary_tables  # noqa: E402
+from drltg.store import rundir  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent
 ROOT = RESULTS.parent
@@ -64,10 +69,11 @@ def summary(folder: Path, results: dict[Path, dict]) -> None:
             continue
         pair, algo, *variant = report.parent.parent.relative_to(folder).parts
         rows.append({"pair": pair, "algo": algo, "variant": "/".join(variant), "method": report.parent.name,
-                     "report": str(report.relative_to(folder)), "metrics": result["metrics"]})
+                     "report": str(report.relative_to(folder)), "metrics": result["metrics"],
+                     "per_seed": result["per_seed"], "value_range": result["settings"].get("value_range")})
     csv_text, md_text = summary_tables(rows)
     rundir.write_files(folder, {"summary.csv": csv_text.encode(), "summary.md": md_text.encode(),
-                                "transfer_matrix.png": plot_transfer_matrix(rows)})
+                                "transfer_matrix.png": plot_transfer_matrix(rows), **summary_aggregates(rows)})
 
 
 def main() -> None:

@@ -970,3 +970,25 @@ def test_a_difference_within_float32_rounding_of_the_curves_is_drawn_as_zero(tmp
     svg = (tmp_path / "o" / "transfer_plot.svg").read_text()
     assert "jumpstart +0" in svg
     assert "e-06" not in svg
+
+
+def test_report_from_curves_is_the_report_of_the_same_curves(tmp_path):
+    from drltg.analysis import report_from_curves
+
+    frames = [0, 10, 20, 30]
+    b = [[0.0, 0.1, 0.2, 0.3], [0.0, 0.3, 0.3, 0.4], [0.1, 0.1, 0.2, 0.5]]
+    t = [[0.2, 0.4, 0.6, 0.6], [0.1, 0.2, 0.5, 0.8], [0.0, 0.3, 0.3, 0.4]]
+    for i, (x, y) in enumerate(zip(b, t)):
+        write_run(tmp_path / "b" / f"seed-{i}", frames, x)
+        write_run(tmp_path / "t" / f"seed-{i}", frames, y)
+        for side in "bt":
+            (tmp_path / side / f"seed-{i}" / "config.yaml").write_text(f"task: x\nseed: {i}\n")
+    from_files = report.transfer_report(tmp_path / "b", tmp_path / "t", tmp_path / "r", threshold=0.3)
+    from_arrays = report_from_curves(frames, b, t, threshold=0.3)
+    assert from_arrays["settings"]["paired"] and from_arrays["metrics"] == from_files["metrics"]
+    unpaired = report_from_curves(frames, b, t[:2], paired=False)["metrics"]
+    assert unpaired["n_seeds_transfer"] == 2 and unpaired["mean_return_gain_verdict_test"] == "permutation"
+    with pytest.raises(UsageError, match=r"^transfer must be seeds x evaluations with 4 evaluations"):
+        report_from_curves(frames, b, [[0.0, 1.0]])
+    with pytest.raises(UsageError, match="paired curves need as many baseline as transfer seeds, got 3 and 2"):
+        report_from_curves(frames, b, t[:2])

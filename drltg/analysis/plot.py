@@ -277,3 +277,27 @@ def plot_matrix(
     ax.set_title(title or f"Transfer matrix: {metric}")
     fig.colorbar(im, ax=ax, label=metric)
     return _save(plt, fig)
+
+
+@_plain_text
+def plot_profiles(entries: list[dict]) -> tuple[bytes, bytes]:
+    """Performance profiles of a sweep (:func:`drltg.analysis.aggregate.sweep_aggregates`): per algo and
+    method, the share of runs whose normalised score exceeds tau, with its stratified-bootstrap band; the
+    baseline of each algo drawn once, dashed."""
+    plt, (fig, ax) = _figure(figsize=(7, 4.5))
+    drawn = set()
+    for e in entries:
+        p, tau = e["profile"], e["profile"]["tau"]
+        if e["algo"] not in drawn:
+            drawn.add(e["algo"])
+            ax.plot(tau, p["baseline"]["share"], "--", color="0.3", label=f"no transfer ({e['algo']})")
+        label = " ".join(x for x in (e["method"], e["variant"], f"({e['algo']})") if x)
+        line, = ax.plot(tau, p["transfer"]["share"], label=label)
+        ax.fill_between(tau, p["transfer"]["low"], p["transfer"]["high"], color=line.get_color(), alpha=0.15)
+    ax.set_xlabel("normalised score tau" if all(e["normalised"] for e in entries) else "score tau")
+    ax.set_ylabel("share of runs with score > tau")
+    ax.set_ylim(-0.02, 1.02)
+    ax.set_title("Performance profiles over the sweep's pairs (95% stratified-bootstrap bands)")
+    ax.legend(fontsize=8, loc="lower left")
+    ax.grid(alpha=0.3)
+    return _save(plt, fig)

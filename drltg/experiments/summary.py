@@ -2,7 +2,7 @@
 counts findings in, and the transfer-matrix heatmap. Pure functions of the report rows: they write nothing."""
 from __future__ import annotations
 
-__all__ = ["SUMMARY_COLUMNS", "LEVEL", "sweep_family", "summary_tables", "plot_transfer_matrix"]
+__all__ = ["SUMMARY_COLUMNS", "LEVEL", "p_of", "sweep_family", "summary_tables", "summary_aggregates", "plot_transfer_matrix"]
 
 SUMMARY_COLUMNS = ("mean_return_gain", "jumpstart", "asymptotic_performance", "transfer_ratio",
                    "probability_of_improvement", "time_to_threshold_baseline", "time_to_threshold_transfer")
@@ -12,19 +12,26 @@ LEVEL = 0.05
 """The level at which the summary counts findings (the reports' 95 % intervals)."""
 
 
+def p_of(metrics: dict, name: str) -> float | None:
+    """The p-value a summary counts for metric ``name``: its verdict's (the exact test's), else its interval's."""
+    return metrics.get(f"{name}_verdict_p", metrics.get(f"{name}_p_value"))
+
+
 def sweep_family(rows: list[dict], primary_metric: str | None = None) -> tuple[dict, str]:
     """Holm-adjusted p-values over the summary's family, ``{(row index, metric): p}``, and its headline.
 
     The family is the primary metric's p-value in every report when the spec named one in advance, else
-    every p-value the summary shows (each report's own adjustment covers only that report)."""
+    every p-value the summary shows (each report's own adjustment covers only that report). A metric's
+    p-value is its verdict's, the exact randomization test's (``<name>_verdict_p``), where the report gives
+    one, else its interval's."""
     from drltg.analysis.stats import holm
 
     metrics = [primary_metric] if primary_metric else [m for m in SUMMARY_COLUMNS if not m.startswith("time_to")]
     members = [(i, name) for i, r in enumerate(rows) for name in metrics
-               if (r["metrics"] or {}).get(f"{name}_p_value") is not None]
-    adjusted = dict(zip(members, holm([rows[i]["metrics"][f"{name}_p_value"] for i, name in members])))
+               if p_of(r["metrics"] or {}, name) is not None]
+    adjusted = dict(zip(members, holm([p_of(rows[i]["metrics"], name) for i, name in members])))
     found = [(i, name) for (i, name), p in adjusted.items() if p < LEVEL]
-    raw = sum(rows[i]["metrics"][f"{name}_p_value"] < LEVEL for i, name in members)
+    raw = sum(p_of(rows[i]["metrics"], name) < LEVEL for i, name in members)
 
     def sign(i, name):
         value = rows[i]["metrics"][name]
@@ -59,7 +66,7 @@ def summary_tables(rows: list[dict], primary_metric: str | None = None) -> tuple
         cells = []
         for name in SUMMARY_COLUMNS:
             value, ci = m.get(name), m.get(f"{name}_ci") or (None, None)
-            line += [value, *ci, m.get(f"{name}_p_value"), adjusted.get((i, name))]
+            line += [value, *ci, p_of(m, name), adjusted.get((i, name))]
             if not m:
                 cells.append("-")
             elif name.startswith("time_to"):
@@ -98,3 +105,22 @@ def plot_transfer_matrix(rows: list[dict], metric: str = "mean_return_gain") -> 
             text[i, j] = f"{value:+.2f}" + (f"\n[{ci[0]:+.2f}, {ci[1]:+.2f}]" if ci else "")
     title = f"{metric}, transfer - baseline [95% CI; none below 3 seeds a side]"
     return plot_matrix(table, labels, methods, metric, text=text, axis_labels=("pair", "method"), title=title)[0]
+
+
+def summary_aggregates(rows: list[dict]) -> dict[str, bytes]:
+    """``aggregates.json``, ``aggregates.md`` and ``performance_profiles.png``: each method against no transfer
+    over the sweep's pairs and seeds, as rliable defines the aggregates (:mod:`drltg.analysis.aggregate`);
+    nothing where no row has its runs' scores."""
+    import json
+
+    from drltg.analysis.aggregate import aggregates_table, sweep_aggregates
+    from drltg.analysis.plot import plot_profiles
+
+    entries = sweep_aggregates(rows)
+    if not entries:
+        return {}
+    md = ("Aggregates over the sweep's pairs, each method against no transfer (rliable's definitions: IQM, "
+          "median and mean of normalised per-seed mean returns, optimality gap, P(T > B); 95% stratified-bootstrap "
+          "intervals, 2000 resamples, seed 0):\n\n" + aggregates_table(entries))
+    return {"aggregates.json": (json.dumps(entries, indent=1) + "\n").encode(), "aggregates.md": md.encode(),
+            "performance_profiles.png": plot_profiles(entries)[0]}

@@ -59,7 +59,7 @@ from drltg.errors import UsageError
 from drltg.experiments.backends import LocalBackend, RayBackend
 from drltg.experiments.executor import Run, execute, frames_done, registrations, seed_groups
 from drltg.experiments.spec import Spec, load_spec, parse_spec
-from drltg.experiments.summary import plot_transfer_matrix, summary_tables
+from drltg.experiments.summary import plot_transfer_matrix, summary_aggregates, summary_tables
 from drltg.store import rundir
 
 
@@ -157,6 +157,7 @@ def write_reports(cells: list[Cell], status: dict, threshold) -> list[dict]:
                 result = transfer_report(c.baseline, c.transfer, c.report, threshold=threshold,
                                          baseline_label="no transfer", transfer_label=c.method)
                 row["metrics"] = result["metrics"]
+                row["per_seed"], row["value_range"] = result["per_seed"], result["settings"].get("value_range")
                 if diverged:
                     row["note"] = f"{diverged} run(s) diverged, left out"
             except UsageError as err:
@@ -333,6 +334,7 @@ def _write_summary(spec: Spec, out: Path, runs: list[Run], cells: list[Cell], st
     files = {"summary.csv": csv_text.encode(), "summary.md": md_text.encode(), "runs.csv": runs_csv.encode()}
     if any(r["metrics"] for r in rows):
         files["transfer_matrix.png"] = plot_transfer_matrix(rows, metric)
+    files.update(summary_aggregates(rows))
     rundir.write_files(out, files)
     return {"rows": rows, "status": {r.path: status[r.path] for r in runs}, "summary": md_text,
             "logs": {r.path: r.log for r in runs}}

@@ -73,11 +73,11 @@ from drltg.analysis.report.catalogue import COMPARISONS, METRICS, TABLE_ROWS, Me
 from drltg.analysis.report.describe import BETTING_CLAIM, COVERAGE_CLAIM, COVERAGE_EXCEPTIONS
 from drltg.analysis.report.matrix import check_metric, find_matrix_cells, transfer_matrix
 from drltg.analysis.report.outputs import format_table, metrics_rows, render
-from drltg.analysis.report.pipeline import compute, read_runs, transfer_report
+from drltg.analysis.report.pipeline import compute, read_runs, report_from_curves, transfer_report
 from drltg.analysis.report.settings import SETTINGS_DEFAULTS, ReportSettings, parse_frames, parse_threshold
 
 __all__ = [
-    "transfer_report", "compute", "read_runs", "render", "format_table", "metrics_rows",
+    "transfer_report", "report_from_curves", "compute", "read_runs", "render", "format_table", "metrics_rows",
     "ReportSettings", "SETTINGS_DEFAULTS", "parse_threshold", "parse_frames",
     "Metric", "METRICS", "TABLE_ROWS", "COMPARISONS", "table_rows",
     "BETTING_CLAIM", "COVERAGE_CLAIM", "COVERAGE_EXCEPTIONS", "transfer_matrix", "find_matrix_cells", "check_metric",

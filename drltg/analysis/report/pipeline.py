@@ -69,3 +69,37 @@ def read_runs(runs, s: ReportSettings) -> list[Curve]:
     if isinstance(runs, (list, tuple)) and runs and all(isinstance(r, Curve) for r in runs):
         return list(runs)
     return read_curves(runs, format=s.format, tag=s.tag)
+
+
+def report_from_curves(frames, baseline, transfer, *, paired: bool = True, **settings) -> dict:
+    """The report of learning curves already in memory, without reading or writing a file.
+
+    ``frames`` is the frame of each evaluation (shape ``(evaluations,)``); ``baseline`` and ``transfer`` hold
+    one curve a seed (``(seeds, evaluations)``). ``paired``: row ``i`` of both sides shares seed ``i`` (the
+    report then compares the pairs' differences), which needs as many rows on both sides. Keyword settings
+    are :func:`transfer_report`'s. Returns the dict ``transfer_metrics.json`` holds: ``metrics`` (with each
+    comparison's ``_verdict``), ``settings`` and ``per_seed``."""
+    import numpy as np
+
+    from drltg.errors import UsageError
+
+    grid = np.asarray(frames, dtype=np.float64)
+    sides = {name: np.atleast_2d(np.asarray(rows, dtype=np.float64)) for name, rows in
+             (("baseline", baseline), ("transfer", transfer))}
+    if grid.ndim != 1:
+        raise UsageError(f"frames must be one frame per evaluation (1-D), got shape {grid.shape}.")
+    for name, rows in sides.items():
+        if rows.ndim != 2 or rows.shape[1] != len(grid):
+            raise UsageError(f"{name} must be seeds x evaluations with {len(grid)} evaluations (one per frame), "
+                             f"got shape {rows.shape}.")
+    if paired and len(sides["baseline"]) != len(sides["transfer"]):
+        raise UsageError(f"paired curves need as many baseline as transfer seeds, got {len(sides['baseline'])} and "
+                         f"{len(sides['transfer'])}; pass paired=False for independent runs.")
+
+    def curves(name: str) -> list[Curve]:
+        offset = 0 if paired or name == "baseline" else len(sides["baseline"])
+        return [Curve(grid, row, f"{name}[{i}]", f"{name}[{i}]", config={"seed": offset + i})
+                for i, row in enumerate(sides[name])]
+
+    result = compute(curves("baseline"), curves("transfer"), **settings)
+    return {"metrics": result["metrics"], "settings": result["settings"], "per_seed": result["per_seed"]}
