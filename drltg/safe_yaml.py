@@ -7,6 +7,7 @@ deep nesting exhausts Python's recursion. Both are refused here in one sentence,
 """
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import yaml
@@ -47,6 +48,25 @@ def _check_size(root: yaml.Node, what: str) -> None:
             stack.extend((child, depth + 1) for child in node.value)
         elif isinstance(node, yaml.MappingNode):
             stack.extend((child, depth + 1) for pair in node.value for child in pair)
+
+
+MAX_FILE_BYTES = 16 * 2**20
+"""The largest YAML file read (a run's config is a few kilobytes)."""
+
+
+def load_file(path, what: str | None = None) -> Any:
+    """:func:`load` of the file ``path``: one that is larger than :data:`MAX_FILE_BYTES` or not UTF-8 text is
+    one :class:`UsageError` sentence, before it is parsed."""
+    path, what = Path(path), what or f"'{path}'"
+    try:
+        if path.stat().st_size > MAX_FILE_BYTES:
+            raise UsageError(f"{what} is larger than {MAX_FILE_BYTES // 2**20} MB, more than any config; is it one?")
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise UsageError(f"{what} is not UTF-8 text (byte {err.start}).") from None
+    except OSError as err:
+        raise UsageError(f"cannot read {what} ({err.strerror or err}).") from None
+    return load(text, what)
 
 
 def load(text: str, what: str) -> Any:

@@ -259,9 +259,12 @@ def test_drltg_runs_carry_their_config(tmp_path):
 def test_quoted_cells_and_duplicate_columns(tmp_path):
     run = tmp_path / "q"
     run.mkdir()
-    (run / "eval.csv").write_text('frames,note,return_mean,return_mean\n0,"a, b",1.25,9\n10," x ",2.5,9\n')
+    (run / "eval.csv").write_text('frames,note,return_mean\n0,"a, b",1.25\n10," x ",2.5\n')
     (c,) = read_curves(run)
-    np.testing.assert_array_equal(c.values, [1.25, 2.5])  # the first column of the name
+    np.testing.assert_array_equal(c.values, [1.25, 2.5])  # a quoted comma is one cell
+    (run / "eval.csv").write_text('frames,note,return_mean,return_mean\n0,"a, b",1.25,9\n10," x ",2.5,9\n')
+    with pytest.raises(UsageError, match="names the column 'return_mean' twice in its header"):
+        read_curves(run)  # which of the two was meant is a guess
     (run / "eval.csv").write_text("frames,return_mean\n0,0.1\n10,1e-7\n20,-3.000000000000001\n")
     np.testing.assert_array_equal(read_curves(run)[0].values, [0.1, 1e-7, -3.000000000000001])  # exact digits
 

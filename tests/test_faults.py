@@ -136,3 +136,19 @@ def test_a_resumed_run_after_a_file_size_limit_completes(tmp_path, capsys):
     assert json.loads((run / "summary.json").read_text())["status"] == "complete"
     for name in manifest.read(run):
         manifest.verify(run, name)
+
+
+def test_a_full_disk_first_met_by_the_training_logger_is_one_sentence(tmp_path, capsys, monkeypatch):
+    """TorchRL's CSVLogger writes its own files: a full disk it meets first is said as every other writer's."""
+    import errno
+
+    from torchrl.record.loggers import CSVLogger
+
+    def full(self, *args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(CSVLogger, "log_scalar", full)
+    code = main(train_args(tmp_path / "run"))
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    assert "cannot write the training logs in" in err and "(No space left on device)" in err

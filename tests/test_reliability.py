@@ -20,8 +20,8 @@ from drltg import config as config_lib
 from drltg.analysis.curves import read_csvlogger, read_tensorboard
 from drltg.cli import main
 from drltg.errors import UsageError
+from drltg.store import atomic, rundir
 from drltg.store import lock as lock_mod
-from drltg.store import rundir
 
 TINY = ["network.hidden=[16,16]", "collector.num_envs=4", "collector.frames_per_batch=16",
         "collector.init_random_frames=32", "optim.updates_per_batch=1", "buffer.batch_size=16",
@@ -282,7 +282,7 @@ def full_disk(monkeypatch):
     def write(fd, data):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
-    monkeypatch.setattr(rundir, "os", types.SimpleNamespace(**{**vars(os), "write": write}))
+    monkeypatch.setattr(atomic, "os", types.SimpleNamespace(**{**vars(os), "write": write}))
 
 
 def test_a_full_disk_leaves_no_temporary_file_and_the_old_content(tmp_path, monkeypatch):
@@ -838,7 +838,7 @@ def test_a_report_that_fails_midway_leaves_the_old_report_whole(tmp_path, monkey
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
         return real(fd, data)
 
-    monkeypatch.setattr(rundir, "os", types.SimpleNamespace(**{**vars(os), "write": third_write_fails}))
+    monkeypatch.setattr(atomic, "os", types.SimpleNamespace(**{**vars(os), "write": third_write_fails}))
     one_sentence(capsys, main(args + ["--threshold", "0.3"]), 2,
                  f"cannot write '{tmp_path / 'r' / 'transfer_plot.png'}' (No space left on device)")
     assert tree(tmp_path / "r") == before

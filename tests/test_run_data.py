@@ -13,7 +13,7 @@ import yaml
 
 from drltg.cli import main
 from drltg.errors import UsageError
-from drltg.store import manifest
+from drltg.store import manifest, rundir
 from tests.test_reliability import one_sentence, train_args
 
 PAYLOAD = """\
@@ -223,3 +223,102 @@ def test_a_manifest_digest_that_is_not_text_is_one_sentence(copy, capsys):
 def test_a_video_of_no_steps_is_refused(copy, capsys):
     one_sentence(capsys, main(["video", str(copy), "--max-steps", "-1"]), 2, "--max-steps must be at least 1")
     assert not (copy / "videos").exists()
+
+
+# ----------------------------------------------------------------------------- no kill wedges a run
+def _rewrite_manifest(run, change):
+    files = manifest.read(run)
+    change(files)
+    (run / manifest.MANIFEST).write_text(manifest.dumps(files))
+
+
+def test_a_kill_inside_the_first_checkpoint_write_counts_as_never_written(copy, capsys):
+    """What a kill left: the manifest naming the checkpoint (written first, as before), the file itself only
+    as drltg's half-written temporary. Resume starts over instead of refusing, and removes the temporary."""
+    (copy / "checkpoints" / "last.pt").unlink()
+    (copy / "checkpoints" / ".last.pt.k1ll3d.tmp").write_bytes(b"\x80\x02half a checkpoint")
+    assert _resume(copy) == 0, capsys.readouterr().err
+    assert (copy / "summary.json").is_file() and not list(copy.rglob("*.tmp"))
+    assert [r["frames"] for r in rundir.read_eval_csv(copy / "eval.csv")][-1] == 256
+
+
+def test_a_first_write_lands_the_file_before_the_manifest_names_it(tmp_path):
+    rundir.write_tracked(tmp_path, "checkpoints/last.pt", b"one")
+    assert manifest.read(tmp_path) == {"checkpoints/last.pt": [manifest.digest(b"one")]}
+    rundir.write_tracked(tmp_path, "checkpoints/last.pt", b"two")
+    assert manifest.read(tmp_path) == {"checkpoints/last.pt": [manifest.digest(b"two")]}
+
+
+def test_a_temporary_file_of_a_killed_write_does_not_block_the_same_command(tmp_path, capsys):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / ".config.yaml.k1ll3d.tmp").write_text("task: fourrooms/nor")  # killed inside the first config write
+    assert main(train_args(run)) == 0, capsys.readouterr().err
+    assert (run / "summary.json").is_file() and not list(run.glob(".*.tmp"))
+
+
+def test_a_finished_run_killed_before_its_final_manifest_is_completed_on_resume(copy, capsys):
+    assert _resume(copy) == 0
+    _rewrite_manifest(copy, lambda files: [files.pop(k) for k in list(files) if k not in ("eval.csv", "config.yaml")])
+    assert rundir.unlisted(copy)
+    assert _resume(copy) == 0, capsys.readouterr().err
+    assert not rundir.unlisted(copy) and manifest.read(copy)["checkpoints/last.pt"]
+    assert not (copy / ".drltg.lock").exists()
+
+
+def test_a_report_swap_killed_between_its_renames_loses_neither_version(tmp_path):
+    """The old two-rename swap, killed after the first rename: the previous report lies aside as
+    ``.report.*.old``. The next write puts it back first, then replaces it whole, and leaves nothing beside."""
+    out = tmp_path / "report"
+    rundir.write_directory(out, {"a.txt": "old"})
+    out.rename(tmp_path / ".report.x1.old")
+    (tmp_path / ".report.x1.tmp").mkdir()
+    (tmp_path / ".report.x1.tmp" / "a.txt").write_text("half")
+    rundir.write_directory(out, {"a.txt": "new"})
+    assert (out / "a.txt").read_text() == "new" and sorted(p.name for p in tmp_path.iterdir()) == ["report"]
+    rundir.write_directory(out, {"a.txt": "newer"})  # a swap in one step where the system has one
+    assert (out / "a.txt").read_text() == "newer" and sorted(p.name for p in tmp_path.iterdir()) == ["report"]
+
+
+# ----------------------------------------------------------------------------- bounded input, one sentence
+def _report(baseline, transfer, tmp_path_factory):
+    out = tmp_path_factory.mktemp("reports") / "r"
+    return main(["report", "--baseline", str(baseline), "--transfer", str(transfer), "--out", str(out)])
+
+
+def test_a_config_that_is_not_utf8_is_one_sentence_to_evaluate_and_report(copy, tmp_path_factory, capsys):
+    (copy / "config.yaml").write_bytes(b"task: fourrooms/northeast\nalgo: \xff\n")
+    _rewrite_manifest(copy, lambda files: files.update({"config.yaml": [manifest.digest(copy / "config.yaml")]}))
+    one_sentence(capsys, main(["evaluate", str(copy), "--episodes", "1"]), 2, "config.yaml' is not UTF-8 text (byte")
+    one_sentence(capsys, _report(copy, copy, tmp_path_factory), 2, "config.yaml' is not UTF-8 text (byte")
+
+
+def test_a_cpu_index_this_machine_lacks_is_named_as_a_device(copy, capsys):
+    one_sentence(capsys, main(["evaluate", str(copy), "--episodes", "1", "--device", "cpu:99"]), 2,
+                 "--device is 'cpu:99', but the CPU is one device")
+
+
+def test_a_log_naming_a_column_twice_is_refused(tmp_path, tmp_path_factory, capsys):
+    log = tmp_path / "run" / "progress.csv"
+    log.parent.mkdir()
+    log.write_text("time/total_timesteps,eval/mean_reward,eval/mean_reward\n100,1.0,5.0\n200,2.0,6.0\n")
+    one_sentence(capsys, _report(log, log, tmp_path_factory), 2, "names the column 'eval/mean_reward' twice")
+
+
+def test_logs_too_large_to_be_learning_curves_are_refused_before_they_are_read(tmp_path, tmp_path_factory, capsys):
+    import struct
+
+    sparse = tmp_path / "big" / "eval.csv"
+    sparse.parent.mkdir()
+    with open(sparse, "wb") as f:  # 2 GB that take no disk: the size is what is refused
+        f.write(b"frames,return_mean,return_std,episodes\n")
+        f.truncate(2**31)
+    one_sentence(capsys, _report(sparse, sparse, tmp_path_factory), 2, "holds 2,048 MB, more than the 256 MB")
+    wide = tmp_path / "wide.csv"
+    wide.write_text(",".join(f"c{i}" for i in range(20_000)) + "\n" + ",".join(["1"] * 20_000) + "\n")
+    one_sentence(capsys, _report(wide, wide, tmp_path_factory), 2, "has more than 10,000 cells")
+    events = tmp_path / "tb" / "events.out.tfevents.1.host"
+    events.parent.mkdir()
+    events.write_bytes(struct.pack("<Q", 2**40) + b"\0" * 12)
+    one_sentence(capsys, _report(events.parent, events.parent, tmp_path_factory), 2,
+                 "record 0 declares 1,099,511,627,776 bytes")

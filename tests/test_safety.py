@@ -65,6 +65,13 @@ def test_atomic_writes_refuse_special_files(tmp_path):
 @pytest.mark.parametrize("args, message", [
     (["-o", "threads=100000"], "'threads' must be an integer in [1, 512], got 100000"),
     (["-o", "eval.episodes=1000000000"], "'eval.episodes' must be an integer in [1, 10000], got 1000000000"),
+    (["--algo", "soc", "--options", "100000000"], "'soc.num_options' must be an integer in [1, 256], got 100000000"),
+    (["-o", f"buffer.batch_size={2**70}"], f"'buffer.batch_size' must be an integer in [1, 1048576], got {2**70}"),
+    (["-o", f"collector.frames_per_batch={2**70}"], "'collector.frames_per_batch' must be an integer in [1, 1048576]"),
+    (["-o", f"collector.num_envs={2**70}"], "'collector.num_envs' must be an integer in [1, 1048576]"),
+    (["-o", f"optim.updates_per_batch={2**70}"], "'optim.updates_per_batch' must be an integer in [1, 100000]"),
+    (["-o", f"eval.every={2**70}"], "'eval.every' must be an integer in [1, 1000000000000]"),
+    (["--frames", "1e400"], "'1e400' is not a whole number of frames"),
 ])
 def test_counts_in_the_config_are_bounded(args, message, tmp_path, capsys):
     one_sentence(capsys, main(train_args(tmp_path / "r", *args)), 2, message)

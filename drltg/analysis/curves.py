@@ -224,7 +224,7 @@ def _config_of(directory: Path) -> dict | None:
     _verify(config)
     from drltg import safe_yaml
 
-    data = safe_yaml.load(config.read_text(), f"'{config}'")
+    data = safe_yaml.load_file(config)
     return data if isinstance(data, dict) else {}
 
 
@@ -234,8 +234,19 @@ def _task_in(config: dict | None) -> str | None:
 
 
 # ----------------------------------------------------------------------------------------- readers
+MAX_LOG_BYTES = 256 * 2**20
+"""The largest CSV log read (a million evaluations of a run take about 60 MB)."""
+MAX_COLUMNS = 10_000
+"""The most columns a CSV log may have (SB3's progress.csv has a few dozen)."""
+
+
 def _lines(path: Path) -> list[tuple[int, str]]:
-    """The non-blank lines of a text file, with their line numbers (a byte-order mark is dropped)."""
+    """The non-blank lines of a text file, with their line numbers (a byte-order mark is dropped); a file
+    larger than :data:`MAX_LOG_BYTES` is refused before it is read."""
+    size = Path(path).stat().st_size
+    if size > MAX_LOG_BYTES:
+        raise UsageError(f"'{path}' holds {size / 2**20:,.0f} MB, more than the {MAX_LOG_BYTES // 2**20} MB a log of "
+                         "evaluations takes; is it a learning curve?")
     try:
         text = Path(path).read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
@@ -277,6 +288,9 @@ def _table(path: Path, comment: str | None = None,
     if not lines:
         raise UsageError(f"'{path}' has no header.")
     numbers = np.asarray([i for i, _ in lines])
+    if lines[0][1].count(",") >= MAX_COLUMNS:
+        raise UsageError(f"'{path}' line {lines[0][0]} has more than {MAX_COLUMNS:,} cells; a log of evaluations has "
+                         "a few dozen columns.")
 
     def misfit(line: int, cells: int, expected: int) -> UsageError:
         if columns:
@@ -295,6 +309,9 @@ def _table(path: Path, comment: str | None = None,
     if columns is None:
         header, table, numbers = table.iloc[0], table.iloc[1:], numbers[1:]
         table.columns = [str(c).strip() for c in header]
+        twice = sorted({c for c in table.columns if list(table.columns).count(c) > 1})
+        if twice:  # which of the two would be read is a guess
+            raise UsageError(f"'{path}' names the column '{twice[0]}' twice in its header; keep one.")
         if table.empty:
             raise UsageError(f"'{path}' has a header but no rows.")
     counts = table.notna().sum(axis=1).to_numpy()
@@ -450,6 +467,7 @@ def _check_records(file: Path) -> None:
     from tensorboard.compat.tensorflow_stub.pywrap_tensorflow import PyRecordReader_New
 
     _verify(file)
+    _check_record_sizes(file)
     reader, record = PyRecordReader_New(str(file), 0, None, None), 0
     while True:
         try:
@@ -462,6 +480,27 @@ def _check_records(file: Path) -> None:
             raise UsageError(f"'{file}' is a corrupt TensorBoard event file: record {record} fails its CRC check; "
                              "restore it or leave the run out.") from None
         record += 1
+
+
+def _check_record_sizes(file: Path) -> None:
+    """Walk the records' length headers (TFRecord: an 8-byte length, its 4-byte CRC, the data, its 4-byte
+    CRC) before TensorBoard reads them: a file above :data:`MAX_LOG_BYTES`, or a record declaring more bytes
+    than that, is refused, where the reader would first try to allocate it."""
+    import struct
+
+    size = file.stat().st_size
+    if size > MAX_LOG_BYTES:
+        raise UsageError(f"'{file}' holds {size / 2**20:,.0f} MB, more than the {MAX_LOG_BYTES // 2**20} MB a run's "
+                         "event file takes; is it a learning curve?")
+    with open(file, "rb") as f:
+        position, record = 0, 0
+        while position + 12 <= size:
+            f.seek(position)
+            (length,) = struct.unpack("<Q", f.read(8))
+            if length > MAX_LOG_BYTES:
+                raise UsageError(f"'{file}' is a corrupt TensorBoard event file: record {record} declares {length:,} "
+                                 "bytes; restore it or leave the run out.")
+            position, record = position + 16 + length, record + 1
 
 
 def read_csvlogger(path: str | Path, tag: str | None = None) -> Curve:

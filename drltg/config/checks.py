@@ -47,6 +47,8 @@ def check_device(key: str, value: str) -> str:
             f"{_named(key)} is '{value}' but no {device.type.upper()} device is available on this "
             "machine; use device=cpu."
         )
+    if device.type == "cpu" and device.index not in (None, 0):
+        raise UsageError(f"{_named(key)} is '{value}', but the CPU is one device, cpu (or cpu:0).")
     count = getattr(backend, "device_count", None)
     if device.index is not None and device.type != "cpu" and count is not None and device.index >= count():
         raise UsageError(

@@ -101,8 +101,11 @@ def frame_count(text: str) -> int:
     import argparse
 
     m = _FRAMES.fullmatch(str(text))
-    value = float(m.group(1)) * 10 ** int(m.group(2) or 0) * {"": 1, "k": 1e3, "m": 1e6}[m.group(3).lower()] if m \
-        else None
+    try:
+        value = float(m.group(1)) * 10.0 ** int(m.group(2) or 0) * {"": 1, "k": 1e3, "m": 1e6}[m.group(3).lower()] \
+            if m else None
+    except OverflowError:  # 1e400
+        value = None
     if value is None or not 1 <= value <= 1e12 or value != int(value):
         raise argparse.ArgumentTypeError(f"'{text}' is not a whole number of frames >= 1 (e.g. 50000, 50k, 1e4, 1.5M)")
     return int(value)

@@ -33,6 +33,7 @@ from drltg.config.sections import (
     TD3Config,
 )
 from drltg.config.values import (
+    MAX_FRAMES,
     MAX_THREADS,
     Bool,
     Int,
@@ -88,7 +89,7 @@ class RunConfig(Section):
     algo: Literal[ALGOS] = Field("sac", description="learner; sac is discrete SAC on discrete tasks",
                                                json_schema_extra=_what(noun="algorithm"))
     seed: Int = Field(0, ge=0, le=2**31 - 1, description="seed of envs, networks and sampling")
-    frames: Int = Field(50_000, ge=1, description="environment frames, rounded up to whole collector batches")
+    frames: Int = Field(50_000, ge=1, le=MAX_FRAMES, description="environment frames, rounded up to whole collector batches")
     device: Str = Field("cpu", description="torch device",
                         json_schema_extra=_what("a torch device such as cpu, cuda or cuda:0"))
     threads: Int = Field(1, ge=1, le=MAX_THREADS, description="CPU threads per run")  # small nets are overhead-bound

@@ -5,7 +5,19 @@ from typing import Annotated, Literal, Optional, Union
 
 from pydantic import Field
 
-from drltg.config.values import MAX_EPISODES, Bool, Float, Int, Probability, Section, _what
+from drltg.config.values import (
+    MAX_BATCH,
+    MAX_EPISODES,
+    MAX_FRAMES,
+    MAX_OPTIONS,
+    MAX_REPEATS,
+    Bool,
+    Float,
+    Int,
+    Probability,
+    Section,
+    _what,
+)
 
 __all__ = [
     "CollectorConfig", "BufferConfig", "OptimConfig", "NetworkConfig", "SACConfig", "TD3Config", "SOCConfig",
@@ -14,19 +26,19 @@ __all__ = [
 
 
 class CollectorConfig(Section):
-    num_envs: Int = Field(8, ge=1, description="training envs stepped as one batch")
-    frames_per_batch: Int = Field(32, ge=1, description="frames per collector batch, a multiple of num_envs")
-    init_random_frames: Int = Field(1024, ge=0, description="random-action warm-up frames")
+    num_envs: Int = Field(8, ge=1, le=MAX_BATCH, description="training envs stepped as one batch")
+    frames_per_batch: Int = Field(32, ge=1, le=MAX_BATCH, description="frames per collector batch, a multiple of num_envs")
+    init_random_frames: Int = Field(1024, ge=0, le=MAX_FRAMES, description="random-action warm-up frames")
 
 
 class BufferConfig(Section):
     size: Int = Field(100_000, ge=1, description="replay capacity (transitions)")
-    batch_size: Int = Field(256, ge=1, description="minibatch size")
+    batch_size: Int = Field(256, ge=1, le=MAX_BATCH, description="minibatch size")
 
 
 class OptimConfig(Section):
     lr: Float = Field(3.0e-4, gt=0, description="Adam learning rate")
-    updates_per_batch: Int = Field(8, ge=1, description="gradient steps per collected batch")
+    updates_per_batch: Int = Field(8, ge=1, le=MAX_REPEATS, description="gradient steps per collected batch")
     # (UTD = updates_per_batch / collector.frames_per_batch)
     gamma: Float = Field(0.99, gt=0, le=1, description="discount")
     tau: Float = Field(0.005, gt=0, le=1, description="target-network smoothing")
@@ -52,7 +64,7 @@ class TD3Config(Section):
     exploration_noise: Float = Field(0.1, ge=0, description="std of the exploration noise")
     policy_noise: Float = Field(0.2, ge=0, description="std of the target policy smoothing noise")
     noise_clip: Float = Field(0.5, ge=0, description="clip of the target policy noise")
-    policy_delay: Int = Field(2, ge=1, description="critic updates per actor update")
+    policy_delay: Int = Field(2, ge=1, le=MAX_REPEATS, description="critic updates per actor update")
 
 
 OPTION_POLICIES = ("soft", "egreedy")
@@ -61,7 +73,7 @@ OPTION_POLICIES = ("soft", "egreedy")
 class SOCConfig(Section):
     """The soft option-critic (drltg.losses.soc); its action temperature comes from the ``sac`` section."""
 
-    num_options: Int = Field(4, ge=1, description="options of the soft option-critic (--options)")
+    num_options: Int = Field(4, ge=1, le=MAX_OPTIONS, description="options of the soft option-critic (--options)")
     option_policy: Literal[OPTION_POLICIES] = Field(
         "soft", description="policy over options", json_schema_extra=_what(noun="option policy"))
     option_alpha_init: Optional[Annotated[Float, Field(gt=0)]] = Field(
@@ -75,12 +87,12 @@ class SOCConfig(Section):
 
 
 class EvalConfig(Section):
-    every: Int = Field(5_000, ge=1, description="frames between evaluations")
+    every: Int = Field(5_000, ge=1, le=MAX_FRAMES, description="frames between evaluations")
     episodes: Int = Field(16, ge=1, le=MAX_EPISODES, description="evaluation episodes")
 
 
 class CheckpointConfig(Section):
-    every: Int = Field(10_000, ge=1, description="frames between checkpoints")
+    every: Int = Field(10_000, ge=1, le=MAX_FRAMES, description="frames between checkpoints")
     keep_best: Bool = Field(False, description="also keep checkpoints/best.pt, the checkpoint of the best evaluation")
     best_metric: Literal["auto", "success_rate", "lifted_rate", "return_mean"] = Field(
         "auto", description="the evaluation score best.pt maximises; auto: success_rate where the task reports it, "
@@ -89,7 +101,7 @@ class CheckpointConfig(Section):
 
 class LogConfig(Section):
     tensorboard: Bool = Field(True, description="also log to TensorBoard")
-    every: Int = Field(1_000, ge=1, description="frames between logged training scalars")
+    every: Int = Field(1_000, ge=1, le=MAX_FRAMES, description="frames between logged training scalars")
 
 
 ALGOS = ("sac", "td3", "soc")

@@ -58,6 +58,18 @@ MAX_THREADS = 512
 MAX_SEEDS = 1_000
 """Most seeds of one command (``--seeds``, an experiment's seeds)."""
 
+MAX_FRAMES = 10**12
+"""Most frames of a run or of any interval counted in frames (``--frames`` takes as many)."""
+
+MAX_BATCH = 2**20
+"""Most envs, frames or transitions in one batch (``collector.*``, ``buffer.batch_size``)."""
+
+MAX_OPTIONS = 256
+"""Most options of the soft option-critic (its heads are allocated per option)."""
+
+MAX_REPEATS = 100_000
+"""Most repeated steps asked for in one go (``optim.updates_per_batch``, ``td3.policy_delay``)."""
+
 
 def _what(text: str = "", noun: str = "") -> dict:
     """``what`` replaces the generated description of the accepted values; ``noun`` names a choice in

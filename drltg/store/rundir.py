@@ -12,23 +12,22 @@
                          every file: a changed or damaged file is refused (drltg.store.manifest)
     .drltg.lock          pid, host and start time of the process writing the directory, while it runs
 
-Every file is written through a temporary file in the same folder and a rename, so a reader never sees
-half a file and a failed write leaves the previous version. Experiment and sweep folders are owned
+Every file is written through a temporary file in the same folder and a rename (:mod:`drltg.store.atomic`),
+so a reader never sees half a file and a failed write leaves the previous version. Experiment and sweep folders are owned
 through the same lock.
 """
 from __future__ import annotations
 
-import contextlib
 import csv
 import io
 import os
 import pickle
-import tempfile
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 from drltg.errors import UsageError
 from drltg.store import manifest
+from drltg.store.atomic import atomic_path, atomic_write, refuse_special, write_directory, write_files
 from drltg.store.lock import LOCK, lock
 
 CONFIG = "config.yaml"
@@ -47,9 +46,9 @@ EVAL_COLUMNS = ["frames", "return_mean", "return_std", "episodes", *(f"{flag}_ra
 """eval.csv's columns, those a run has in this order; ``unfinished``: episodes cut at the evaluation's step limit."""
 
 
-__all__ = ["atomic_write", "atomic_torch_save", "atomic_path", "write_files", "read_eval_csv", "write_eval_csv",
-           "read_config", "write_config", "absolute_source", "is_complete", "check_directory", "check_contents",
-           "refuse_special", "lock",
+__all__ = ["atomic_write", "atomic_torch_save", "atomic_path", "write_files", "write_directory", "read_eval_csv",
+           "write_eval_csv", "read_config", "write_config", "absolute_source", "is_complete", "check_directory",
+           "check_contents", "refuse_special", "lock",
            "load_checkpoint", "checkpoint_path", "missing_checkpoint", "truncate_logs", "RunWriter"]
 
 
@@ -70,7 +69,7 @@ def read_config(run_dir: str | Path):
     from drltg import safe_yaml
 
     run_dir = Path(run_dir)
-    return absolute_source(safe_yaml.load((run_dir / CONFIG).read_text(), f"'{run_dir / CONFIG}'"), run_dir)
+    return absolute_source(safe_yaml.load_file(run_dir / CONFIG), run_dir)
 
 
 def write_config(run_dir: str | Path, cfg: Any) -> None:
@@ -87,66 +86,7 @@ def write_config(run_dir: str | Path, cfg: Any) -> None:
     atomic_write(run_dir / CONFIG, yaml.safe_dump(data, sort_keys=False))
 
 
-# ------------------------------------------------------------------------------------- atomic files
-def _umask() -> int:
-    """The process's umask, read without changing it where the system allows (other threads may be
-    creating files)."""
-    try:
-        with open("/proc/self/status") as f:
-            for line in f:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
-    except OSError:
-        pass
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-@contextlib.contextmanager
-def atomic_path(path: str | Path) -> Iterator[str]:
-    """Yield a temporary path beside ``path``; once the block has written it, rename it to ``path``.
-
-    The file gets the mode the umask gives any new file (``mkstemp`` makes it 0600). On any failure
-    the temporary file is removed and ``path`` is left as it was; an ``OSError`` (a full disk, a
-    read-only folder) becomes one :class:`UsageError` sentence.
-    """
-    path = Path(path)
-    refuse_special(path, "output")
-    tmp = None
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-        os.close(fd)
-        yield tmp
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except BaseException as err:
-        if tmp is not None:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(tmp)
-        if isinstance(err, OSError):
-            raise UsageError(f"cannot write '{path}' ({err.strerror or err}).") from None
-        raise
-
-
-def refuse_special(path: str | Path, option: str) -> None:
-    """Refuse an output path that exists as something other than a regular file or folder (a device, a
-    FIFO, a socket): drltg writes regular files only, and a rename would replace the special file."""
-    import stat
-
-    try:
-        mode = os.stat(path).st_mode
-    except (FileNotFoundError, NotADirectoryError):
-        return
-    except OSError as err:
-        raise UsageError(f"{option} '{path}' cannot be read ({err.strerror or err}).") from None
-    if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
-        kind = "a FIFO" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else "a device"
-        raise UsageError(f"{option} '{path}' is {kind}; drltg writes only regular files and folders, so choose "
-                         "another path.")
-
-
+# ------------------------------------------------------------------------------------- run files
 def check_contents(run_dir: str | Path) -> None:
     """Refuse a run directory that holds anything but regular files and folders: a symbolic link (its
     ``logs`` pointing at a user's data, its ``eval.csv`` at a file the manifest does not cover), a FIFO, a
@@ -171,20 +111,6 @@ def check_contents(run_dir: str | Path) -> None:
                              "with the file it stands for.")
 
 
-def atomic_write(path: str | Path, data: str | bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file and a rename: readers never see half a file."""
-    data = data.encode() if isinstance(data, str) else data
-    with atomic_path(path) as tmp:
-        fd = os.open(tmp, os.O_WRONLY)
-        try:
-            view = memoryview(data)
-            while view:
-                view = view[os.write(fd, view):]
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-
-
 def atomic_torch_save(obj, path: str | Path) -> None:
     """``torch.save`` atomically; a run's checkpoint with its digest in the run's manifest."""
     import torch
@@ -199,17 +125,15 @@ def atomic_torch_save(obj, path: str | Path) -> None:
     atomic_write(path, buf.getvalue())
 
 
-def write_files(directory: str | Path, files: dict[str, bytes | str]) -> None:
-    """Create ``directory`` and write every file atomically."""
-    for name, data in files.items():
-        atomic_write(Path(directory) / name, data)
-
-
 def write_tracked(run_dir: str | Path, name: str, data: bytes) -> None:
     """Write ``run_dir/name`` atomically with its digest in ``manifest.json``: both the old and the new
     digest are accepted while the file is replaced, so a kill at any moment leaves a file it accepts."""
     run_dir = Path(run_dir)
     files, new = manifest.read(run_dir), manifest.digest(data)
+    if not (run_dir / name).exists():  # a first write: a kill before the file lands leaves no entry naming it
+        atomic_write(run_dir / name, data)
+        atomic_write(run_dir / manifest.MANIFEST, manifest.dumps({**files, name: [new]}))
+        return
     files[name] = [new, *[d for d in files.get(name, [])[:1] if d != new]]
     atomic_write(run_dir / manifest.MANIFEST, manifest.dumps(files))
     atomic_write(run_dir / name, data)
@@ -218,48 +142,22 @@ def write_tracked(run_dir: str | Path, name: str, data: bytes) -> None:
         atomic_write(run_dir / manifest.MANIFEST, manifest.dumps(files))
 
 
+def unlisted(run_dir: str | Path) -> list[str]:
+    """The files of a finished run its manifest does not list (a kill between ``summary.json`` and the final
+    manifest leaves most of them out)."""
+    run_dir = Path(run_dir)
+    listed = manifest.read(run_dir)
+    return [p.relative_to(run_dir).as_posix() for p in sorted(run_dir.rglob("*"))
+            if p.is_file() and p.name != manifest.MANIFEST and not p.name.startswith(".")
+            and p.relative_to(run_dir).as_posix() not in listed]
+
+
 def finalize_manifest(run_dir: str | Path) -> None:
     """Record every file of a finished run in ``manifest.json`` (written last: after ``summary.json``)."""
     run_dir = Path(run_dir)
     files = {p.relative_to(run_dir).as_posix(): [manifest.digest(p)] for p in sorted(run_dir.rglob("*"))
              if p.is_file() and p.name != manifest.MANIFEST and not p.name.startswith(".")}
     atomic_write(run_dir / manifest.MANIFEST, manifest.dumps(files))
-
-
-def write_directory(directory: str | Path, files: dict[str, bytes | str]) -> None:
-    """Make ``directory`` hold ``files``, all of them or, on any failure, its previous content whole.
-
-    The files are written into a temporary sibling folder that is then renamed over ``directory``. A
-    folder that holds other files than these (a user's own folder given as ``--out``) is never replaced:
-    its files are then written one by one, each atomically."""
-    import shutil
-
-    directory = Path(directory)
-    if directory.is_dir() and any(p.name not in files for p in directory.iterdir()):
-        write_files(directory, files)
-        return
-    tmp = None
-    try:
-        directory.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(dir=directory.parent, prefix=f".{directory.name}.", suffix=".tmp"))
-        try:
-            write_files(tmp, files)
-        except UsageError as err:  # name the folder the user gave, not the temporary one
-            raise UsageError(str(err).replace(str(tmp), str(directory))) from None
-        os.chmod(tmp, 0o777 & ~_umask())
-        if directory.exists():
-            old = tmp.with_suffix(".old")
-            os.rename(directory, old)
-            os.rename(tmp, directory)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.rename(tmp, directory)
-    except BaseException as err:
-        if tmp is not None:
-            shutil.rmtree(tmp, ignore_errors=True)
-        if isinstance(err, OSError):
-            raise UsageError(f"cannot write '{directory}' ({err.strerror or err}).") from None
-        raise
 
 
 # ---------------------------------------------------------------------------------------- eval.csv
@@ -383,10 +281,25 @@ def check_name_lengths(path: Path, what: str) -> None:
 
 
 def entries(directory: Path) -> list[Path]:
-    """What ``directory`` holds besides its lock (nothing when it does not exist)."""
+    """What ``directory`` holds besides its lock and the temporary files of killed writes (nothing when it
+    does not exist)."""
     if not directory.is_dir():
         return []
-    return [p for p in directory.iterdir() if p.name != LOCK]
+    return [p for p in directory.iterdir() if p.name != LOCK and not _temporary(p)]
+
+
+def _temporary(path: Path) -> bool:
+    """A file :func:`atomic_path` was writing when it was killed: ``.NAME.XXXXXXXX.tmp``."""
+    return path.name.startswith(".") and path.name.endswith(".tmp") and path.is_file() and not path.is_symlink()
+
+
+def remove_temporaries(run_dir: Path) -> None:
+    """Remove the temporary files killed writes left in a run (the run's owner holds its lock)."""
+    for folder in (run_dir, run_dir / "checkpoints"):
+        if folder.is_dir():
+            for path in folder.iterdir():
+                if _temporary(path):
+                    path.unlink(missing_ok=True)
 
 
 # -------------------------------------------------------------------------------------- checkpoint
@@ -520,9 +433,15 @@ class RunWriter:
             self.loggers.append(TensorboardLogger("tensorboard", log_dir=str(self.run_dir / LOGS)))
 
     def log(self, metrics: dict, step: int) -> None:
-        for logger in self.loggers:
-            for k, v in metrics.items():
-                logger.log_scalar(k, float(v), step=step)
+        """Each scalar to every logger; a write the system refuses (a full disk, a folder made read-only) is
+        one :class:`UsageError` sentence, as every other file of the run's is."""
+        try:
+            for logger in self.loggers:
+                for k, v in metrics.items():
+                    logger.log_scalar(k, float(v), step=step)
+        except OSError as err:
+            raise UsageError(f"cannot write the training logs in '{self.run_dir / LOGS}' "
+                             f"({err.strerror or err}).") from None
 
     def evaluation(self, row: dict) -> None:
         """Append an evaluation (``{"frames": ..., "return_mean": ...}``) to eval.csv and the loggers."""

@@ -17,6 +17,7 @@ command can be run again; a run that diverged keeps its record.
 from __future__ import annotations
 
 import contextlib
+import os
 import shutil
 from pathlib import Path
 
@@ -69,6 +70,9 @@ class RunSession(contextlib.ExitStack):
                 raise UsageError(f"cannot resume: '{d}' holds no {CONFIG} (is it a drltg run directory?).")
             check_saved_config(c, d)
         if all(is_complete(d) for d in self.dirs):  # nothing to write: finished runs may sit in a read-only archive
+            for d in self.dirs:
+                if os.access(d, os.W_OK) and rundir.unlisted(d):  # killed before its final manifest: finish it
+                    complete_manifest(d)
             self.finished = True
             return
         for d in self.dirs:
@@ -77,6 +81,8 @@ class RunSession(contextlib.ExitStack):
             self.finished = True
             return
         self.states = [resume_state(c, d) for c, d in zip(self.cfgs, self.dirs)]
+        for d in self.dirs:
+            rundir.remove_temporaries(d)
         frames = {None if ckpt is None else ckpt["frames"] for ckpt, _ in self.states}
         self.mixed = any(is_complete(d) for d in self.dirs) or len(frames) > 1
 
@@ -114,6 +120,7 @@ class RunSession(contextlib.ExitStack):
                 raise UsageError(f"cannot create --run-dir '{d}' ({err.strerror}).") from None
             self.enter_context(rundir.lock(d))
             refuse_existing(d)  # another process started it first: none of its files are ours to remove
+            rundir.remove_temporaries(d)
             self.created.append(new)
 
     def writers(self, transfers) -> list[RunWriter]:
@@ -130,6 +137,16 @@ class RunSession(contextlib.ExitStack):
             return 0, 0
         torch.set_rng_state(ckpt["rng"])
         return ckpt["frames"], ckpt["updates"]
+
+
+def complete_manifest(run_dir: Path) -> None:
+    """Write the final manifest of a finished run a kill left without one, under its lock, once every file
+    it lists still matches its digest."""
+    with rundir.lock(run_dir):
+        for name in manifest.read(run_dir):
+            manifest.verify(run_dir, name)
+        rundir.remove_temporaries(run_dir)
+        rundir.finalize_manifest(run_dir)
 
 
 def refuse_existing(run_dir: Path) -> None:
@@ -150,7 +167,9 @@ def check_saved_config(cfg: RunConfig, run_dir: Path) -> None:
 def resume_state(cfg: RunConfig, run_dir: Path) -> tuple[dict | None, list[dict]]:
     """The checkpoint to continue from (``None``: start over) and the evaluations up to it."""
     if not (run_dir / CHECKPOINT).is_file():
-        if CHECKPOINT.as_posix() in manifest.read(run_dir):
+        listed = manifest.read(run_dir).get(CHECKPOINT.as_posix(), [])
+        killed_first_write = len(listed) == 1 and any((run_dir / CHECKPOINT.parent).glob(f".{CHECKPOINT.name}.*.tmp"))
+        if listed and not killed_first_write:  # (a kill inside the first write: the checkpoint was never written)
             raise UsageError(f"cannot resume '{run_dir}': its {CHECKPOINT.as_posix()} is missing though its manifest "
                              "lists it, so the run would start over from frame 0; restore the checkpoint or start the "
                              "run again in another --run-dir.")

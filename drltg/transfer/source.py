@@ -128,7 +128,7 @@ def rebuild(run_dir, device: str = "cpu", checkpoint: str = "last") -> Rebuilt:
                          f"'{run_dir}' is not a drltg run directory: it holds no {ckpt.as_posix()}.")
     from drltg import safe_yaml
 
-    data = safe_yaml.load((run / CONFIG).read_text(), f"'{run / CONFIG}'")
+    data = safe_yaml.load_file(run / CONFIG)
     if not isinstance(data, dict) or not {"task", "algo", "env"} <= set(data):
         raise UsageError(f"'{run / CONFIG}' is not a drltg run config (it lacks task, algo or env).")
     try:
