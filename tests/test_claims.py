@@ -242,7 +242,7 @@ def test_the_report_command_ends_with_the_generated_headline(tmp_path, capsys):
     printed = capsys.readouterr().out
     committed = json.loads((demo / "report" / "transfer_metrics.json").read_text())
     assert cl.headline(committed) in printed  # the committed curves give back the quoted headline
-    assert committed["metrics"]["n_seeds_transfer"] == 6 and committed["settings"]["paired"]
+    assert committed["metrics"]["n_seeds_transfer"] == 10 and committed["settings"]["paired"]
 
 
 def test_the_run_rate_counts_a_baseline_kept_by_several_rows_once(tmp_path):

@@ -52,7 +52,7 @@ def test_a_committed_report_is_reproduced_from_its_committed_curves(experiment, 
     ("sweep-lift-to-place", 12),  # per target: 3 baselines, 3 transfers
     ("lift-dense", 2),  # 2 seeds
     ("lift-dense-study", 8),  # 6 variants, 2 of them on 2 seeds
-    ("demo", 13),  # `drltg demo`: 1 source, 6 baselines, 6 transfers
+    ("demo", 21),  # `drltg demo`: 1 source, 10 baselines, 10 transfers
 ])
 def test_every_committed_run_keeps_its_curve_and_config(folder, count):
     runs = [p.parent for p in (RESULTS / folder).glob("**/summary.json")]
