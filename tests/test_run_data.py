@@ -322,3 +322,12 @@ def test_logs_too_large_to_be_learning_curves_are_refused_before_they_are_read(t
     events.write_bytes(struct.pack("<Q", 2**40) + b"\0" * 12)
     one_sentence(capsys, _report(events.parent, events.parent, tmp_path_factory), 2,
                  "record 0 declares 1,099,511,627,776 bytes")
+
+
+def test_a_fifo_among_a_user_s_logs_is_refused_not_read(tmp_path, tmp_path_factory, capsys):
+    import os
+
+    curve = tmp_path / "logs" / "scalars" / "eval" / "return_mean.csv"
+    curve.parent.mkdir(parents=True)
+    os.mkfifo(curve)  # a CSVLogger folder whose curve is a pipe: reading it would block
+    one_sentence(capsys, _report(tmp_path / "logs", tmp_path / "logs", tmp_path_factory), 2, "is not a regular file")

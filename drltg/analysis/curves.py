@@ -243,7 +243,12 @@ MAX_COLUMNS = 10_000
 def _lines(path: Path) -> list[tuple[int, str]]:
     """The non-blank lines of a text file, with their line numbers (a byte-order mark is dropped); a file
     larger than :data:`MAX_LOG_BYTES` is refused before it is read."""
-    size = Path(path).stat().st_size
+    import stat
+
+    info = Path(path).stat()
+    if not stat.S_ISREG(info.st_mode):  # a FIFO would block the read, a device never end
+        raise UsageError(f"'{path}' is not a regular file (a FIFO, a device or a socket); a log is a file.")
+    size = info.st_size
     if size > MAX_LOG_BYTES:
         raise UsageError(f"'{path}' holds {size / 2**20:,.0f} MB, more than the {MAX_LOG_BYTES // 2**20} MB a log of "
                          "evaluations takes; is it a learning curve?")

@@ -72,7 +72,7 @@ def _check_env(task: str, env: dict) -> dict:
     (:attr:`drltg.envs.TaskSpec.fixed`, e.g. a Gymnasium id) is no option: stated with the task's own value
     (as configs saved before the distinction did) it is dropped, with any other value refused."""
     spec = _task_spec(task)
-    env = spec.options(env)
+    env = spec.without_registration(env)
     declared = env_defaults(task)
     for name in env:
         if name in _ENV_RESERVED:

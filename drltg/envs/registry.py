@@ -70,7 +70,7 @@ class TaskSpec:
         except (ImportError, AttributeError) as err:
             raise UsageError(f"task {self.name!r}: its factory {self.entry!r} cannot be imported ({err}).") from None
 
-    def options(self, given: dict[str, Any]) -> dict[str, Any]:
+    def without_registration(self, given: dict[str, Any]) -> dict[str, Any]:
         """``given`` less the registration fields it states with the task's own value (configs saved before
         :attr:`fixed` existed hold them); one stated with any other value stays, for the check to refuse."""
         def plain(value):
@@ -271,7 +271,7 @@ def make_env(
 ) -> EnvBase:
     """Builds the task ``name`` with its defaults updated by ``overrides``, then seeds it."""
     spec = get_task(name)
-    options = {**spec.defaults, **spec.options(overrides)}
+    options = {**spec.defaults, **spec.without_registration(overrides)}
     _check_options(spec, options)
     env = spec.factory(batch_size=batch_size, device=device, **spec.fixed, **options)
     from torchrl.envs import EnvBase
