@@ -8,7 +8,7 @@
 the folder can be moved and read anywhere. Then, with or without ``--from``, every
 ``PAIR/ALGO[/VARIANT]/METHOD/transfer`` is reported against the ``baseline`` beside it with ``drltg report``
 into ``METHOD/report/`` (JSON, CSV and the PNG plot), and the folder gets ``summary.{csv,md}`` and the
-``transfer_matrix.png`` heatmap, as ``drltg sweep`` writes them. The same curves always give the same
+``transfer_matrix.png`` heatmap and the aggregates over pairs, as ``drltg sweep`` writes them. The same curves always give the same
 reports (a test re-runs one and compares it with the committed JSON).
 """
 from __future__ import annotations
@@ -16,13 +16,18 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
+import sys
 from pathlib import Path
 
 import yaml
 
-from drltg.analysis.report import transfer_report
-from drltg.experiments.summary import plot_transfer_matrix, summary_tables
-from drltg.store import rundir
+# Python puts this script's folder first on the path, where results/coverage/ would shadow the coverage
+# package that numba (imported by rliable's bootstrap library) probes for.
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+
+from drltg.analysis.report import transfer_report  # noqa: E402
+from drltg.experiments.summary import plot_transfer_matrix, summary_aggregates, summary_tables  # noqa: E402
+from drltg.store import rundir  # noqa: E402
 
 KEPT = ("config.yaml", "eval.csv", "summary.json")
 
@@ -62,10 +67,11 @@ def rebuild(root: Path, threshold) -> list[dict]:
                                  baseline_label="no transfer", transfer_label=method_dir.name)
         (method_dir / "report" / "transfer_plot.svg").unlink()  # the PNG is kept; the SVG is rebuilt on demand
         rows.append({"pair": pair, "algo": algo, "variant": "/".join(variant), "method": method_dir.name,
-                     "report": str((method_dir / "report").relative_to(root)), "metrics": result["metrics"]})
+                     "report": str((method_dir / "report").relative_to(root)), "metrics": result["metrics"],
+                     "per_seed": result["per_seed"], "value_range": result["settings"].get("value_range")})
     csv_text, md_text = summary_tables(rows)
     rundir.write_files(root, {"summary.csv": csv_text.encode(), "summary.md": md_text.encode(),
-                              "transfer_matrix.png": plot_transfer_matrix(rows)})
+                              "transfer_matrix.png": plot_transfer_matrix(rows), **summary_aggregates(rows)})
     return rows
 
 

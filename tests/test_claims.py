@@ -207,8 +207,8 @@ def test_a_changed_number_changes_the_sentences(tmp_path):
     changed.write_text(json.dumps(data))
     order = ["model-reuse", "value-shaping", "policy-reuse", "reward-shaping"]
     before, after = g.sweeps.sweep_verdicts(g.sweeps.GRADED, order), g.sweeps.sweep_verdicts(tmp_path, order)
-    assert "near +1.08 [\u22120.75, +2.00]: undecided at 5 pairs, which cannot decide" in before
-    assert "near +1.08 [\u22120.20, +2.30]: undecided at 5 pairs, which cannot decide" in after
+    assert "near +0.89 [\u22120.21, +1.41], higher with transfer (exact sign-flip test, p = 0.0391" in before
+    assert "near +0.89 [\u22120.20, +2.30], higher with transfer (exact sign-flip test, p = 0.0391" in after
 
 
 def test_the_registry_tables_list_every_builtin_task_method_and_key():

@@ -746,7 +746,7 @@ def test_a_report_on_run_directories_imports_no_torch(tmp_path):
             f"leaked = [m for m in {('torch', 'drltg.transfer')!r} if m in sys.modules]\nassert not leaked, leaked")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
-    assert json.loads((tmp_path / "out" / "transfer_metrics.json").read_text())["metrics"]["n_seeds_baseline"] == 5
+    assert json.loads((tmp_path / "out" / "transfer_metrics.json").read_text())["metrics"]["n_seeds_baseline"] == 10
 
 
 def test_every_metric_with_an_interval_has_a_p_value_adjusted_over_the_report_s_family():

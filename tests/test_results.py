@@ -45,7 +45,7 @@ def test_a_committed_report_is_reproduced_from_its_committed_curves(experiment, 
 
 
 @pytest.mark.parametrize("folder, count", [
-    ("sweep-fourrooms-graded", 130),  # 5 sources, 25 baselines, 4 methods x 25 transfers
+    ("sweep-fourrooms-graded", 260),  # 10 sources, 50 baselines, 4 methods x 50 transfers
     ("sweep-gridrooms", 55),  # 5 sources, 10 baselines, 4 methods x 10 transfers
     ("sweep-options", 50),  # per K: 5 sources, 10 baselines, 10 transfers
     ("sweep-lift-demonstrations", 12),  # 3 baselines, 3 methods x 3 transfers

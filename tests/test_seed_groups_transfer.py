@@ -241,7 +241,7 @@ def test_a_transfer_group_starts_once_each_seeds_source_is_done_and_loses_only_a
     assert status[tmp_path / "t0"] == status[tmp_path / "t200"] == ("done", "")
 
 
-@pytest.mark.parametrize("spec, counts", [("fourrooms", (45, 9, 9, 45)), ("fourrooms-graded", (130, 26, 26, 130))])
+@pytest.mark.parametrize("spec, counts", [("fourrooms", (45, 9, 9, 45)), ("fourrooms-graded", (260, 26, 26, 260))])
 def test_the_fourrooms_reference_sweeps_group_as_the_readme_says(spec, counts, tmp_path):
     from pathlib import Path
 
@@ -251,7 +251,8 @@ def test_the_fourrooms_reference_sweeps_group_as_the_readme_says(spec, counts, t
     units = seed_groups(runs)
     groups = [u for u in units if len(u) > 1]
     assert (len(runs), len(units), len(groups), sum(map(len, groups))) == counts
-    assert all(len(u) == 5 for u in units)  # every run in a group of its 5 seeds
+    seeds = load_spec(Path(__file__).parents[1] / "examples" / "sweeps" / f"{spec}.yaml").seeds
+    assert all(len(u) == seeds for u in units)  # every run in a group of all its seeds
 
 
 def test_an_experiment_with_kept_per_seed_sources_groups_its_transfer_runs(tmp_path):
