@@ -46,7 +46,7 @@ def test_a_committed_report_is_reproduced_from_its_committed_curves(experiment, 
 
 @pytest.mark.parametrize("folder, count", [
     ("sweep-fourrooms-graded", 260),  # 10 sources, 50 baselines, 4 methods x 50 transfers
-    ("sweep-gridrooms", 55),  # 5 sources, 10 baselines, 4 methods x 10 transfers
+    ("sweep-gridrooms", 110),  # 10 sources, 20 baselines, 4 methods x 20 transfers
     ("sweep-options", 50),  # per K: 5 sources, 10 baselines, 10 transfers
     ("sweep-lift-demonstrations", 12),  # 3 baselines, 3 methods x 3 transfers
     ("sweep-lift-to-place", 12),  # per target: 3 baselines, 3 transfers

@@ -53,7 +53,7 @@ def sweep_table(root: Path) -> str:
     for (pair, method), r in reports.items():
         m, conv = r["metrics"], r["settings"].get("convergence", {})
         moving = any(str(v) != "converged" for v in conv.values())
-        p = getattr(adjusted.get((pair, method)), "t", None)
+        p = getattr(adjusted.get((pair, method)), "exact", None)  # the verdict's test, the gate
         rows.append((pair, method, cell(m, PRIMARY), "" if p is None else cl.p_text(p), cell(m, "jumpstart"),
                      cell(m, "asymptotic_performance") + (" (final)" if moving else ""),
                      cell(m, "transfer_ratio"), f"{_time_to(r, 'baseline')} / {_time_to(r, 'transfer')}",
