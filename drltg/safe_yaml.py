@@ -13,6 +13,7 @@ from typing import Any
 import yaml
 
 from drltg.errors import UsageError
+from drltg.regular import read_bytes
 
 MAX_DEPTH = 64
 """Most levels of nested lists and mappings."""
@@ -59,9 +60,7 @@ def load_file(path, what: str | None = None) -> Any:
     one :class:`UsageError` sentence, before it is parsed."""
     path, what = Path(path), what or f"'{path}'"
     try:
-        if path.stat().st_size > MAX_FILE_BYTES:
-            raise UsageError(f"{what} is larger than {MAX_FILE_BYTES // 2**20} MB, more than any config; is it one?")
-        text = path.read_bytes().decode("utf-8")
+        text = read_bytes(path, MAX_FILE_BYTES, "a config").decode("utf-8")
     except UnicodeDecodeError as err:
         raise UsageError(f"{what} is not UTF-8 text (byte {err.start}).") from None
     except OSError as err:

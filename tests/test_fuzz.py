@@ -109,3 +109,97 @@ def test_an_override_with_a_control_character_is_one_sentence_or_a_string():
         config_lib.resolve(None, ["network.hidden=\x08"], task="fourrooms/northeast")
     except UsageError as err:
         one_sentence(err)
+
+
+# ----------------------------------------------------------------------------- hostile run directories
+@pytest.fixture(scope="module")
+def two_runs(tmp_path_factory):
+    """A finished tiny baseline and transfer run (two seeds of one config)."""
+    from drltg.cli import main
+    from tests.test_faults import train_args
+
+    root = tmp_path_factory.mktemp("hostile")
+    for seed in (0, 1):
+        assert main(train_args(root / f"seed-{seed}") + ["--seed", str(seed)]) == 0
+    return root
+
+
+SHAPES = ["link to a file outside", "link to a folder outside", "link to ..", "link to /", "fifo", "socket",
+          "sparse 300 MB", "empty"]
+PLACES = ["", "logs", "logs/csv/scalars/eval", "logs/tensorboard", "checkpoints"]
+NAMES = ["eval.csv", "config.yaml", "manifest.json", "summary.json", "last.pt", "return_mean.csv",
+         "events.out.tfevents.1.host", "extra.csv", "extra"]
+
+
+def _plant(path: Path, shape: str, outside: Path) -> None:
+    """Put ``shape`` at ``path``, replacing whatever was there."""
+    import shutil
+    import stat
+
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    elif path.exists() or path.is_symlink():
+        path.unlink()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if shape.startswith("link"):
+        target = {"link to a file outside": outside / "bystander.csv", "link to a folder outside": outside,
+                  "link to ..": Path(".."), "link to /": Path("/")}[shape]
+        path.symlink_to(target)
+    elif shape == "fifo":
+        os.mkfifo(path)
+    elif shape == "socket":
+        os.mknod(path, stat.S_IFSOCK | 0o600)
+    elif shape == "sparse 300 MB":
+        with open(path, "wb") as f:
+            f.write(b"frames,return_mean\n")
+            f.truncate(300 * 2**20)
+    else:
+        path.touch()
+
+
+@settings(max_examples=EXAMPLES or 40, derandomize=not EXAMPLES, database=None, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(shape=st.sampled_from(SHAPES), place=st.sampled_from(PLACES), name=st.sampled_from(NAMES),
+       command=st.sampled_from(["report", "resume", "evaluate", "video"]))
+def test_any_hostile_entry_in_a_run_is_a_result_or_one_sentence_and_touches_nothing_outside(
+        two_runs, shape, place, name, command, capsys):
+    """A link, pipe, socket, huge or empty file anywhere in a run, under any name: every command that opens
+    the run ends within seconds in a result or one sentence, and nothing outside the run changes."""
+    import shutil
+    import signal
+    import tempfile
+
+    from drltg.cli import main
+
+    root = Path(tempfile.mkdtemp(prefix="drltg-hostile-"))
+    try:
+        outside = root / "outside"
+        outside.mkdir()
+        (outside / "bystander.csv").write_text("frames,return_mean\n0,1.0\n")
+        before = {p: p.read_bytes() for p in outside.rglob("*") if p.is_file()}
+        for seed in (0, 1):
+            shutil.copytree(two_runs / f"seed-{seed}", root / "runs" / f"seed-{seed}")
+        run = root / "runs" / "seed-1"
+        _plant(run / place / name, shape, outside)
+        args = {"report": ["report", "--baseline", str(root / "runs" / "seed-0"), "--transfer", str(run),
+                           "--out", str(root / "report")],
+                "resume": ["train", "fourrooms/northeast", "--run-dir", str(run), "--resume", "--no-progress"],
+                "evaluate": ["evaluate", str(run), "--episodes", "1"],
+                "video": ["video", str(run), "--episodes", "1", "--max-steps", "2", "--out", str(root / "video")]}[command]
+
+        def hang(*_):
+            raise AssertionError(f"{command} still runs after 60 s")
+
+        signal.signal(signal.SIGALRM, hang)
+        signal.alarm(60)
+        try:
+            code = main(args)
+        finally:
+            signal.alarm(0)
+        err = capsys.readouterr().err
+        assert code in (0, 2), (code, err)
+        if code == 2:
+            assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+        assert {p: p.read_bytes() for p in outside.rglob("*") if p.is_file()} == before
+    finally:
+        shutil.rmtree(root, ignore_errors=True)

@@ -331,3 +331,31 @@ def test_a_fifo_among_a_user_s_logs_is_refused_not_read(tmp_path, tmp_path_facto
     curve.parent.mkdir(parents=True)
     os.mkfifo(curve)  # a CSVLogger folder whose curve is a pipe: reading it would block
     one_sentence(capsys, _report(tmp_path / "logs", tmp_path / "logs", tmp_path_factory), 2, "is not a regular file")
+
+
+def test_a_fifo_in_place_of_a_run_s_manifest_or_summary_is_refused_not_read(pendulum, tmp_path, tmp_path_factory,
+                                                                          capsys):
+    """Found by the hostile-directory property: reading a finished run's manifest.json as a FIFO blocked the
+    report. Now the run is not counted, in one sentence."""
+    import os
+    import signal
+
+    copy = tmp_path / "run"
+    shutil.copytree(pendulum, copy)
+    for name in ("manifest.json", "summary.json"):
+        saved = (copy / name).read_bytes()
+        (copy / name).unlink()
+        os.mkfifo(copy / name)
+        signal.alarm(30)  # a hang fails the test instead of the suite
+        try:
+            one_sentence(capsys, _report(pendulum, copy, tmp_path_factory), 2, "no transfer run can be counted")
+        finally:
+            signal.alarm(0)
+        (copy / name).unlink()
+        (copy / name).write_bytes(saved)
+    from drltg.store import manifest as manifest_lib
+
+    (copy / "eval.csv").unlink()
+    os.mkfifo(copy / "eval.csv")
+    with pytest.raises(UsageError, match="is not a regular file"):
+        manifest_lib.verify(copy, "eval.csv")

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import glob as _glob
 import io
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,6 +38,7 @@ import numpy as np
 import pandas as pd
 
 from drltg.errors import UsageError
+from drltg.regular import MAX_LOG_BYTES, open_regular, read_bytes
 
 FORMATS = ("auto", "drltg", "sb3", "sb3-monitor", "tensorboard", "csvlogger")
 DEFAULT_TAGS = ("eval/return_mean", "eval/mean_reward", "eval/reward")
@@ -234,8 +236,6 @@ def _task_in(config: dict | None) -> str | None:
 
 
 # ----------------------------------------------------------------------------------------- readers
-MAX_LOG_BYTES = 256 * 2**20
-"""The largest CSV log read (a million evaluations of a run take about 60 MB)."""
 MAX_COLUMNS = 10_000
 """The most columns a CSV log may have (SB3's progress.csv has a few dozen)."""
 
@@ -243,17 +243,8 @@ MAX_COLUMNS = 10_000
 def _lines(path: Path) -> list[tuple[int, str]]:
     """The non-blank lines of a text file, with their line numbers (a byte-order mark is dropped); a file
     larger than :data:`MAX_LOG_BYTES` is refused before it is read."""
-    import stat
-
-    info = Path(path).stat()
-    if not stat.S_ISREG(info.st_mode):  # a FIFO would block the read, a device never end
-        raise UsageError(f"'{path}' is not a regular file (a FIFO, a device or a socket); a log is a file.")
-    size = info.st_size
-    if size > MAX_LOG_BYTES:
-        raise UsageError(f"'{path}' holds {size / 2**20:,.0f} MB, more than the {MAX_LOG_BYTES // 2**20} MB a log of "
-                         "evaluations takes; is it a learning curve?")
     try:
-        text = Path(path).read_text(encoding="utf-8-sig")
+        text = read_bytes(path, MAX_LOG_BYTES, "a log of evaluations").decode("utf-8-sig")
     except UnicodeDecodeError:
         raise UsageError(f"'{path}' is not a text file.") from None
     lines = [(i, line) for i, line in enumerate(text.splitlines(), start=1) if line.strip()]
@@ -493,11 +484,11 @@ def _check_record_sizes(file: Path) -> None:
     than that, is refused, where the reader would first try to allocate it."""
     import struct
 
-    size = file.stat().st_size
-    if size > MAX_LOG_BYTES:
-        raise UsageError(f"'{file}' holds {size / 2**20:,.0f} MB, more than the {MAX_LOG_BYTES // 2**20} MB a run's "
-                         "event file takes; is it a learning curve?")
-    with open(file, "rb") as f:
+    with open_regular(file) as f:
+        size = os.fstat(f.fileno()).st_size
+        if size > MAX_LOG_BYTES:
+            raise UsageError(f"'{file}' holds {size / 2**20:,.0f} MB, more than the {MAX_LOG_BYTES // 2**20} MB a "
+                             "run's event file takes; is it a learning curve?")
         position, record = 0, 0
         while position + 12 <= size:
             f.seek(position)

@@ -16,6 +16,7 @@ import json
 from pathlib import Path
 
 from drltg.errors import UsageError
+from drltg.regular import MAX_META_BYTES, open_regular, read_bytes
 
 MANIFEST = "manifest.json"
 
@@ -25,7 +26,7 @@ def digest(path_or_bytes: Path | bytes) -> str:
     if isinstance(path_or_bytes, (bytes, bytearray, memoryview)):
         h.update(path_or_bytes)
     else:
-        with open(path_or_bytes, "rb") as f:
+        with open_regular(path_or_bytes) as f:
             for block in iter(lambda: f.read(1 << 20), b""):
                 h.update(block)
     return h.hexdigest()
@@ -35,7 +36,7 @@ def read(run_dir: str | Path) -> dict[str, list[str]]:
     """``{relative path: [accepted digests]}``; empty without a manifest."""
     path = Path(run_dir) / MANIFEST
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(read_bytes(path, MAX_META_BYTES, "a manifest"))
     except FileNotFoundError:
         return {}
     except (OSError, ValueError):
@@ -56,9 +57,10 @@ def dumps(files: dict[str, list[str]]) -> str:
 
 
 def verify(run_dir: str | Path, name: str) -> None:
-    """Refuse ``run_dir/name`` if the manifest lists it with other digests (a file it lacks is not checked)."""
+    """Refuse ``run_dir/name`` if the manifest lists it with other digests, or it is no regular file (a file
+    it lacks is not checked)."""
     accepted = read(run_dir).get(name)
     path = Path(run_dir) / name
-    if accepted and path.is_file() and digest(path) not in accepted:
+    if accepted and path.exists() and digest(path) not in accepted:
         raise UsageError(f"cannot read '{path}': it does not match its SHA-256 in {Path(run_dir) / MANIFEST}, so it "
                          "was damaged or changed after it was written; restore it or train the run again.")

@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from drltg.errors import UsageError
+from drltg.regular import MAX_LOG_BYTES, MAX_META_BYTES, read_bytes
 from drltg.store import manifest
 from drltg.store.atomic import atomic_path, atomic_write, refuse_special, write_directory, write_files
 from drltg.store.lock import LOCK, lock
@@ -174,7 +175,7 @@ def read_eval_csv(path: str | Path) -> list[dict]:
     """The rows of a run's eval.csv; a truncated or foreign file is one :class:`UsageError` sentence."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8-sig")
+        text = read_bytes(path, MAX_LOG_BYTES, "an eval.csv").decode("utf-8-sig")
     except FileNotFoundError:
         raise UsageError(f"'{path}' is missing.") from None
     except UnicodeDecodeError:
@@ -226,7 +227,7 @@ def summary_status(run_dir: str | Path) -> tuple[str, str] | None:
 
     path = Path(run_dir) / SUMMARY
     try:
-        summary = json.loads(path.read_text())
+        summary = json.loads(read_bytes(path, MAX_META_BYTES, "a summary"))
     except FileNotFoundError:
         return None
     except (OSError, ValueError):

@@ -60,6 +60,8 @@ class RunSession(contextlib.ExitStack):
         return super().__exit__(kind, err, tb)
 
     def _open(self) -> None:
+        if self.resume and not any(rundir.entries(d) for d in self.dirs):  # killed before its config landed
+            self.resume = False
         if not self.resume:
             for d in self.dirs:
                 refuse_existing(d)
@@ -71,8 +73,8 @@ class RunSession(contextlib.ExitStack):
             check_saved_config(c, d)
         if all(is_complete(d) for d in self.dirs):  # nothing to write: finished runs may sit in a read-only archive
             for d in self.dirs:
-                if os.access(d, os.W_OK) and rundir.unlisted(d):  # killed before its final manifest: finish it
-                    complete_manifest(d)
+                if os.access(d, os.W_OK) and (rundir.unlisted(d) or (d / rundir.LOCK).exists()):
+                    complete_manifest(d)  # killed before its final manifest or before its lock was removed
             self.finished = True
             return
         for d in self.dirs:
