@@ -367,9 +367,9 @@ def test_each_seed_of_a_group_keeps_its_own_best(tmp_path, monkeypatch):
 
     monkeypatch.setattr(rundir, "atomic_torch_save", save)
     dirs = seeds_mod.train_seeds(keep_best_cfg(frames=512), tmp_path / "group", 2, progress=False)
-    assert [d.name for d in dirs] == ["seed-3", "seed-4"]
+    assert [d.name for d in dirs] == ["seed-3", "seed-103"]
     assert [(s, f) for s, name, f in saves if name == "best.pt"] == [
-        ("seed-3", 0), ("seed-4", 0), ("seed-3", 256), ("seed-4", 512)]
+        ("seed-3", 0), ("seed-103", 0), ("seed-3", 256), ("seed-103", 512)]
     for d, best in zip(dirs, (256, 512)):
         assert load(d)["frames"] == best
         assert json.loads((d / "summary.json").read_text())["best"]["frames"] == best

@@ -87,11 +87,28 @@ def test_a_moved_experiment_finds_its_sources_and_reuses_its_runs(experiment, tm
     )
 
 
-def test_other_settings_in_same_dir_refused(experiment, capsys):
+def test_other_settings_in_same_dir_refused_naming_each(experiment, capsys):
     out, args = experiment
     changed = [a if a != "512" else "1024" for a in args]
     assert main(changed) == 2
-    assert "other settings" in capsys.readouterr().err
+    assert "other settings (frames is 512 there, 1024 now); run it with its settings (only --seeds may change" in \
+        capsys.readouterr().err
+
+
+def test_an_experiment_grows_by_its_new_seeds_alone(tmp_path, capsys):
+    """The report said more pairs would decide: the same command with more --seeds trains the new seeds'
+    runs only, and reports every pair."""
+    out = tmp_path / "grow"
+    args = ["experiment", "gridrooms/northeast", "--method", "reward-shaping", "--frames", "64", "--out", str(out),
+            "--threshold", "0", "--no-progress", *TINY]
+    assert main([*args, "--seeds", "1"]) == 0
+    kept = {p: p.read_bytes() for p in out.glob("*/seed-0/**/*") if p.is_file()}
+    assert main([*args, "--seeds", "2"]) == 0
+    assert {p: p.read_bytes() for p in out.glob("*/seed-0/**/*") if p.is_file()} == kept  # not trained again
+    assert sorted(p.name for p in (out / "transfer").iterdir()) == ["seed-0", "seed-100"]
+    report = json.loads((out / "report" / "transfer_metrics.json").read_text())
+    assert report["metrics"]["n_seeds_baseline"] == report["metrics"]["n_seeds_transfer"] == 2
+    assert yaml.safe_load((out / "experiment.yaml").read_text())["seeds"] == 2
 
 
 def test_reward_shaping_needs_no_source(tmp_path):

@@ -27,9 +27,9 @@ def test_a_diverged_seed_group_writes_each_seed_diverged_and_a_resume_refuses(tm
     group = tmp_path / "group"
     one_sentence(capsys, main(train_args(group, "--seeds", "2", task=NAN, frames=128)), 1,
                  "the run diverged: the loss term 'loss_qvalue' became nan at frame 32")
-    summaries = [json.loads((group / f"seed-{k}" / "summary.json").read_text()) for k in (0, 1)]
-    assert [(s["status"], s["seed"]) for s in summaries] == [("diverged", 0), ("diverged", 1)]
-    assert [rundir.summary_status(group / f"seed-{k}")[0] for k in (0, 1)] == ["diverged", "diverged"]
+    summaries = [json.loads((group / f"seed-{k}" / "summary.json").read_text()) for k in (0, 100)]
+    assert [(s["status"], s["seed"]) for s in summaries] == [("diverged", 0), ("diverged", 100)]
+    assert [rundir.summary_status(group / f"seed-{k}")[0] for k in (0, 100)] == ["diverged", "diverged"]
     before = {p: p.read_bytes() for p in group.rglob("*") if p.is_file()}
 
     err = one_sentence(capsys, main(train_args(group, "--seeds", "2", "--resume", task=NAN,

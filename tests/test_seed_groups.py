@@ -139,14 +139,14 @@ def test_a_group_writes_one_ordinary_run_directory_per_seed(group_run):
     from drltg.store.rundir import read_eval_csv
     from drltg.training.loop import evaluate, make_envs
 
-    assert sorted(p.name for p in group_run.iterdir()) == ["seed-3", "seed-4"]
-    for seed in (3, 4):
+    assert sorted(p.name for p in group_run.iterdir()) == ["seed-103", "seed-3"]
+    for seed in (3, 103):
         run = group_run / f"seed-{seed}"
         assert yaml.safe_load((run / "config.yaml").read_text()) == tiny_cfg(seed=seed).model_dump()
         rows = read_eval_csv(run / "eval.csv")
         assert [r["frames"] for r in rows] == [0, 256, 512]
         summary = json.loads((run / "summary.json").read_text())
-        assert summary["seed"] == seed and summary["seed_group"] == {"seeds": [3, 4]}
+        assert summary["seed"] == seed and summary["seed_group"] == {"seeds": [3, 103]}
         assert summary["final_eval"] == rows[-1]
         # before any update a seed's evaluation is its run alone's: same networks, same evaluation starts
         cfg = tiny_cfg(seed=seed)
@@ -163,7 +163,7 @@ def test_a_seed_in_a_group_draws_as_its_run_alone_and_matches_it(group_run, tmp_
     from drltg.store.rundir import read_eval_csv
     from drltg.training.loop import train
 
-    for seed in (3, 4):
+    for seed in (3, 103):
         alone = train(tiny_cfg(seed=seed), tmp_path / f"alone-{seed}", progress=False)
         grouped = group_run / f"seed-{seed}"
         rows, ref = read_eval_csv(grouped / "eval.csv"), read_eval_csv(alone / "eval.csv")
@@ -181,7 +181,7 @@ def test_a_group_is_reproduced_by_the_same_group(group_run, tmp_path):
     from drltg.training.seeds import train_seeds
 
     train_seeds(tiny_cfg(), tmp_path, 2, progress=False)
-    for seed in (3, 4):
+    for seed in (3, 103):
         name = f"seed-{seed}/eval.csv"
         assert (tmp_path / name).read_text() == (group_run / name).read_text()
 
@@ -195,7 +195,7 @@ def test_a_group_resumes_from_its_seeds_checkpoints(group_run, tmp_path, monkeyp
 
     def crash_after_first_checkpoint(data, stats):
         calls["n"] += 1
-        if (tmp_path / "seed-4" / "checkpoints" / "last.pt").exists():
+        if (tmp_path / "seed-103" / "checkpoints" / "last.pt").exists():
             raise KeyboardInterrupt
         return real(data, stats)
 
@@ -205,7 +205,7 @@ def test_a_group_resumes_from_its_seeds_checkpoints(group_run, tmp_path, monkeyp
     assert not (tmp_path / "seed-3" / "summary.json").exists()
     monkeypatch.setattr(loop, "_episode_stats", real)
     train_seeds(tiny_cfg(), tmp_path, 2, resume=True, progress=False)
-    for seed in (3, 4):
+    for seed in (3, 103):
         rows = read_eval_csv(tmp_path / f"seed-{seed}" / "eval.csv")
         ref = read_eval_csv(group_run / f"seed-{seed}" / "eval.csv")
         assert [r["frames"] for r in rows] == [0, 256, 512]
@@ -236,13 +236,13 @@ def test_a_group_stopped_inside_an_evaluation_saves_each_seed_there_and_evaluate
     cfg = config_lib.resolve({}, TINY + ["checkpoint.every=128"], task="fourrooms/northeast", frames=512, seed=3)
     with pytest.raises(KeyboardInterrupt):
         seeds_mod.train_seeds(cfg, tmp_path, 2, progress=False)
-    assert [load_checkpoint(tmp_path / f"seed-{s}")["frames"] for s in (3, 4)] == [256, 256]
+    assert [load_checkpoint(tmp_path / f"seed-{s}")["frames"] for s in (3, 103)] == [256, 256]
     trained = []
     monkeypatch.setattr(loop, "_episode_stats", lambda data, stats: (trained.append(data.numel()),
                                                                       real_stats(data, stats)))
     seeds_mod.train_seeds(cfg, tmp_path, 2, resume=True, progress=False)
     assert sum(trained) == 2 * (512 - 256)  # both seeds' pieces of every batch, from frame 256 on
-    for seed in (3, 4):
+    for seed in (3, 103):
         assert [r["frames"] for r in read_eval_csv(tmp_path / f"seed-{seed}" / "eval.csv")] == [0, 256, 512]
 
 
@@ -254,7 +254,7 @@ def test_a_method_without_a_grouped_form_trains_its_seeds_one_after_another(grou
     dirs = train_seeds(config_lib.updated(cfg, {"eval.every": 64}), tmp_path, 2, progress=False)
     err = capsys.readouterr().err
     assert "transfer method demonstrations has no grouped form; training the 2 seeds one after another" in err
-    assert [d.name for d in dirs] == ["seed-3", "seed-4"] and all((d / "summary.json").is_file() for d in dirs)
+    assert [d.name for d in dirs] == ["seed-3", "seed-103"] and all((d / "summary.json").is_file() for d in dirs)
 
 
 @pytest.mark.parametrize("args, message", [(["--seeds", "0"], "--seeds must be between 1 and 1000, got 0."),
@@ -276,7 +276,7 @@ def test_a_seed_of_an_interrupted_group_resumes_alone(group_run, tmp_path, monke
     real = loop._episode_stats
 
     def crash_after_first_checkpoint(data, stats):
-        if (tmp_path / "seed-4" / "checkpoints" / "last.pt").exists():
+        if (tmp_path / "seed-103" / "checkpoints" / "last.pt").exists():
             raise KeyboardInterrupt
         return real(data, stats)
 
@@ -284,10 +284,10 @@ def test_a_seed_of_an_interrupted_group_resumes_alone(group_run, tmp_path, monke
     with pytest.raises(KeyboardInterrupt):
         train_seeds(tiny_cfg(), tmp_path, 2, progress=False)
     monkeypatch.setattr(loop, "_episode_stats", real)
-    loop.train(tiny_cfg(seed=4), tmp_path / "seed-4", resume=True, progress=False)  # its checkpoint is a run's
-    rows = read_eval_csv(tmp_path / "seed-4" / "eval.csv")
+    loop.train(tiny_cfg(seed=103), tmp_path / "seed-103", resume=True, progress=False)  # its checkpoint is a run's
+    rows = read_eval_csv(tmp_path / "seed-103" / "eval.csv")
     assert [r["frames"] for r in rows] == [0, 256, 512]
-    assert rows[:2] == read_eval_csv(group_run / "seed-4" / "eval.csv")[:2]
+    assert rows[:2] == read_eval_csv(group_run / "seed-103" / "eval.csv")[:2]
     train_seeds(tiny_cfg(), tmp_path, 2, resume=True, progress=False)  # the seeds now differ: one by one
     assert "resuming them one after another" in capsys.readouterr().err
     assert (tmp_path / "seed-3" / "summary.json").is_file()
@@ -349,7 +349,7 @@ def test_every_grouped_learner_trains_its_seeds_from_their_runs_alone(task, algo
     cfg = tiny_cfg(task=task, algo=algo, frames=192, **({"soc.num_options": 2} if algo == "soc" else {}))
     train_seeds(cfg, tmp_path, 2, progress=False)
     assert "note:" not in capsys.readouterr().err  # grouped, not one after another
-    for seed in (3, 4):
+    for seed in (3, 103):
         rows = read_eval_csv(tmp_path / f"seed-{seed}" / "eval.csv")
         assert [r["frames"] for r in rows] == [0, 192]
         alone_cfg = config_lib.updated(cfg, {"seed": seed})
@@ -363,7 +363,7 @@ def test_cli_resumes_a_finished_group_from_its_folder_alone(group_run, capsys):
 
     stamps = {p: p.stat().st_mtime_ns for p in group_run.glob("seed-*/summary.json")}
     assert main(["train", "--seeds", "2", "--seed", "3", "--resume", "--run-dir", str(group_run), "--no-progress"]) == 0
-    assert f"{group_run}/seed-3, {group_run}/seed-4" in capsys.readouterr().out
+    assert f"{group_run}/seed-3, {group_run}/seed-103" in capsys.readouterr().out
     assert stamps == {p: p.stat().st_mtime_ns for p in stamps}  # complete: nothing trained or written again
 
 

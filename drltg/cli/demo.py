@@ -41,7 +41,7 @@ def plan(out: Path, d: dict = DEMO) -> list[tuple[str, dict, Path]]:
                                           algo=d["algo"], frames=d["source_frames"], seed=d["source_seed"]), source)]
     every = f"eval.every={d['eval_every']}"
     for i in range(d["seeds"]):
-        seed = d["seed"] + 100 * i
+        seed = config_lib.run_seeds(d["seed"], d["seeds"])[i]
         runs.append(("baseline", config_lib.resolve({}, [every], task=pair.target, algo=d["algo"],
                                                     frames=d["frames"], seed=seed), out / "baseline" / f"seed-{seed}"))
         runs.append(("transfer", config_lib.resolve(

@@ -17,7 +17,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="environment frames to train for (50000, 50k, 1e4, 1.5M)")
     p.add_argument("--seed", type=int, help="random seed (envs, networks, sampling)")
     p.add_argument("--seeds", type=int, metavar="N",
-                   help="train seeds S..S+N-1 (S: --seed) in one process, into RUN_DIR/seed-<k>/ (one vmapped "
+                   help="train seeds S, S+100, ..., S+100(N-1) (S: --seed; an experiment's seeds) in one process, "
+                        "into RUN_DIR/seed-<s>/ (one vmapped "
                         "update for all seeds where the learner supports it, else one seed after another)")
     p.add_argument("--no-group", action="store_true", help="with --seeds: train the seeds one after another")
     p.add_argument("--run-dir", type=Path,

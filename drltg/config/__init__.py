@@ -51,6 +51,7 @@ from drltg.config.values import (
     MAX_EPISODES,
     MAX_SEEDS,
     MAX_THREADS,
+    SEED_STRIDE,
     Bool,
     Float,
     Int,
@@ -58,6 +59,8 @@ from drltg.config.values import (
     Probability,
     Section,
     Str,
+    run_seeds,
+    source_seed,
 )
 
 __all__ = [
@@ -65,6 +68,7 @@ __all__ = [
     "config_changes", "env_keys_set_once", "refuse_conflicts", "parse_override", "frame_count", "load_yaml",
     "merge", "set_key", "task_env", "env_defaults", "env_model", "check_device",
     "Int", "Float", "Bool", "Str", "Number", "Probability", "Section", "MAX_EPISODES", "MAX_SEEDS", "MAX_THREADS",
+    "SEED_STRIDE", "run_seeds", "source_seed",
     *sections.__all__, "TransferConfig",
     "METHOD_RULES", "METHOD_OPTIONS", "METHOD_MODELS", "TRANSFER_KEYS", "BUILTIN_METHOD_OPTIONS", "ENV_EXECUTION_KEYS",
     "method_names", "builtin_options", "options_model", "add_method", "remove_method", "transfer_model", "_model",

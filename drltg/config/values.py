@@ -58,6 +58,21 @@ MAX_THREADS = 512
 MAX_SEEDS = 1_000
 """Most seeds of one command (``--seeds``, an experiment's seeds)."""
 
+SEED_STRIDE = 100
+"""Run i of a set of seeds uses ``seed + 100 i`` and lives in ``seed-<that>/``: ``drltg train --seeds``, an
+experiment's or sweep's baseline and transfer runs alike, so runs of one seed pair up wherever they were
+trained; a source run of run i uses ``seed + 100 i + 50`` (:func:`source_seed`), no target run's seed."""
+
+
+def run_seeds(first: int, count: int) -> list[int]:
+    """The seeds of ``count`` runs from ``first``: ``first + 100 i``."""
+    return [first + SEED_STRIDE * i for i in range(count)]
+
+
+def source_seed(seed: int) -> int:
+    """The seed of the source run that a target run of ``seed`` transfers from."""
+    return seed + SEED_STRIDE // 2
+
 MAX_FRAMES = 10**12
 """Most frames of a run or of any interval counted in frames (``--frames`` takes as many)."""
 

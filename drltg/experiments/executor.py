@@ -84,14 +84,15 @@ def run_group(cfgs: list[RunConfig], run_dirs: list[str], log_paths: list[str]) 
             print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] trains in a seed group; output in {logs[0]}", file=log)
     resume = all((d / rundir.CONFIG).is_file() for d in dirs)
     what = str(dirs[0]) if len(dirs) == 1 else f"seed group {', '.join(str(d) for d in dirs)}"
+    report = FramesReport(logs)
     with open(logs[0], "a", buffering=1) as log, _output_to(log):
         print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] {'resume' if resume else 'start'} {what} "
               f"(pid {os.getpid()})", flush=True)
         try:
             if len(cfgs) == 1:
-                train(cfgs[0], dirs[0], resume=resume, progress=False)
+                train(cfgs[0], dirs[0], resume=resume, progress=False, on_frames=report)
             else:
-                train_group(cfgs, dirs, resume=resume, progress=False)
+                train_group(cfgs, dirs, resume=resume, progress=False, on_frames=report)
         except UsageError as err:
             print(f"error: {err}", flush=True)
             return [("failed", str(err))] * len(dirs)
@@ -108,6 +109,25 @@ def run_group(cfgs: list[RunConfig], run_dirs: list[str], log_paths: list[str]) 
             return [("failed", f"{type(err).__name__}: {err}")] * len(dirs)
         print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] complete", flush=True)
     return [("done", "")] * len(dirs)
+
+
+class FramesReport:
+    """What a worker tells its parent of a unit's progress: the frames its runs reached, in ``<log>.frames``
+    beside each run's log, rewritten at most every ``every`` seconds (the parent reads it, :func:`frames_done`)."""
+
+    def __init__(self, logs: list[Path], every: float = 2.0):
+        self.paths, self.every, self.last = [frames_file(log) for log in logs], every, 0.0
+
+    def __call__(self, frames: int) -> None:
+        if time.monotonic() - self.last >= self.every:
+            self.last = time.monotonic()
+            for path in self.paths:
+                with contextlib.suppress(UsageError):  # a full disk costs the parent's bar, not the run
+                    rundir.atomic_write(path, f"{frames}\n")
+
+
+def frames_file(log: Path) -> Path:
+    return log.with_name(log.name + ".frames")
 
 
 def seed_groups(runs: list[Run]) -> list[list[Run]]:
@@ -137,8 +157,12 @@ def seed_groups(runs: list[Run]) -> list[list[Run]]:
 
 
 def frames_done(run: Run) -> int:
-    """Frames a run has reached so far (its last evaluation; 0 before the first)."""
-    return min(rundir.frames_evaluated(run.path), run.frames)
+    """Frames a run has reached so far: what its worker last reported, else its last evaluation (0 before)."""
+    try:
+        reported = int(frames_file(run.log).read_text())
+    except (OSError, ValueError):
+        reported = 0
+    return min(max(reported, rundir.frames_evaluated(run.path)), run.frames)
 
 
 def register(registered: tuple) -> None:
@@ -201,7 +225,7 @@ def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs", pro
     """Run every incomplete run (each after the run it needs) and return ``{path: (status, detail)}``
     with status ``skipped`` (complete before), ``done``, ``diverged`` or ``failed``. With ``group_seeds``,
     runs that differ only in their seed train as one seed group (:func:`seed_groups`)."""
-    from tqdm.auto import tqdm
+    from drltg.training.progress import Progress
 
     check_order(runs)
     backend.registered = registrations(runs)
@@ -211,17 +235,18 @@ def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs", pro
         if finished is not None:
             status[r.path] = ("skipped", "") if finished[0] == "complete" else finished
     todo = [r for r in runs if r.path not in status]
-    reached = {r.path: frames_done(r) for r in todo}
     units = seed_groups(todo) if group_seeds else [[r] for r in todo]
-    bar = tqdm(total=sum(r.frames for r in todo), initial=sum(reached.values()), unit="frame",
-               desc=desc, dynamic_ncols=True, smoothing=0.05, disable=None if progress else True)
+    for r in todo:  # what an earlier command's workers reported is stale: they resume from a checkpoint
+        with contextlib.suppress(FileNotFoundError):
+            frames_file(r.log).unlink()
+    reached = {r.path: frames_done(r) for r in todo}
+    bar = Progress(sum(r.frames for r in todo), initial=sum(reached.values()), desc=desc, enabled=progress)
     running: dict[Any, list[Run]] = {}
 
     def postfix() -> None:
         counts = [s for s, _ in status.values()]
         busy = sum(len(unit) for unit in running.values())
-        bar.set_postfix_str(f"runs {len(counts)}/{len(runs)} ({counts.count('failed')} failed), "
-                            f"{busy} running", refresh=False)
+        bar.set_note(f"runs {len(counts)}/{len(runs)} done ({counts.count('failed')} failed), {busy} running")
 
     try:
         while units or running:
@@ -248,6 +273,8 @@ def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs", pro
                 unit = running.pop(handle)
                 for run, one in zip(unit, result if isinstance(result, list) else [result] * len(unit)):
                     status[run.path] = one
+                    with contextlib.suppress(FileNotFoundError):
+                        frames_file(run.log).unlink()
                     bar.update(run.frames - reached[run.path])
                     reached[run.path] = run.frames
             for unit in running.values():

@@ -169,7 +169,7 @@ def plan_runs(
 
     runs = []
     for i in range(seeds):
-        seed_i = seed + 100 * i
+        seed_i = config_lib.run_seeds(seed, seeds)[i]
         # a per-seed source leaves the baselines without one: every row reusing those sources shares them
         plain = {"source": "null"} if per_seed else {}
         baseline = ("baseline", cfg(target_task, seed_i, frames, **plain), shared / "baseline" / f"seed-{seed_i}")
@@ -178,8 +178,8 @@ def plan_runs(
             if per_seed:  # the kept run of this seed, as its saved config reads it back
                 transfer["source"] = str(Path(str(given_source).replace(SEED, str(seed_i))).expanduser().resolve())
         else:
-            source = shared / "source" / f"seed-{seed_i + 50}"
-            sources = [("source", cfg(source_task, seed_i + 50, source_frames or frames), source)]
+            source = shared / "source" / f"seed-{config_lib.source_seed(seed_i)}"
+            sources = [("source", cfg(source_task, config_lib.source_seed(seed_i), source_frames or frames), source)]
             transfer = {"method": method, "source": source}
         runs += [*sources, baseline,
                  ("transfer", cfg(target_task, seed_i, frames, **transfer), out / "transfer" / f"seed-{seed_i}")]
@@ -231,14 +231,27 @@ def check_existing(runs: list) -> None:
             raise UsageError(f"'{run.path}' exists but holds no config.yaml; move it away or use another --out.")
 
 
+GROWS = ("seeds", "max_seeds")
+"""Settings an experiment folder may be run again with: more (or fewer) seeds train what is new and report
+the planned pairs; the runs already there are reused."""
+
+
 def _check_settings(path: Path, settings: dict) -> None:
+    """Refuse ``path`` (an experiment's ``experiment.yaml``) if it holds other settings than ``settings``
+    beyond :data:`GROWS`, naming each one with its value there and here."""
     if not path.is_file():
         return
-    saved = safe_yaml.load(path.read_text(), f"'{path}'")
+    saved = safe_yaml.load_file(path)
+    if not isinstance(saved, dict):
+        raise UsageError(f"'{path}' holds no experiment settings; move it away or use another --out.")
     # "out" and "imports" were kept by earlier versions; neither changes what the runs are
-    saved = {k: v for k, v in saved.items() if k not in ("out", "imports")} if isinstance(saved, dict) else saved
-    if saved != settings:
-        raise UsageError(f"'{path.parent}' holds an experiment with other settings; choose another --out.")
+    saved = {k: v for k, v in saved.items() if k not in ("out", "imports")}
+    differ = [k for k in [*settings, *(k for k in saved if k not in settings)]
+              if k not in GROWS and saved.get(k) != settings.get(k)]
+    if differ:
+        changes = "; ".join(f"{k} is {saved.get(k)!r} there, {settings.get(k)!r} now" for k in differ)
+        raise UsageError(f"'{path.parent}' holds an experiment with other settings ({changes}); run it with its "
+                         "settings (only --seeds may change: more seeds train the new ones), or choose another --out.")
 
 
 def experiment(pair: str, method: str, *, frames: int | str, out: str | Path, seeds: int | str = 5, seed: int = 0,

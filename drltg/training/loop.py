@@ -28,7 +28,6 @@ from tensordict.nn import TensorDictSequential
 from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, ReplayBuffer
 from torchrl.envs import EnvBase, ExplorationType, RewardSum, TransformedEnv, set_exploration_type
-from tqdm.auto import tqdm
 
 from drltg import config
 from drltg.config import RunConfig
@@ -39,6 +38,7 @@ from drltg.learners import Agent, UpdateStep, make_agent, sample_batches
 from drltg.store import rundir
 from drltg.store.rundir import EPISODE_FLAGS, RunWriter, is_complete, read_eval_csv
 from drltg.training import best, health, preflight
+from drltg.training.progress import Progress
 from drltg.training.replay import buffer_state
 from drltg.training.session import RunSession
 from drltg.transfer import Transfer, get_method
@@ -163,11 +163,14 @@ def train(
     *,
     resume: bool = False,
     progress: bool = True,
+    on_frames: Callable[[int], None] | None = None,
 ) -> Path:
     """Train ``cfg.algo`` on ``cfg.task`` for ``cfg.frames`` frames, with the transfer method
     of ``cfg.transfer``; return the run directory. ``cfg`` is a :class:`~drltg.config.RunConfig`, or a mapping
     of config keys resolved as a ``--config`` file is.
 
+    ``progress`` draws a bar (a plain line every 30 s where stderr is no terminal); ``on_frames`` is called
+    with the frames reached after every collected batch (an experiment's worker reports them to its parent).
     The directory is locked while the run writes it (a second process is refused). Everything the
     config can fail on is built before a new directory is created; if a new run fails before its first
     checkpoint, what it wrote is removed, and after it the directory can be resumed.
@@ -199,7 +202,7 @@ def train(
         collector = make_collector(cfg, train_env, learner.policy, frames)
         with deferred_signals() as stop_if_signalled, health.on_divergence(run_dir, cfg):
             run_loop(cfg, collector, learner, writers, frames=frames, updates=updates, progress=progress,
-                     stop_if_signalled=stop_if_signalled, extra_summary=transfer.summary)
+                     stop_if_signalled=stop_if_signalled, extra_summary=transfer.summary, on_frames=on_frames)
     return run_dir
 
 
@@ -306,7 +309,8 @@ class AgentLearner:
 
 def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, frames: int = 0, updates: int = 0,
              progress: bool = True, stop_if_signalled: Callable[..., None] = lambda before=None: None,
-             extra_summary: dict | list[dict] | None = None) -> None:
+             extra_summary: dict | list[dict] | None = None,
+             on_frames: Callable[[int], None] | None = None) -> None:
     """Collect, store, update, evaluate and checkpoint until ``cfg.frames`` frames per seed.
 
     ``learner`` trains one or several seeds in step (see :class:`AgentLearner`); ``writers`` gets one
@@ -324,7 +328,7 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
     def run_eval() -> None:
         for writer, row in zip(writers, learner.evaluate(lambda: stop_if_signalled(before=save_on_stop))):
             writer.evaluation({"frames": frames, **row})
-        bar.set_postfix(eval_return=f"{writers[0].rows[-1]['return_mean']:.3f}", refresh=False)
+        bar.set_note(f"eval return {writers[0].rows[-1]['return_mean']:.3f}")
         if cfg.checkpoint.keep_best:
             improved = [best.improves(cfg, writer.rows) for writer in writers]
             if any(improved):  # last.pt too, so that best.pt is never later than the checkpoint a resume reads
@@ -343,8 +347,7 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
             save_checkpoint()
             log.info("stopped at frame %d with a checkpoint there: --resume continues from it", frames)
 
-    bar = tqdm(total=cfg.frames, initial=frames, unit="frame", disable=None if progress else True,  # None: a TTY only
-               dynamic_ncols=True)
+    bar = Progress(cfg.frames, initial=frames, desc="train", enabled=progress)
     try:
         if _evaluation_due(cfg, writers[0].rows, frames):
             run_eval()
@@ -365,6 +368,8 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
                 with clock("update"):
                     updates = _update(learner, opt.updates_per_batch, updates, frames, stats)
             bar.update(pieces[0].numel())
+            if on_frames is not None:
+                on_frames(frames)
             if frames >= next_log:
                 _log(writers, stats, frames, fps=(frames - start_frames) / (time.perf_counter() - start))
                 next_log = frames + cfg.log.every

@@ -85,7 +85,7 @@ GROUPED_ALGOS = ("sac", "td3", "soc")
 
 
 def seed_dirs(run_dir: Path, first: int, count: int) -> list[Path]:
-    return [Path(run_dir) / f"seed-{first + k}" for k in range(count)]
+    return [Path(run_dir) / f"seed-{s}" for s in config.run_seeds(first, count)]
 
 
 def same_but_seed(a: RunConfig, b: RunConfig) -> bool:
@@ -123,13 +123,14 @@ def in_process(cfg: RunConfig) -> bool:
 
 def train_seeds(cfg: RunConfig, run_dir: str | Path, seeds: int, *, resume: bool = False, progress: bool = True,
                 group: bool = True) -> list[Path]:
-    """Train seeds ``cfg.seed`` … ``cfg.seed + seeds - 1`` of ``cfg`` into ``run_dir/seed-<k>/``;
+    """Train seeds ``cfg.seed``, ``cfg.seed + 100``, … (:func:`drltg.config.run_seeds`, the seeds an experiment's
+    runs use) of ``cfg`` into ``run_dir/seed-<s>/``;
     as one group where :func:`group_support` allows and ``group`` is true, else one after another (with
     a note on stderr saying why). Returns the run directories."""
     if not 1 <= seeds <= config.MAX_SEEDS:
         raise UsageError(f"--seeds must be between 1 and {config.MAX_SEEDS}, got {seeds}.")
     cfg, run_dir = config.as_config(cfg), rundir.check_directory(run_dir, "--run-dir")
-    cfgs = [config.updated(cfg, {"seed": cfg.seed + k}) for k in range(seeds)]
+    cfgs = [config.updated(cfg, {"seed": s}) for s in config.run_seeds(cfg.seed, seeds)]
     dirs = seed_dirs(run_dir, cfg.seed, seeds)
     reason = group_support(cfg) if group else "grouping is turned off"
     if reason is not None or seeds == 1:
@@ -305,7 +306,8 @@ def group_train_env(cfgs: list[RunConfig], transforms, transfers: list[Transfer]
     return env
 
 
-def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False, progress: bool = True) -> list[Path]:
+def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False, progress: bool = True,
+                on_frames: Callable[[int], None] | None = None) -> list[Path]:
     """Train ``cfgs`` (configs equal but for their seeds and sources, :func:`same_but_seed`;
     :func:`group_support` true) as one seed group into ``dirs``, one run directory each; ``resume``
     continues them from their checkpoints."""
@@ -317,7 +319,7 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
             session.close()
             print("note: the group's seeds stopped at different points; resuming them one after another.",
                   file=sys.stderr)
-            return [train(c, d, resume=True, progress=progress) for c, d in zip(cfgs, dirs)]
+            return [train(c, d, resume=True, progress=progress, on_frames=on_frames) for c, d in zip(cfgs, dirs)]
 
         torch.set_num_threads(cfg.threads)
         method = get_method(cfg.transfer.method)
@@ -360,7 +362,7 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
         with deferred_signals() as stop_if_signalled:
             try:
                 run_loop(cfg, collector, learner, writers, frames=frames, updates=updates, progress=progress,
-                         stop_if_signalled=stop_if_signalled, extra_summary=summaries)
+                         stop_if_signalled=stop_if_signalled, extra_summary=summaries, on_frames=on_frames)
             except health.Diverged as err:  # a diverged seed is finished; the others resume from their checkpoints
                 for k in range(count) if err.seeds is None else err.seeds:
                     health.write_diverged(dirs[k], cfgs[k], err)

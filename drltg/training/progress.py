@@ -1,0 +1,69 @@
+"""Progress of long work, counted in frames: a tqdm bar on a terminal, a plain line every half minute elsewhere.
+
+A log file or a CI job gets no bar (tqdm draws none when stderr is not a terminal), so :class:`Progress`
+prints ``experiment: 120,000 of 420,000 frames (29%), 1,234 frames/s, about 4 min left; runs 3/21`` there
+every :data:`PLAIN_EVERY` seconds. The rate is the frames done since the start over the time since the
+start, so the time left counts every frame, not only evaluations.
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+from tqdm.auto import tqdm
+
+PLAIN_EVERY = 30.0
+"""Seconds between two plain progress lines where no bar is drawn."""
+
+
+def duration(seconds: float) -> str:
+    """``42 s``, ``7 min``, ``2.5 h``."""
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
+class Progress:
+    """Frames done of ``total``: ``update(n)`` adds ``n``; ``note`` is shown after the count."""
+
+    def __init__(self, total: int, *, initial: int = 0, desc: str = "frames", enabled: bool = True, file=None):
+        self.file = file or sys.stderr
+        self.bar = tqdm(total=total, initial=initial, unit="frame", desc=desc, dynamic_ncols=True, smoothing=0.05,
+                        file=self.file, disable=None if enabled else True)  # None: a bar on a terminal only
+        self.plain = enabled and self.bar.disable
+        self.total, self.done, self.desc, self.note = total, initial, desc, ""
+        self.start = self.last = time.monotonic()
+        self.start_done = initial
+
+    def update(self, n: int) -> None:
+        self.done += n
+        self.bar.update(n)
+        if self.plain and time.monotonic() - self.last >= PLAIN_EVERY:
+            self.print_line()
+
+    def set_note(self, note: str) -> None:
+        self.note = note
+        self.bar.set_postfix_str(note, refresh=False)
+
+    def line(self) -> str:
+        """The plain line: frames, share, rate and time left (once a frame has been counted)."""
+        elapsed = time.monotonic() - self.start
+        rate = (self.done - self.start_done) / elapsed if elapsed > 0 else 0.0
+        text = f"{self.desc}: {self.done:,} of {self.total:,} frames ({100 * self.done / max(self.total, 1):.0f}%)"
+        if rate > 0:
+            text += f", {rate:,.0f} frames/s, about {duration(max(self.total - self.done, 0) / rate)} left"
+        return text + (f"; {self.note}" if self.note else "")
+
+    def print_line(self) -> None:
+        self.last = time.monotonic()
+        print(self.line(), file=self.file, flush=True)
+
+    def refresh(self) -> None:
+        if self.plain and time.monotonic() - self.last >= PLAIN_EVERY:
+            self.print_line()
+        self.bar.refresh()
+
+    def close(self) -> None:
+        self.bar.close()

@@ -1,0 +1,106 @@
+"""Progress counted in frames: a plain line every half minute where no bar is drawn, fed by the workers'
+frame reports, not by evaluations."""
+import io
+
+from drltg import config as config_lib
+from drltg.experiments import executor
+from drltg.experiments.executor import Run, execute, frames_done, frames_file
+from drltg.training import progress as progress_lib
+from drltg.training.progress import Progress, duration
+from tests.test_faults import TINY
+
+
+class Clock:
+    def __init__(self):
+        self.now = 1000.0
+
+    def __call__(self):
+        return self.now
+
+
+def test_a_plain_line_every_half_minute_with_rate_and_time_left(monkeypatch):
+    clock = Clock()
+    monkeypatch.setattr(progress_lib.time, "monotonic", clock)
+    out = io.StringIO()  # no terminal: no bar, plain lines
+    bar = Progress(1000, desc="experiment", file=out)
+    bar.set_note("runs 0/3 done")
+    clock.now += 10
+    bar.update(100)
+    assert out.getvalue() == ""  # not half a minute yet
+    clock.now += 30
+    bar.update(100)  # 200 frames in 40 s: 5 frames/s, 800 left take 160 s
+    assert out.getvalue() == "experiment: 200 of 1,000 frames (20%), 5 frames/s, about 3 min left; runs 0/3 done\n"
+    clock.now += 29
+    bar.refresh()
+    assert out.getvalue().count("\n") == 1
+    clock.now += 1
+    bar.refresh()
+    assert out.getvalue().count("\n") == 2
+    bar.close()
+
+
+def test_durations_read_as_a_person_says_them():
+    assert [duration(s) for s in (42, 420, 9000)] == ["42 s", "7 min", "2.5 h"]
+
+
+def test_no_lines_and_no_bar_when_progress_is_off(monkeypatch):
+    clock = Clock()
+    monkeypatch.setattr(progress_lib.time, "monotonic", clock)
+    out = io.StringIO()
+    bar = Progress(100, file=out, enabled=False)
+    clock.now += 100
+    bar.update(50)
+    bar.close()
+    assert out.getvalue() == ""
+
+
+def test_a_worker_reports_the_frames_its_runs_reached_before_any_evaluation(tmp_path):
+    """``run_group`` in this process, as a worker runs it: the report beside each log holds the last
+    frames reached, which :func:`frames_done` reads although eval.csv has only frame 0 and the end."""
+    cfg = config_lib.resolve(None, [*TINY, "eval.every=100000", "log.every=100000"], task="fourrooms/northeast",
+                             frames=96)
+    logs = [tmp_path / "logs" / "seed-0.log"]
+    assert executor.run_group([cfg], [str(tmp_path / "run")], [str(logs[0])]) == [("done", "")]
+    assert 0 < int(frames_file(logs[0]).read_text()) <= 96  # the first batch's frames at least
+    run = Run("baseline", config_lib.updated(cfg, {"frames": 200}), tmp_path / "run", logs[0])
+    frames_file(logs[0]).write_text("150\n")  # a run still training, past its last evaluation (frame 96)
+    assert frames_done(run) == 150
+    frames_file(logs[0]).write_text("half")  # torn or foreign: the evaluations count
+    assert frames_done(run) == 96
+
+
+class SimulatedBackend:
+    """A backend whose one run reports 25 frames per poll, then finishes: what a worker does."""
+
+    capacity = 1
+
+    def __init__(self, clock):
+        self.clock, self.polls = clock, 0
+
+    def submit(self, run):
+        self.run = run
+        return "handle"
+
+    def wait(self, handles, poll):
+        self.polls += 1
+        self.clock.now += 31  # half a minute per poll: each poll prints a line
+        if self.polls < 4:
+            frames_file(self.run.log).write_text(f"{25 * self.polls}\n")
+            return []
+        return [("handle", ("done", ""))]
+
+
+def test_an_experiment_s_progress_moves_with_the_reported_frames(tmp_path, monkeypatch):
+    clock = Clock()
+    monkeypatch.setattr(progress_lib.time, "monotonic", clock)
+    cfg = config_lib.resolve(None, list(TINY), task="fourrooms/northeast", frames=100)
+    log = tmp_path / "logs" / "seed-0.log"
+    log.parent.mkdir()
+    frames_file(log).write_text("90\n")  # left by an earlier command: stale, not counted
+    out = io.StringIO()
+    monkeypatch.setattr("sys.stderr", out)
+    status = execute([Run("baseline", cfg, tmp_path / "run", log)], SimulatedBackend(clock), desc="experiment")
+    assert status == {tmp_path / "run": ("done", "")}
+    counts = [line.split(": ", 1)[1].split(" of ")[0] for line in out.getvalue().splitlines()]
+    assert counts[:3] == ["25", "50", "75"], out.getvalue()
+    assert not frames_file(log).exists()  # the report of a finished run is removed
