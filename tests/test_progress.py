@@ -101,6 +101,43 @@ def test_an_experiment_s_progress_moves_with_the_reported_frames(tmp_path, monke
     monkeypatch.setattr("sys.stderr", out)
     status = execute([Run("baseline", cfg, tmp_path / "run", log)], SimulatedBackend(clock), desc="experiment")
     assert status == {tmp_path / "run": ("done", "")}
-    counts = [line.split(": ", 1)[1].split(" of ")[0] for line in out.getvalue().splitlines()]
+    counts = [line.split(": ", 1)[1].split(" of ")[0] for line in out.getvalue().splitlines()
+              if line.startswith("experiment: ")]
     assert counts[:3] == ["25", "50", "75"], out.getvalue()
     assert not frames_file(log).exists()  # the report of a finished run is removed
+
+
+def test_an_experiment_says_before_training_that_its_budget_gives_the_report_too_few_evaluations(tmp_path, capsys):
+    """--frames 10k with the default eval.every of 5000: 2 evaluations in the last quarter, where the report's
+    convergence check needs 4; said once for the target runs, before any frame, with the eval.every to use."""
+    from drltg.experiments.checks import plan_warnings
+
+    cfg = config_lib.resolve(None, [], task="fourrooms/southeast", frames=10_000)
+    source = config_lib.resolve(None, [], task="fourrooms/northeast", frames=10_000)
+    runs = [Run("source", source, tmp_path / "s", tmp_path / "s.log"),
+            *(Run(role, cfg, tmp_path / role, tmp_path / f"{role}.log") for role in ("baseline", "transfer"))]
+    assert plan_warnings(runs) == [
+        "baseline and transfer runs: 10,016 frames with eval.every=5,000 give 2 evaluations in the last 25% of the "
+        "budget, where the report's convergence check needs 4; use -o eval.every=834 or less."]
+    short = config_lib.updated(cfg, {"frames": 6_016})
+    assert plan_warnings([Run("baseline", short, tmp_path / "b", tmp_path / "b.log")]) == [
+        "baseline runs: 6,016 frames with eval.every=5,000 give evaluations at frame 0 and 6,016 only: no learning "
+        "curve to speak of; lower eval.every."]
+
+
+def test_the_warning_comes_before_the_first_frame(tmp_path, monkeypatch, capsys):
+    class Stop(Exception):
+        pass
+
+    class NoBackend:
+        capacity = 1
+
+        def submit(self, run):
+            assert "warning: baseline runs:" in capsys.readouterr().err  # said already
+            raise Stop
+
+    cfg = config_lib.resolve(None, list(TINY), task="fourrooms/northeast", frames=64)  # eval.every=32
+    import pytest
+
+    with pytest.raises(Stop):
+        execute([Run("baseline", cfg, tmp_path / "run", tmp_path / "run.log")], NoBackend(), progress=False)

@@ -225,6 +225,7 @@ def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs", pro
     """Run every incomplete run (each after the run it needs) and return ``{path: (status, detail)}``
     with status ``skipped`` (complete before), ``done``, ``diverged`` or ``failed``. With ``group_seeds``,
     runs that differ only in their seed train as one seed group (:func:`seed_groups`)."""
+    from drltg.experiments.checks import plan_warnings
     from drltg.training.progress import Progress
 
     check_order(runs)
@@ -235,6 +236,8 @@ def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs", pro
         if finished is not None:
             status[r.path] = ("skipped", "") if finished[0] == "complete" else finished
     todo = [r for r in runs if r.path not in status]
+    for sentence in plan_warnings(todo):  # before any frame: the workers' own warnings go to their logs
+        print(f"warning: {sentence}", file=sys.stderr)
     units = seed_groups(todo) if group_seeds else [[r] for r in todo]
     for r in todo:  # what an earlier command's workers reported is stale: they resume from a checkpoint
         with contextlib.suppress(FileNotFoundError):

@@ -37,17 +37,24 @@ def _gib(n: float) -> str:
     return f"{n / 2**30:,.1f} GiB"
 
 
-def warn_budget(cfg: RunConfig) -> None:
-    """Say on stderr, before training, that a budget cannot learn or cannot be followed: every frame within
-    the random warm-up (no update at all), or fewer than two evaluations after frame 0."""
+def budget_warnings(cfg: RunConfig) -> list[str]:
+    """Why a budget cannot learn or cannot be followed, one sentence each: every frame within the random
+    warm-up (no update at all), or fewer than two evaluations after frame 0."""
     col = cfg.collector
     warm_up = math.ceil(col.init_random_frames / col.frames_per_batch) * col.frames_per_batch
     if cfg.frames < warm_up:
-        print(f"warning: {cfg.frames:,} frames lie within the {warm_up:,} random warm-up frames "
-              "(collector.init_random_frames): the run will make no update, so it learns nothing.", file=sys.stderr)
-    elif cfg.frames < 2 * cfg.eval.every:
-        print(f"warning: {cfg.frames:,} frames with eval.every={cfg.eval.every:,} give evaluations at frame 0 and "
-              f"{cfg.frames:,} only: no learning curve to speak of; lower eval.every.", file=sys.stderr)
+        return [f"{cfg.frames:,} frames lie within the {warm_up:,} random warm-up frames "
+                "(collector.init_random_frames): the run will make no update, so it learns nothing."]
+    if cfg.frames < 2 * cfg.eval.every:
+        return [f"{cfg.frames:,} frames with eval.every={cfg.eval.every:,} give evaluations at frame 0 and "
+                f"{cfg.frames:,} only: no learning curve to speak of; lower eval.every."]
+    return []
+
+
+def warn_budget(cfg: RunConfig) -> None:
+    """Print :func:`budget_warnings` on stderr, before training."""
+    for sentence in budget_warnings(cfg):
+        print(f"warning: {sentence}", file=sys.stderr)
 
 
 def check_task(cfg: RunConfig, env: EnvBase, fresh: Callable[[], EnvBase] | None = None) -> None:
