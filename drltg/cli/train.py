@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from drltg import config as config_lib
@@ -66,6 +67,8 @@ def run(args: argparse.Namespace) -> int:
         dirs = train_seeds(cfg, run_dir, args.seeds, resume=args.resume, progress=not args.no_progress,
                            group=not args.no_group)
         _refuse_diverged(dirs)
+        for d in dirs:
+            _say_how_it_went(d, d.name)
         print(f"run directories: {', '.join(str(d) for d in dirs)}")
         print(f"  curves:  drltg report --baseline {run_dir} --transfer OTHER_RUNS (a folder of seed runs)")
         return 0
@@ -77,10 +80,22 @@ def run(args: argparse.Namespace) -> int:
 
     run_dir = train(cfg, run_dir, resume=args.resume, progress=not args.no_progress)
     _refuse_diverged([run_dir])
+    _say_how_it_went(run_dir)
     print(f"run directory: {run_dir}")
     print(f"  eval curve:  {run_dir / 'eval.csv'}")
     print(f"  tensorboard: tensorboard --logdir {run_dir / 'logs' / 'tensorboard'}")
     return 0
+
+
+def _say_how_it_went(run_dir: Path, name: str | None = None) -> None:
+    """The run's final and best evaluation, and a collapse warning (on stderr), from its eval.csv."""
+    from drltg.store.rundir import read_config, read_eval_csv
+    from drltg.training.best import outcome
+
+    cfg = config_lib.build(read_config(run_dir))
+    for line in outcome(cfg, read_eval_csv(run_dir / "eval.csv")):
+        warning = line.startswith("warning: ")
+        print(f"{name}: {line}" if name and not warning else line, file=sys.stderr if warning else sys.stdout)
 
 
 def _first_seed(run_dir: Path) -> Path | None:

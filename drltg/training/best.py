@@ -26,7 +26,11 @@ from drltg.config import RunConfig
 from drltg.errors import UsageError
 from drltg.store.rundir import BEST, CHECKPOINT, EPISODE_FLAGS, load_checkpoint, write_tracked
 
-__all__ = ["metric", "score", "best_row", "improves", "summary", "check_metric", "check_resume"]
+__all__ = ["metric", "score", "best_row", "improves", "summary", "check_metric", "check_resume", "outcome"]
+
+COLLAPSE = 0.5
+"""A run collapsed when its last evaluations' mean score lies more than this share of its score range below
+its best (its best earlier than those)."""
 
 
 def metric(cfg: RunConfig, row: dict) -> str:
@@ -98,3 +102,29 @@ def check_resume(cfg: RunConfig, run_dir: Path, ckpt: dict | None, rows: list[di
         f"{best['frames']}, {name} {score(cfg, best, name):g}); restore it, or start the run again in another "
         "--run-dir."
     )
+
+
+def outcome(cfg: RunConfig, rows: list[dict]) -> list[str]:
+    """How a run went, for its closing lines: its final and best evaluation, and a warning where the last
+    evaluations (the last quarter of them, at least one) fall more than :data:`COLLAPSE` of the run's score
+    range below its best: a collapse, which the last checkpoint carries."""
+    if not rows:
+        return []
+    name = metric(cfg, rows[-1])
+    label = name.removesuffix("_mean").replace("_", " ")
+    best, last = best_row(cfg, rows), rows[-1]
+    lines = [f"final evaluation: {label} {score(cfg, last, name):.3g} at frame {last['frames']:,}; best: "
+             f"{score(cfg, best, name):.3g} at frame {best['frames']:,}"]
+    tail = rows[-max(1, len(rows) // 4):]
+    scores = [score(cfg, r, name) for r in rows]
+    spread = max(scores) - min(scores)
+    drop = score(cfg, best, name) - sum(score(cfg, r, name) for r in tail) / len(tail)
+    if best not in tail and spread > 0 and drop > COLLAPSE * spread:
+        span = f"frame {tail[0]['frames']:,}" if len(tail) == 1 else f"frames {tail[0]['frames']:,}-{last['frames']:,}"
+        keep = ("checkpoints/best.pt keeps the best policy (drltg evaluate RUN --checkpoint best)"
+                if cfg.checkpoint.keep_best else
+                "train with -o checkpoint.keep_best=true to keep the best policy as checkpoints/best.pt")
+        lines.append(f"warning: the run collapsed: its {label} fell from {score(cfg, best, name):.3g} at frame "
+                     f"{best['frames']:,} to {score(cfg, last, name):.3g} ({span} average "
+                     f"{score(cfg, best, name) - drop:.3g}); the last checkpoint holds the collapsed policy, {keep}.")
+    return lines
