@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import re
 import signal
 import sys
 
@@ -36,8 +37,26 @@ class _Parser(argparse.ArgumentParser):
         raise _BadArguments(f"{self.prog}: error: {message}")
 
 
+NEGATIVE_VALUED = ("--value-range", "--threshold")
+"""Options whose value may start with a minus sign (``--value-range -50,0``), which argparse would take for
+an option of its own."""
+
+
+def _joined_negative_values(argv: list[str]) -> list[str]:
+    """``["--value-range", "-50,0"]`` as ``["--value-range=-50,0"]``."""
+    out, i = [], 0
+    while i < len(argv):
+        if argv[i] in NEGATIVE_VALUED and i + 1 < len(argv) and re.match(r"-[0-9.]", argv[i + 1]):
+            out.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
+    argv = _joined_negative_values(sys.argv[1:] if argv is None else argv)
     parser = _Parser(prog="drltg", description="DRL Transfer Gym: transfer learning for deep RL on TorchRL.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True

@@ -98,6 +98,7 @@ def register_gym_task(
     info_keys: Sequence[str] = (),
     train: dict[str, Any] | None = None,
     potential: Callable[[dict[str, Any]], Callable] | None = None,
+    returns: Callable[[dict[str, Any]], tuple[float, float]] | tuple[float, float] | None = None,
     replace: bool = False,
     **make_kwargs,
 ):
@@ -109,8 +110,10 @@ def register_gym_task(
     no config sets them, so a run directory cannot name the module ``gymnasium.make`` would import for an
     id ``"module:Env-v0"``.
     ``potential(env_options)`` builds its reward-shaping potential, as for :func:`~drltg.envs.register_task`
-    (``--method reward-shaping``). Gymnasium is not imported here: a plugin registering tasks stays cheap
-    to import.
+    (``--method reward-shaping``). ``returns`` is the range every episode's return lies in, as
+    ``(low, high)`` or ``returns(env_options)`` (:attr:`~drltg.envs.TaskSpec.returns`): the report's
+    interval over the declared range and its normalised scores read it. Gymnasium is not imported here: a
+    plugin registering tasks stays cheap to import.
     """
     from drltg.envs.registry import register_task
 
@@ -118,8 +121,21 @@ def register_gym_task(
         raise UsageError(f"register_gym_task({name!r}, ...): gym_id must be a Gymnasium id such as 'Pendulum-v1'.")
     options = ", ".join(f"{k}={v!r}" for k, v in make_kwargs.items())
     description = description or f"Gymnasium {gym_id}" + (f" with {options}" if options else "")
-    return register_task(name, make_gym_env, description, train=train, potential=potential, replace=replace,
-                         fixed=fixed(gym_id, info_keys), **make_kwargs)
+    if isinstance(returns, (tuple, list)):
+        returns = _Range(*returns)
+    return register_task(name, make_gym_env, description, train=train, potential=potential, returns=returns,
+                         replace=replace, fixed=fixed(gym_id, info_keys), **make_kwargs)
+
+
+class _Range:
+    """A fixed return range as a task's ``returns(options)`` (a class, not a lambda: worker processes
+    receive registered tasks pickled)."""
+
+    def __init__(self, low: float, high: float):
+        self.low, self.high = float(low), float(high)
+
+    def __call__(self, options) -> tuple[float, float]:
+        return self.low, self.high
 
 
 def fixed(gym_id: str, info_keys: Sequence[str] = ()) -> dict[str, Any]:

@@ -64,6 +64,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="config override applied to every run, e.g. -o transfer.upsilon=0.9")
     p.add_argument("--threshold", help="report threshold: a value, or a fraction of the best baseline like 80%%")
+    p.add_argument("--value-range", metavar="LOW,HIGH",
+                   help="the range every evaluation return lies in, for a task that declares none (e.g. -50,0)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar (none is drawn when stderr is not "
                    "a terminal)")
 
@@ -257,12 +259,13 @@ def _check_settings(path: Path, settings: dict) -> None:
 def experiment(pair: str, method: str, *, frames: int | str, out: str | Path, seeds: int | str = 5, seed: int = 0,
                algo: str = "sac", source_frames: int | str | None = None, overrides: Sequence[str] = (),
                threshold: float | str | None = None, workers: int = 1, group_seeds: bool = True,
-               progress: bool = True, max_seeds: int = 20) -> dict:
+               progress: bool = True, max_seeds: int = 20, value_range=None) -> dict:
     """Train one experiment's source, baseline and transfer runs into ``out`` and report the transfer runs
     against the baselines; what is finished is reused and what was interrupted resumes.
 
     The arguments are ``drltg experiment``'s (frame counts as ``20000``, ``"20k"`` or ``"1e4"``;
-    ``overrides`` as ``["transfer.upsilon=0.9"]``). Returns the report, :func:`drltg.analysis.report.
+    ``overrides`` as ``["transfer.upsilon=0.9"]``; ``value_range`` as ``(-50, 0)``, for a task that declares no
+    return range). Returns the report, :func:`drltg.analysis.report.
     transfer_report`'s dict, with ``"diverged"``: the runs left out of it because their losses diverged.
     Raises :class:`~drltg.errors.UsageError` for a bad setting, before anything is written, and
     :class:`~drltg.errors.RunFailed` naming every run that failed.
@@ -285,7 +288,8 @@ def experiment(pair: str, method: str, *, frames: int | str, out: str | Path, se
         taken, result = [], {}
         for k, look in enumerate(plan, 1):
             result = _run(pair, method, frames, out, look.pairs, seed, algo, source_frames, overrides, threshold,
-                          workers, group_seeds, progress, {"seeds": "auto", "max_seeds": max_seeds})
+                          workers, group_seeds, progress, {"seeds": "auto", "max_seeds": max_seeds},
+                          value_range=value_range)
             p = result["metrics"].get("mean_return_gain_verdict_p", 1.0)
             taken.append(p)
             if progress:
@@ -298,7 +302,7 @@ def experiment(pair: str, method: str, *, frames: int | str, out: str | Path, se
     if isinstance(seeds, bool) or not isinstance(seeds, int):
         raise UsageError(f"--seeds must be a whole number or 'auto', got {seeds!r}.")
     return _run(pair, method, frames, out, seeds, seed, algo, source_frames, overrides, threshold, workers,
-                group_seeds, progress, {"seeds": seeds})
+                group_seeds, progress, {"seeds": seeds}, value_range=value_range)
 
 
 def _with_sequential(result: dict, record: dict) -> dict:
@@ -321,12 +325,14 @@ def _with_sequential(result: dict, record: dict) -> dict:
 
 
 def _run(pair, method, frames, out, seeds, seed, algo, source_frames, overrides, threshold, workers, group_seeds,
-         progress, counted: dict) -> dict:
+         progress, counted: dict, value_range=None) -> dict:
     """One experiment of ``seeds`` pairs (``counted``: how its settings name the seed count)."""
     from drltg.analysis.report import parse_threshold
+    from drltg.analysis.report.settings import parse_range
     from drltg.experiments.executor import check_order, registrations
 
     parse_threshold(threshold)
+    parse_range(value_range)
     out = rundir.check_directory(out, "--out")
     rundir.refuse_run_directory(out, "--out")
     overrides = list(overrides)
@@ -347,7 +353,7 @@ def _run(pair, method, frames, out, seeds, seed, algo, source_frames, overrides,
     except OSError as err:
         raise UsageError(f"cannot create --out '{out}' ({err.strerror}).") from None
     return execute_and_report(runs, out, saved, settings, workers=workers, name="experiment", threshold=threshold,
-                              method=method, group_seeds=group_seeds, progress=progress)
+                              method=method, group_seeds=group_seeds, progress=progress, value_range=value_range)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -356,7 +362,7 @@ def run(args: argparse.Namespace) -> int:
                             seed=args.seed, algo=args.algo, source_frames=args.source_frames,
                             overrides=args.overrides, threshold=args.threshold, workers=args.workers,
                             group_seeds=not args.no_seed_groups, progress=not args.no_progress,
-                            max_seeds=args.max_seeds)
+                            max_seeds=args.max_seeds, value_range=args.value_range)
     except RunFailed as err:
         print(err)
         return 1
@@ -380,7 +386,7 @@ def print_report(result: dict) -> None:
 
 
 def execute_and_report(runs, out: Path, saved: Path, settings: dict, *, workers: int, name: str, threshold,
-                       method: str, group_seeds: bool = True, progress: bool = True) -> dict:
+                       method: str, group_seeds: bool = True, progress: bool = True, value_range=None) -> dict:
     """Under the folder's lock: save the settings, train every run not finished yet on ``workers``
     processes, then report the transfer runs against the baselines (the report's dict, with ``"diverged"``:
     the runs left out of it). Raises :class:`~drltg.errors.RunFailed` if a run failed: no report then."""
@@ -405,6 +411,7 @@ def execute_and_report(runs, out: Path, saved: Path, settings: dict, *, workers:
             [d for role, _, d in runs if role == "transfer"],
             out / "report",
             threshold=threshold,
+            value_range=value_range,
             baseline_label="no transfer",
             transfer_label=method,
         )

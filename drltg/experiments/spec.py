@@ -13,7 +13,7 @@ from drltg.experiments.summary import SUMMARY_COLUMNS
 __all__ = ["Spec", "parse_spec", "load_spec", "KEYS", "MAX_RUNS", "SET_BY_SWEEP"]
 
 KEYS = ("pairs", "methods", "algos", "seeds", "seed", "frames", "source_frames", "overrides", "grid",
-        "threshold", "primary_metric", "resources")
+        "threshold", "primary_metric", "value_range", "resources")
 RESOURCES = ("num_cpus", "num_gpus")
 MAX_RUNS = 10_000
 """The most transfer runs one sweep spec may expand to (counted before anything is planned)."""
@@ -35,6 +35,7 @@ class Spec:
     grid: dict[str, list] = field(default_factory=dict)
     threshold: float | str | None = None
     primary_metric: str | None = None
+    value_range: tuple[float, float] | None = None
     resources: dict[str, float] = field(default_factory=lambda: {"num_cpus": 1, "num_gpus": 0})
 
 
@@ -108,6 +109,7 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
     _check_grid(spec.grid, where)
     spec.threshold, primary = _report_keys(data, where)
     spec.primary_metric = primary
+    spec.value_range = _value_range(data, where)
     spec.resources.update(_resources(data, where))
     runs = math.prod([len(spec.pairs), len(spec.methods), len(spec.algos), spec.seeds, len(spec.frames),
                       len(spec.source_frames or [None]), *map(len, spec.grid.values())])
@@ -154,6 +156,20 @@ def _check_grid(grid: dict, where: str) -> None:
         if named is not None:
             raise UsageError(f"{where}: grid value {named!r} of '{key}' holds a control character; grid values name "
                              "the runs' folders, so give printable values.")
+
+
+def _value_range(data: dict, where: str) -> tuple[float, float] | None:
+    """``value_range: [low, high]``: the range of the runs' returns, for tasks that declare none."""
+    from drltg.analysis.report.settings import parse_range
+
+    value = data.get("value_range")
+    if value is not None and not (isinstance(value, list) and len(value) == 2
+                                  and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)):
+        raise UsageError(f"{where}: 'value_range' must be [LOW, HIGH], two numbers, got {value!r}.")
+    try:
+        return parse_range(value)
+    except UsageError as err:
+        raise UsageError(f"{where}: {err}".replace("--value-range", "value_range")) from None
 
 
 def _report_keys(data: dict, where: str) -> tuple:

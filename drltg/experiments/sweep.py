@@ -139,7 +139,7 @@ def plan(spec: Spec, out: Path) -> tuple[list[Run], list[Cell]]:
 
 
 # ---------------------------------------------------------------------------------------- reports
-def write_reports(cells: list[Cell], status: dict, threshold) -> list[dict]:
+def write_reports(cells: list[Cell], status: dict, threshold, value_range=None) -> list[dict]:
     """One ``drltg report`` per cell whose runs are all complete; a row per cell for the summary."""
     from drltg.analysis.report import transfer_report
 
@@ -155,7 +155,8 @@ def write_reports(cells: list[Cell], status: dict, threshold) -> list[dict]:
         else:
             try:
                 result = transfer_report(c.baseline, c.transfer, c.report, threshold=threshold,
-                                         baseline_label="no transfer", transfer_label=c.method)
+                                         value_range=value_range, baseline_label="no transfer",
+                                         transfer_label=c.method)
                 row["metrics"] = result["metrics"]
                 row["per_seed"], row["value_range"] = result["per_seed"], result["settings"].get("value_range")
                 if diverged:
@@ -327,7 +328,7 @@ def _write_summary(spec: Spec, out: Path, runs: list[Run], cells: list[Cell], st
     """A report per cell whose runs are complete, then summary.{csv,md}, runs.csv and the matrix plot."""
     from drltg.analysis import tables
 
-    rows = write_reports(cells, status, spec.threshold)
+    rows = write_reports(cells, status, spec.threshold, spec.value_range)
     csv_text, md_text = summary_tables(rows, spec.primary_metric)
     runs_csv = tables.render([("run", "role", "status", "detail", "log")] + [
         (r.path.relative_to(out), r.role, *status[r.path], r.log.relative_to(out)) for r in runs], "csv")

@@ -74,6 +74,8 @@ def _value_range(runs: Sequence[Curve], s: ReportSettings, warnings: list[str]) 
     given = s.value_range
     if given is None and s.tag and str(s.tag).split("/")[-1].endswith(RATE_SUFFIX):
         given = (0.0, 1.0)
+    if given is None and s.task is not None:  # the user names the task foreign logs of its returns come from
+        given = task_returns(s.task)
     if given is None and s.tag in (None, "return_mean"):
         given = _task_returns(runs)
     if given is None:
@@ -86,6 +88,21 @@ def _value_range(runs: Sequence[Curve], s: ReportSettings, warnings: list[str]) 
                         "bounded to that range.")
         return None
     return lo, hi
+
+
+def task_returns(name: str) -> tuple[float, float] | None:
+    """The return range the drltg task ``name`` (or its Gymnasium id ``drltg/<task>-v0``) declares with its
+    default options; one sentence for a name that is neither."""
+    from drltg.envs.registry import TASKS, get_task
+    from drltg.gymnasium_ids import task_id
+
+    for task in list(TASKS):
+        try:
+            if task_id(task) == name.removeprefix("drltg:"):
+                name = task
+        except ValueError:  # a task whose name cannot be an id
+            continue
+    return get_task(name).return_range()
 
 
 def _task_returns(runs: Sequence[Curve]) -> tuple[float, float] | None:

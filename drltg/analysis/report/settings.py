@@ -91,6 +91,9 @@ class ReportSettings:
                              help="resamples of a bootstrap --interval (default: 10000)")
     seed: int = _option(0, "--seed", type=int, help="seed of a bootstrap --interval (default: 0)")
     ratio_eps: float = _option(0.01)
+    task: str | None = _option(None, "--task", metavar="TASK",
+                               help="the drltg task (or its Gymnasium id, drltg/<task>-v0) foreign logs were "
+                               "trained on: the report takes its declared return range, as for drltg's runs")
     value_range: object = _option(None, "--value-range", metavar="LOW,HIGH",
                                   help="the range every value of the curves lies in, e.g. 0,500 for a reward in "
                                   "[0, 1] over 500 steps (default: 0,1 for a rate, else unknown)")
@@ -116,6 +119,10 @@ class ReportSettings:
         need(float(self.convergence_margin) > 0,
              f"--convergence-margin must be positive, got {self.convergence_margin}.")
         self.value_range = parse_range(self.value_range)
+        if self.task is not None:
+            from drltg.analysis.report.align import task_returns
+
+            task_returns(str(self.task))  # an unknown task is one sentence before any run is read
         need(self.crossing in ("sustained", "first"), f"--crossing must be sustained or first, got '{self.crossing}'.")
         need(not (self.sustain is not None and self.crossing == "first"),
              "--sustain applies to a sustained crossing; drop it or --crossing first.")
