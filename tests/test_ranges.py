@@ -64,3 +64,23 @@ def test_an_experiment_reports_with_the_value_range_it_is_given(tmp_path, capsys
                  "--out", str(out), "--value-range", "-5,5", "--no-progress", *TINY]) == 0, capsys.readouterr().err
     saved = json.loads((out / "report" / "transfer_metrics.json").read_text())
     assert saved["settings"]["value_range"] == [-5.0, 5.0]
+
+
+def test_a_report_is_named_after_the_methods_and_written_beside_the_runs(tmp_path, monkeypatch, capsys):
+    """``drltg report`` without labels or --out: the labels are the runs' transfer methods (not 'transfer vs
+    baseline') and the report folder lands beside the runs, not in the working directory."""
+    from tests.test_faults import train_args
+
+    runs = tmp_path / "runs"
+    for side, method in (("baseline", []), ("transfer", ["-o", "transfer.method=reward-shaping"])):
+        for seed in (0, 100):
+            assert main(train_args(runs / side / f"seed-{seed}") + ["--seed", str(seed), *method]) == 0
+    elsewhere = tmp_path / "cwd"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    assert main(["report", "--baseline", str(runs / "baseline"), "--transfer", str(runs / "transfer")]) == 0
+    assert list(elsewhere.iterdir()) == []
+    (report,) = runs.glob("report-*")
+    assert report.name == "report-reward-shaping-vs-no-transfer"
+    saved = json.loads((report / "transfer_metrics.json").read_text())
+    assert (saved["settings"]["baseline_label"], saved["settings"]["transfer_label"]) == ("no transfer", "reward-shaping")

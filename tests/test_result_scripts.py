@@ -63,6 +63,7 @@ def planned(argv: list[str], out: Path, monkeypatch) -> list:
 
     monkeypatch.setattr("drltg.training.loop.train", lambda cfg, run_dir, **kw: seen.append(cfg) or run_dir)
     monkeypatch.setattr("drltg.training.seeds.train_seeds", lambda cfg, run_dir, n, **kw: seen.append(cfg) or [])
+    monkeypatch.setattr("drltg.cli.train._say_how_it_went", lambda run_dir, name=None: None)  # nothing was trained
     monkeypatch.setattr("drltg.experiments.experiment.execute_and_report", stop)
     monkeypatch.setattr("drltg.cli.report.transfer_report", stop)
     if "--out" in argv:  # what a sweep, an experiment or a report writes goes to the test's folder

@@ -15,10 +15,14 @@ Format = str | Callable[[float], str]
 
 
 def number(x: float) -> str:
-    """Four significant digits; a whole number from 1000 up (a frame count) in full, with thousands separators."""
+    """Four significant digits; a whole number from 1000 up (a frame count) in full, and any other from 1000
+    to 10^6 rounded to a whole one, both with thousands separators (-2342.3 as -2,342 beside -2,453: one
+    format in a table)."""
     x = float(x)
     if x.is_integer() and abs(x) >= 1000:
         return f"{int(x):,}"
+    if 1000 <= abs(x) < 1e6:
+        return f"{round(x):,}"
     return f"{x:.4g}"
 
 

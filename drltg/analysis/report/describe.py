@@ -83,6 +83,12 @@ def describe(s: ReportSettings, sides: Sides, w: Window, trends: dict, warnings:
 
 
 def _side_label(curves: Sequence[Curve], default: str) -> str:
+    """The side's name: the transfer method its drltg runs share (``no transfer`` for none), else the one
+    run's label, else the folder that holds its runs, else ``default``."""
+    methods = {((c.config or {}).get("transfer") or {}).get("method") if c.config else None for c in curves}
+    if len(methods) == 1 and None not in methods:
+        method = str(methods.pop())
+        return "no transfer" if method == "none" else method
     if len(curves) == 1:
         return curves[0].label
     parents = {Path(c.source).resolve().parent.parent if Path(c.source).is_file()

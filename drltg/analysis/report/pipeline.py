@@ -32,11 +32,12 @@ def transfer_report(
     s = settings_of(settings)
     if out_dir is not None:
         check_out_dir(Path(out_dir))
-    result = compute(read_runs(baseline, s), read_runs(transfer, s), **settings)
+    runs = read_runs(baseline, s), read_runs(transfer, s)
+    result = compute(*runs, **settings)
     files = render(result)
     st = result["settings"]
     out = Path(out_dir) if out_dir is not None else fresh_dir(
-        f"report-{st['transfer_label']}-vs-{st['baseline_label']}")
+        f"report-{st['transfer_label']}-vs-{st['baseline_label']}", _beside([*runs[0], *runs[1]]))
     rundir.write_directory(out, files)
     return {"metrics": result["metrics"], "settings": st, "per_seed": result["per_seed"],
             "scores": result["scores"], "out_dir": str(out)}
@@ -103,3 +104,19 @@ def report_from_curves(frames, baseline, transfer, *, paired: bool = True, **set
 
     result = compute(curves("baseline"), curves("transfer"), **settings)
     return {"metrics": result["metrics"], "settings": result["settings"], "per_seed": result["per_seed"]}
+
+
+
+def _beside(runs: Sequence[Curve]) -> Path | None:
+    """The folder that holds every run (the default report folder lands there, beside the runs, not in the
+    working directory), above any run directory; ``None`` for curves that are no files."""
+    import os
+
+    files = [Path(c.source).resolve() for c in runs if Path(c.source).is_file()]
+    if not files:
+        return None
+    common = Path(os.path.commonpath([str(f.parent) for f in files]))
+    while common != common.parent and any((p / rundir.EVAL).is_file() or (p / rundir.SUMMARY).is_file()
+                                          for p in [common, *common.parents]):
+        common = common.parent  # never inside a run
+    return common if os.access(common, os.W_OK | os.X_OK) else None
