@@ -113,9 +113,13 @@ def ends(report: dict) -> str:
     b, t = report_curves(report, "baseline"), report_curves(report, "transfer")
     if round(abs(m["jumpstart"]), 2) and all(len(c.frames) > 1 for c in b + t):
         second = float(np.mean([c.values[1] for c in t]) - np.mean([c.values[1] for c in b]))
-        if round(abs(second), 2) == 0:
+        # the frame-0 difference fading to 0 by the second evaluation adds j (f1 - f0) / 2 to the area
+        carried = m["jumpstart"] * (t[0].frames[1] - t[0].frames[0]) / 2 / (st["budget"] - st["start"])
+        gain = m["mean_return_gain"]
+        if round(abs(second), 2) == 0 and gain * m["jumpstart"] > 0 and round(abs(gain - carried), 2) == 0:
+            word = "gain" if gain > 0 else "loss"
             text += (f"; gone by the second evaluation, {cl.frames(t[0].frames[1])} frames: {cl.signed(second)}, so "
-                     "this gain is the frame-0 jumpstart carried over the first interval, not a gain over the run")
+                     f"this {word} is the frame-0 jumpstart carried over the first interval, not a {word} over the run")
     return text + ")"
 
 
