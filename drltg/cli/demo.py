@@ -20,8 +20,8 @@ from drltg import config as config_lib
 from drltg.errors import RunFailed, UsageError
 from drltg.store import rundir
 
-DEMO = dict(pair="fourrooms-near", method="model-reuse", algo="sac", seeds=10, seed=0, frames=10_000,
-            source_frames=30_000, source_seed=50, eval_every=1000, source_eval_every=5000, threshold=0.5)
+DEMO = dict(pair="fourrooms-near", method="model-reuse", algo="sac", seeds=10, seed=0, frames=20_000,
+            source_frames=40_000, source_seed=50, eval_every=1000, source_eval_every=5000, threshold=0.5)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
