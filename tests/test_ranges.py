@@ -84,3 +84,36 @@ def test_a_report_is_named_after_the_methods_and_written_beside_the_runs(tmp_pat
     assert report.name == "report-reward-shaping-vs-no-transfer"
     saved = json.loads((report / "transfer_metrics.json").read_text())
     assert (saved["settings"]["baseline_label"], saved["settings"]["transfer_label"]) == ("no transfer", "reward-shaping")
+
+
+def test_an_equivalence_margin_turns_an_undecided_mean_difference_into_equivalent():
+    """TOST, hand-checked: paired differences 0.01, -0.01, 0.02, 0.00, -0.02, 0.01 (mean 0.00167, sd 0.01472,
+    se 0.00601, 5 df); within +-0.05 the larger one-sided p is t.sf((0.00167 + 0.05) / 0.00601, 5) = 2.2e-5."""
+    import numpy as np
+    from scipy import stats as sp
+
+    from drltg.analysis import report_from_curves
+    from drltg.analysis.stats import tost
+
+    b = np.array([0.5, 0.6, 0.4, 0.55, 0.45, 0.5])
+    d = np.array([0.01, -0.01, 0.02, 0.0, -0.02, 0.01])
+    se = d.std(ddof=1) / np.sqrt(6)
+    assert tost(b, b + d, True, 0.05) == pytest.approx(max(sp.t.sf((d.mean() + 0.05) / se, 5),
+                                                          sp.t.cdf((d.mean() - 0.05) / se, 5)))
+    assert tost(b, b + d, True, 0.001) > 0.05  # a margin inside the noise shows nothing
+    frames = np.arange(0, 11) * 1000.0
+    base = np.tile(b[:, None], (1, 11))
+    trans = base + d[:, None]
+    plain = report_from_curves(frames, base, trans)["metrics"]
+    assert plain["mean_return_gain_verdict"] == "undecided"
+    report = report_from_curves(frames, base, trans, equivalence_margin=0.05)
+    m = report["metrics"]
+    assert m["mean_return_gain_verdict"] == "equivalent"
+    assert m["mean_return_gain_verdict_test"] == "TOST within +-0.05, paired t"
+    assert m["mean_return_gain_verdict_p"] < 0.05
+    from drltg.analysis.claims import verdict_of
+
+    assert verdict_of(report, "mean_return_gain").startswith(
+        "+0.00, equivalent (TOST within +-0.05, paired t, p = ")
+    with pytest.raises(UsageError, match="--equivalence-margin must be a finite number above 0"):
+        report_from_curves(frames, base, trans, equivalence_margin=-1)

@@ -189,6 +189,9 @@ def verdict_of(report: Mapping, name: str, p_adjusted: Adjusted | None = None, f
     (``p_adjusted``), saying why there is no interval where the report withheld one, and, for a range-bounded
     interval that holds 0, about how many seeds would decide."""
     m, st = report["metrics"], report["settings"]
+    if m.get(f"{name}_verdict") == "equivalent":
+        return (f"{estimate(m[name])}, equivalent ({m[f'{name}_verdict_test']}, p = "
+                f"{p_text(m[f'{name}_verdict_p'])}; the exact test could not tell it from no effect)")
     ci, design = m.get(f"{name}_ci"), design_of(report)
     p = p_adjusted if p_adjusted is not None else Adjusted(None, exact_p(m, name))
     if p.exact is not None:

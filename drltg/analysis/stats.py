@@ -467,6 +467,15 @@ def equivalence_test(estimate: float, se: float, df: float, margin: float) -> fl
     return float(max(below, above))
 
 
+def tost(b, t, paired: bool, margin: float) -> float:
+    r"""TOST p-value that the mean difference of ``t`` over ``b`` lies within :math:`\pm` ``margin``: paired t on
+    :math:`d_i = t_i - b_i`, or Welch's standard error with Hsu's degrees of freedom (:func:`equivalence_test`);
+    it assumes normal (differences of) scores, as a t interval does."""
+    b, t = np.asarray(b, float), np.asarray(t, float)
+    estimate, se, df = _difference_and_se(b, t, paired)
+    return equivalence_test(float(estimate), float(se), float(df), float(margin))
+
+
 def trend(frames, values) -> tuple[float, float, int]:
     """Least-squares slope of ``values`` on ``frames``, its standard error and ``n - 2`` degrees of
     freedom: the test of whether a curve still changes over its final evaluations."""

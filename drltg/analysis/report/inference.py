@@ -99,7 +99,9 @@ permutation of the runs between the sides, the sign test of P(T_i > B_i) = 1/2 o
 
 def _verdict(metric: Metric, value, b, t, paired: bool, s: ReportSettings, out: dict) -> dict:
     r"""``<name>_verdict``: ``higher`` / ``lower`` where the exact randomization test rejects "no effect" at
-    :math:`\alpha` = 1 - ``confidence``, by the sign of the metric (of P(T > B) - 1/2), else ``undecided``;
+    :math:`\alpha` = 1 - ``confidence``, by the sign of the metric (of P(T > B) - 1/2); for a mean difference
+    it leaves undecided, ``equivalent`` where ``equivalence_margin`` is given and TOST (:func:`stats.tost`,
+    which assumes normal differences) puts it within the margin; else ``undecided``;
     ``<name>_verdict_test`` names the test and ``<name>_verdict_p`` its two-sided p-value. The test's
     false-claim rate is at most :math:`\alpha` for any scores at any seed count (learn-or-not included), so
     a verdict needs no range, no normality and no interval; read alone (the report's headline metric,
@@ -119,6 +121,12 @@ def _verdict(metric: Metric, value, b, t, paired: bool, s: ReportSettings, out: 
     alpha = 1.0 - float(s.confidence)
     decided = effect is not None and effect != 0 and p < alpha
     word = ("higher" if effect > 0 else "lower") if decided else "undecided"
+    if (word == "undecided" and metric.kind == "difference" and s.equivalence_margin is not None
+            and min(len(b), len(t)) >= 2):
+        p_equivalent = stats.tost(b, t, paired, float(s.equivalence_margin))
+        if p_equivalent < alpha:
+            word, p = "equivalent", p_equivalent
+            test = f"TOST within +-{float(s.equivalence_margin):g}, {'paired t' if paired else 'Welch t'}"
     return {f"{metric.name}_verdict": word, f"{metric.name}_verdict_test": test, f"{metric.name}_verdict_p": float(p)}
 
 

@@ -91,6 +91,10 @@ class ReportSettings:
                              help="resamples of a bootstrap --interval (default: 10000)")
     seed: int = _option(0, "--seed", type=int, help="seed of a bootstrap --interval (default: 0)")
     ratio_eps: float = _option(0.01)
+    equivalence_margin: float | None = _option(
+        None, "--equivalence-margin", type=float, metavar="DELTA",
+        help="a mean difference the exact test leaves undecided is 'equivalent' where two one-sided t tests "
+             "(TOST) put it within +-DELTA, in the metric's units (default: no equivalence verdict)")
     task: str | None = _option(None, "--task", metavar="TASK",
                                help="the drltg task (or its Gymnasium id, drltg/<task>-v0) foreign logs were "
                                "trained on: the report takes its declared return range, as for drltg's runs")
@@ -119,6 +123,9 @@ class ReportSettings:
         need(float(self.convergence_margin) > 0,
              f"--convergence-margin must be positive, got {self.convergence_margin}.")
         self.value_range = parse_range(self.value_range)
+        need(self.equivalence_margin is None or (math.isfinite(float(self.equivalence_margin))
+                                                 and float(self.equivalence_margin) > 0),
+             f"--equivalence-margin must be a finite number above 0, got {self.equivalence_margin}.")
         if self.task is not None:
             from drltg.analysis.report.align import task_returns
 
