@@ -450,10 +450,15 @@ def test_a_recipe_reported_on_the_seeds_that_chose_it_says_so():
 
 
 def test_a_frame_0_jumpstart_gone_by_the_next_evaluation_is_said_to_be_one(monkeypatch):
+    """The note says the whole-budget difference is the carried jumpstart only where it is: the triangle
+    j (f1 - f0) / 2 over the budget, here 1 x 5000 / 2 / 10000 = 0.25, with the jumpstart's sign."""
     from types import SimpleNamespace
 
     g = regions("common")
-    r = {"metrics": {"jumpstart": 1.0, "asymptotic_performance": 0.0}, "settings": {"asymptote_window": 0.1}}
+
+    def report(jumpstart, gain):
+        return {"metrics": {"jumpstart": jumpstart, "asymptotic_performance": 0.0, "mean_return_gain": gain},
+                "settings": {"asymptote_window": 0.1}}
 
     def runs(*seconds):
         return [SimpleNamespace(frames=np.array([0.0, 5000.0, 10000.0]), values=np.array([v0, v1, 0.0]))
@@ -461,10 +466,15 @@ def test_a_frame_0_jumpstart_gone_by_the_next_evaluation_is_said_to_be_one(monke
 
     curves = {"baseline": runs((0, 0), (0, 0)), "transfer": runs((1, 0), (1, 0))}
     monkeypatch.setattr(g, "report_curves", lambda report, side: curves[side])
-    assert g.ends(r).endswith("; gone by the second evaluation, 5k frames: +0.00, so this gain is the frame-0 "
-                               "jumpstart carried over the first interval, not a gain over the run)")
+    assert g.ends(report(1.0, 0.25)).endswith("; gone by the second evaluation, 5k frames: +0.00, so this gain is the "
+                                              "frame-0 jumpstart carried over the first interval, not a gain over the run)")
+    assert g.ends(report(1.0, 0.6)) == " (at the first evaluation +1.00, over the last 10% of the budget +0.00)"
+    assert g.ends(report(1.0, -0.25)) == " (at the first evaluation +1.00, over the last 10% of the budget +0.00)"
+    curves["transfer"] = runs((-1, 0), (-1, 0))
+    assert g.ends(report(-1.0, -0.25)).endswith("so this loss is the frame-0 jumpstart carried over the first "
+                                                "interval, not a loss over the run)")
     curves["transfer"] = runs((1, 1), (1, 1))  # still there at the second evaluation: nothing more to say
-    assert g.ends(r) == " (at the first evaluation +1.00, over the last 10% of the budget +0.00)"
+    assert g.ends(report(1.0, 0.25)) == " (at the first evaluation +1.00, over the last 10% of the budget +0.00)"
 
 
 def test_a_betting_p_value_by_hand():

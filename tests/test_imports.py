@@ -4,6 +4,7 @@ The layers, lowest first (a module may import its own package and lower layers o
 layer import nothing from each other)::
 
     errors       drltg.errors
+    regular      drltg.regular (reading a file that must be a regular one)
     yaml         drltg.safe_yaml (bounded YAML from files and command lines)
     base         drltg.plugins | drltg.store (a run directory on disk: files, manifest, checkpoints, lock)
     envs         drltg.envs
@@ -31,6 +32,7 @@ PACKAGE = ROOT / "drltg"
 
 LAYERS = [
     ["drltg.errors"],
+    ["drltg.regular"],
     ["drltg.safe_yaml"],
     ["drltg.plugins", "drltg.store"],
     ["drltg.envs"],

@@ -67,11 +67,11 @@ def test_building_lift_envs_draws_nothing_from_torchs_generator():
 
 def test_a_lift_group_writes_each_seeds_run_to_the_end(tmp_path):
     dirs = train_seeds(lift_cfg(), tmp_path, 2, progress=False)
-    assert [d.name for d in dirs] == ["seed-5", "seed-6"]
-    for seed, run in zip((5, 6), dirs):
+    assert [d.name for d in dirs] == ["seed-5", "seed-105"]
+    for seed, run in zip((5, 105), dirs):
         assert yaml.safe_load((run / "config.yaml").read_text()) == lift_cfg(seed=seed).model_dump()
         summary = json.loads((run / "summary.json").read_text())
-        assert summary["frames"] == 400 and summary["seed_group"] == {"seeds": [5, 6]}
+        assert summary["frames"] == 400 and summary["seed_group"] == {"seeds": [5, 105]}
     # seed 5's warm-up (its first 100 frames, random actions) is exactly its run alone's: same env
     # starts, same random actions from its own stream, in the same buffer order
     alone = train(lift_cfg(), tmp_path / "alone", progress=False)

@@ -347,7 +347,7 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
             save_checkpoint()
             log.info("stopped at frame %d with a checkpoint there: --resume continues from it", frames)
 
-    bar = Progress(cfg.frames, initial=frames, desc="train", enabled=progress)
+    bar = Progress(cfg.frames, initial=frames, desc="train", enabled=progress, on_update=on_frames)
     try:
         if _evaluation_due(cfg, writers[0].rows, frames):
             run_eval()
@@ -368,8 +368,6 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
                 with clock("update"):
                     updates = _update(learner, opt.updates_per_batch, updates, frames, stats)
             bar.update(pieces[0].numel())
-            if on_frames is not None:
-                on_frames(frames)
             if frames >= next_log:
                 _log(writers, stats, frames, fps=(frames - start_frames) / (time.perf_counter() - start))
                 next_log = frames + cfg.log.every

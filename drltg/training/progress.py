@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import sys
 import time
+from typing import Callable
 
 from tqdm.auto import tqdm
 
@@ -26,20 +27,24 @@ def duration(seconds: float) -> str:
 
 
 class Progress:
-    """Frames done of ``total``: ``update(n)`` adds ``n``; ``note`` is shown after the count."""
+    """Frames done of ``total``: ``update(n)`` adds ``n`` and calls ``on_update`` with the frames done;
+    ``note`` is shown after the count."""
 
-    def __init__(self, total: int, *, initial: int = 0, desc: str = "frames", enabled: bool = True, file=None):
+    def __init__(self, total: int, *, initial: int = 0, desc: str = "frames", enabled: bool = True, file=None,
+                 on_update: Callable[[int], None] | None = None):
         self.file = file or sys.stderr
         self.bar = tqdm(total=total, initial=initial, unit="frame", desc=desc, dynamic_ncols=True, smoothing=0.05,
                         file=self.file, disable=None if enabled else True)  # None: a bar on a terminal only
         self.plain = enabled and self.bar.disable
         self.total, self.done, self.desc, self.note = total, initial, desc, ""
         self.start = self.last = time.monotonic()
-        self.start_done = initial
+        self.start_done, self.on_update = initial, on_update
 
     def update(self, n: int) -> None:
         self.done += n
         self.bar.update(n)
+        if self.on_update is not None:
+            self.on_update(self.done)
         if self.plain and time.monotonic() - self.last >= PLAIN_EVERY:
             self.print_line()
 

@@ -114,7 +114,8 @@ def ends(report: dict) -> str:
     if round(abs(m["jumpstart"]), 2) and all(len(c.frames) > 1 for c in b + t):
         second = float(np.mean([c.values[1] for c in t]) - np.mean([c.values[1] for c in b]))
         # the frame-0 difference fading to 0 by the second evaluation adds j (f1 - f0) / 2 to the area
-        carried = m["jumpstart"] * (t[0].frames[1] - t[0].frames[0]) / 2 / (st["budget"] - st["start"])
+        budget, start = st.get("budget", t[0].frames[-1]), st.get("start", t[0].frames[0])
+        carried = m["jumpstart"] * (t[0].frames[1] - t[0].frames[0]) / 2 / (budget - start)
         gain = m["mean_return_gain"]
         if round(abs(second), 2) == 0 and gain * m["jumpstart"] > 0 and round(abs(gain - carried), 2) == 0:
             word = "gain" if gain > 0 else "loss"

@@ -14,7 +14,7 @@ from drltg.analysis import metrics as M
 from drltg.analysis import stats
 from drltg.analysis.curves import Curve
 from drltg.analysis.report.checks import Sides, run_name
-from drltg.analysis.report.settings import MAX_LENGTH_RATIO, ReportSettings, parse_frames, parse_threshold
+from drltg.analysis.report.settings import MAX_LENGTH_RATIO, ReportSettings, parse_frames, parse_threshold, task_returns
 from drltg.analysis.tables import number
 from drltg.errors import UsageError
 
@@ -88,21 +88,6 @@ def _value_range(runs: Sequence[Curve], s: ReportSettings, warnings: list[str]) 
                         "bounded to that range.")
         return None
     return lo, hi
-
-
-def task_returns(name: str) -> tuple[float, float] | None:
-    """The return range the drltg task ``name`` (or its Gymnasium id ``drltg/<task>-v0``) declares with its
-    default options; one sentence for a name that is neither."""
-    from drltg.envs.registry import TASKS, get_task
-    from drltg.gymnasium_ids import task_id
-
-    for task in list(TASKS):
-        try:
-            if task_id(task) == name.removeprefix("drltg:"):
-                name = task
-        except ValueError:  # a task whose name cannot be an id
-            continue
-    return get_task(name).return_range()
 
 
 def _task_returns(runs: Sequence[Curve]) -> tuple[float, float] | None:

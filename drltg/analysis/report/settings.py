@@ -127,8 +127,6 @@ class ReportSettings:
                                                  and float(self.equivalence_margin) > 0),
              f"--equivalence-margin must be a finite number above 0, got {self.equivalence_margin}.")
         if self.task is not None:
-            from drltg.analysis.report.align import task_returns
-
             task_returns(str(self.task))  # an unknown task is one sentence before any run is read
         need(self.crossing in ("sustained", "first"), f"--crossing must be sustained or first, got '{self.crossing}'.")
         need(not (self.sustain is not None and self.crossing == "first"),
@@ -181,6 +179,21 @@ def parse_threshold(threshold) -> tuple[float | None, float | None]:
             return None, _bounded(value, threshold, "--threshold", "percentage") / 100.0
         return _bounded(value, threshold, "--threshold", "number"), None
     return _bounded(float(threshold), threshold, "--threshold", "number"), None
+
+
+def task_returns(name: str) -> tuple[float, float] | None:
+    """The return range the drltg task ``name`` (or its Gymnasium id ``drltg/<task>-v0``) declares with its
+    default options; one sentence for a name that is neither."""
+    from drltg.envs.registry import TASKS, get_task
+    from drltg.gymnasium_ids import task_id
+
+    for task in list(TASKS):
+        try:
+            if task_id(task) == name.removeprefix("drltg:"):
+                name = task
+        except ValueError:  # a task whose name cannot be an id
+            continue
+    return get_task(name).return_range()
 
 
 def parse_range(value) -> tuple[float, float] | None:
