@@ -2,6 +2,7 @@
 import json
 import os
 import shutil
+from pathlib import Path
 
 import pytest
 import yaml
@@ -228,3 +229,17 @@ def test_seeds_is_a_count_or_auto(tmp_path, capsys):
     code = main(["experiment", "fourrooms-near", "--method", "model-reuse", "--seeds", "auto", "--max-seeds", "0",
                  "--frames", "256", "--out", str(tmp_path / "x")])
     assert code == 2 and "--max-seeds must be a whole number from 1" in capsys.readouterr().err
+
+
+def test_a_source_path_with_yaml_characters_is_the_path_itself(tmp_path):
+    """plan_runs turned each source back into a `transfer.source=<path>` override and parsed it as YAML:
+    with --out "/tmp/x #1" the transfer runs silently read the source '/tmp/x' (a comment cut the rest)."""
+    from drltg.experiments.experiment import plan_runs
+
+    out = tmp_path / "x #1: y"
+    runs = plan_runs("fourrooms-near", "model-reuse", frames=512, out=out, seeds=2)
+    sources = {path for role, _, path in runs if role == "source"}
+    transfers = [cfg for role, cfg, _ in runs if role == "transfer"]
+    assert [cfg.transfer.source for cfg in transfers] == [str(out / "source" / "seed-50"), str(out / "source" / "seed-150")]
+    assert {Path(cfg.transfer.source) for cfg in transfers} == sources
+    assert all(cfg.transfer.source is None for role, cfg, _ in runs if role != "transfer")

@@ -44,9 +44,10 @@ def plan(out: Path, d: dict = DEMO) -> list[tuple[str, dict, Path]]:
         seed = config_lib.run_seeds(d["seed"], d["seeds"])[i]
         runs.append(("baseline", config_lib.resolve({}, [every], task=pair.target, algo=d["algo"],
                                                     frames=d["frames"], seed=seed), out / "baseline" / f"seed-{seed}"))
-        runs.append(("transfer", config_lib.resolve(
-            {}, [every, f"transfer.method={d['method']}", f"transfer.source={source}"], task=pair.target,
-            algo=d["algo"], frames=d["frames"], seed=seed), out / "transfer" / f"seed-{seed}"))
+        transfer = config_lib.resolve({}, [every, f"transfer.method={d['method']}"], task=pair.target,
+                                      algo=d["algo"], frames=d["frames"], seed=seed)
+        runs.append(("transfer", config_lib.updated(transfer, {"transfer.source": str(source)}),
+                     out / "transfer" / f"seed-{seed}"))
     return runs
 
 

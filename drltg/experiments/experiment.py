@@ -163,28 +163,27 @@ def plan_runs(
 
     per_seed = given_source is not None and SEED in str(given_source)
 
-    def cfg(task, seed, frames, **transfer):
-        # a source given in the config serves the transfer runs only: source and baseline runs have none
-        plain = ["transfer.source=null"] if given_source is not None and not transfer else []
-        over = list(overrides) + plain + [f"transfer.{k}={v}" for k, v in transfer.items()]
-        return config_lib.resolve(base, over, task=task, algo=algo, frames=frames, seed=seed)
+    def cfg(task, seed, frames, method=None, source=None):
+        """A run's config: the method named (a registered name), the source set as the path it is, never
+        parsed again from text (a '#' or ': ' in a path would be YAML); a source given in the config serves
+        the transfer runs only, so source and baseline runs have none."""
+        over = [*overrides, f"transfer.method={method}"] if method else list(overrides)
+        resolved = config_lib.resolve(base, over, task=task, algo=algo, frames=frames, seed=seed)
+        return config_lib.updated(resolved, {"transfer.source": None if source is None else str(source)})
 
     runs = []
     for i in range(seeds):
         seed_i = config_lib.run_seeds(seed, seeds)[i]
-        # a per-seed source leaves the baselines without one: every row reusing those sources shares them
-        plain = {"source": "null"} if per_seed else {}
-        baseline = ("baseline", cfg(target_task, seed_i, frames, **plain), shared / "baseline" / f"seed-{seed_i}")
+        baseline = ("baseline", cfg(target_task, seed_i, frames), shared / "baseline" / f"seed-{seed_i}")
         if not needs_source or given_source is not None:  # no source runs to train
-            sources, transfer = [], {"method": method}
+            sources, source = [], given_source
             if per_seed:  # the kept run of this seed, as its saved config reads it back
-                transfer["source"] = str(Path(str(given_source).replace(SEED, str(seed_i))).expanduser().resolve())
+                source = Path(str(given_source).replace(SEED, str(seed_i))).expanduser().resolve()
         else:
             source = shared / "source" / f"seed-{config_lib.source_seed(seed_i)}"
             sources = [("source", cfg(source_task, config_lib.source_seed(seed_i), source_frames or frames), source)]
-            transfer = {"method": method, "source": source}
         runs += [*sources, baseline,
-                 ("transfer", cfg(target_task, seed_i, frames, **transfer), out / "transfer" / f"seed-{seed_i}")]
+                 ("transfer", cfg(target_task, seed_i, frames, method, source), out / "transfer" / f"seed-{seed_i}")]
     return runs
 
 
