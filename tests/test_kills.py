@@ -120,3 +120,13 @@ def test_a_report_killed_at_any_write_is_written_whole_by_the_same_command(tmp_p
         if code != KILLED or again != 0 or _files(out) != _files(reference) or beside != ["report"]:
             wrong.append(f"rename {k}: killed {code}, then exit {again}, files {_files(out)}, beside it {beside}")
     assert not wrong, wrong
+
+
+def test_resume_of_a_folder_that_never_held_a_run_is_still_refused(tmp_path, capsys):
+    """Starting over is for a folder a kill left with drltg's temporary file or lock alone; a mistyped
+    --run-dir, or an empty folder, is no run to resume."""
+    for run in (tmp_path / "typo", tmp_path / "empty"):
+        if run.name == "empty":
+            run.mkdir()
+        assert main(train_args(run) + ["--resume"]) == 2
+        assert "holds no config.yaml" in capsys.readouterr().err

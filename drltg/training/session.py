@@ -60,8 +60,8 @@ class RunSession(contextlib.ExitStack):
         return super().__exit__(kind, err, tb)
 
     def _open(self) -> None:
-        if self.resume and not any(rundir.entries(d) for d in self.dirs):  # killed before its config landed
-            self.resume = False
+        if self.resume and all(d.is_dir() and any(d.iterdir()) and not rundir.entries(d) for d in self.dirs):
+            self.resume = False  # only a killed write's temporary file or lock: killed before its config landed
         if not self.resume:
             for d in self.dirs:
                 refuse_existing(d)
