@@ -45,8 +45,7 @@ class Progress:
         self.bar.update(n)
         if self.on_update is not None:
             self.on_update(self.done)
-        if self.plain and time.monotonic() - self.last >= PLAIN_EVERY:
-            self.print_line()
+        self._line_if_due()
 
     def set_note(self, note: str) -> None:
         self.note = note
@@ -66,9 +65,12 @@ class Progress:
         print(self.line(), file=self.file, flush=True)
 
     def refresh(self) -> None:
+        self._line_if_due()
+        self.bar.refresh()
+
+    def _line_if_due(self) -> None:
         if self.plain and time.monotonic() - self.last >= PLAIN_EVERY:
             self.print_line()
-        self.bar.refresh()
 
     def close(self) -> None:
         self.bar.close()
