@@ -662,7 +662,8 @@ def test_json_keys_keep_their_published_order():
     res = report.compute(flat([1.0, 2.0, 3.0], seeds=[0, 1, 2], prefix="b"),
                          flat([2.0, 4.0, 7.0], seeds=[0, 1, 2], prefix="t"), threshold=1.5)
     keys = [k for k in res["metrics"] if not k.endswith(("_ci", "_iqm", "_p_value", "_p_adjusted", "_p_exact",
-                                                         "_verdict", "_verdict_test", "_verdict_p"))]
+                                                         "_verdict", "_verdict_test", "_verdict_p",
+                                                         "_pairs_for_80_power"))]
     assert keys == [
         "n_seeds_baseline", "n_seeds_transfer", "mean_return_gain", "jumpstart", "asymptotic_performance",
         "transfer_ratio", "probability_of_improvement", "probability_of_improvement_initial",

@@ -195,7 +195,13 @@ def verdict_of(report: Mapping, name: str, p_adjusted: Adjusted | None = None, f
     ci, design = m.get(f"{name}_ci"), design_of(report)
     p = p_adjusted if p_adjusted is not None else Adjusted(None, exact_p(m, name))
     if p.exact is not None:
-        return verdict(m[name], ci, p, family, design=design, **words)
+        said = verdict(m[name], ci, p, family, design=design, **words)
+        plan = f"{name}_pairs_for_80_power"
+        if plan in m and m.get(f"{name}_verdict") == "undecided" and ": undecided" in said:
+            need = "more than 1,000" if m[plan] is None else f"about {m[plan]}"
+            said += (f"; {need} pairs would give this difference 80% power (planned from its mean and the 80% "
+                     "upper bound of its spread, for a test at 0.05 alone)")
+        return said
     auto = st.get("interval_method") == "auto" and design[0] >= 3
     if auto and not has_interval(ci) and st.get("value_range") is None and m.get(name) is not None:
         return f"{estimate(m[name])}: {NO_RANGE}"

@@ -11,6 +11,7 @@ import pandas as pd
 from drltg.analysis import metrics as M
 from drltg.analysis import stats
 from drltg.analysis.curves import Curve
+from drltg.analysis.planning import pairs_for_power
 from drltg.analysis.report.align import Window, eval_grid, on_grid
 from drltg.analysis.report.catalogue import COMPARISONS, Metric, of_kind
 from drltg.analysis.report.settings import MIN_SEEDS, MIN_TREND_POINTS, SIDES, ReportSettings
@@ -127,7 +128,10 @@ def _verdict(metric: Metric, value, b, t, paired: bool, s: ReportSettings, out: 
         if p_equivalent < alpha:
             word, p = "equivalent", p_equivalent
             test = f"TOST within +-{float(s.equivalence_margin):g}, {'paired t' if paired else 'Welch t'}"
-    return {f"{metric.name}_verdict": word, f"{metric.name}_verdict_test": test, f"{metric.name}_verdict_p": float(p)}
+    out = {f"{metric.name}_verdict": word, f"{metric.name}_verdict_test": test, f"{metric.name}_verdict_p": float(p)}
+    if word == "undecided" and metric.name == "mean_return_gain" and paired and len(b) >= 3:
+        out["mean_return_gain_pairs_for_80_power"] = pairs_for_power(np.asarray(t) - np.asarray(b))
+    return out
 
 
 def _estimate(metric: Metric, b: np.ndarray, t: np.ndarray, paired: bool, location, scale, eps):
