@@ -172,7 +172,8 @@ class SeedGroup:
         self.optimizer.step()
         if update_actor:
             with torch.no_grad():
-                torch._foreach_lerp_(self._targets, self._sources, self.tau)
+                for target, source in zip(self._targets, self._sources):  # SoftUpdate: target += tau (source - target)
+                    target.lerp_(source, self.tau)
         return losses.detach()
 
     def sync(self) -> None:
