@@ -2,6 +2,8 @@
 frame reports, not by evaluations."""
 import io
 
+import pytest
+
 from drltg import config as config_lib
 from drltg.experiments import executor
 from drltg.experiments.executor import Run, execute, frames_done, frames_file
@@ -137,7 +139,5 @@ def test_the_warning_comes_before_the_first_frame(tmp_path, monkeypatch, capsys)
             raise Stop
 
     cfg = config_lib.resolve(None, list(TINY), task="fourrooms/northeast", frames=64)  # eval.every=32
-    import pytest
-
     with pytest.raises(Stop):
         execute([Run("baseline", cfg, tmp_path / "run", tmp_path / "run.log")], NoBackend(), progress=False)
