@@ -29,7 +29,7 @@ for name, argv in examples.items():
 with open(out, "w") as f:
     json.dump(results, f)
 """
-WITH_OUT = ("value_shaping", "policy_reuse", "jumpstart", "model_reuse", "demonstrations", "custom_env")
+WITH_OUT = ("value_shaping", "policy_reuse", "jumpstart", "model_reuse", "demonstrations", "custom_env", "kickstarting")
 NAMES = ("reward_shaping", "soft_option_critic", "train_sac_fourrooms", *WITH_OUT)
 
 
@@ -119,6 +119,13 @@ def test_demonstrations_fill_a_fixed_share_of_every_batch(runs):
     (result,) = tagged(output(runs, "demonstrations"), "result")
     assert result["k"] == round(0.25 * 256) and result["demo_rows"] == result["k"]
     assert result["demonstration_frames"] >= 8 and result["demonstration_frames"] % 8 == 0  # 8 envs, whole steps
+    check_evaluation(result)
+
+
+def test_kickstarting_starts_away_from_the_teacher_and_ends_on_its_own(runs):
+    (result,) = tagged(output(runs, "kickstarting"), "result")
+    assert result["first_kl"] > 0.0 and result["last_kl"] >= 0.0  # a wider student starts elsewhere
+    assert result["final_weight"] == 0.0  # the weight reached 0 at half the frames
     check_evaluation(result)
 
 
