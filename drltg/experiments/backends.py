@@ -6,12 +6,16 @@ cancel) as ``drltg train`` does on Ctrl-C: lock released, checkpoint kept."""
 from __future__ import annotations
 
 import contextlib
+import gc
 import math
 import os
 import pickle
 import signal
 import sys
+import threading
 from typing import Any
+
+from tqdm import tqdm
 
 from drltg.errors import UsageError
 from drltg.experiments.executor import Run, register, run_group, run_one
@@ -37,10 +41,12 @@ def _die_with_parent(parent: int) -> None:
 def _worker_init(parent: int | None = None, registered: tuple = ((), ())) -> None:
     """One torch thread per run; SIGTERM unwinds the run as in ``drltg train`` (lock released, its
     checkpoint kept), so an interrupted experiment resumes where it stopped; the worker gets SIGTERM when
-    its parent dies. ``registered``: the parent's own tasks and methods (:func:`registrations`)."""
+    its parent dies, and ignores Ctrl-C's SIGINT, which the parent answers by stopping its workers. ``registered``: the parent's own tasks and methods (:func:`registrations`)."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     os.environ.setdefault("MKL_NUM_THREADS", "1")
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the parent, which stops the workers
+    tqdm.set_lock(threading.RLock())  # no semaphore of tqdm's own left behind when the worker ends
     if parent is not None:
         _die_with_parent(parent)
     register(registered)
@@ -54,8 +60,10 @@ def _run_in_pool(train, *args):
     try:
         return train(*args)
     except SystemExit as stop:
-        sys.stdout.flush(), sys.stderr.flush()
-        os._exit(stop.code if isinstance(stop.code, int) else 1)
+        code = stop.code if isinstance(stop.code, int) else 1
+    gc.collect()  # the unwound run's objects go, and with them the semaphores of their replay buffers
+    sys.stdout.flush(), sys.stderr.flush()
+    os._exit(code)
 
 
 class LocalBackend:

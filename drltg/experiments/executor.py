@@ -101,7 +101,7 @@ def run_group(cfgs: list[RunConfig], run_dirs: list[str], log_paths: list[str]) 
             which = range(len(dirs)) if err.seeds is None else err.seeds
             stopped = ("failed", f"stopped with its seed group ({err}); a rerun resumes it")
             return [(DIVERGED, str(err)) if k in which else stopped for k in range(len(dirs))]
-        except KeyboardInterrupt:  # Ctrl-C, or a cancelled Ray task
+        except (KeyboardInterrupt, SystemExit):  # stopped by its parent (Ctrl-C there), or a cancelled Ray task
             print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] interrupted; a rerun continues it", flush=True)
             raise
         except Exception as err:
