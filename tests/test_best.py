@@ -319,7 +319,6 @@ def test_every_loader_reads_the_named_checkpoint(source):
 
 @pytest.mark.parametrize("method", ["model-reuse", "policy-reuse", "value-shaping"])
 def test_transfer_source_checkpoint_best_is_what_the_methods_reuse(source, tmp_path, method):
-    import drltg.transfer  # noqa: F401
     from drltg.transfer import source as source_mod
 
     cfg = config_lib.resolve({}, [*TINY, f"transfer.method={method}", f"transfer.source={source}",
@@ -335,7 +334,6 @@ def test_transfer_source_checkpoint_best_is_what_the_methods_reuse(source, tmp_p
 def test_a_source_without_best_pt_is_one_sentence(trained, tmp_path, capsys):
     import shutil
 
-    import drltg.transfer  # noqa: F401
     from drltg.transfer import source as source_mod
 
     src = shutil.copytree(trained, tmp_path / "src")

@@ -60,11 +60,16 @@ class Registry(MutableMapping):
 
     def _loaded(self, point: EntryPoint) -> Any:
         if point.dist is not None and point.dist.name == "drltg":  # drltg's own: a failure is a bug, shown whole
-            return point.load()
-        try:
-            return point.load()
-        except Exception as err:
-            raise UsageError(f"the {self.noun} '{point.name}' ({point.value}) failed to load: {err}") from None
+            entry = point.load()
+        else:
+            try:
+                entry = point.load()
+            except Exception as err:
+                raise UsageError(f"the {self.noun} '{point.name}' ({point.value}) failed to load: {err}") from None
+        if getattr(entry, "name", point.name) != point.name:
+            raise UsageError(f"the entry point '{point.name}' ({point.value}) of group {self.group} names the "
+                             f"{self.noun} {entry.name!r}; name the entry point as the {self.noun} is named.")
+        return entry
 
     def __setitem__(self, name: str, entry: Any) -> None:
         self._points()[name] = entry
