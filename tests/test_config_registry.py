@@ -95,3 +95,23 @@ def test_a_learner_added_to_algos_is_accepted_by_algo_and_trains(learners, tmp_p
     del ALGOS["my-sac"]
     with pytest.raises(UsageError, match="^unknown algorithm 'my-sac'"):
         config_lib.build({"algo": "my-sac"})
+
+
+def test_a_registry_reads_its_group_s_entry_points_and_says_when_drltg_s_own_are_missing(monkeypatch):
+    from importlib.metadata import EntryPoint
+
+    from drltg.config import registry
+
+    group = "drltg.test-methods"
+    points = [EntryPoint("jumpstart", "drltg.transfer.policy_reuse:JUMPSTART", group),
+              EntryPoint("none", "drltg.transfer.registry:NONE", group),
+              EntryPoint("reuse", "drltg.transfer.policy_reuse:POLICY_REUSE", group)]
+    monkeypatch.setattr(registry, "entry_points", lambda group: [p for p in points if p.group == group])
+    methods = registry.Registry(group, "transfer method", builtin="none")
+    assert methods.names() == ("none", "jumpstart", "reuse")  # found, none loaded yet
+    assert methods["jumpstart"].name == "jumpstart"
+    with pytest.raises(UsageError, match="^the entry point 'reuse' .* names the transfer method 'policy-reuse'; "):
+        methods["reuse"]
+    with pytest.raises(UsageError, match="^drltg's learners are entry points of its installed distribution \\(group "
+                                         "drltg.nothing\\) and none was found: .*reinstall drltg"):
+        "sac" in registry.Registry("drltg.nothing", "learner", builtin="sac")

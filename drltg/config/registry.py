@@ -41,13 +41,13 @@ class Registry(MutableMapping):
         """Every entry, the entry points not loaded yet among them (as :class:`EntryPoint`): the built-in
         default first, then in the order of the metadata (by name within a distribution)."""
         if not self._found:
-            self._found = True
             found = sorted(entry_points(group=self.group), key=lambda ep: ep.name != self.builtin)  # stable
-            points = {ep.name: ep for ep in found}
-            if self.builtin not in points and self.builtin not in self._entries:
-                raise UsageError(f"drltg's {self.noun}s are declared as entry points of its installed distribution "
-                                 f"and none was found (group {self.group}); reinstall drltg (pip install -e .).")
-            self._entries = {**points, **self._entries}  # what this process registered wins
+            if self.builtin not in {ep.name for ep in found}:
+                raise UsageError(f"drltg's {self.noun}s are entry points of its installed distribution (group "
+                                 f"{self.group}) and none was found: its metadata predates them; reinstall drltg "
+                                 "(pip install -e .).")
+            self._entries = {ep.name: ep for ep in found}
+            self._found = True
             self.version = next(_VERSION)
         return self._entries
 
