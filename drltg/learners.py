@@ -1,6 +1,8 @@
 """Learners: the agent of every algorithm, sized from the config, and the one update step that trains them.
 
-An algorithm is a function ``make_<algo>_agent(env, cfg) -> Agent`` registered in ``ALGOS``: SAC and
+An algorithm is a function ``make_<algo>_agent(env, cfg) -> Agent`` registered in ``ALGOS`` (the config's
+registry of learners, :data:`drltg.config.LEARNERS`: ``ALGOS["my-algo"] = make_my_agent``, or an entry point
+of the group ``drltg.learners``, as the built-in ones are, makes ``algo=my-algo`` valid): SAC and
 discrete SAC (``SACLoss``, ``DiscreteSACLoss``), TD3 (``TD3Loss``) and soft option-critic
 (:class:`~drltg.losses.SoftOptionCriticLoss`). Every learner is stepped by the same
 :class:`UpdateStep` over the same public TorchRL interface (the loss's ``forward``, ``SoftUpdate.step``)
@@ -220,11 +222,8 @@ def make_soc_agent(env: EnvBase, cfg: RunConfig) -> Agent:
     return _agent(loss, make_option_policy(loss), cfg, env_transforms=option_transforms(num_options))
 
 
-ALGOS: dict[str, Callable[[EnvBase, RunConfig], Agent]] = {
-    "sac": make_sac_agent,
-    "td3": make_td3_agent,
-    "soc": make_soc_agent,
-}
+ALGOS = config.LEARNERS
+"""``algo`` -> ``make_<algo>_agent(env, cfg)``: ``sac``, ``td3``, ``soc`` (entry points) and those added here."""
 
 
 def make_agent(env: EnvBase, cfg: RunConfig | dict) -> Agent:

@@ -319,7 +319,7 @@ def test_every_loader_reads_the_named_checkpoint(source):
 
 @pytest.mark.parametrize("method", ["model-reuse", "policy-reuse", "value-shaping"])
 def test_transfer_source_checkpoint_best_is_what_the_methods_reuse(source, tmp_path, method):
-    import drltg.transfer  # noqa: F401
+    from drltg.transfer import get_method
     from drltg.transfer import source as source_mod
 
     cfg = config_lib.resolve({}, [*TINY, f"transfer.method={method}", f"transfer.source={source}",
@@ -328,14 +328,13 @@ def test_transfer_source_checkpoint_best_is_what_the_methods_reuse(source, tmp_p
     assert same(source_mod.source_agent(cfg).loss.state_dict(), load(source)["loss"])
     if method == "model-reuse":
         probe, agent = loop.check_config(cfg)
-        drltg.transfer.get_method(method).build(cfg, agent, probe, resuming=False)
+        get_method(method).build(cfg, agent, probe, resuming=False)
         assert same(agent.loss.state_dict(), load(source)["loss"])
 
 
 def test_a_source_without_best_pt_is_one_sentence(trained, tmp_path, capsys):
     import shutil
 
-    import drltg.transfer  # noqa: F401
     from drltg.transfer import source as source_mod
 
     src = shutil.copytree(trained, tmp_path / "src")

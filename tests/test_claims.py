@@ -226,7 +226,7 @@ def test_the_registry_tables_list_every_builtin_task_method_and_key():
     assert all(f"| `{name}` |" in tasks for name, t in TASKS.items() if t.factory.__module__.startswith("drltg."))
     assert all(f"| `{name}` |" in tasks for name in ("fourrooms-near", "gridrooms-far", "lift-to-place"))
     assert len(PAIRS) >= 11
-    plugin_keys = {f"transfer.{k}" for k, m in config.METHOD_OPTIONS.items() if m not in builtin}
+    plugin_keys = {f"transfer.{k}" for k, m in config.option_owners().items() if m not in builtin}
     assert all(f"| `{key}` |" in keys for key in config.keys() if key not in plugin_keys)
     assert "transfer.demo_episodes" in config.keys() and "| `transfer.demo_episodes` |" in keys
 

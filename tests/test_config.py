@@ -8,7 +8,6 @@ import torch
 import yaml
 from pydantic import Field
 
-import drltg.transfer  # noqa: F401  (registers the transfer methods and their config keys)
 from drltg import config as config_lib
 from drltg.cli import main
 from drltg.envs import TASKS, register_task
@@ -71,7 +70,7 @@ def _leaves(d, prefix=""):
         ("log.every=0", "log.every", "integer in [1, 1000000000000]"),
         ("log.tensorboard=1", "log.tensorboard", "true or false"),
         ("algo=ppo", "algo", "unknown algorithm 'ppo'"),
-        ("algo=5", "algo", "one of sac, td3, soc"),
+        ("algo=5", "algo", "one of sac, soc, td3"),
         ("sac.alpha_init=0", "sac.alpha_init", "number > 0"),
         ("sac.fixed_alpha=yes please", "sac.fixed_alpha", "true or false"),
         ("sac.target_entropy=high", "sac.target_entropy", "'auto' or a number"),
@@ -129,16 +128,12 @@ def test_a_methods_own_rules_hold_when_it_is_chosen(overrides, key, expected):
 
 @pytest.fixture
 def registries():
-    """The method registries as they are, restored after the test (which registers methods of its own)."""
-    from drltg.transfer import registry
-
-    tables = (registry.METHODS, config_lib.METHOD_RULES, config_lib.METHOD_OPTIONS, config_lib.METHOD_MODELS)
-    saved = [dict(table) for table in tables]
+    """The method and learner registries as they are, restored after the test (which registers its own)."""
+    saved = [(table, dict(table)) for table in (config_lib.METHODS, config_lib.LEARNERS)]
     yield
-    for table, before in zip(tables, saved):
+    for table, before in saved:
         table.clear()
         table.update(before)
-    config_lib._model.cache_clear()
 
 
 def test_a_registered_method_brings_its_keys(registries):
@@ -272,7 +267,8 @@ def test_choices_match_the_implementations():
     from drltg.losses.soc import OPTION_POLICIES
     from drltg.transfer import METHODS
 
-    assert set(config_lib.ALGOS) == set(ALGOS)
+    assert ALGOS is config_lib.LEARNERS and METHODS is config_lib.METHODS  # one registry each
+    assert set(ALGOS) == {"sac", "td3", "soc"}
     assert set(config_lib.method_names()) == set(METHODS)
     assert set(config_lib.OPTION_POLICIES) == set(OPTION_POLICIES)
 
@@ -310,7 +306,7 @@ def test_build_fills_defaults_and_checks_types_like_resolve():
         ({"transfer": {"psy": 0.5}}, "unknown config key 'transfer.psy'; did you mean 'transfer.psi'?"),
         ({"collector": {"num_envs": 3}},
          "collector.frames_per_batch (32) must be a multiple of collector.num_envs (3)."),
-        ({"algo": "ppo"}, "unknown algorithm 'ppo': config key 'algo' must be one of sac, td3, soc."),
+        ({"algo": "ppo"}, "unknown algorithm 'ppo': config key 'algo' must be one of sac, soc, td3."),
         ({"buffer": 3}, "config key 'buffer' must be a mapping of buffer.size, buffer.batch_size, got 3."),
     ]:
         with pytest.raises(UsageError) as err:
@@ -406,7 +402,6 @@ def test_the_config_holds_every_env_setting_of_its_task(monkeypatch):
 
 
 def test_an_option_of_a_method_the_run_does_not_use_is_not_a_change():
-    from drltg import transfer  # noqa: F401  (registers the methods' options)
     from drltg.config import config_changes
 
     baseline = config_lib.resolve(None, [], task="fourrooms/northeast", algo="sac")
@@ -436,14 +431,16 @@ def test_a_changed_env_default_is_a_changed_run(monkeypatch):
     assert config_changes(saved, _resolve()) == ["env.horizon"]
 
 
-def test_the_builtin_methods_register_their_options_from_the_plain_defaults():
+def test_each_builtin_method_owns_its_options_model_and_the_config_holds_them_all():
     from drltg.transfer import METHODS
 
-    for name, options in config_lib.BUILTIN_METHOD_OPTIONS.items():
-        assert config_lib.METHOD_MODELS[name]().model_dump() == options == {
-            k: default for k, (_, default) in METHODS[name].options.items()}
-    owned = {k for m in METHODS.values() for k in m.options}
-    assert owned == {k for options in config_lib.BUILTIN_METHOD_OPTIONS.values() for k in options}
+    defaults = config_lib.defaults()["transfer"]
+    owners = config_lib.option_owners()
+    for method in METHODS.values():
+        own = method.model().model_dump() if method.model is not None else {}
+        assert own == {k: defaults[k] for k, owner in owners.items() if owner == method.name}
+    assert set(owners) == {k for m in METHODS.values() for k in m.options}
+    assert owners["psi"] == "policy-reuse" and defaults["psi"] == 1.0 and defaults["freeze"] == []
 
 
 def test_config_changes_without_the_task_registry():
@@ -551,18 +548,6 @@ def test_every_committed_run_config_loads_as_it_was_written():
     for path in paths:
         saved = config_lib.load_yaml(path)
         assert config_lib.config_changes(saved, config_lib.build(saved), env_defaults=False) == [], path
-
-
-def test_an_option_of_a_method_not_yet_registered_says_so(registries):
-    for name in ("policy-reuse", "jumpstart"):
-        config_lib.remove_method(name)
-    with pytest.raises(UsageError) as err:
-        config_lib.build({"transfer": {"psi": 0.5}})
-    assert str(err.value) == ("config key 'transfer.psi' is an option of the transfer method policy-reuse, which this "
-                              "process has not registered; import drltg.transfer first.")
-    with pytest.raises(UsageError, match="^config key 'transfer.guide_steps' is an option of the transfer method "
-                                         "jumpstart, which"):
-        _resolve("transfer.guide_steps=3")
 
 
 def test_a_methods_plain_types_read_values_as_the_builtin_keys(registries):

@@ -350,8 +350,6 @@ def _upright(options):
 
 def test_a_gymnasium_task_takes_a_shaping_potential():
     """register_gym_task(..., potential=) makes reward shaping work on a Gymnasium task, as on drltg's own."""
-    import drltg.transfer  # noqa: F401  (registers reward-shaping)
-
     register_gym_task("pend/shaped", "Pendulum-v1", potential=_upright, replace=True)
     try:
         cfg = config_lib.resolve(task="pend/shaped", overrides=["transfer.method=reward-shaping"])

@@ -398,7 +398,6 @@ def test_a_finished_source_is_kept_with_the_networks_the_rows_reuse_and_a_clone_
     assert all(torch.equal(weights["loss"][k], v) for k, v in full["loss"].items())
     rebuilt = rebuild(first, checkpoint="best")
     assert rebuilt.frames == full["frames"]
-    import drltg.transfer  # noqa: F401  (registers model-reuse)
     from drltg.transfer.source import check
 
     check(config_lib.resolve({}, tiny + ["transfer.method=model-reuse", f"transfer.source={first}",

@@ -32,9 +32,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def plan(out: Path, d: dict = DEMO) -> list[tuple[str, dict, Path]]:
     """One source run, then ``seeds`` baseline and transfer pairs that all transfer from it."""
     from drltg.envs import PAIRS
-    from drltg.transfer import get_method
 
-    get_method(d["method"])  # registers the methods
     pair = PAIRS[d["pair"]]
     source = out / "source" / f"seed-{d['source_seed']}"
     runs = [("source", config_lib.resolve({}, [f"eval.every={d['source_eval_every']}"], task=pair.source,

@@ -34,8 +34,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import drltg.transfer  # noqa: F401  (the methods' transfer.* keys, before the config is read)
-
     if args.resume and args.run_dir is None:
         raise UsageError("--resume needs --run-dir, the run directory to continue.")
     if args.no_group and args.seeds is None:

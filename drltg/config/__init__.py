@@ -9,17 +9,17 @@ range in its section's model (``describe()`` lists them); a typo or a value out 
 :class:`~drltg.errors.UsageError` sentence naming the key (pydantic's errors are translated), before
 anything is built or written.
 
-Two parts are open-ended: the ``transfer`` section holds, besides ``method``, ``source``,
-``allow_incomplete`` and ``source_checkpoint``, the options of every registered transfer method (each
-method's options are a model of their own, built when it is registered, :func:`add_method`), and ``env``
-is a mapping of the task's keyword arguments, checked against the keywords its factory declares
-(:func:`validate`).
+Three parts are open-ended: ``algo`` names a registered learner, the ``transfer`` section holds, besides
+``method``, ``source``, ``allow_incomplete`` and ``source_checkpoint``, the options of every registered
+transfer method (each method's options are a model of its own, ``TransferMethod.model``), both found in
+the registries of :mod:`drltg.config.registry` (:data:`LEARNERS`, :data:`METHODS`), which load drltg's
+own and the installed plugins' on first lookup; and ``env`` is a mapping of the task's keyword arguments,
+checked against the keywords its factory declares (:func:`validate`).
 """
 from drltg.config import sections
 from drltg.config.checks import check_device, validate
 from drltg.config.diff import config_changes, describe, dump, env_keys_set_once
 from drltg.config.env_options import env_defaults, env_model, task_env
-from drltg.config.methods import BUILTIN_METHOD_OPTIONS, builtin_options
 from drltg.config.overrides import (
     ENV_EXECUTION_KEYS,
     as_config,
@@ -31,18 +31,17 @@ from drltg.config.overrides import (
     resolve,
     set_key,
 )
-from drltg.config.registered import METHOD_MODELS, METHOD_OPTIONS, METHOD_RULES, method_names
+from drltg.config.registry import LEARNERS, METHODS, Registry, get_method, method_names
 from drltg.config.run import (
     TRANSFER_KEYS,
     RunConfig,
     TransferConfig,
     _model,
-    add_method,
     build,
     defaults,
     keys,
+    option_owners,
     options_model,
-    remove_method,
     transfer_model,
     updated,
 )
@@ -70,6 +69,6 @@ __all__ = [
     "Int", "Float", "Bool", "Str", "Number", "Probability", "Section", "MAX_EPISODES", "MAX_SEEDS", "MAX_THREADS",
     "SEED_STRIDE", "run_seeds", "source_seed",
     *sections.__all__, "TransferConfig",
-    "METHOD_RULES", "METHOD_OPTIONS", "METHOD_MODELS", "TRANSFER_KEYS", "BUILTIN_METHOD_OPTIONS", "ENV_EXECUTION_KEYS",
-    "method_names", "builtin_options", "options_model", "add_method", "remove_method", "transfer_model", "_model",
+    "METHODS", "LEARNERS", "Registry", "TRANSFER_KEYS", "ENV_EXECUTION_KEYS",
+    "method_names", "get_method", "option_owners", "options_model", "transfer_model", "_model",
 ]

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from drltg.config.env_options import _check_env
-from drltg.config.registered import METHOD_RULES
+from drltg.config.registry import get_method
 from drltg.config.run import RunConfig
 from drltg.config.values import _expected, _short
 from drltg.errors import UsageError
@@ -18,10 +18,7 @@ def validate(cfg: RunConfig) -> None:
         raise UsageError(f"config key 'optim.cudagraphs' is true but device is '{cfg.device}'; CUDA graphs "
                          "need device=cuda.")
     cfg.env = _check_env(cfg.task, cfg.env)
-    method = cfg.transfer.method
-    rule = METHOD_RULES.get(method) or (METHOD_RULES.get("+") if "+" in method else None)
-    if rule is not None:
-        rule(cfg)
+    get_method(cfg.transfer.method).validate(cfg)
     fpb = cfg.collector.frames_per_batch
     cfg.frames = -(-cfg.frames // fpb) * fpb
 

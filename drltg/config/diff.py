@@ -4,10 +4,8 @@ from __future__ import annotations
 from pydantic import BaseModel
 
 from drltg.config.env_options import task_env
-from drltg.config.methods import BUILTIN_METHOD_OPTIONS
 from drltg.config.overrides import ENV_EXECUTION_KEYS, _flatten
-from drltg.config.registered import METHOD_OPTIONS
-from drltg.config.run import RunConfig, _fields, defaults
+from drltg.config.run import RunConfig, _fields, defaults, option_owners
 from drltg.config.sections import ALGO_SECTIONS
 from drltg.config.values import _expected, _lookup
 from drltg.errors import UsageError
@@ -33,10 +31,8 @@ def config_changes(saved: dict | RunConfig, cfg: dict | RunConfig, *, env_defaul
             env = task_env(cfg["task"])
         except (KeyError, UsageError, ValueError):  # a task this process does not know: no env defaults to fill in
             pass
-    builtin = {k: v for options in BUILTIN_METHOD_OPTIONS.values() for k, v in options.items()}
-    plain = defaults()
-    base = {**plain, "env": env, "transfer": {**builtin, **plain["transfer"]}}
-    owners = {**{k: m for m, options in BUILTIN_METHOD_OPTIONS.items() for k in options}, **METHOD_OPTIONS}
+    base = {**defaults(), "env": env}
+    owners = option_owners()
     methods = {part for c in (saved, cfg) if isinstance(m := _lookup(c, "transfer.method"), str)
                for part in m.split("+")}
     unknown = set() if env_defaults else set(env_keys_set_once(saved, cfg))

@@ -1,5 +1,5 @@
-"""The run config: :class:`RunConfig` with the registered methods' options, its keys, and building one from
-a mapping with every error as one sentence naming the key."""
+"""The run config: :class:`RunConfig` with the registered methods' options (:mod:`drltg.config.registry`),
+its keys, and building one from a mapping with every error as one sentence naming the key."""
 from __future__ import annotations
 
 import functools
@@ -16,10 +16,9 @@ from pydantic import (
 )
 from pydantic.fields import FieldInfo
 
-from drltg.config.methods import BUILTIN_METHOD_OPTIONS, _strict
-from drltg.config.registered import METHOD_MODELS, METHOD_OPTIONS, METHOD_RULES, method_names
+from drltg.config.methods import _strict
+from drltg.config.registry import LEARNERS, METHODS, method_names
 from drltg.config.sections import (
-    ALGOS,
     ENV_HELP,
     BufferConfig,
     CheckpointConfig,
@@ -50,11 +49,11 @@ from drltg.errors import UsageError, closest
 
 
 class TransferConfig(Section):
-    """How a run transfers knowledge: a method of drltg.transfer (``none``: the baseline). The options of
-    every registered method follow these four keys (the section :func:`transfer_model` builds)."""
+    """How a run transfers knowledge: a registered method (``none``: the baseline). The options of every
+    registered method follow these four keys (the section :func:`transfer_model` builds)."""
 
     method: Str = Field("none", description="transfer method (`drltg tasks` lists them)",
-                        json_schema_extra={"noun": "transfer method", "choices": "registered"})
+                        json_schema_extra={"noun": "transfer method", "choices": "methods"})
     source: Optional[Str] = Field(None, description="source run directory, or demonstrator:TASK",
                                   json_schema_extra=_what("a source run directory, demonstrator:TASK"))
     allow_incomplete: Bool = Field(False, description="reuse a source run that did not finish (no summary.json)")
@@ -86,8 +85,8 @@ class RunConfig(Section):
 
     task: Str = Field("fourrooms/northeast", description="registered task name (`drltg tasks`)",
                       json_schema_extra=_what("a registered task name"))
-    algo: Literal[ALGOS] = Field("sac", description="learner; sac is discrete SAC on discrete tasks",
-                                               json_schema_extra=_what(noun="algorithm"))
+    algo: Str = Field("sac", description="learner; sac is discrete SAC on discrete tasks",
+                      json_schema_extra={"noun": "algorithm", "choices": "learners"})
     seed: Int = Field(0, ge=0, le=2**31 - 1, description="seed of envs, networks and sampling")
     frames: Int = Field(50_000, ge=1, le=MAX_FRAMES, description="environment frames, rounded up to whole collector batches")
     device: Str = Field("cpu", description="torch device",
@@ -117,6 +116,14 @@ class RunConfig(Section):
         _task_spec(value)
         return value
 
+    @field_validator("algo")
+    @classmethod
+    def _registered(cls, value: str) -> str:
+        if value not in LEARNERS:
+            raise UsageError(f"unknown algorithm {value!r}: config key 'algo' must be one of "
+                             f"{', '.join(LEARNERS.names())}.")
+        return value
+
     @model_validator(mode="after")
     def _rules(self) -> RunConfig:
         """The rules that tie keys of two sections together."""
@@ -132,9 +139,8 @@ class RunConfig(Section):
 
 
 def _restore(data: dict) -> RunConfig:
-    """A config from its pickled values, read with the transfer methods of this process: those of
-    :mod:`drltg.transfer` (imported by the process, as the workers of drltg.experiments do) and the user's
-    plugins (loaded here)."""
+    """A config from its pickled values, read with the transfer methods of this process: the registered
+    ones and those of the user's plugins (loaded here)."""
     from drltg import plugins
 
     plugins.load()
@@ -165,31 +171,29 @@ def options_model(method: str, options: dict[str, Any]) -> type[Section]:
     return model
 
 
-def add_method(name: str, options: type[Section] | None, rule) -> None:
-    """Make ``name`` a value of ``transfer.method``, its options ``transfer.<key>`` keys (replacing those of
-    a method of the same name) and ``rule(cfg)`` the check its configs pass."""
-    remove_method(name)
-    METHOD_RULES[name] = rule
-    if options is not None:
-        METHOD_MODELS[name] = options
-        for key in options.model_fields:
-            METHOD_OPTIONS[key] = name
-    _model.cache_clear()
+def option_owners() -> dict[str, str]:
+    """``transfer.<key>`` -> the registered method whose option it is."""
+    return {key: method.name for method in METHODS.values() if method.model is not None
+            for key in method.model.model_fields}
 
 
-def remove_method(name: str) -> None:
-    METHOD_RULES.pop(name, None)
-    METHOD_MODELS.pop(name, None)
-    for key in [k for k, owner in METHOD_OPTIONS.items() if owner == name]:
-        del METHOD_OPTIONS[key]
-    _model.cache_clear()
-
-
-@functools.lru_cache(maxsize=1)
 def _model() -> type[RunConfig]:
     """:class:`RunConfig` whose ``transfer`` section holds the options of every registered method."""
-    fields = {key: (info.annotation, info) for options in METHOD_MODELS.values()
-              for key, info in options.model_fields.items()}
+    METHODS.names()  # found now: the version read next is that of the methods the model holds
+    return _model_at(METHODS.version)
+
+
+@functools.lru_cache(maxsize=4)
+def _model_at(version: int) -> type[RunConfig]:
+    fields: dict[str, Any] = {}
+    owners: dict[str, str] = {}
+    for method in METHODS.values():
+        for key, info in (method.model.model_fields if method.model is not None else {}).items():
+            if key in owners or key in TRANSFER_KEYS:
+                raise UsageError(f"transfer method {method.name!r}: config key 'transfer.{key}' already belongs to "
+                                 f"{owners.get(key, 'every method')}; choose another name.")
+            owners[key] = method.name
+            fields[key] = (info.annotation, info)
     if not fields:
         return RunConfig
     transfer = create_model("TransferConfig", __base__=TransferConfig, __module__=__name__, **fields)
@@ -232,11 +236,6 @@ def defaults() -> dict[str, Any]:
 
 
 def _unknown(dotted: str) -> str:
-    owners = {f"transfer.{k}": m for m, options in BUILTIN_METHOD_OPTIONS.items() for k in options}
-    owner = owners.get(dotted)
-    if owner is not None and owner not in METHOD_RULES:  # a built-in method, not imported yet
-        return (f"config key '{dotted}' is an option of the transfer method {owner}, which this process has not "
-                "registered; import drltg.transfer first.")
     known = _flat_keys(_model(), _section_models())
     section = [k for k in known if k.startswith(dotted.split(".")[0] + ".")]
     if "." in dotted and section and not closest(dotted, known):  # no close key: list them

@@ -21,7 +21,7 @@ from drltg.config.values import (
 
 __all__ = [
     "CollectorConfig", "BufferConfig", "OptimConfig", "NetworkConfig", "SACConfig", "TD3Config", "SOCConfig",
-    "EvalConfig", "CheckpointConfig", "LogConfig", "ALGOS", "ALGO_SECTIONS", "OPTION_POLICIES",
+    "EvalConfig", "CheckpointConfig", "LogConfig", "ALGO_SECTIONS", "OPTION_POLICIES",
 ]
 
 
@@ -104,8 +104,8 @@ class LogConfig(Section):
     every: Int = Field(1_000, ge=1, le=MAX_FRAMES, description="frames between logged training scalars")
 
 
-ALGOS = ("sac", "td3", "soc")
 ALGO_SECTIONS = {"sac": ("sac",), "td3": ("td3",), "soc": ("sac", "soc")}
-"""The learner sections each algorithm reads: another algorithm's section does not change its runs."""
+"""The learner sections each built-in algorithm reads: another algorithm's section does not change its runs
+(a registered learner not listed here counts as reading them all)."""
 
 ENV_HELP = "keyword arguments of the task's env factory, checked against its declared defaults"

@@ -15,7 +15,7 @@ from pydantic import (
 )
 from pydantic.fields import FieldInfo
 
-from drltg.config.registered import method_names
+from drltg.config.registry import LEARNERS, method_names
 from drltg.errors import closest
 
 
@@ -142,8 +142,8 @@ def _expected(info: FieldInfo) -> str:
     metadata = list(info.metadata) + metadata
     if "what" in extra:
         text = extra["what"]
-    elif extra.get("choices") == "registered":
-        text = "one of " + ", ".join(method_names())
+    elif extra.get("choices") in ("methods", "learners"):
+        text = "one of " + ", ".join(method_names() if extra["choices"] == "methods" else LEARNERS.names())
     elif get_origin(annotation) is Literal:
         text = "one of " + ", ".join(map(str, get_args(annotation)))
     elif annotation is bool:

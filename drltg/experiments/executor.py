@@ -21,7 +21,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import drltg.transfer  # noqa: F401  (the methods' transfer.* keys: a worker unpickles configs with them)
 from drltg.config import RunConfig
 from drltg.errors import UsageError
 from drltg.store import rundir

@@ -16,20 +16,18 @@ another network, model reuse); each reads the run's ``checkpoints/last.pt``, or 
 its ``best.pt`` (``transfer.source_checkpoint`` for the methods).
 
 :mod:`drltg.transfer.registry` defines what a method is (:class:`TransferMethod`) and what it adds to a
-run (:class:`Transfer`); :mod:`drltg.transfer.source` reads ``transfer.source``. Importing this package
-registers the built-in methods (``a+b`` names a combination, :func:`combine`); all but demonstrations
+run (:class:`Transfer`); :mod:`drltg.transfer.source` reads ``transfer.source``. The built-in methods are
+the entry points of the group ``drltg.methods`` (``pyproject.toml``), found by the config's registry
+(:data:`drltg.config.METHODS`, here ``METHODS``) on its first lookup: importing this package registers
+nothing (``a+b`` names a combination, :func:`combine`); all but demonstrations
 train their seeds as one seed group (``TransferMethod.grouped``, :mod:`drltg.training.seeds`),
 demonstrations one after another; the parts themselves
 (``drltg.transforms``, ``drltg.collectors``, ``drltg.losses``, ``drltg.modules``) register nothing.
 """
 from drltg.transfer.registry import METHODS, Transfer, TransferMethod, combine, get_method, register_method
-
-register_method(TransferMethod("none", "plain learning on the task: the baseline", lambda *a, **k: Transfer(),
-                               grouped=True))
-
-from drltg.transfer import reward_shaping, value_shaping, policy_reuse, model_reuse, demonstrations  # noqa: E402,I001
-from drltg.transfer.model_reuse import load_from_run  # noqa: E402
-from drltg.transfer.source import load_actor, load_agent, load_critic  # noqa: E402
+from drltg.transfer import reward_shaping, value_shaping, policy_reuse, model_reuse, demonstrations  # noqa: I001
+from drltg.transfer.model_reuse import load_from_run
+from drltg.transfer.source import load_actor, load_agent, load_critic
 
 __all__ = [
     "METHODS", "Transfer", "TransferMethod", "combine", "get_method", "register_method",

@@ -1,13 +1,11 @@
 """The demonstrations method: source episodes in their own buffer, a share of every batch, behaviour cloning."""
 from __future__ import annotations
 
-from typing import Annotated
-
 from pydantic import Field
 
-from drltg.config import Bool, Float, Int, Probability, RunConfig, builtin_options
+from drltg.config import Bool, Float, Int, Probability, RunConfig
 from drltg.errors import UsageError
-from drltg.transfer.registry import Transfer, TransferMethod, register_method
+from drltg.transfer.registry import Transfer, TransferMethod
 
 
 def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
@@ -57,24 +55,22 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
                     summary={"demonstration_frames": data.numel()})
 
 
-DEMONSTRATIONS = register_method(TransferMethod(
+DEMONSTRATIONS = TransferMethod(
     "demonstrations",
     "episodes of the source policy in a buffer of their own, a fixed share of every batch",
     _build,
     source="policy",
     takes=("batches",),
     algos=("sac", "td3", "soc"),
-    options=builtin_options("demonstrations", {
-        "demo_episodes": Annotated[Int, Field(ge=1, description="demonstrations: episodes of the source policy "
-                                                                "collected")],
-        "demo_ratio": Annotated[Probability, Field(description="demonstrations: share of every batch drawn from them")],
-        "bc_weight": Annotated[Float, Field(ge=0, description="demonstrations: weight of the behaviour-cloning term "
-                                                              "(0: none)")],
-        "bc_q_filter": Annotated[Bool, Field(description="demonstrations: clone only where Q(s, a_demo) > "
-                                                         "Q(s, mu(s))")],
-        "bc_anneal_frames": Annotated[Int, Field(ge=0, description="demonstrations: frames over which bc_weight falls "
-                                                                   "linearly to 0 (0: constant)")],
-        "demo_noise": Annotated[Float, Field(ge=0, description="demonstrations: std of the Gaussian noise added "
-                                                               "to every demonstrated action, clipped (0: none)")],
-    }),
-))
+    options={
+        "demo_episodes": (Int, Field(50, ge=1, description="demonstrations: episodes of the source policy collected")),
+        "demo_ratio": (Probability, Field(0.25, description="demonstrations: share of every batch drawn from them")),
+        "bc_weight": (Float, Field(10.0, ge=0, description="demonstrations: weight of the behaviour-cloning term (0: "
+                                                           "none)")),
+        "bc_q_filter": (Bool, Field(False, description="demonstrations: clone only where Q(s, a_demo) > Q(s, mu(s))")),
+        "bc_anneal_frames": (Int, Field(0, ge=0, description="demonstrations: frames over which bc_weight falls "
+                                                             "linearly to 0 (0: constant)")),
+        "demo_noise": (Float, Field(0.0, ge=0, description="demonstrations: std of the Gaussian noise added to every "
+                                                           "demonstrated action, clipped (0: none)")),
+    },
+)

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING
 
 from pydantic import Field
 
-from drltg.config import Bool, RunConfig, Str, builtin_options
+from drltg.config import Bool, RunConfig, Str
 from drltg.store.rundir import MODEL_REUSE, load_checkpoint
-from drltg.transfer.registry import Transfer, TransferMethod, register_method
+from drltg.transfer.registry import Transfer, TransferMethod
 
 if TYPE_CHECKING:
     from torch import nn
@@ -45,18 +45,18 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     return Transfer(files={MODEL_REUSE: f"{report}\n"})
 
 
-MODEL_REUSE_METHOD = register_method(TransferMethod(
+MODEL_REUSE_METHOD = TransferMethod(
     "model-reuse",
     "the learner starts from the source run's weights (observation-size changes mapped)",
     _build,
     grouped=True,
     source="run",
     takes=("weights",),
-    options=builtin_options("model-reuse", {
-        "freeze": Annotated[list[Str], Field(description="model reuse: parameter-name patterns to keep fixed",
-                                             json_schema_extra={"what": "a list of parameter-name patterns (e.g. "
-                                                                        "[actor_network_params])"})],
-        "partial": Annotated[Bool, Field(description="model reuse: accept a source whose core networks cannot all "
-                                                     "be loaded")],
-    }),
-))
+    options={
+        "freeze": (list[Str], Field([], description="model reuse: parameter-name patterns to keep fixed",
+                                    json_schema_extra={"what": "a list of parameter-name patterns (e.g. "
+                                                               "[actor_network_params])"})),
+        "partial": (Bool, Field(False, description="model reuse: accept a source whose core networks cannot all be "
+                                                   "loaded")),
+    },
+)

@@ -1,13 +1,13 @@
 """The policy-reuse and jumpstart methods: the learner's policy followed by ``PolicyReuse`` over the source."""
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Annotated, Optional
+from typing import TYPE_CHECKING, Optional
 
 from pydantic import Field
 
-from drltg.config import Int, Probability, RunConfig, builtin_options
+from drltg.config import Int, Probability, RunConfig
 from drltg.errors import UsageError
-from drltg.transfer.registry import Transfer, TransferMethod, register_method
+from drltg.transfer.registry import Transfer, TransferMethod
 
 if TYPE_CHECKING:
     from drltg.collectors import ReuseSchedule
@@ -36,7 +36,7 @@ def _check_pi_reuse(cfg: RunConfig) -> None:
                          "which psi decays.")
 
 
-POLICY_REUSE = register_method(TransferMethod(
+POLICY_REUSE = TransferMethod(
     "policy-reuse",
     "pi-reuse: the source policy acts with probability psi * upsilon^h at step h of every episode",
     _pi_reuse,
@@ -44,15 +44,14 @@ POLICY_REUSE = register_method(TransferMethod(
     takes=("policy",),
     grouped=True,
     check=_check_pi_reuse,
-    options=builtin_options("policy-reuse", {
-        "psi": Annotated[Probability, Field(description="pi-reuse: probability of reusing at an episode's first step")],
-        "upsilon": Annotated[Probability, Field(description="pi-reuse: decay of psi within the episode")],
-        "psi_end": Annotated[Optional[Probability],
-                             Field(description="pi-reuse: psi after annealing_frames; null: no decay")],
-        "annealing_frames": Annotated[Int, Field(ge=0, description="pi-reuse: frames over which psi decays to "
-                                                                  "psi_end")],
-    }),
-))
+    options={
+        "psi": (Probability, Field(1.0, description="pi-reuse: probability of reusing at an episode's first step")),
+        "upsilon": (Probability, Field(0.95, description="pi-reuse: decay of psi within the episode")),
+        "psi_end": (Optional[Probability], Field(None, description="pi-reuse: psi after annealing_frames; null: no "
+                                                                   "decay")),
+        "annealing_frames": (Int, Field(0, ge=0, description="pi-reuse: frames over which psi decays to psi_end")),
+    },
+)
 
 
 def _jumpstart(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
@@ -63,17 +62,17 @@ def _jumpstart(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     return _mixed(cfg, agent, env, JumpStart(t.guide_steps, stages=t.guide_stages, frames_per_stage=stage))
 
 
-JUMPSTART = register_method(TransferMethod(
+JUMPSTART = TransferMethod(
     "jumpstart",
     "JSRL: the source policy acts for the first H steps of every episode, H shrinking to 0 in stages",
     _jumpstart,
     source="policy",
     takes=("policy",),
     grouped=True,
-    options=builtin_options("jumpstart", {
-        "guide_steps": Annotated[Int, Field(ge=0, description="jumpstart: steps the source policy acts at the "
-                                                             "start (H at first)")],
-        "guide_stages": Annotated[Int, Field(ge=1, description="jumpstart: equal steps in which H shrinks to 0")],
-        "guide_frames": Annotated[Int, Field(ge=1, description="jumpstart: training frames until H reaches 0")],
-    }),
-))
+    options={
+        "guide_steps": (Int, Field(100, ge=0, description="jumpstart: steps the source policy acts at the start (H "
+                                                          "at first)")),
+        "guide_stages": (Int, Field(10, ge=1, description="jumpstart: equal steps in which H shrinks to 0")),
+        "guide_frames": (Int, Field(20_000, ge=1, description="jumpstart: training frames until H reaches 0")),
+    },
+)

@@ -22,6 +22,9 @@ its config must follow. A new method is one module and one :func:`register_metho
         "my-method", "what it transfers, in one line", build,
         options={"my_scale": (float, Field(1.0, ge=0.0, description="how strongly"))},
     ))
+
+The methods live in the registry the config reads (:data:`drltg.config.METHODS`); the built-in ones are
+its entry points (``pyproject.toml``), so importing their modules registers nothing.
 """
 from __future__ import annotations
 
@@ -29,8 +32,8 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Iterable
 
 from drltg import config
-from drltg.config import RunConfig
-from drltg.errors import UsageError, closest
+from drltg.config import METHODS, RunConfig, Section, get_method
+from drltg.errors import UsageError
 
 __all__ = ["Transfer", "TransferMethod", "METHODS", "register_method", "get_method", "combine"]
 
@@ -81,7 +84,7 @@ class TransferMethod:
             actor, or ``demonstrator:TASK`` on the manipulation tasks). ``drltg experiment`` trains
             source runs on the pair's source task for methods that have one.
         options: the method's ``transfer.<key>`` config keys as ``key -> (type, default or Field(default, ...))``,
-            the fields of a pydantic model (:func:`pydantic.create_model`) built when it is registered.
+            the fields of its pydantic model (:func:`pydantic.create_model`), ``model``, built with the method.
         check: ``check(cfg)`` raises one :class:`UsageError` sentence on a config the method cannot
             run (rules that tie keys together); called by ``drltg.config.validate``.
         algos: the learners it works with (``None``: every learner).
@@ -105,6 +108,14 @@ class TransferMethod:
     algos: tuple[str, ...] | None = None
     takes: tuple[str, ...] = ()
     grouped: bool = False
+    model: type[Section] | None = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "model", config.options_model(self.name, self.options) if self.options else None)
+
+    def combine(self, *others: TransferMethod) -> TransferMethod:
+        """This method followed by ``others`` (:func:`combine`)."""
+        return combine(self, *others)
 
     def validate(self, cfg: RunConfig) -> None:
         if self.algos is not None and cfg.algo not in self.algos:
@@ -116,9 +127,7 @@ class TransferMethod:
             self.check(cfg)
 
 
-METHODS: dict[str, TransferMethod] = {}
-"""Every registered method by name; ``none`` is plain learning (the baseline)."""
-config.METHOD_RULES["+"] = lambda cfg: get_method(cfg.transfer.method).validate(cfg)
+NONE = TransferMethod("none", "plain learning on the task: the baseline", lambda *a, **k: Transfer(), grouped=True)
 
 _SOURCES = (None, "run", "policy")
 
@@ -132,6 +141,9 @@ def register_method(method: TransferMethod, *, replace: bool = False) -> Transfe
         raise UsageError(
             f"transfer method {method.name!r}: source must be None, 'run' or 'policy', got {method.source!r}."
         )
+    if "+" in method.name:
+        raise UsageError(f"transfer method {method.name!r}: '+' joins the methods of a combination; choose another "
+                         "name.")
     owners = {key: m.name for m in METHODS.values() if m.name != method.name for key in m.options}
     for key in method.options:
         if key in owners or key in config.TRANSFER_KEYS:
@@ -139,23 +151,8 @@ def register_method(method: TransferMethod, *, replace: bool = False) -> Transfe
                 f"transfer method {method.name!r}: config key 'transfer.{key}' already belongs to "
                 f"{owners.get(key, 'every method')}; choose another name."
             )
-    model = config.options_model(method.name, method.options) if method.options else None
     METHODS[method.name] = method
-    config.add_method(method.name, model, method.validate)
     return method
-
-
-def get_method(name: str) -> TransferMethod:
-    """The registered method ``name``, or the combination ``a+b`` of registered methods (:func:`combine`)."""
-    if "+" in name:
-        return combine(*(get_method(part) for part in name.split("+")))
-    if name not in METHODS:
-        hint = closest(name, METHODS)
-        raise UsageError(
-            f"unknown transfer method '{name}'"
-            + (f"; did you mean '{hint}'?" if hint else f"; choose one of: {', '.join(METHODS)}.")
-        )
-    return METHODS[name]
 
 
 def combine(*methods: TransferMethod) -> TransferMethod:

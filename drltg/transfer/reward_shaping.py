@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from drltg.config import RunConfig
 from drltg.errors import UsageError
-from drltg.transfer.registry import Transfer, TransferMethod, register_method
+from drltg.transfer.registry import Transfer, TransferMethod
 
 
 def _check(cfg: RunConfig) -> None:
@@ -23,10 +23,10 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     return Transfer(train_transforms=[shaping])
 
 
-REWARD_SHAPING = register_method(TransferMethod(
+REWARD_SHAPING = TransferMethod(
     "reward-shaping",
     "adds gamma Phi(s') - Phi(s) to the training reward, Phi the task's registered potential",
     _build,
     grouped=True,
     check=_check,
-))
+)

@@ -1,12 +1,10 @@
 """The value-shaping method: ``PotentialShaping`` with Phi = the source run's value (``SourceValue``)."""
 from __future__ import annotations
 
-from typing import Annotated
-
 from pydantic import Field
 
-from drltg.config import Float, RunConfig, builtin_options
-from drltg.transfer.registry import Transfer, TransferMethod, register_method
+from drltg.config import Float, RunConfig
+from drltg.transfer.registry import Transfer, TransferMethod
 
 
 def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
@@ -21,14 +19,12 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     return Transfer(train_transforms=[PotentialShaping(potential, gamma=cfg.optim.gamma)])
 
 
-VALUE_SHAPING = register_method(TransferMethod(
+VALUE_SHAPING = TransferMethod(
     "value-shaping",
     "adds gamma Phi(s') - Phi(s) to the training reward, Phi the source run's value V_source(s)",
     _build,
     grouped=True,
     source="run",
     algos=("sac", "td3"),
-    options=builtin_options("value-shaping", {
-        "value_scale": Annotated[Float, Field(ge=0, description="value shaping: Phi = value_scale * V_source(s)")],
-    }),
-))
+    options={"value_scale": (Float, Field(1.0, ge=0, description="value shaping: Phi = value_scale * V_source(s)"))},
+)

@@ -29,8 +29,7 @@ def tasks_table(kind: str) -> str:
 
 
 def _methods() -> dict:
-    import drltg.transfer  # noqa: F401  (registers the built-in methods and their transfer.* keys)
-    from drltg.transfer.registry import METHODS
+    from drltg.config import METHODS
 
     return {name: m for name, m in METHODS.items() if _builtin(m.build)}
 
@@ -53,7 +52,7 @@ def config_table() -> str:
     for line in config.describe().splitlines():
         key = line.split("`")[1] if line.startswith("| `") else None
         if key is None or not key.startswith("transfer.") or key in own or key.removeprefix("transfer.") not in \
-                config.METHOD_OPTIONS:
+                config.option_owners():
             if key == "transfer.method":
                 cells = line.split(" | ")
                 cells[2] = "one of " + ", ".join(builtin)
