@@ -7,7 +7,7 @@ from torchrl.envs import TransformedEnv
 
 from drltg import config as config_lib
 from drltg.learners import UpdateStep, make_agent
-from drltg.seed_group import SeedGroup, SeedStreams
+from drltg.training.seeds import SeedGroup
 from drltg.training.loop import build_env
 
 SMALL = ["network.hidden=[16,16]"]
@@ -38,7 +38,7 @@ def test_one_vmapped_update_is_each_seeds_own_update(task, algo, update_actor):
     group = SeedGroup(agents, randomness="same")  # stacks copies: the agents keep their parameters
     torch.manual_seed(11)
     grouped = group.update(torch.stack(batches), update_actor=update_actor)
-    group_grads = [p.grad for p in group._param_list]
+    group_grads = [p.grad for p in group.optimizer.param_groups[0]["params"]]
     for k, (agent, batch) in enumerate(zip(agents, batches)):
         torch.manual_seed(11)  # the same random draws as the group's shared ("same") draw
         single = UpdateStep(agent)(batch, update_actor=update_actor)
