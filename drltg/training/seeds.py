@@ -111,10 +111,15 @@ def stacked_soft_update(loss: LossModule, params: TensorDictBase, eps: float) ->
     1 - eps)`` on the stacked tensors: built on a copy of one seed's loss whose ``*_params`` (targets and their
     sources) are the stacked ones (the same tensors as ``params``)."""
     holder = copy.deepcopy(loss)
-    for name, _ in list(loss.named_children()):
-        if name.endswith("_params"):
-            setattr(holder, name, TensorDictParams(params.get(name).copy(), no_convert=True))
-    return SoftUpdate(holder, eps=eps)
+    names = [name for name, _ in loss.named_children() if name.endswith("_params")]
+    for name in names:
+        setattr(holder, name, TensorDictParams(params.get(name).copy(), no_convert=True))
+    targets = {name: params.get(name).clone() for name in names if name.startswith("target_")}
+    updater = SoftUpdate(holder, eps=eps)  # which sets the targets to their sources, as for a new loss
+    with torch.no_grad():
+        for name, saved in targets.items():  # the seeds' own targets (a source's, a checkpoint's) stay
+            params.get(name).update_(saved)
+    return updater
 
 
 class SeedGroup:
