@@ -382,7 +382,7 @@ class GroupLearner:
 
 class SeedMajor(BatchSizeTransform):
     """A ``ParallelEnv`` of per-seed envs (batch ``[seeds, E]``) seen as one flat batch ``[seeds * E]``,
-    seed k's envs at ``k*E … k*E+E−1``: the layout of a blocked env (:mod:`drltg.envs.seeding`). A partial
+    seed k's envs at ``k*E … k*E+E−1``: the layout of an in-process group env. A partial
     reset's ``_reset`` mask is unflattened for the workers too."""
 
     def __init__(self):
