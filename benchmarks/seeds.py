@@ -9,7 +9,7 @@ Everything single-threaded (``OMP_NUM_THREADS=1``, ``torch.set_num_threads(1)``)
   (``frames / frames_per_s``: start-up, imports and the final files excluded), summed over the N
   separate runs. The group and the separate runs of each N alternate, round after round.
 * ``lift_update``: the update alone at Lift's size (SAC, 2x256 actor and twin critics, batch 256,
-  observation 50, action 7; ``benchmarks.sac``'s work): one :class:`~drltg.seed_group.SeedGroup` update
+  observation 50, action 7; ``benchmarks.sac``'s work): one :class:`~drltg.training.seeds.SeedGroup` update
   of N seeds against N ``UpdateStep`` updates one after another, each seed drawing from its own replay
   buffer, in interleaved rounds; and the group against the matrix-product bound of the same N-seed
   work (the update's products as N-batched ``bmm`` into preallocated outputs).
@@ -29,7 +29,7 @@ import torch
 from benchmarks.common import REPO, interleaved, ratios
 from benchmarks.sac import SpecEnv, _buffer, _config, sac_matmuls, transitions
 from drltg.learners import UpdateStep, make_sac_agent, sample_batches
-from drltg.seed_group import SeedGroup
+from drltg.training.seeds import SeedGroup
 
 SEEDS = (1, 4, 8, 16)
 TASK = "fourrooms/northeast"

@@ -16,12 +16,12 @@ when first used)::
     drltg.config       resolve: a full, checked, typed run config (``cfg.optim.lr``; task defaults, ``KEY=VALUE``)
     drltg.learners     make_agent(env, cfg): actor, exploration policy, loss, target updater, optimiser;
                        UpdateStep: one gradient step of any learner; sample_batches(buffer, n)
-    drltg.seed_group   SeedGroup: N seeds' agents stacked, one vmapped update for all of them
     drltg.transfer     load_actor, load_critic, load_agent, load_from_run: a trained run as a source;
                        the named methods of ``drltg train -o transfer.method=...``
     drltg.training.loop        train(cfg, run_dir): the loop that writes a run directory (is_complete(run_dir));
                                evaluate(env, actor): success rate and return of deterministic episodes
-    drltg.training.seeds       train_seeds(cfg, run_dir, n): seeds S..S+n-1 in one process, one directory each
+    drltg.training.seeds       train_seeds(cfg, run_dir, n): n seeds in one process, one directory each;
+                               SeedGroup: N seeds' agents stacked, one vmapped update for all of them
     drltg.training.reevaluate  evaluate_run(run_dir, checkpoint="best"): a saved policy on fresh episodes
     drltg.experiments.experiment  experiment(pair, method, frames=, out=): source, baseline and transfer runs
                        over seeds, then the report (``drltg experiment``)
@@ -45,10 +45,9 @@ _SURFACE = {
     "drltg.modules": ["load_weights", "option_transforms", "make_option_policy"],
     "drltg.config": ["resolve"],
     "drltg.learners": ["make_agent", "UpdateStep", "sample_batches"],
-    "drltg.seed_group": ["SeedGroup"],
     "drltg.transfer": ["load_actor", "load_critic", "load_agent", "load_from_run"],
     "drltg.training.loop": ["train", "evaluate", "is_complete"],
-    "drltg.training.seeds": ["train_seeds"],
+    "drltg.training.seeds": ["train_seeds", "SeedGroup"],
     "drltg.training.reevaluate": ["evaluate_run"],
     "drltg.experiments.experiment": ["experiment"],
     "drltg.experiments.sweep": ["sweep"],

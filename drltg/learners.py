@@ -29,7 +29,6 @@ from torchrl.modules import (
     OneHotCategorical,
     ProbabilisticActor,
     TanhModule,
-    TanhNormal,
     ValueOperator,
 )
 from torchrl.objectives import DiscreteSACLoss, LossModule, SACLoss, SoftUpdate, TD3Loss
@@ -38,7 +37,7 @@ from drltg import config
 from drltg.config import RunConfig
 from drltg.errors import UsageError
 from drltg.losses import SoftOptionCriticLoss
-from drltg.modules import make_option_actor, make_option_policy, make_option_qvalue, make_termination, option_transforms
+from drltg.modules import TanhNormal, make_option_actor, make_option_policy, make_option_qvalue, make_termination, option_transforms
 
 DEACTIVATE_VMAP = True
 """Passed to every loss: the critic copies run in a plain loop instead of under ``torch.vmap``. Same values;
@@ -245,7 +244,9 @@ class UpdateStep:
     """One gradient step of ``agent``: ``step(batch, update_actor) -> detached losses``.
 
     ``loss(batch) -> backward(sum of loss_* terms) -> optimizer.step() -> target_updater.step()``, the
-    sequence of TorchRL's sota SAC loop, for every learner alike. ``update_actor=False`` leaves out the
+    sequence of TorchRL's sota SAC loop, for every learner alike, and for a seed group's stacked loss
+    (:class:`~drltg.training.seeds.StackedLoss`), whose terms have a leading seed dimension and are summed
+    over it too: seeds share no parameter, so d/d theta_k of the sum is seed k's gradient. ``update_actor=False`` leaves out the
     actor's loss terms and the target update (TD3's policy delay).
 
     Args:
@@ -284,7 +285,7 @@ class UpdateStep:
             if loss_terms is not None:
                 losses.update(loss_terms(batch))
             optimizer.zero_grad(set_to_none=True)
-            loss_total(losses, update_actor).backward()
+            loss_total(losses, update_actor).sum().backward()
             optimizer.step()
             if update_actor:
                 target_updater.step()

@@ -53,7 +53,7 @@ def test_model_reuse_plus_demonstrations_loads_the_weights_and_mixes_the_batches
 def test_shaping_plus_policy_reuse_keeps_the_transform_and_the_mixer(source_run):
     _, transfer = _build("reward-shaping+policy-reuse", source_run)
     # the shaping transform, then the mixer's primer (which carries the episode's choice of past policy)
-    assert [type(t).__name__ for t in transfer.train_transforms] == ["PotentialShaping", "ReuseIndexPrimer"]
+    assert [type(t).__name__ for t in transfer.train_transforms] == ["PotentialShaping", "TensorDictPrimer"]
     assert set(transfer.train_transforms[1].primers.keys()) == {"reuse_index"}
     assert transfer.mixer is not None and transfer.on_frames is not None
 

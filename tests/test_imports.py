@@ -40,7 +40,6 @@ LAYERS = [
     ["drltg.transforms", "drltg.collectors", "drltg.losses", "drltg.modules"],
     ["drltg.config"],
     ["drltg.learners"],
-    ["drltg.seed_group"],
     ["drltg.transfer"],
     ["drltg.training"],
     ["drltg.analysis"],

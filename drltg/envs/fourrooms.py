@@ -51,7 +51,6 @@ from torchrl.data import Bounded
 
 from drltg.envs.goal_env import GoalEnv
 from drltg.envs.limits import MAX_HORIZON
-from drltg.envs.seeding import blocks
 from drltg.errors import UsageError
 
 ARENA_SIZE = 10.0
@@ -233,15 +232,12 @@ class FourRoomsEnv(GoalEnv):
         return obs
 
     def _starts(self, mask: torch.Tensor) -> torch.Tensor:
-        """Starts for the flat batch elements where ``mask`` is true, in order."""
-        return torch.cat([self._sample_start(int(m.sum()), rng) for m, rng in blocks(self, mask)])
-
-    def _sample_start(self, n: int, rng: torch.Generator | None = None) -> torch.Tensor:
-        """``n`` positions uniform over the start regions (weighted by area) minus the goal disc.
+        """``mask.sum()`` positions (the flat batch elements where ``mask`` is true, in order) uniform over
+        the start regions (weighted by area) minus the goal disc.
 
         Draws on the CPU generator, so a seed gives the same starts on every device.
         """
-        rng = self.rng if rng is None else rng
+        rng, n = self.rng, int(mask.sum())
         goal = self.goal.cpu()
         pos = torch.empty(n, 2)
         todo = torch.arange(n)

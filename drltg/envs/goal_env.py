@@ -3,20 +3,16 @@
 A step pays ``+1`` and terminates on reaching the goal (``success``), costs ``step_cost`` otherwise, and
 is truncated (never terminated) after ``horizon`` steps. The state is one entry (``state_key``: the
 continuous ``position`` or the grid ``cell``) plus ``step_count``; starts and noise come from a CPU
-generator, one per block of the batch where a seed group sets them (:mod:`drltg.envs.seeding`).
+generator, the env's own (``set_seed``).
 Subclasses build their specs with :meth:`_state_specs` and write :meth:`_observe`, the start draw and the
 move; :meth:`_first` and :meth:`_next` assemble what ``_reset`` and ``_step`` return.
 """
 from __future__ import annotations
 
-from typing import Sequence
-
 import torch
 from tensordict import TensorDict
 from torchrl.data import Bounded, Categorical, Composite, TensorSpec, Unbounded
 from torchrl.envs import EnvBase
-
-from drltg.envs.seeding import block_generators
 
 
 class GoalEnv(EnvBase):
@@ -46,15 +42,9 @@ class GoalEnv(EnvBase):
         raise NotImplementedError
 
     def _set_seed(self, seed: int | None) -> None:
-        self.block_rngs = None
         self.rng = torch.Generator()
         if seed is not None:
             self.rng.manual_seed(seed)
-
-    def set_block_seeds(self, seeds: Sequence[int]) -> None:
-        """See :func:`drltg.envs.seeding.set_block_seeds`: block ``k`` of the batch draws its starts (and
-        any noise) as this env with ``1/len(seeds)`` of the batch, seeded ``seeds[k]``, would."""
-        self.block_rngs = block_generators(self.batch_size, seeds)
 
     def _first(self, state: torch.Tensor) -> TensorDict:
         """What ``_reset`` returns for the start states ``state``."""

@@ -48,7 +48,6 @@ from torchrl.data import Bounded, OneHot
 
 from drltg.envs.goal_env import GoalEnv
 from drltg.envs.limits import MAX_HORIZON
-from drltg.envs.seeding import blocks
 from drltg.errors import UsageError
 
 LAYOUT = (
@@ -206,25 +205,16 @@ class GridFourRoomsEnv(GoalEnv):
         shape = self.batch_size
         if kwargs.get("set_state") and tensordict is not None and "cell" in tensordict.keys():
             cell = tensordict["cell"].clone()
-        else:  # a partial reset draws for the whole batch; only the reset elements are kept
-            reset = None if tensordict is None else tensordict.get("_reset", None)
-            mask = torch.ones(shape.numel(), dtype=torch.bool) if reset is None else reset.reshape(-1).cpu()
-            pick = torch.cat([
-                torch.randint(len(self._starts), (m.numel(),), generator=rng) if m.any() or self.block_rngs is None
-                else torch.zeros(m.numel(), dtype=torch.int64)
-                for m, rng in blocks(self, mask)
-            ])
+        else:  # a partial reset draws for the whole batch; TorchRL keeps the reset elements' starts
+            pick = torch.randint(len(self._starts), (shape.numel(),), generator=self.rng)
             cell = self._starts[pick.reshape(shape)].to(self.device)
         return self._first(cell)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         action = tensordict["action"].long().argmax(-1)
         if self.slip > 0:
-            every = torch.ones(action.numel(), dtype=torch.bool)
-            draws = [(torch.rand(m.numel(), generator=rng), torch.randint(1, 4, (m.numel(),), generator=rng))
-                     for m, rng in blocks(self, every)]
-            slipped = torch.cat([d[0] for d in draws]).reshape(action.shape) < self.slip
-            other = torch.cat([d[1] for d in draws]).reshape(action.shape)
+            slipped = torch.rand(action.shape, generator=self.rng) < self.slip
+            other = torch.randint(1, 4, action.shape, generator=self.rng)
             action = torch.where(slipped.to(action.device), (action + other.to(action.device)) % 4, action)
         cell = next_cell(tensordict["cell"], action, self._walls)
         step_count = tensordict["step_count"] + 1

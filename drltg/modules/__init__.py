@@ -1,5 +1,6 @@
 """Networks and policies that drltg's learners need beyond TorchRL's own modules, and loading weights
 across networks of different shapes (model reuse)."""
+from drltg.modules.distributions import TanhNormal
 from drltg.modules.options import (
     OPTION_KEY,
     OptionHeads,
@@ -14,6 +15,7 @@ from drltg.modules.options import (
 from drltg.modules.weights import LoadReport, freeze_parameters, load_weights
 
 __all__ = [
+    "TanhNormal",
     "LoadReport",
     "freeze_parameters",
     "load_weights",

@@ -40,7 +40,9 @@ from torch import nn
 from torchrl.data import Categorical, TensorSpec
 from torchrl.envs import InitTracker, TensorDictPrimer, Transform
 from torchrl.envs.utils import ExplorationType, exploration_type
-from torchrl.modules import MLP, ProbabilisticActor, TanhNormal
+from torchrl.modules import MLP, ProbabilisticActor
+
+from drltg.modules.distributions import TanhNormal
 
 OPTION_KEY = "option"
 

@@ -1,75 +1,74 @@
-"""Training N seeds of one config in one process: ``drltg train TASK --seeds N --seed S --run-dir DIR``.
+"""Seed groups: N seeds of one config trained in one process, ``drltg train TASK --seeds N --seed S --run-dir DIR``.
 
-Seeds S … S+N−1 are written to ``DIR/seed-<S+k>/``, each an ordinary run directory (``report`` reads it
-alone, ``--resume`` continues it, alone or with its group). Where the learner supports it
-(:func:`group_support`) the seeds train as one :class:`~drltg.seed_group.SeedGroup`: one batched env of
-N × ``collector.num_envs`` envs (for a task without per-seed streams, robosuite's, a ``ParallelEnv`` of
-each seed's own env, :func:`_worker_env`), one vmapped policy call (one call per seed for soft option-critic,
-whose option choice branches on the data) and one vmapped update per step, a replay buffer per seed.
-Otherwise they train one after another with :func:`~drltg.training.loop.train`.
+Seeds S, S+100, … (:func:`drltg.config.run_seeds`) are written to ``DIR/seed-<s>/``, each an ordinary run
+directory (``report`` reads it alone, ``--resume`` continues it, alone or with its group). Where the learner
+supports it (:func:`group_support`) the seeds train as one :class:`SeedGroup`:
 
-A transfer method groups if it declares a grouped form (``TransferMethod.grouped``; ``a+b`` if every
-part does): ``none``, ``model-reuse`` (each seed's networks load its own ``transfer.source`` before the
-seeds are stacked; frozen parameters stay frozen in the stack), ``reward-shaping`` and
-``value-shaping`` (seed k's env block shaped with seed k's own potential,
-:meth:`~drltg.transforms.PotentialShaping.seed_blocks`), ``policy-reuse`` and ``jumpstart`` (seed k's
-mixer over its own source policy on seed k's envs, :class:`~drltg.seed_group.SeedBlocks`, drawing from
-seed k's stream). Each seed's transfer is built as its run alone builds it, at the same point of its
-random stream. ``demonstrations`` (a demonstration buffer mixed into every minibatch) has none. The
-configs of a group may differ in ``transfer.source`` (an experiment's transfer run of seed s reads its
-own seed's source run).
+* the seeds' loss parameters and buffers (target networks included) are stacked along a leading seed
+  dimension with ``TensorDict.from_modules``, as TorchRL stacks its critic ensembles; one update is drltg's
+  :class:`~drltg.learners.UpdateStep` over :class:`StackedLoss`, the loss vmapped over seeds::
 
-What a seed shares with its run alone: its initial networks (built under ``torch.manual_seed(seed)`` as
-a run alone builds them), its env's starts and noise, training and evaluation (a random stream per seed,
-:mod:`drltg.envs.seeding`), its replay buffer, and its updates given a batch and random draws
-(``tests/test_seed_groups.py``). For SAC on continuous actions on the CPU (:func:`streams_supported`)
-the rest is the seed's too: each seed draws from its own :class:`~drltg.seed_group.SeedStreams` stream,
-the state torch's global generator holds in its run alone once that run has built its networks and envs
-(building robosuite's envs draws nothing from it: ``tests/test_robosuite_groups.py``),
-in the same order and shapes (the warm-up's random actions, the policy's exploration draws, the replay
-buffer's sampling, the losses' draws), so a seed in a group draws exactly the random numbers of its run
-alone and its checkpoint holds its own stream; its parameters match its run alone to float rounding
-(``tests/test_seed_groups.py``), which training amplifies over thousands of updates (batched products
-round differently from single ones). For TD3, discrete SAC and soft option-critic (draws other than
-``Normal.rsample``'s: TD3's loss draws its smoothing noise with ``randn_like``, discrete SAC samples
-categorically, the option policy draws Bernoulli terminations and categorical options) those draws come
-from the process's one generator, seeded with the group's first seed, so past frame 0 a seed's curve in
-a group is not its curve alone. A group is reproduced exactly by the same group (same ``--seeds`` and
-``--seed``); each seed's summary.json records its group (``seed_group.seeds``, the group's seeds in
-order).
+      losses_k = loss(batch_k; theta_k)        for every seed k, under torch.vmap
+      backward(sum_k total_k)                  seeds share no parameter: d/d theta_k of the sum is seed k's gradient
+      Adam over the stacked tensors            elementwise, so it is each seed's own Adam
+      SoftUpdate over the stacked targets      theta_target <- lerp(theta_target, theta, tau), each seed's own
+
+* the policy acts on one env of N × ``collector.num_envs`` envs, block k (envs ``k*E … k*E+E−1``) with seed
+  k's parameters (:class:`GroupPolicy`, one vmapped call; :class:`SeedLoopPolicy`, one call per seed, for
+  soft option-critic, whose option choice branches on the data). FourRooms and GridRooms step the whole
+  batch in process; any other task steps one env per seed, each built and seeded as its run alone builds
+  it, in worker processes (:func:`_worker_env`);
+* a replay buffer per seed, and a transfer per seed composed onto its block: each seed's shaping potential
+  on its own envs (:func:`seed_block_transforms`), each seed's policy-reuse mixer over its own source
+  (:class:`SeedBlocks`), model reuse loading each seed's own source before the seeds are stacked.
+
+A transfer method groups if it declares a grouped form (``TransferMethod.grouped``; ``a+b`` if every part
+does): it may set train transforms and a mixer, not a whole policy, minibatches or loss terms
+(``demonstrations`` has none). The configs of a group may differ in ``transfer.source`` (an experiment's
+transfer run of seed s reads its own seed's source run). Otherwise the seeds train one after another with
+:func:`~drltg.training.loop.train`.
+
+What a seed in a group shares with its run alone: its initial networks (built under
+``torch.manual_seed(seed)``), its transfer, its replay buffer and, given the same parameters, batch and
+random draws, its update (to float rounding: ``tests/test_seed_groups.py``). Its random draws are not its
+run alone's: the in-process env is one env seeded with the group's first seed, and the exploration noise,
+warm-up actions, minibatch indices and the losses' draws come from the process's one generator, seeded
+with the group's first seed (``torch.vmap(randomness="different")`` gives each seed its own draws). So a
+seed's curve in a group is not its curve alone, bit for bit; it is a draw from the same distribution
+(``tests/test_seed_groups.py`` tests this over 20 seeds), and a group is reproduced exactly by the same
+group (same ``--seeds`` and ``--seed``). Each seed's summary.json records its group (``seed_group.seeds``).
 """
 from __future__ import annotations
 
-import contextlib
+import copy
 import functools
 import sys
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Sequence
 
 import torch
-from tensordict import TensorDictBase
-from tensordict.nn import TensorDictSequential
+from tensordict import TensorDict, TensorDictBase
+from tensordict.nn import TensorDictModuleBase, TensorDictParams, TensorDictSequential
 from torchrl.data import LazyTensorStorage, ReplayBuffer
-from torchrl.envs import BatchSizeTransform, EnvBase, ParallelEnv, RewardSum, TransformedEnv
-from torchrl.objectives import SACLoss
+from torchrl.envs import BatchSizeTransform, EnvBase, ParallelEnv, RewardSum, TensorDictPrimer, TransformedEnv
+from torchrl.objectives import LossModule, SoftUpdate
 
 from drltg import config
 from drltg.config import RunConfig
-from drltg.envs.seeding import set_block_seeds
+from drltg.envs.goal_env import GoalEnv
 from drltg.errors import UsageError
-from drltg.learners import sample_batches
+from drltg.learners import Agent, UpdateStep, sample_batches
 from drltg.losses import SoftOptionCriticLoss
 from drltg.modules import make_option_policy
-from drltg.seed_group import GroupPolicy, SeedBlocks, SeedGroup, SeedLoopPolicy, SeedStreams
 from drltg.store import rundir
 from drltg.training import best, health, preflight
 from drltg.training.loop import (
+    EVAL_SEED_OFFSET,
     build_env,
     check_config,
     deferred_signals,
     evaluate_seeds,
     make_collector,
-    make_envs,
     run_loop,
     train,
 )
@@ -77,13 +76,203 @@ from drltg.training.replay import buffer_state
 from drltg.training.session import RunSession
 from drltg.transfer import Transfer, get_method
 from drltg.transfer.source import check as check_source
+from drltg.transforms import PotentialShaping
 
-__all__ = ["train_seeds", "train_group", "group_train_env", "group_support", "seed_dirs", "same_but_seed"]
+__all__ = ["train_seeds", "train_group", "group_train_env", "group_support", "seed_dirs", "same_but_seed",
+           "SeedGroup", "StackedLoss", "stacked_soft_update", "GroupPolicy", "SeedLoopPolicy", "SeedBlocks"]
 
 GROUPED_ALGOS = ("sac", "td3", "soc")
 """Learners whose seeds train as one group (SAC covers discrete SAC on discrete tasks)."""
 
 
+# ----------------------------------------------------------------------------- the stacked update
+class StackedLoss(torch.nn.Module):
+    """The seeds' losses as one loss: ``params`` holds every seed's loss parameters and buffers stacked
+    along a leading seed dimension, and ``forward(batch)`` runs ``loss`` under each seed's slice on that
+    seed's slice of ``batch`` (one ``torch.vmap``), returning the losses with a leading seed dimension."""
+
+    def __init__(self, loss: LossModule, params: TensorDictBase, randomness: str = "different"):
+        super().__init__()
+        self.params = params
+        self.__dict__["seed_loss"] = loss  # run under each seed's parameters; not a submodule of its own
+        self._losses = torch.vmap(self._seed_losses, (0, 0), randomness=randomness)
+
+    def _seed_losses(self, params: TensorDictBase, batch: TensorDictBase) -> TensorDictBase:
+        # an unlocked copy: the loss swaps its own sub-parameters in and out while it runs
+        with params.copy().unlock_().to_module(self.seed_loss):
+            return self.seed_loss(batch)
+
+    def forward(self, batch: TensorDictBase) -> TensorDictBase:
+        return self._losses(self.params, batch)
+
+
+def stacked_soft_update(loss: LossModule, params: TensorDictBase, eps: float) -> SoftUpdate:
+    """TorchRL's ``SoftUpdate`` of every seed's targets at once, ``theta_target <- lerp(theta_target, theta,
+    1 - eps)`` on the stacked tensors: built on a copy of one seed's loss whose ``*_params`` (targets and their
+    sources) are the stacked ones (the same tensors as ``params``)."""
+    holder = copy.deepcopy(loss)
+    names = [name for name, _ in loss.named_children() if name.endswith("_params")]
+    for name in names:
+        setattr(holder, name, TensorDictParams(params.get(name).copy(), no_convert=True))
+    targets = {name: params.get(name).clone() for name in names if name.startswith("target_")}
+    updater = SoftUpdate(holder, eps=eps)  # which sets the targets to their sources, as for a new loss
+    with torch.no_grad():
+        for name, saved in targets.items():  # the seeds' own targets (a source's, a checkpoint's) stay
+            params.get(name).update_(saved)
+    return updater
+
+
+class SeedGroup:
+    """N agents (same config, one per seed) updated by one vmapped step; ``agents[k]`` keeps seed k's
+    own modules, refreshed from the stacked parameters by :meth:`sync` (evaluation of one seed,
+    checkpoints).
+
+    Args:
+        agents: the seeds' agents, built from the same config (their optimisers' states, if any, are
+            stacked too: a resumed group continues each seed's Adam).
+        randomness: ``torch.vmap``'s randomness for the losses' random draws: ``"different"`` draws
+            independent noise per seed; ``"same"`` shares one draw, which is what a single update
+            draws from the same generator state (the equality test).
+    """
+
+    def __init__(self, agents: Sequence[Agent], randomness: str = "different"):
+        self.agents = list(agents)
+        for agent in self.agents:  # the buffers a TorchRL loss registers on its first call (SAC's target entropy)
+            getattr(agent.loss, "target_entropy", None)
+        self.seeds = len(self.agents)
+        first = self.agents[0]
+        self.loss = copy.deepcopy(first.loss)
+        self.actor_delay = first.actor_delay
+        self.params = TensorDict.from_modules(*(a.loss for a in self.agents), as_module=True)
+        names = [name for name, _ in first.loss.named_parameters()]
+        params = [self.params.get(tuple(name.split("."))) for name in names]
+        self.optimizer = torch.optim.Adam(params, **first.optimizer.defaults)
+        if first.optimizer.state:
+            self.optimizer.load_state_dict(self._stacked_optimizer_state())
+        self.stacked = StackedLoss(self.loss, self.params, randomness)
+        target_updater = stacked_soft_update(first.loss, self.params, first.target_updater.eps)
+        self.step = UpdateStep(Agent(first.actor, first.policy, self.stacked, target_updater, self.optimizer),
+                               threads=None)
+        self._views = [TensorDict.from_module(a.loss) for a in self.agents]
+
+    def update(self, batch: TensorDictBase, update_actor: bool = True) -> TensorDictBase:
+        """One step for every seed; ``batch`` has a leading seed dimension. Returns the detached losses
+        (each entry with a leading seed dimension)."""
+        return self.step(batch, update_actor)
+
+    def sync(self) -> None:
+        """Copy the stacked parameters into each seed's own modules."""
+        with torch.no_grad():
+            for k, view in enumerate(self._views):
+                view.update_(self.params[k].data)
+
+    def optimizer_state(self, k: int) -> dict:
+        """Seed k's part of the stacked Adam state, as its own ``Adam.state_dict()`` would be."""
+        stacked = self.optimizer.state_dict()
+        state = {
+            i: {name: (value if name == "step" else value[k]).clone() for name, value in entry.items()}
+            for i, entry in stacked["state"].items()
+        }
+        return {"state": state, "param_groups": stacked["param_groups"]}
+
+    def _stacked_optimizer_state(self) -> dict:
+        states = [a.optimizer.state_dict() for a in self.agents]
+        stacked = {
+            i: {
+                name: (value if name == "step" else torch.stack([s["state"][i][name] for s in states]))
+                for name, value in entry.items()
+            }
+            for i, entry in states[0]["state"].items()
+        }
+        return {"state": stacked, "param_groups": states[0]["param_groups"]}
+
+
+# ----------------------------------------------------------------------------- the group's policy
+class GroupPolicy(TensorDictModuleBase):
+    """A seed group's policy on its batched env: the flat batch of ``seeds * E`` envs is split into
+    ``seeds`` blocks and ``module`` acts on block k with seed k's parameters (one vmapped call, each
+    seed drawing its own exploration noise).
+
+    Args:
+        module: one seed's actor (its own parameters are not used).
+        params: the stacked parameters of ``module``, with a leading seed dimension.
+        then: a module applied to the whole batch afterwards (TD3's exploration noise).
+    """
+
+    def __init__(self, module: TensorDictModuleBase, params: TensorDictBase, then: TensorDictModuleBase | None = None):
+        super().__init__()
+        self.module, self.then = copy.deepcopy(module), then
+        self.params = params
+        self.in_keys = list(module.in_keys)
+        self.out_keys = list(module.out_keys)
+        self._act = torch.vmap(self._seed_act, (0, 0), randomness="different")
+
+    def _seed_act(self, params: TensorDictBase, td: TensorDictBase) -> TensorDictBase:
+        with params.copy().unlock_().to_module(self.module):
+            return self.module(td)
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        seeds = self.params.batch_size[0]
+        td = tensordict.select(*self.in_keys, strict=False).reshape(seeds, -1)
+        out = self._act(self.params, td)
+        tensordict.update(out.reshape(tensordict.batch_size).select(*self.out_keys, strict=False))
+        return tensordict if self.then is None else self.then(tensordict)
+
+
+class SeedLoopPolicy(TensorDictModuleBase):
+    """A seed group's policy called once per seed block, for a policy ``torch.vmap`` cannot batch
+    (soft option-critic's option choice branches on the data): ``make_policy(loss)`` is built on the
+    group's loss, and block k runs with seed k's parameters swapped into it."""
+
+    def __init__(self, group: SeedGroup, make_policy):
+        super().__init__()
+        self.__dict__["group"] = group  # not a submodule: the group owns the parameters
+        self.policy = make_policy(group.loss)
+        self.in_keys, self.out_keys = list(self.policy.in_keys), list(self.policy.out_keys)
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        group, loss = self.group, self.group.loss
+        blocks = tensordict.reshape(group.seeds, -1)
+        outs = []
+        for k in range(group.seeds):
+            params = group.params[k].copy().unlock_()
+            with params.to_module(loss), params["actor_network_params"].to_module(loss.actor_network):
+                outs.append(self.policy(blocks[k].copy()))
+        out = torch.stack(outs).reshape(tensordict.batch_size)
+        tensordict.update(out.select(*self.out_keys, strict=False))
+        return tensordict
+
+
+class SeedBlocks(TensorDictModuleBase):
+    """Per-seed modules on a seed group's batched env: block k of the flat batch (seed k's envs) goes
+    through ``modules[k]`` (e.g. seed k's policy-reuse mixer over its own source policy)."""
+
+    def __init__(self, modules: Sequence[TensorDictModuleBase]):
+        super().__init__()
+        self.blocks = torch.nn.ModuleList(modules)
+        self.in_keys = list(dict.fromkeys(k for m in modules for k in m.in_keys))
+        self.out_keys = list(dict.fromkeys(k for m in modules for k in m.out_keys))
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        blocks = tensordict.reshape(len(self.blocks), -1)
+        out = torch.stack([module(block.copy()) for module, block in zip(self.blocks, blocks)])
+        return tensordict.update(out.reshape(tensordict.batch_size).select(*self.out_keys, strict=False))
+
+
+class SeedBlockPotential(torch.nn.Module):
+    """``Phi`` of a seed group's batched env: the batch split into ``len(shapings)`` equal blocks,
+    block k's potential is ``shapings[k]``'s (each evaluated on its own block, as on its env alone)."""
+
+    def __init__(self, shapings: Sequence[PotentialShaping]):
+        super().__init__()
+        self.shapings = torch.nn.ModuleList(shapings)
+
+    def forward(self, tensordict: TensorDictBase) -> torch.Tensor:
+        blocks = tensordict.reshape(len(self.shapings), -1)
+        return torch.cat([s.potential_of(block) for s, block in zip(self.shapings, blocks.unbind(0))])
+
+
+# ----------------------------------------------------------------------------- which seeds group
 def seed_dirs(run_dir: Path, first: int, count: int) -> list[Path]:
     return [Path(run_dir) / f"seed-{s}" for s in config.run_seeds(first, count)]
 
@@ -114,11 +303,12 @@ def group_support(cfg: RunConfig) -> str | None:
 
 
 def in_process(cfg: RunConfig) -> bool:
-    """Whether the task's env gives each seed its own random stream in one batched env
-    (:mod:`drltg.envs.seeding`); otherwise a group steps one env per seed in worker processes."""
+    """Whether the task's env steps a whole group's batch in this process (FourRooms, GridRooms); otherwise
+    a group steps one env per seed in worker processes."""
     from drltg.envs import get_task
 
-    return hasattr(get_task(cfg.task).factory, "set_block_seeds")
+    factory = get_task(cfg.task).factory
+    return isinstance(factory, type) and issubclass(factory, GoalEnv)
 
 
 def train_seeds(cfg: RunConfig, run_dir: str | Path, seeds: int, *, resume: bool = False, progress: bool = True,
@@ -140,6 +330,7 @@ def train_seeds(cfg: RunConfig, run_dir: str | Path, seeds: int, *, resume: bool
     return train_group(cfgs, dirs, resume=resume, progress=progress)
 
 
+# ----------------------------------------------------------------------------- the group's learner and envs
 class GroupLearner:
     """A :class:`SeedGroup` as the training loop's learner (see :class:`~drltg.training.loop.AgentLearner`):
     a replay buffer per seed, stacked batches, per-seed evaluation on a blocked env."""
@@ -153,10 +344,10 @@ class GroupLearner:
         else:
             actor_params = group.params["actor_network_params"]
             noise = None if first.policy is first.actor else first.policy[-1]
-            self.policy = GroupPolicy(first.actor, actor_params, then=noise, streams=group.streams)
-            self.actor = GroupPolicy(first.actor, actor_params, streams=group.streams)
+            self.policy = GroupPolicy(first.actor, actor_params, then=noise)
+            self.actor = GroupPolicy(first.actor, actor_params)
         if transfers[0].mixer is not None:  # seed k's mixer (policy reuse over its own source) on its envs
-            self.policy = TensorDictSequential(self.policy, SeedBlocks([t.mixer for t in transfers], group.streams))
+            self.policy = TensorDictSequential(self.policy, SeedBlocks([t.mixer for t in transfers]))
         self.on_frames = [t.on_frames for t in transfers if t.on_frames is not None]
         self.in_keys = list(group.loss.in_keys)
 
@@ -170,11 +361,7 @@ class GroupLearner:
             buffer.extend(piece.select(*self.in_keys))
 
     def batches(self, count: int):
-        streams = self.group.streams
-        per_seed = []
-        for k, buffer in enumerate(self.buffers):
-            with contextlib.nullcontext() if streams is None else streams.use(k):
-                per_seed.append(sample_batches(buffer, count))
+        per_seed = [sample_batches(buffer, count) for buffer in self.buffers]
         return (torch.stack(batch) for batch in zip(*per_seed))
 
     def update(self, batch: TensorDictBase, update_actor: bool) -> TensorDictBase:
@@ -185,47 +372,17 @@ class GroupLearner:
 
     def state(self) -> list[dict]:
         self.group.sync()
-        streams = self.group.streams
-        rngs = [torch.get_rng_state()] * self.seeds if streams is None else [s.clone() for s in streams.states]
+        rng = torch.get_rng_state()  # the group's one generator: every seed's checkpoint holds it
         return [
             {"loss": agent.loss.state_dict(), "optimizer": self.group.optimizer_state(k),
-             "buffer": buffer_state(buffer), "rng": rngs[k]}
+             "buffer": buffer_state(buffer), "rng": rng.clone()}
             for k, (agent, buffer) in enumerate(zip(self.group.agents, self.buffers))
         ]
 
 
-class StreamedRandomActions(TransformedEnv):
-    """A group's training env whose random actions (the collector's warm-up) are drawn block by block,
-    block k from seed k's stream, as ``rand_action`` draws them on seed k's env alone."""
-
-    def __init__(self, env, streams: SeedStreams):
-        super().__init__(env, auto_unwrap=False)
-        self.__dict__["_streams"] = streams
-        self.__dict__["_one_seed_spec"] = None
-
-    def rand_action(self, tensordict: TensorDictBase | None = None) -> TensorDictBase:
-        seeds = len(self._streams.states)
-        if self._one_seed_spec is None:  # the action spec of one seed's env alone
-            self.__dict__["_one_seed_spec"] = self.full_action_spec[: self.batch_size[0] // seeds]
-        parts = []
-        for k in range(seeds):
-            with self._streams.use(k):
-                parts.append(self._one_seed_spec.rand())
-        actions = torch.cat(parts)
-        if tensordict is None:
-            return actions
-        return tensordict.update(actions)
-
-
-def streams_supported(agent, cfg: RunConfig) -> bool:
-    """Whether a group of this learner can give each seed its own random stream (its run alone): SAC on
-    continuous actions on the CPU, whose only random draws are ``Normal.rsample``'s."""
-    return type(agent.loss) is SACLoss and torch.device(cfg.device).type == "cpu"
-
-
 class SeedMajor(BatchSizeTransform):
     """A ``ParallelEnv`` of per-seed envs (batch ``[seeds, E]``) seen as one flat batch ``[seeds * E]``,
-    seed k's envs at ``k*E … k*E+E−1``: the layout of a blocked env (:mod:`drltg.envs.seeding`). A partial
+    seed k's envs at ``k*E … k*E+E−1``: the layout of an in-process group env. A partial
     reset's ``_reset`` mask is unflattened for the workers too."""
 
     def __init__(self):
@@ -262,47 +419,54 @@ def _worker_env(cfg: RunConfig, seeds: list[int], per_seed: int, seed_offset: in
     return TransformedEnv(workers, SeedMajor())
 
 
-def _group_env(cfg: RunConfig, seeds: list[int], per_seed: int, seed_offset: int, transforms=(), streams=None):
-    blocked = in_process(cfg)
-    if blocked:
+def _group_env(cfg: RunConfig, seeds: list[int], per_seed: int, seed_offset: int, transforms=()) -> TransformedEnv:
+    """``per_seed`` envs per seed, seed-major: one batched env seeded with the group's first seed where the
+    task steps its batch in process, else one env per seed, seeded as its run alone, in worker processes."""
+    if in_process(cfg):
         base = build_env(cfg, batch_size=(len(seeds) * per_seed,), seed=seeds[0] + seed_offset)
     else:
         base = _worker_env(cfg, seeds, per_seed, seed_offset)
-    env = TransformedEnv(base, auto_unwrap=False) if streams is None else StreamedRandomActions(base, streams)
-    if blocked:
-        set_block_seeds(env, [s + seed_offset for s in seeds])
+    env = TransformedEnv(base, auto_unwrap=False)
     for t in transforms:
         env.append_transform(t.clone())
     return env
 
 
-def _seed_block_transforms(name: str, transfers: list[Transfer]) -> list:
-    """The group's training-env transforms: position by position, the seeds' own transforms joined by
-    their ``seed_blocks`` (seed k's shapes block k). A grouped method sets nothing a group cannot give
-    each seed (a whole collector policy, minibatches, loss terms)."""
+def seed_block_transforms(name: str, transfers: list[Transfer]) -> list:
+    """The group's training-env transforms: position by position, the seeds' own transforms joined into
+    one: their shapings into one :class:`~drltg.transforms.PotentialShaping` whose potential on block k is
+    seed k's (:class:`SeedBlockPotential`), a primer (policy reuse's episode choice) once for every block.
+    A grouped method sets nothing a group cannot give each seed (a whole collector policy, minibatches, loss
+    terms)."""
     for field in ("policy", "batches", "loss_terms"):
         if getattr(transfers[0], field) is not None:
             raise UsageError(f"transfer method {name} is registered with grouped=True but sets the Transfer's "
                              f"{field}, which a seed group cannot give each seed; register it without grouped.")
     joined = []
     for parts in zip(*(t.train_transforms for t in transfers), strict=True):
-        seed_blocks = getattr(type(parts[0]), "seed_blocks", None)
-        if seed_blocks is None:
+        first = parts[0]
+        if isinstance(first, PotentialShaping):
+            if len({(p.gamma, p.reward_key, p.task_reward_key, p.potential_key) for p in parts}) > 1:
+                raise UsageError(f"transfer method {name}: the seeds' shapings differ in gamma or keys.")
+            joined.append(PotentialShaping(SeedBlockPotential(parts), gamma=first.gamma, reward_key=first.reward_key,
+                                           task_reward_key=first.task_reward_key, potential_key=first.potential_key))
+        elif isinstance(first, TensorDictPrimer):  # a primer declares per-env state: one serves every block
+            joined.append(first)
+        else:
             raise UsageError(f"transfer method {name} is registered with grouped=True but its transform "
-                             f"{type(parts[0]).__name__} has no seed_blocks to shape each seed's envs apart.")
-        joined.append(seed_blocks(parts))
+                             f"{type(first).__name__} cannot be given to each seed's envs apart.")
     return joined
 
 
-def group_train_env(cfgs: list[RunConfig], transforms, transfers: list[Transfer], streams=None) -> EnvBase:
+def group_train_env(cfgs: list[RunConfig], transforms, transfers: list[Transfer]) -> EnvBase:
     """A group's training env: ``collector.num_envs`` envs per seed, the learner's ``transforms``, the
     episode-return tracking, then each seed's transfer transforms on its own block (after ``RewardSum``,
     as in a run alone: ``train/episode_return`` stays the task's return)."""
     cfg = cfgs[0]
-    env = _group_env(cfg, [c.seed for c in cfgs], cfg.collector.num_envs, 0, transforms, streams)
+    env = _group_env(cfg, [c.seed for c in cfgs], cfg.collector.num_envs, 0, transforms)
     env.append_transform(RewardSum())
-    for shaping in _seed_block_transforms(get_method(cfg.transfer.method).name, transfers):
-        env.append_transform(shaping)
+    for transform in seed_block_transforms(get_method(cfg.transfer.method).name, transfers):
+        env.append_transform(transform)
     return env
 
 
@@ -323,32 +487,25 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
 
         torch.set_num_threads(cfg.threads)
         method = get_method(cfg.transfer.method)
-        agents, transfers, rng_states = [], [], []
+        agents, transfers = [], []
         for c, ckpt in zip(cfgs, session.checkpoints):
             # each seed's networks and transfer as its run alone builds them (model reuse loads the seed's
-            # own source into them, before they are stacked), and its random stream from there on
+            # own source into them, before they are stacked)
             torch.manual_seed(c.seed)
             check_source(c)
             probe, agent = check_config(c)
-            if streams_supported(agent, c) and in_process(c):
-                make_envs(c, agent.env_transforms)  # the draws a run alone makes before its loop (env seeds)
             transfers.append(method.build(c, agent, probe, resuming=ckpt is not None))
             agents.append(agent)
-            rng_states.append(torch.get_rng_state())
         torch.manual_seed(cfg.seed)
         buffers = [ReplayBuffer(storage=LazyTensorStorage(cfg.buffer.size, device=cfg.device),
                                 batch_size=cfg.buffer.batch_size) for _ in cfgs]
         session.restore(agents, buffers)
-        ckpts = session.checkpoints
-        streams = None
-        if streams_supported(agents[0], cfg):
-            streams = SeedStreams(rng_states if ckpts[0] is None else [ckpt["rng"] for ckpt in ckpts])
-        group = SeedGroup(agents, streams=streams)
+        group = SeedGroup(agents)
         seeds = [c.seed for c in cfgs]
         transforms = agents[0].env_transforms  # what the policy needs the env to carry (SOC's option)
-        train_env = group_train_env(cfgs, transforms, transfers, streams)
+        train_env = group_train_env(cfgs, transforms, transfers)
         session.callback(train_env.close, raise_if_closed=False)  # worker processes, where the task has them
-        eval_env = _group_env(cfg, seeds, cfg.eval.episodes, 10_000, transforms)
+        eval_env = _group_env(cfg, seeds, cfg.eval.episodes, EVAL_SEED_OFFSET, transforms)
         best.check_metric(cfg, eval_env)
         session.callback(eval_env.close, raise_if_closed=False)
         learner = GroupLearner(group, buffers, eval_env, transfers)

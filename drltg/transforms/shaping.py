@@ -145,34 +145,8 @@ class PotentialShaping(Transform):
         state_spec[self.potential_key] = self._potential_spec(reward_spec)
         return state_spec
 
-    @classmethod
-    def seed_blocks(cls, parts: Sequence[PotentialShaping]) -> PotentialShaping:
-        """One shaping of a seed group's batched env (:mod:`drltg.training.seeds`), whose envs lie in
-        ``len(parts)`` equal blocks, seed k's at ``k*E … k*E+E−1``: block k is shaped as ``parts[k]``
-        shapes seed k's env alone, ``Phi_k`` evaluated on block k only (:class:`SeedBlockPotential`).
-        The parts share their gamma and keys (one config but the seed)."""
-        first = parts[0]
-        keys = {(p.gamma, p.reward_key, p.task_reward_key, p.potential_key) for p in parts}
-        if len(keys) > 1:
-            raise ValueError("the shapings of a seed group's blocks must share gamma and keys.")
-        return cls(SeedBlockPotential(parts), gamma=first.gamma, reward_key=first.reward_key,
-                   task_reward_key=first.task_reward_key, potential_key=first.potential_key)
-
     def __repr__(self) -> str:
         return f"{type(self).__name__}(gamma={self.gamma}, potential={self.potential!r})"
-
-
-class SeedBlockPotential(torch.nn.Module):
-    """``Phi`` of a seed group's batched env: the batch split into ``len(shapings)`` equal blocks,
-    block k's potential is ``shapings[k]``'s (each evaluated on its own block, as on its env alone)."""
-
-    def __init__(self, shapings: Sequence[PotentialShaping]):
-        super().__init__()
-        self.shapings = torch.nn.ModuleList(shapings)
-
-    def forward(self, tensordict: TensorDictBase) -> torch.Tensor:
-        blocks = tensordict.reshape(len(self.shapings), -1)
-        return torch.cat([s.potential_of(block) for s, block in zip(self.shapings, blocks.unbind(0))])
 
 
 class TimeDependentPotential(torch.nn.Module):
