@@ -16,5 +16,5 @@ pin=(); [ -n "${CORE:-}" ] && pin=(taskset -c "$CORE")
   "${resume[@]}" -o eval.every=10000 -o eval.episodes=10 -o checkpoint.every=20000 || true
 for run in "$dir"/seed-*; do
   keep=results/seed-tasks/lift-place-seed/sac/baseline/${run##*/}; mkdir -p "$keep"
-  for f in config.yaml eval.csv summary.json; do [ -f "$run/$f" ] && cp "$run/$f" "$keep/"; done
+  for f in config.yaml eval.csv summary.json; do if [ -f "$run/$f" ]; then cp "$run/$f" "$keep/"; fi; done
 done

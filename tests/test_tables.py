@@ -5,7 +5,6 @@ import pytest
 from drltg.analysis import tables
 
 
-
 def test_text_markdown_and_csv():
     rows = [("metric", "value", "note"), ("jumpstart", "1.5", ""), ("n", "12", "a, b")]
     assert tables.render(rows, "text", align="lr") == (
