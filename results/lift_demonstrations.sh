@@ -21,7 +21,6 @@ for method in demonstrations policy-reuse jumpstart; do
     --out "$OUT/lift/sac/$method/report-success" > /dev/null
   rm -f "$OUT/lift/sac/$method/report-success/transfer_plot.svg"
 done
-$PYTHON results/summarize.py "$OUT"
 
 # The variants tried before the defaults (results/README.md gives their commands): 10 demonstration
 # episodes instead of 50, 3 seeds, against the same baselines.

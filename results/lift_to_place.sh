@@ -24,4 +24,3 @@ for pair in lift-to-place lift-to-place-barrier; do
     rm -f "$OUT/$pair/sac/demonstrations/report-$stage/transfer_plot.svg"
   done
 done
-$PYTHON results/summarize.py "$OUT"

@@ -25,4 +25,3 @@ for pair in fourrooms-near fourrooms-far; do
     rm -f "$OUT/head-to-head/$pair-k$k/transfer_plot.svg"
   done
 done
-$PYTHON results/summarize.py "$OUT"

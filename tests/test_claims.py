@@ -245,54 +245,6 @@ def test_the_report_command_ends_with_the_generated_headline(tmp_path, capsys):
     assert committed["metrics"]["n_seeds_transfer"] == 10 and committed["settings"]["paired"]
 
 
-def test_the_run_rate_counts_a_baseline_kept_by_several_rows_once(tmp_path):
-    """One baseline kept by two rows at 30 frames/s and two transfer runs at 40 and 50: the median of
-    30, 40, 50 is 40 over 3 runs (counting the copy, 4 runs and a median of 35)."""
-    claims = regions("manipulation")
-
-    def finished(path, fps):
-        path.mkdir(parents=True)
-        (path / "summary.json").write_text(json.dumps({"frames": 100000, "frames_per_s": fps}))
-
-    for row in ("row-a", "row-b"):
-        finished(tmp_path / row / "lift-to-place" / "sac" / "baseline" / "seed-0", 30.0)
-    finished(tmp_path / "row-a" / "lift-to-place" / "sac" / "m" / "transfer" / "seed-0", 40.0)
-    finished(tmp_path / "row-b" / "lift-to-place" / "sac" / "m" / "transfer" / "seed-0", 50.0)
-    assert claims.run_rate(tmp_path) == (40.0, 3)
-
-
-def test_the_collapse_lines_count_where_each_unplaced_cube_ends(tmp_path, monkeypatch):
-    """Two seeds, two episodes each per checkpoint: seed 0 places both at best.pt and none at last.pt (one
-    cube off the table, one resting 10 cm away); seed 5 places one at both (its other cube held)."""
-    claims = regions("manipulation")
-    monkeypatch.setattr(claims, "MANIP", tmp_path)
-    folder = tmp_path / "measurements" / "demo"
-    folder.mkdir(parents=True)
-    rows = ["seed,checkpoint,frames,episode,placed,lifted,grasped,distance_m,height_m,steps_placed",
-            "0,best,40000,0,1,1,0,0.01,0.02,400", "0,best,40000,1,1,1,0,0.01,0.02,380",
-            "0,last,100000,0,0,1,0,0.30,-0.50,0", "0,last,100000,1,0,1,0,0.10,0.02,0",
-            "5,best,45000,0,1,1,0,0.01,0.02,300", "5,best,45000,1,0,1,1,0.05,0.10,0",
-            "5,last,100000,0,1,1,0,0.01,0.02,410", "5,last,100000,1,0,1,1,0.05,0.10,0"]
-    (folder / "collapse.csv").write_text("\n".join(rows) + "\n")
-    text = claims.manipulation_collapse()
-    assert "| `measurements/demo` seed 0 | `last.pt` (100k) | 0/2 | 2/2 | 0/2 | 1/2 | 0 |" in text
-    assert "| `measurements/demo` seed 5 | `best.pt` (45k) | 1/2 | 2/2 | 1/2 | 0/2 | 150 |" in text
-    assert text.endswith(
-        "- `measurements/demo`: at `last.pt` 1 of 2 seeds place in fewer episodes than at `best.pt` (seed 0); of "
-        "the 3 episodes that end unplaced at `last.pt`, the cube is off the table in 1, held in the gripper in 1 "
-        "and resting on the table in 1 (10 cm from the target's centre on average).\n")
-    (folder / "demonstrated.csv").write_text(
-        "seed,checkpoint,frames,action_gap,q_demonstrated,q_actor\n0,best,40000,0.009,77.3,77.3\n"
-        "0,last,100000,0.013,91.9,92.0\n5,best,45000,0.008,77.7,77.7\n5,last,100000,0.013,92.6,92.1\n")
-    text = claims.manipulation_collapse()
-    assert "| `measurements/demo` seed 5 | `last.pt` (100k) | 1/2 | 2/2 | 1/2 | 0/2 | 205 | 0.013 | 93 |" in text
-    assert text.endswith(
-        f"  - at the demonstrator's own states ({claims._demo_episodes()} seeded episodes), the actor's mean absolute "
-        "gap to its action (each dimension in [\u22121, 1]) is 0.008\u20130.009 at `best.pt` and 0.013 at `last.pt`; "
-        "the smaller critic values those states at 77\u201378 at `best.pt` and 92\u201393 at `last.pt` (the ceiling "
-        "1 / (1 \u2212 \u03b3) is 100).\n")
-
-
 def test_each_reported_row_gets_its_gains_holm_adjusted_within_the_row(tmp_path, monkeypatch):
     """Two rows of the queue reported (8 pairs each, so the exact test could decide), each report with a jumpstart
     test beside its gain (p = 0.5), so a row's
@@ -305,7 +257,6 @@ def test_each_reported_row_gets_its_gains_holm_adjusted_within_the_row(tmp_path,
 
     claims = regions("manipulation")
     monkeypatch.setattr(claims, "MANIP", tmp_path)
-    shutil.copy(ROOT / "results" / "manipulation" / "queue.sh", tmp_path / "queue.sh")
     lifted = {"baseline": [0.0, 0.0], "transfer": [1.0, 0.9]}  # pi-reuse-place's jumpstart still there at 5k
     monkeypatch.setattr(regions("common"), "report_curves", lambda report, side: [
         SimpleNamespace(frames=np.array([0.0, 5000.0]), values=np.array(lifted[side]))] * 3)
@@ -328,7 +279,7 @@ def test_each_reported_row_gets_its_gains_holm_adjusted_within_the_row(tmp_path,
     put("pi-reuse-place", "policy-reuse", "lifted", 0.3, [0.1, 0.5], 0.02, ends=(1.0, 0.2))
     put("model-reuse-place", "model-reuse", "success", 0.2, [0.05, 0.35], 0.03, totals=(0.0, 2.0), reached=(0, 0.25))
     put("model-reuse-place", "model-reuse", "lifted", 0.4, [0.1, 0.7], 0.04)
-    rows = len(claims._queue()[0])
+    rows = len(claims.ROWS)
     assert claims.manipulation_rows().splitlines() == [
         "- `pi-reuse-place` (lift-place, policy-reuse against no transfer, 8 paired seeds × 100k frames), mean gain "
         "in success rate +0.00: no evidence of a difference at this budget; lifted rate +0.30 [+0.10, +0.50]: "
@@ -376,67 +327,6 @@ def test_a_seed_row_reads_its_three_reports_as_one_family(tmp_path, monkeypatch)
         "(Holm over all 6 tests of its 3 reports).",
         "4 of the 5 rows are not reported yet.",
     ]
-
-
-def test_the_source_noise_sentence_sums_the_sources_episodes(tmp_path, monkeypatch):
-    """Two sources: 9 + 10 of 20 lifted without noise, 5 + 0 at the largest sigma, where the scripted
-    demonstrator's row of summary.json says it placed 7 of 10."""
-    claims = regions("manipulation")
-    monkeypatch.setattr(claims, "PLACEMENT", tmp_path)
-    (tmp_path / "source-noise.csv").write_text(
-        "source,sigma,episodes,lifted\nlift/seed-100,0.0,10,10\nlift/seed-100,0.1,10,0\n"
-        "lift/seed-0,0.0,10,9\nlift/seed-0,0.1,10,5\n")
-    (tmp_path / "summary.json").write_text(json.dumps({"noise": [
-        {"task": "lift-place", "sigma": 0.1, "episodes": 10, "placed": 7},
-        {"task": "lift-place-barrier", "sigma": 0.1, "episodes": 10, "placed": 1}]}))
-    text = claims.source_noise()
-    assert text.index("`lift/seed-0` | 9/10 | 5/10 |") < text.index("`lift/seed-100` | 10/10 | 0/10 |")
-    assert text.endswith("lift the cube in 19 of 20 episodes without noise and in 5 of 20 at σ = 0.1, where the "
-                         "scripted demonstrator places in 7 of 10 (the table above).")
-
-
-def test_the_rows_on_one_target_list_their_shared_baselines_once_and_refuse_two_different_copies(tmp_path,
-                                                                                                  monkeypatch):
-    """Row a keeps baseline seeds 0 and 100, row b a copy of seed 0 and its own seed 200: the target's
-    baselines are seeds 0, 100 and 200 (seed 0 from a), named for both rows; a copy whose curve differs
-    is an error, not a second baseline. Row c's soft option-critic baselines are another learner's, apart."""
-    claims = regions("manipulation")
-    monkeypatch.setattr(claims, "MANIP", tmp_path)
-    curve = "frames,return_mean,return_std,episodes,success_rate,lifted_rate\n0,0.0,0.0,10,0.0,0.0\n"
-    for row, algo, seed, text in [("a", "sac", 0, curve), ("a", "sac", 100, curve), ("b", "sac", 0, curve),
-                                  ("b", "sac", 200, curve), ("c", "soc", 0, curve + "5000,1.0,0.0,10,0.0,0.1\n")]:
-        run = tmp_path / row / "lift-to-place" / algo / "baseline" / f"seed-{seed}"
-        run.mkdir(parents=True)
-        (run / "eval.csv").write_text(text)
-    rows, seeds = claims._shared_baselines()[("lift-to-place", "sac")]
-    assert rows == ["a", "b"]
-    assert [p.relative_to(tmp_path).parts[::4] for p in seeds] == [("a", "seed-0"), ("a", "seed-100"),
-                                                                     ("b", "seed-200")]
-    rows, seeds = claims._shared_baselines()[("lift-to-place", "soc")]
-    assert rows == ["c"] and [p.relative_to(tmp_path).parts[::4] for p in seeds] == [("c", "seed-0")]
-    copy = tmp_path / "b" / "lift-to-place" / "sac" / "baseline" / "seed-0" / "eval.csv"
-    copy.write_text(curve + "5000,1.0,0.0,10,0.1,0.1\n")
-    with pytest.raises(ValueError, match="should be one baseline run, kept twice, but their curves differ"):
-        claims._shared_baselines()
-
-
-def test_the_shaping_stages_sentence_averages_each_side_over_its_seeds(tmp_path, monkeypatch):
-    """Two runs a side: without shaping the gripper never comes closer than it starts (0.2 m); with shaping
-    one run comes 0.1 m closer and one 0.004 m (under 1 cm: not counted), grasping in 3 + 1 of 20 episodes."""
-    claims = regions("manipulation")
-    monkeypatch.setattr(claims, "SHAPING", tmp_path)
-    head = "side,seed,episodes,start_m,closest_m,mean_m,grasped_share,grasped,lifted\n"
-    (tmp_path / "stages.csv").write_text(
-        head + "no transfer,0,10,0.200,0.200,0.500,0.000,0,0\nno transfer,100,10,0.200,0.200,0.700,0.000,0,0\n"
-        "reward-shaping,0,10,0.200,0.100,0.150,0.050,3,1\nreward-shaping,100,10,0.200,0.196,0.250,0.010,1,0\n")
-    text = claims.shaping_stages()
-    assert "| reward-shaping | 0 | 0.200 | 0.100 | 0.150 | 0.050 | 3/10 | 1/10 |" in text
-    assert text.endswith(
-        "At the last checkpoint, no transfer (2 seeds), the gripper comes 0.000 m closer to the cube than where it "
-        "starts (0.200 m) on average, more than 1 cm closer in 0 of 2 runs, and averages 0.60 m from it; the cube "
-        "is grasped in 0 and lifted in 0 of 20 episodes; reward-shaping (2 seeds), the gripper comes 0.052 m "
-        "closer to the cube than where it starts (0.200 m) on average, more than 1 cm closer in 1 of 2 runs, and "
-        "averages 0.20 m from it; the cube is grasped in 4 and lifted in 1 of 20 episodes.\n")
 
 
 def test_a_recipe_reported_on_the_seeds_that_chose_it_says_so():

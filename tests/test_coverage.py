@@ -25,7 +25,7 @@ def draw(shape: str, design: str, n: int, experiments: int, rng) -> tuple[np.nda
     normal: noise N(0, 1) for the baseline, N(0, 1.5^2) for the transfer side (unequal spreads);
     skewed: centred exponential noise (skewness 2), scale 1 and 2; bimodal: a seed fails (-2) with
     probability 1/2 or succeeds (+2), plus N(0, 0.5^2). Paired designs add a seed effect N(0, 1) shared by
-    the two runs of a pair. (``results/coverage/simulate.py`` measures the full table.)"""
+    the two runs of a pair. (``benchmarks/coverage.py`` measures the full table.)"""
     size = (experiments, n)
     if shape == "normal":
         eb, et = rng.normal(0, 1, size), rng.normal(0, 1.5, size)
@@ -239,7 +239,7 @@ def bounded_draw(shape: str, design: str, n: int, experiments: int, rng, null: b
 def test_the_default_interval_covers_any_scores_in_their_range_and_rarely_claims_a_difference(shape, design):
     """3, 5 and 10 seeds, 200 experiments a cell (the standard error of a coverage near 0.95 is 0.015):
     coverage at least 0.93, and a difference claimed (the interval excludes 0) in at most 6% of experiments
-    without one. ``results/coverage/simulate.py`` measures the thorough table."""
+    without one. ``benchmarks/coverage.py`` measures the thorough table."""
     for n in (3, 5, 10):
         b, t, truth = bounded_draw(shape, design, n, 200, np.random.default_rng(n))
         lo, hi, _ = stats.betting_interval(b, t, (0, 1), paired=design == "paired")

@@ -164,34 +164,6 @@ def test_a_soc_lift_learner_hands_every_weight_to_a_soc_lift_place_learner():
         assert torch.equal(state[name], value), name
 
 
-def test_the_committed_placement_diagnostics_agree_with_their_episode_and_the_potential():
-    """summary.json's account of the place demonstrator is the sum of episode.csv's steps, and the
-    potential's plateau is the stage formula: lifted and centred over the target, Phi = 0.5 + 0.5 * 1."""
-    import csv
-    import importlib.util
-    import json
-
-    from drltg.envs.robosuite import potential_for
-
-    folder = SCRIPTS / "placement-diagnostics"
-    summary = json.loads((folder / "summary.json").read_text())
-    with open(folder / "episode.csv") as f:
-        steps = list(csv.DictReader(f))
-    place = summary["place_demonstrator"]
-    assert place["return"] == sum(float(r["reward"]) for r in steps)
-    assert place["first_placed"] == next(int(r["step"]) for r in steps if r["placed"] == "1")
-    assert place["first_lifted"] == next(int(r["step"]) for r in steps if r["lifted"] == "1")
-    assert all(float(r["reward"]) == float(r["placed"]) for r in steps)  # the reward is the success flag
-    assert summary["lift_demonstrator_on_lift_place"]["return"] == 0.0
-    assert summary["phi_states"] == {"held_above_target": 1.0, "resting_on_target": 1.0}  # 0.5 + 0.5 (1 - tanh 0)
-    spec = importlib.util.spec_from_file_location("diagnose", folder / "diagnose.py")
-    diagnose = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(diagnose)
-    assert diagnose.held_versus_placed(potential_for("lift-place")) == summary["phi_states"]
-    for row in summary["noise"]:
-        assert 0 <= row["placed"] <= row["lifted"] <= row["episodes"] == 10
-
-
 def test_rebuild_keeps_only_the_rows_runs_and_their_relative_source(tmp_path):
     """row.sh's `rebuild.py --only`: the row's baselines, transfers and source runs are copied in the runs'
     layout, another row's are not, and a source path relative to the run still names the kept source."""
@@ -300,24 +272,6 @@ def test_the_soc_source_learns_lift_from_the_same_demonstrations_as_the_sac_sour
     assert kept.checkpoint.keep_best  # best.pt, which the rows reuse
     assert (soc.algo, soc.soc.num_options, soc.frames) == ("soc", 4, 60_000)
     assert (soc.transfer.method, soc.transfer.source) == ("demonstrations", "demonstrator:lift")
-
-
-def test_the_committed_critic_scale_describes_the_kept_sources():
-    """critic_scale.csv names every kept SAC source once, with the success rates of its own eval.csv."""
-    import csv
-    import importlib.util
-
-    path = SCRIPTS / "sources" / "critic_scale.py"
-    spec = importlib.util.spec_from_file_location("critic_scale", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    rows = list(csv.DictReader((SCRIPTS / "sources" / "critic_scale.csv").open()))
-    kept = sorted(p.relative_to(SCRIPTS / "sources").as_posix() for p in (SCRIPTS / "sources").glob("lift-sac*/seed-*"))
-    assert sorted(f"{r['source']}/seed-{r['seed']}" for r in rows) == kept
-    for r in rows:
-        final, lowest = module.success(SCRIPTS / "sources" / r["source"] / f"seed-{r['seed']}")
-        assert (float(r["final_success"]), float(r["lowest_success_second_half"])) == (final, lowest)
-        assert float(r["ceiling"]) == 100.0  # 1 / (1 - 0.99): Lift pays at most 1 per step
 
 
 def test_the_kept_measurements_are_the_runs_their_scripts_train():

@@ -57,4 +57,3 @@ for stage in $stages; do
     --out "$OUT/$GROUP/$METHOD/report-$tag" > /dev/null
   rm -f "$OUT/$GROUP/$METHOD/report-$tag/transfer_plot.svg"
 done
-$PYTHON results/summarize.py "$OUT"

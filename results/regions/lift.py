@@ -10,9 +10,7 @@ from drltg.analysis.tables import estimate, render
 from results.regions.common import (
     PRIMARY,
     RESULTS,
-    ROOT,
     cell,
-    curve_table,
     evals_at,
     family,
     load,
@@ -61,64 +59,6 @@ def lift_variants() -> str:
                  f"{', '.join(f'{x:.1f}' for x in final)}; {threshold(r, 'transfer', 'success ≥ 0.8')}"
                  f"{tuned('lift-demonstrations-variants', r)}.")
     return "\n".join(lines) + "\n"
-
-
-def _placed(run: Path, frame: float) -> str:
-    with open(run / "eval.csv") as f:
-        row = next(r for r in csv.DictReader(f) if float(r["frames"]) == frame)
-    placed = round(float(row["success_rate"]) * int(row["episodes"]))
-    return f" ({placed} placed)" if placed else ""
-
-
-def lift_dense_curves() -> str:
-    rows = [(f"drltg SAC, {p.name.replace('-', ' ')}", [p]) for p in seed_dirs(DENSE / "sac")]
-    rows.append(("earlier implementation, SB3 SAC", [ROOT / "tests" / "data" / "sb3_runs" / "lift_shaped_sac"]))
-    return curve_table(rows, "return_mean", [float(f) for f in range(0, 150_001, 10_000)])
-
-
-def lift_dense_study_table() -> str:
-    study = RESULTS / "lift-dense-study"
-    out = [("variant, seed", "return at 10k / 20k / 30k", "mean of the three", "frames/s")]
-    for variant in ("default", "utd-0.5", "utd-2", "batch-128", "batch-512", "hidden-128"):
-        for run in seed_dirs(study / variant):
-            e = evals_at(run, "return_mean")
-            values = [e[f] for f in (10_000.0, 20_000.0, 30_000.0)]
-            fps = load(run / "summary.json")["frames_per_s"]
-            out.append((f"{variant}, {run.name}", " / ".join(f"{v:.1f}" for v in values),
-                        f"{sum(values) / 3:.1f}", f"{fps:.1f}"))
-    return render(out, "markdown")
-
-
-def lift_demonstrations_curves() -> str:
-    rows = [(f"demonstrations, {p.name.replace('-', ' ')}", [p])
-            for p in seed_dirs(LIFT / "demonstrations" / "transfer")]
-    others = [*seed_dirs(LIFT / "baseline"), *seed_dirs(LIFT / "policy-reuse" / "transfer"),
-              *seed_dirs(LIFT / "jumpstart" / "transfer")]
-    rows.append((f"baseline, policy reuse, jumpstart ({len(others)} runs, the highest)", others))
-    return curve_table(rows, "success_rate", [float(f) for f in range(0, 30_001, 2_500)])
-
-
-def lift_to_place_curves() -> str:
-    rows, baselines = [], []
-    for pair, name in (("lift-to-place", "Lift+Place"), ("lift-to-place-barrier", "barrier")):
-        d = PLACE / pair / "sac"
-        rows += [(f"{name}, demonstrations, {p.name.replace('-', ' ')}", [p])
-                 for p in seed_dirs(d / "demonstrations" / "transfer")]
-        baselines += seed_dirs(d / "baseline")
-    rows.append((f"baselines ({len(baselines)} runs, the highest)", baselines))
-    return curve_table(rows, "lifted_rate", [float(f) for f in range(0, 20_001, 2_500)], note=_placed)
-
-
-def lift_dense_peaks() -> str:
-    parts = []
-    for run in seed_dirs(DENSE / "sac"):
-        e = evals_at(run, "return_mean")
-        peak = max(e, key=e.get)
-        late = [v for f, v in e.items() if f > peak]
-        parts.append(f"{run.name.replace('-', ' ')} peaks at {e[peak]:.1f} at {cl.frames(peak)} frames and then "
-                     f"stays between {min(late):.1f} and {max(late):.1f}" if late else
-                     f"{run.name.replace('-', ' ')} peaks at its last evaluation")
-    return "drltg's runs: " + "; ".join(parts) + ".\n"
 
 
 LIFT = RESULTS / "sweep-lift-demonstrations" / "lift" / "sac"
