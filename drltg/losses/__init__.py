@@ -5,8 +5,10 @@
     behaviour_cloning      w * mean ||mu(s) - a_demo||^2 on a batch's demonstrations   (behaviour_cloning)
                            (with options: sum_o pi_Omega(o|s) ||mu_o(s) - a_demo||^2)
     option_labels          the option a demonstration is credited to: o ~ pi_Omega(.|s)
+    SuccessorFeatureLoss   psi(s, a) <- phi + gamma (1 - terminated) psi_target(s', pi(s'))  (successor_features)
 """
 from drltg.losses.behaviour_cloning import behaviour_cloning, option_labels
 from drltg.losses.soc import SoftOptionCriticLoss
+from drltg.losses.successor_features import SuccessorFeatureLoss
 
-__all__ = ["SoftOptionCriticLoss", "behaviour_cloning", "option_labels"]
+__all__ = ["SoftOptionCriticLoss", "SuccessorFeatureLoss", "behaviour_cloning", "option_labels"]
