@@ -34,7 +34,6 @@ from torch import nn
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from drltg.errors import UsageError
-from drltg.modules.successor_features import SF_KEY
 
 __all__ = ["GPIPolicy"]
 
@@ -59,6 +58,7 @@ class GPIPolicy(TensorDictModuleBase):
         index_key: where the chosen policy's index is written, int64 ``[*, 1]``: discrete, the ``i`` of
             the best ``Q_i`` at the chosen action; continuous, the ``j`` whose action was chosen.
         value_key: where ``max_i Q_i`` at the chosen action is written, ``[*, 1]``.
+        features_key: the entry the critics write psi to. Defaults to ``"successor_features"``.
 
     The critics and policies are copied and frozen; they are not trained through this module.
     """
@@ -74,7 +74,7 @@ class GPIPolicy(TensorDictModuleBase):
         action_key: NestedKey = "action",
         index_key: NestedKey = "gpi_index",
         value_key: NestedKey = "gpi_value",
-        features_key: NestedKey = SF_KEY,
+        features_key: NestedKey = "successor_features",
     ) -> None:
         super().__init__()
         critics = list(critics)

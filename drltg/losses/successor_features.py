@@ -36,7 +36,6 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from torchrl.objectives import LossModule
 from torchrl.objectives.utils import ValueEstimators, default_value_kwargs, distance_loss
 
-from drltg.modules.successor_features import SF_KEY
 
 __all__ = ["SuccessorFeatureLoss"]
 
@@ -80,7 +79,7 @@ class SuccessorFeatureLoss(LossModule):
 
         action: NestedKey = "action"
         features: NestedKey = "features"
-        successor_features: NestedKey = SF_KEY
+        successor_features: NestedKey = "successor_features"
         priority: NestedKey = "td_error"
         done: NestedKey = "done"
         terminated: NestedKey = "terminated"
