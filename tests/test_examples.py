@@ -141,7 +141,7 @@ def test_sac_and_custom_env_examples_print_their_evaluations(runs):
 
 def test_successor_features_regress_w_and_act_by_gpi(runs):
     (result,) = tagged(output(runs, "successor_features"), "result")
-    # the regressed w is exact when the target's goal is in the data, else the goal's weight is 0 (min-norm): 1 + 0.01 off
+    # the regressed w is exact when the target's goal is in the data; else its weight is 0 (min-norm), 1 + 0.01 off
     assert result["w_error"] == pytest.approx(0.0 if result["target_goal_transitions"] else 1.01, abs=1e-6)
     rates = [v for k, v in result.items() if k.startswith(("source_", "gpi_on"))]
     assert len(rates) == 5 and all(0.0 <= r <= 1.0 and r * 64 == round(r * 64) for r in rates)  # 64 episodes each

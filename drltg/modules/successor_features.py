@@ -1,6 +1,10 @@
-r"""Successor-feature critics: :math:`\psi^\pi(s, a) = \mathbb E_\pi\big[\sum_t \gamma^t \phi_{t+1} \mid s_0 = s, a_0 = a\big]`.
+r"""Successor-feature critics: a policy's discounted sum of features, one critic for every task of a family.
 
-A critic whose value is a ``d``-vector instead of a number: for any reward :math:`r = \phi^\top w`,
+.. math::
+
+    \psi^\pi(s, a) = \mathbb E_\pi\big[\textstyle\sum_t \gamma^t \phi_{t+1} \mid s_0 = s, a_0 = a\big]
+
+Its value is a ``d``-vector instead of a number: for any reward :math:`r = \phi^\top w`,
 :math:`Q^\pi_w(s, a) = \psi^\pi(s, a)^\top w` (Barreto et al. 2017), so one critic values its policy on
 every task of the family. Two shapes, as TorchRL's Q critics:
 
