@@ -30,7 +30,7 @@ with open(out, "w") as f:
     json.dump(results, f)
 """
 WITH_OUT = ("value_shaping", "policy_reuse", "jumpstart", "model_reuse", "demonstrations", "custom_env", "kickstarting")
-NAMES = ("reward_shaping", "soft_option_critic", "train_sac_fourrooms", *WITH_OUT)
+NAMES = ("reward_shaping", "soft_option_critic", "train_sac_fourrooms", "successor_features", *WITH_OUT)
 
 
 @pytest.fixture(scope="module")
@@ -144,3 +144,12 @@ def test_sac_and_custom_env_examples_print_their_evaluations(runs):
     custom = [line for line in output(runs, "custom_env") if ": return " in line]
     assert [line.split(":")[0] for line in custom] == ["source", "target (model reuse)"]
     assert all(0.0 <= float(line.split("success ")[1].split()[0]) <= 1.0 for line in custom)
+
+
+def test_successor_features_regress_w_and_act_by_gpi(runs):
+    (result,) = tagged(output(runs, "successor_features"), "result")
+    # the regressed w is exact when the target's goal is in the data; else its weight is 0 (min-norm), 1 + 0.01 off
+    assert result["w_error"] == pytest.approx(0.0 if result["target_goal_transitions"] else 1.01, abs=1e-6)
+    rates = [v for k, v in result.items() if k.startswith(("source_", "gpi_on"))]
+    assert len(rates) == 5 and all(0.0 <= r <= 1.0 and r * 64 == round(r * 64) for r in rates)  # 64 episodes each
+    assert set(result["gpi_index_range"]) <= {0, 1}  # one of the two sources

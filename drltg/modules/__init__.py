@@ -1,5 +1,6 @@
 """Networks and policies that drltg's learners need beyond TorchRL's own modules, and loading weights
-across networks of different shapes (model reuse)."""
+across networks of different shapes (model reuse), and the parts of successor features: reward features
+phi with their weights w (exact or regressed) and successor-feature critics psi."""
 from drltg.modules.distributions import TanhNormal
 from drltg.modules.options import (
     OPTION_KEY,
@@ -12,6 +13,8 @@ from drltg.modules.options import (
     option_statistics,
     option_transforms,
 )
+from drltg.modules.reward_features import GoalFeatures, regress_weights
+from drltg.modules.successor_features import SF_KEY, make_sf_critic
 from drltg.modules.weights import LoadReport, freeze_parameters, load_weights
 
 __all__ = [
@@ -28,4 +31,8 @@ __all__ = [
     "make_termination",
     "option_statistics",
     "option_transforms",
+    "GoalFeatures",
+    "regress_weights",
+    "SF_KEY",
+    "make_sf_critic",
 ]
