@@ -1,93 +1,141 @@
-"""Rewrite the generated regions of README.md, docs/ and results/ from the committed numbers.
+"""Fill the generated regions of README.md, docs/ and results/ with drltg's own outputs for the committed runs.
 
     python results/claims.py           # rewrite every region between <!-- claims:NAME --> and <!-- /claims:NAME -->
-    python results/claims.py --check   # change nothing; name the regions that differ and exit 1
+    python results/claims.py --check   # change nothing; name the files whose regions differ and exit 1
 
-Every table and every sentence that states a result in those regions comes from the reports
-(``transfer_metrics.json``), sweep summaries and curves under ``results/``, or from drltg's registries
-(tasks, methods, config keys), through :mod:`drltg.analysis.claims`' rules. ``tests/test_claims.py`` runs
-the check, so a changed number fails the suite until the prose is regenerated.
-
-Families: a sentence that reads one report's headline (the mean return gain, named in advance as the
-report's headline metric) reads its interval alone; a sentence that reads a sweep reads the same metric
-in every report of the sweep as one family, Holm-adjusted.
+A region is a list of drltg's outputs, nothing computed here: the headline that ``drltg report`` prints
+(:func:`drltg.analysis.claims.headline`, each report read alone) for every report under the folders named,
+a table ``drltg sweep`` wrote (``summary.md``, ``aggregates.md``), or a reference table of drltg's registries.
 """
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
+from drltg.analysis.claims import headline
+from drltg.analysis.tables import render
+
 ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "results"
-if str(ROOT) not in sys.path:  # drltg, and results.regions
-    sys.path.insert(0, str(ROOT))
+GRADED, OPTIONS = "results/sweep-fourrooms-graded", "results/sweep-options"
+ROWS = ["lift-shaping", "pi-reuse-place", "pi-reuse-barrier", "model-reuse-place", "soc-model-reuse-place",
+        "demonstrations-place", "demonstrations-barrier", "combined-place", "combined-barrier",
+        "demonstrations-reference-place", "demonstrations-reference-barrier"]
 
-from drltg.analysis import claims as cl  # noqa: E402
-from results.regions import lift, manipulation, reference, seed_tasks, sweeps  # noqa: E402
 
-FOUR_METHODS = ["model-reuse", "value-shaping", "policy-reuse", "reward-shaping"]
-"""The FourRooms sweeps' methods, in the order their verdicts are read."""
+def headlines(*folders: str) -> str:
+    """One line per report under ``folders`` (their own included): where it is and its headline."""
+    paths = [p for f in folders for p in sorted((ROOT / f).glob("**/transfer_metrics.json"))]
+    return "".join(f"- `{p.parent.relative_to(ROOT)}`: {headline(json.loads(p.read_text()))}\n" for p in paths)
+
+
+def table(path: str) -> str:
+    return (ROOT / path).read_text()
+
+
+def _builtin(obj) -> bool:
+    """Defined by drltg itself, not by a plugin or a test registered in the same process."""
+    return getattr(obj, "__module__", "").startswith("drltg.")
+
+
+def tasks(kind: str) -> str:
+    """The registered tasks and pairs of one kind: ``rooms`` (FourRooms and its grid), ``robosuite``, ``gym``."""
+    from drltg.envs import PAIRS, TASKS
+
+    def kind_of(name, t):
+        return "rooms" if name.startswith(("fourrooms", "gridrooms")) else "gym" if "gym_id" in t.fixed else "robosuite"
+
+    own = {n: t for n, t in TASKS.items() if _builtin(t.factory) and kind_of(n, t) == kind}
+    pairs = [(f"`{n}`", f"`{p.source}` → `{p.target}`", p.description) for n, p in PAIRS.items()
+             if p.source in own and p.target in own]
+    return (render([("task", "description")] + [(f"`{n}`", t.description) for n, t in own.items()], "markdown")
+            + "\n" + render([("pair", "source → target", "description")] + pairs, "markdown"))
+
+
+def methods() -> str:
+    from drltg.config import METHODS
+
+    kinds = {None: "—", "run": "a run", "policy": "a run or `demonstrator:TASK`"}
+    return render([("`transfer.method`", "source", "what it is")] + [
+        (f"`{n}`", kinds[m.source], m.help) for n, m in METHODS.items() if _builtin(m.build)], "markdown")
+
+
+def config_keys() -> str:
+    """``drltg.config.describe()`` without the keys of a method that is not drltg's own."""
+    from drltg import config
+
+    own = [n for n, m in config.METHODS.items() if _builtin(m.build)]
+    foreign = {f"| `transfer.{k}` |" for k, owner in config.option_owners().items() if owner not in own}
+    lines = []
+    for line in config.describe().splitlines():
+        if line.startswith("| `transfer.method` |"):
+            cells = line.split(" | ")
+            line = " | ".join([*cells[:2], "one of " + ", ".join(own), *cells[3:]])
+        if not line.startswith(tuple(foreign)):
+            lines.append(line)
+    return "\n".join(lines) + "\n"
+
+
 REGIONS = {
+    "README.md": {"demo": lambda: headlines("results/demo/report")},
     "results/README.md": {
-        "graded-table": lambda: sweeps.sweep_table(sweeps.GRADED),
-        "graded-verdicts": lambda: sweeps.sweep_verdicts(sweeps.GRADED, FOUR_METHODS),
-        "graded-thresholds": lambda: sweeps.threshold_lines(sweeps.GRADED, "baseline") + sweeps.threshold_lines(
-            sweeps.GRADED, "transfer", ["model-reuse", "value-shaping"]),
-        "grid-table": lambda: sweeps.sweep_table(RESULTS / "sweep-gridrooms"),
-        "grid-verdicts": lambda: sweeps.sweep_verdicts(RESULTS / "sweep-gridrooms", FOUR_METHODS),
-        "grid-thresholds": lambda: sweeps.threshold_lines(RESULTS / "sweep-gridrooms", "baseline"),
-        "options-table": sweeps.options_table,
-        "options-verdicts": sweeps.options_verdicts,
-        "options-sources": sweeps.options_sources,
-        "lift-variants": lift.lift_variants,
-        "lift-dense-verdicts": lift.lift_dense_verdicts,
-        "lift-demonstrations-table": lift.lift_demonstrations_table,
-        "demo": lift.demo_sentence,
-        "lift-demonstrations-verdicts": lift.lift_demonstrations_verdicts,
-        "lift-to-place-table": lift.lift_to_place_table,
-        "lift-to-place-verdicts": lift.lift_to_place_verdicts,
-        "pendulum-heavier": sweeps.pendulum_heavier,
+        "demo": lambda: headlines("results/demo/report"),
+        "graded-table": lambda: table(f"{GRADED}/summary.md"),
+        "graded-verdicts": lambda: headlines(GRADED),
+        "grid-table": lambda: table("results/sweep-gridrooms/summary.md"),
+        "grid-verdicts": lambda: headlines("results/sweep-gridrooms"),
+        "options-table": lambda: table(f"{OPTIONS}/summary.md"),
+        "options-verdicts": lambda: headlines(OPTIONS),
+        "lift-variants": lambda: headlines("results/lift-demonstrations-variants"),
+        "lift-dense-verdicts": lambda: headlines("results/lift-dense/vs-seed"),
+        "lift-demonstrations-table": lambda: table("results/sweep-lift-demonstrations/summary.md"),
+        "lift-demonstrations-verdicts": lambda: headlines("results/sweep-lift-demonstrations"),
+        "lift-to-place-table": lambda: table("results/sweep-lift-to-place/summary.md"),
+        "lift-to-place-verdicts": lambda: headlines("results/sweep-lift-to-place"),
+        "pendulum-heavier": lambda: headlines("results/pendulum-heavier/report"),
     },
-    "README.md": {"demo": lift.demo_sentence},
-    "docs/tasks.md": {
-        "tasks": lambda: reference.tasks_table("rooms"),
-        "tasks-robosuite": lambda: reference.tasks_table("robosuite"),
-        "tasks-gym": lambda: reference.tasks_table("gym"),
-        "lift-summary": lift.readme_lift,
-    },
-    "docs/training.md": {"config": reference.config_table},
-    "docs/methods.md": {"methods": reference.methods_table},
-    "docs/results.md": {
-        "results-table": sweeps.results_table,
-        "results-verdicts": lambda: sweeps.sweep_verdicts(sweeps.GRADED, FOUR_METHODS),
-        "results-others": sweeps.readme_others,
-        "seed-rows": seed_tasks.seed_rows,
-    },
-    "results/seed-tasks/README.md": {"seed-rows": seed_tasks.seed_rows},
+    "docs/tasks.md": {"tasks": lambda: tasks("rooms"), "tasks-robosuite": lambda: tasks("robosuite"),
+                      "tasks-gym": lambda: tasks("gym"),
+                      "lift-summary": lambda: headlines("results/sweep-lift-demonstrations/lift/sac/demonstrations",
+                                                        "results/sweep-lift-to-place", "results/lift-dense/vs-seed")},
+    "docs/training.md": {"config": config_keys},
+    "docs/methods.md": {"methods": methods},
+    "docs/results.md": {"results-table": lambda: table(f"{GRADED}/aggregates.md"),
+                        "results-verdicts": lambda: headlines(GRADED),
+                        "results-others": lambda: headlines("results/sweep-gridrooms", f"{OPTIONS}/head-to-head"),
+                        "seed-rows": lambda: headlines("results/seed-tasks")},
+    "results/seed-tasks/README.md": {"seed-rows": lambda: headlines("results/seed-tasks")},
     "results/manipulation/README.md": {
-        "manipulation-rows": manipulation.manipulation_rows,
-        "manipulation-earlier": manipulation.manipulation_earlier,
-    },
+        "manipulation-rows": lambda: headlines(*(f"results/manipulation/{row}" for row in ROWS)),
+        "manipulation-earlier": lambda: headlines("results/manipulation/earlier")},
 }
 
 
-def generated(file: str) -> dict[str, str]:
-    return {name: make() for name, make in REGIONS[file].items()}
+def fill(text: str, regions: dict[str, str]) -> str:
+    """``text`` with the body between ``<!-- claims:NAME -->`` and ``<!-- /claims:NAME -->`` replaced by
+    ``regions[NAME]``; a missing or open marker is an error, as the prose would keep an old number."""
+    for name, body in regions.items():
+        start, end = f"<!-- claims:{name} -->\n", f"<!-- /claims:{name} -->"
+        i = text.find(start)
+        j = text.find(end, i + len(start)) if i >= 0 else -1
+        if i < 0 or j < 0:
+            raise ValueError(f"no region '{name}': add the lines '{start.strip()}' and '{end}' around it")
+        text = text[:i + len(start)] + body.rstrip("\n") + "\n" + text[j:]
+    return text
 
 
 def main(argv: list[str]) -> int:
-    check = "--check" in argv
     drift = []
-    for file in REGIONS:
-        path = ROOT / file
-        text = path.read_text()
-        new = cl.fill_regions(text, generated(file))
+    for file, regions in REGIONS.items():
+        text = (ROOT / file).read_text()
+        new = fill(text, {name: make() for name, make in regions.items()})
         if new != text:
             drift.append(file)
-            if not check:
-                path.write_text(new)
-    if check and drift:
-        print(f"generated regions differ from the numbers in: {', '.join(drift)}; run python results/claims.py")
+            if "--check" not in argv:
+                (ROOT / file).write_text(new)
+    if "--check" in argv and drift:
+        print(f"generated regions differ from the committed outputs in: {', '.join(drift)}; run python "
+              "results/claims.py")
         return 1
     return 0
 

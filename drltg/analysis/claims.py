@@ -10,18 +10,10 @@ A researcher quotes sentences, not tables, so every sentence that states a resul
   "undecided at N pairs", naming the test's p-value, and a design too small for the test to reach the
   level at all (fewer than 6 pairs) says so. Only where no exact test exists does an interval decide ("no
   evidence of a difference at this budget", "no interval, so no verdict", "no interval without the
-  curves' range");
-- **best** only when every pairwise difference to the others is decided by the exact test (after Holm
-  over those pairs);
-- **every seed** only when every seed does; otherwise the count ("3 of 5 seeds") is given;
-- **a threshold** is "first reached" for a first crossing, and "held" (sustained) only under the report's
-  sustained rule, whose sentence states how many evaluations after the crossing confirm it; a run at or
-  above it at the end whose crossing came too late to be confirmed is "unconfirmed at the end of the
-  budget", never "does not hold".
+  curves' range").
 
-The functions take plain dicts (the report's JSON as loaded) and never compute a new statistic other than
-the paired comparison between two methods that share their seeds (:func:`pairwise`) and the estimate of
-how many seeds would decide (:func:`seeds_to_decide`, :func:`betting_seeds`).
+The functions take plain dicts (the report's JSON as loaded) and compute no new statistic other than the
+estimate of how many seeds would decide (:func:`betting_seeds`).
 """
 from __future__ import annotations
 
@@ -112,25 +104,6 @@ def smallest_exact_p(n: int, paired: bool, n_other: int | None = None) -> float:
     if paired:
         return min(1.0, 2 / 2 ** n)
     return min(1.0, 2 / math.comb(n + (n if n_other is None else n_other), n))
-
-
-def seeds_to_decide(value: float, ci: Sequence, n: int, paired: bool, family: int = 1,
-                    level: float = LEVEL, confidence: float = 0.95) -> int:
-    r"""About how many seeds a side (pairs, when paired) would let the exact test decide a difference, an
-    estimate: the t test's sample size for 80% power at the observed effect and spread,
-    :math:`n\,((z_{1-\alpha/2} + z_{0.8})\,\mathrm{se}/|\hat\delta|)^2` with the standard error read back from
-    the interval, and at least the fewest seeds at which the exact test can reach ``level / family`` at
-    all (:func:`smallest_exact_p`)."""
-    from scipy import stats as sst
-
-    df = max(n - 1, 1)
-    se = (ci[1] - ci[0]) / (2 * sst.t.ppf(0.5 + confidence / 2, df))
-    z = sst.norm.ppf(1 - level / 2) + sst.norm.ppf(0.8)
-    power = math.ceil(n * (z * se / abs(value)) ** 2) if value else n
-    exact = 2
-    while smallest_exact_p(exact, paired) >= level / family:
-        exact += 1
-    return max(power, exact)
 
 
 def verdict(value: float, ci: Sequence | None, p_adjusted: float | Adjusted | None = None,
@@ -245,179 +218,16 @@ def p_text(p: float) -> str:
     return "<0.001" if p < 0.001 else f"{p:.3g}"
 
 
-def seeds(k: int, n: int) -> str:
-    """"every seed (5 of 5)", "no seed (0 of 5)" or "3 of 5 seeds": "every" only when it is every one."""
-    if n <= 0:
-        raise ValueError("no seeds to count")
-    if k == n:
-        return f"every seed ({k} of {n})"
-    if k == 0:
-        return f"no seed (0 of {n})"
-    return f"{k} of {n} seeds"
-
-
-def agree(k: int, n: int, singular: str, plural: str) -> str:
-    """The verb that goes with :func:`seeds` (``every seed holds``, ``3 of 5 seeds hold``)."""
-    return singular if k in (0, 1, n) else plural
-
-
 def frames(x: float) -> str:
     """``4k`` for whole thousands, ``17.5k`` otherwise (frame counts of evaluations)."""
     k = x / 1000
     return f"{k:.0f}k" if abs(k - round(k)) < 0.05 else f"{k:.1f}k"
 
 
-def threshold_sentence(report: Mapping, side: str = "transfer", who: str | None = None,
-                       late: int = 0) -> str:
-    """How many of a side's seeds reach the report's threshold under its rule, and the median frame.
-
-    "every seed" only when every seed does; the median is the report's upper median (``null`` without a
-    strict majority, then only the count is given). ``late``: how many seeds without a confirmed crossing
-    end the budget at or above the threshold (:func:`late_crossings`), crossings the sustained rule had no
-    evaluations left to confirm: said as unconfirmed, never as not holding."""
-    st, per_seed = report["settings"], report["per_seed"][side]
-    threshold = st.get("threshold")
-    if threshold is None:
-        raise ValueError("the report has no threshold")
-    times = [r.get("time_to_threshold") for r in per_seed]
-    reached = [t for t in times if t is not None]
-    who = who or side
-    k, n = len(reached), len(times)
-    if st.get("crossing") == "first":
-        text = (f"{who}: {seeds(k, n)} {agree(k, n, 'reaches', 'reach')} {threshold:g} at least once "
-                "(a first crossing, not a sustained one)")
-    else:
-        span = (f"for {st['sustain']} evaluations in a row (sustained)" if st.get("sustain") else
-                f"to the end (sustained: at least {st.get('sustain_after', 2)} evaluations after the crossing)")
-        text = f"{who}: {seeds(k, n)} {agree(k, n, 'holds', 'hold')} {threshold:g} {span}"
-    if reached:
-        first = sorted(reached)
-        if len(reached) == len(times):
-            text += f", the last of them from {frames(first[-1])} frames"
-        else:
-            text += f", from {', '.join(frames(t) for t in first)} frames"
-    median = report["metrics"].get(f"time_to_threshold_{side}")
-    if median is not None and len(reached) < len(times):
-        text += f" (upper median over seeds {frames(median)})"
-    if late and st.get("crossing") != "first":
-        if k == 0:
-            who_late = f"{seeds(late, n)} {agree(late, n, 'ends', 'end')}"
-        elif n - k == 1:
-            who_late = "the other seed ends"
-        else:
-            who_late = f"of the other {n - k}, {late} {'ends' if late == 1 else 'end'}"
-        text += (f"; {who_late} the budget at or above it: unconfirmed at the end of the budget, too late for the "
-                 "evaluations that would confirm a crossing")
-    return text
-
-
-def late_crossings(report: Mapping, side: str, curves: Sequence) -> int:
-    """How many of ``side``'s seeds have no confirmed crossing but are at or above the threshold at their last
-    evaluation within the budget; ``curves`` are the side's runs in the report's order (``Curve``)."""
-    st, per_seed = report["settings"], report["per_seed"][side]
-    if st.get("threshold") is None:
-        return 0
-    count = 0
-    for row, curve in zip(per_seed, curves, strict=True):
-        inside = np.asarray(curve.frames) <= st["budget"]
-        if row.get("time_to_threshold") is None and inside.any() and curve.values[inside][-1] >= st["threshold"]:
-            count += 1
-    return count
-
-
-def report_sentences(report: Mapping, metrics: Sequence[str] = ("mean_return_gain",),
-                     late: Mapping[str, int] | None = None) -> list[str]:
-    """The conclusions of one report: each named metric against 0, read within the report's family
-    (Holm over ``settings.family``), and each side's threshold count (``late``: each side's
-    :func:`late_crossings`)."""
-    m, st = report["metrics"], report["settings"]
-    family = (st.get("family") or {}).get("size")
-    exact = exact_family(report)
-    out = []
-    for name in metrics:
-        if m.get(name) is None:
-            continue
-        label = LABELS.get(name, name.replace("_", " "))
-        p = Adjusted(m.get(f"{name}_p_adjusted"), exact.get(name), family or 1)
-        said = verdict_of(report, name, p, family)
-        out.append(f"{label.capitalize()}: {said}.")
-    if st.get("threshold") is not None:
-        for side in ("baseline", "transfer"):
-            out.append(threshold_sentence(report, side, late=(late or {}).get(side, 0)).capitalize() + ".")
-    return out
-
-
 def design_of(report: Mapping) -> tuple[int, bool]:
     """``(seeds a side, paired)`` of a report: the fewer seeds of its two sides."""
     m = report["metrics"]
     return min(m["n_seeds_baseline"], m["n_seeds_transfer"]), bool(report["settings"].get("paired"))
-
-
-def exact_family(report: Mapping) -> dict[str, float]:
-    """The exact tests' p-values of a report's family (``settings.family``), Holm-adjusted together as the
-    report adjusts the t tests' (a metric without an exact test, a final trend, keeps its own p-value)."""
-    m, family = report["metrics"], (report["settings"].get("family") or {}).get("metrics", [])
-    names = [k for k in family if m.get(f"{k}_p_value") is not None]
-    ps = [m[f"{k}_p_value"] if exact_p(m, k) is None else exact_p(m, k) for k in names]
-    return dict(zip(names, stats.holm(ps)))
-
-
-def per_seed_scores(report: Mapping, side: str, score: str = "mean_return") -> dict:
-    """``{seed: score}`` of one side (seeds from the runs' configs)."""
-    return {r["seed"]: r[score] for r in report["per_seed"][side] if r.get("seed") is not None}
-
-
-def pairwise(a: Mapping, b: Mapping, score: str = "mean_return") -> tuple[float, tuple[float, float] | None, float,
-                                                                        float]:
-    """Paired comparison of two methods' transfer runs on the same target: ``d_i = A_i − B_i`` over the seeds
-    both share (runs with the same seed share the baseline's seed and initial weights), its mean, the interval
-    of the reports' rule (``--interval auto``: the betting interval within their value range, ``None`` without
-    one; otherwise the paired t-interval, ``None`` without spread) and its test's p-value, and the exact
-    sign-flip test's p-value."""
-    sa, sb = per_seed_scores(a, "transfer", score), per_seed_scores(b, "transfer", score)
-    shared = sorted(set(sa) & set(sb))
-    if len(shared) < 2:
-        raise ValueError("two methods share fewer than 2 seeds: no paired comparison")
-    x, y = np.array([sb[s] for s in shared]), np.array([sa[s] for s in shared])
-    exact = stats.permutation_test(x, y, paired=True)
-    st = a["settings"]
-    if st.get("interval_method") == "auto":
-        if st.get("value_range") is None:
-            return float((y - x).mean()), None, exact, exact
-        lo, hi, p = stats.betting_interval(x, y, st["value_range"], paired=True)
-        return float((y - x).mean()), (float(lo), float(hi)), float(p), exact
-    lo, hi = stats.t_interval(x, y, paired=True)
-    p = stats.t_test(x, y, paired=True)
-    ci = None if math.isnan(float(lo)) else (float(lo), float(hi))
-    return float((y - x).mean()), ci, (1.0 if math.isnan(p) else float(p)), exact
-
-
-def best_sentence(reports: Mapping[str, Mapping], where: str, score: str = "mean_return") -> str:
-    """Which method, if any, is best on one target: the one whose transfer runs beat every other's, each
-    paired difference decided by the exact sign-flip test after Holm over all the pairs read; otherwise it
-    names the leader and the rival it is not separated from."""
-    names = sorted(reports)
-    if len(names) < 2:
-        raise ValueError("best needs at least two methods")
-    means = {n: float(np.mean(list(per_seed_scores(reports[n], "transfer", score).values()))) for n in names}
-    leader = max(names, key=means.get)
-    pairs = [(leader, other, *pairwise(reports[leader], reports[other], score)) for other in names if other != leader]
-    adjusted = [Adjusted(t, e, len(pairs)) for t, e in zip(stats.holm([p[4] for p in pairs]),
-                                                           stats.holm([p[5] for p in pairs]))]
-    weakest = None
-    for (_, other, diff, ci, *_), p_adj in zip(pairs, adjusted):
-        if direction(diff, ci, p_adj) <= 0 and (weakest is None or diff < weakest[1]):
-            weakest = (other, diff, ci, p_adj)
-    if weakest is None:
-        diffs = "; ".join(f"{other} {estimate(diff, ci)}" for _, other, diff, ci, *_ in pairs)
-        return (f"{where}: {leader} is best, ahead of every other method (paired by seed, Holm over "
-                f"{len(pairs)}): {diffs}")
-    other, diff, ci, p_adj = weakest
-    n = len(set(per_seed_scores(reports[leader], "transfer", score)) & set(per_seed_scores(reports[other],
-                                                                                          "transfer", score)))
-    return (f"{where}: no method is best at {n} pairs; {leader} leads, and its paired difference to {other}, "
-            f"{estimate(diff, ci)}, has the exact sign-flip test's p = {p_text(p_adj.exact)}"
-            + (" after Holm" if len(pairs) > 1 else ""))
 
 
 def sequential_verdict(report: Mapping) -> str:
@@ -442,25 +252,11 @@ def headline(report: Mapping, metric: str = "mean_return_gain") -> str:
     n_b, n_t = m["n_seeds_baseline"], m["n_seeds_transfer"]
     design = f"{n_t} paired seeds" if st.get("paired") else f"{n_t} + {n_b} seeds"
     label = LABELS.get(metric, metric.replace("_", " "))
+    if st.get("tag") and metric in SCORES:  # a report of another column than the return: name it
+        label = label.replace("return", st["tag"].replace("_", " "))
     where = f"{st['transfer_label']} vs {st['baseline_label']}, {design}, {frames(st['budget'])} frames"
     if m.get(metric) is None:
         return f"Headline ({where}): {label} is not available."
     seq = st.get("sequential")
     said = sequential_verdict(report) if seq is not None and metric == "mean_return_gain" else verdict_of(report, metric)
     return f"Headline ({where}): {label} {said}."
-
-
-def fill_regions(text: str, regions: Mapping[str, str]) -> str:
-    """``text`` with the body between ``<!-- claims:NAME -->`` and ``<!-- /claims:NAME -->`` replaced by
-    ``regions[NAME]`` (each marker on a line of its own). A region named in ``regions`` whose markers are
-    missing, or a marker left open, is an error: the prose would silently keep an old number."""
-    for name, body in regions.items():
-        start, end = f"<!-- claims:{name} -->\n", f"<!-- /claims:{name} -->"
-        i = text.find(start)
-        j = text.find(end, i + len(start)) if i >= 0 else -1
-        if i < 0 or j < 0:
-            raise ValueError(f"no region '{name}': add the lines '{start.strip()}' and '{end}' around it")
-        if not body.endswith("\n"):
-            body += "\n"
-        text = text[:i + len(start)] + body + text[j:]
-    return text
