@@ -272,3 +272,20 @@ def test_ctrl_c_stops_an_experiment_cleanly(tmp_path):
     assert "interrupted" in err and "leaked" not in err, err[-2000:]
     logs = list((out / "logs" / "source").glob("*.log"))
     assert logs and all("interrupted; a rerun continues it" in log.read_text() for log in logs[:1])
+
+
+def test_a_source_written_with_seed_serves_each_transfer_run_from_its_own_seed(tmp_path):
+    from drltg.experiments.experiment import plan_runs
+
+    runs = plan_runs("fourrooms/northeast-shifted", "model-reuse", frames=100, out=tmp_path, seeds=3, seed=7,
+                     overrides=["transfer.source=kept/seed-{seed}"])
+    got = [(role, cfg.seed, cfg.transfer.source) for role, cfg, _ in runs]
+    kept = Path.cwd() / "kept"
+    assert got == [("baseline", 7, None), ("transfer", 7, str(kept / "seed-7")),
+                   ("baseline", 107, None), ("transfer", 107, str(kept / "seed-107")),
+                   ("baseline", 207, None), ("transfer", 207, str(kept / "seed-207"))]
+    # a source without {seed} serves every transfer run; the baselines have none either way
+    runs = plan_runs("fourrooms/northeast-shifted", "model-reuse", frames=100, out=tmp_path, seeds=2,
+                     overrides=["transfer.source=kept/one"])
+    assert {(role, cfg.transfer.source) for role, cfg, _ in runs} == {("baseline", None),
+                                                                             ("transfer", "kept/one")}

@@ -1,6 +1,6 @@
-"""The manipulation study's scripts plan what they say, without training: one sweep spec per row, each
-transfer run reusing the kept source run of its own seed, >= 3 paired seeds, <= 300k frames, one
-baseline per target shared by every row on it, and a queue that trains the sources it names first."""
+"""The manipulation study's script plans what it says, without training: one sweep spec per row, each
+transfer run reusing the kept source run of its own seed, >= 3 paired seeds, <= 300k frames, one baseline
+per target shared by every row on it, and the kept sources reused rather than trained again."""
 from __future__ import annotations
 
 import os
@@ -11,35 +11,26 @@ from pathlib import Path
 import pytest
 
 from drltg.config import config_changes
-from drltg.experiments.experiment import plan_runs
 from drltg.experiments.sweep import load_spec, plan
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPTS = ROOT / "results" / "manipulation"
+SCRIPT = (SCRIPTS / "run.sh").read_text()
 SPECS = ROOT / "examples" / "sweeps" / "manipulation-rows"
-ROWS = sorted(p.stem for p in SCRIPTS.glob("*.sh") if p.stem not in ("row", "queue", "earlier"))
+ROWS = re.search(r'ROWS=\$\{ROWS:-"([^"]*)"\}', SCRIPT).group(1).split()
+SOURCES = dict(re.findall(r'^\s+\[([\w-]+)\]="([^"]*)"', SCRIPT, re.M))
 SOURCED = re.compile(r"runs/manipulation/sources/([\w-]+)/seed-\{seed\}")
 
 
 def runs_of(row: str) -> Path:
     """Where a row's runs go: the reference rows, whose method folder another row also uses, in their own."""
-    nested = "/reference exec" in (SCRIPTS / f"{row}.sh").read_text()
-    return ROOT / "runs" / "manipulation" / ("reference" if nested else "")
+    return ROOT / "runs" / "manipulation" / ("reference" if row.startswith("demonstrations-reference-") else "")
 
 
-def queue_sources() -> set[str]:
-    return set(re.findall(r"^\s+\[([\w-]+)\]=", (SCRIPTS / "queue.sh").read_text(), re.M))
-
-
-def test_every_script_parses_and_every_row_has_its_spec_and_a_place_in_the_queue():
-    for script in SCRIPTS.glob("*.sh"):
-        subprocess.run(["bash", "-n", str(script)], check=True)
-    assert ROWS == sorted(p.stem for p in SPECS.glob("*.yaml"))
-    for row in ROWS:
-        assert (SCRIPTS / f"{row}.sh").read_text().rstrip().endswith(f'row.sh" {row}')
-    queued = re.search(r'ROWS=\$\{ROWS:-"([^"]*)"\}', (SCRIPTS / "queue.sh").read_text()).group(1).split()
-    assert sorted(queued) == ROWS
-    assert queue_sources() == {"lift-sac-ln-half", "lift-soc4"}
+def test_the_script_parses_and_runs_every_row_spec_and_two_sources():
+    subprocess.run(["bash", "-n", str(SCRIPTS / "run.sh")], check=True)
+    assert sorted(ROWS) == sorted(p.stem for p in SPECS.glob("*.yaml"))
+    assert set(SOURCES) == {"lift-sac-ln-half", "lift-soc4"}
 
 
 @pytest.mark.parametrize("row", ROWS)
@@ -56,10 +47,10 @@ def test_each_row_reuses_the_kept_source_of_its_own_seed(row, monkeypatch):
             assert run.cfg.transfer.source == source
             continue
         name = SOURCED.fullmatch(source).group(1)
-        assert name in queue_sources()
+        assert name in SOURCES
         kept = ROOT / "runs" / "manipulation" / "sources" / name / f"seed-{run.cfg.seed}"
         assert run.cfg.transfer.source == str(kept)
-        assert run.cfg.transfer.source_checkpoint == "best"  # what queue.sh evaluates and keeps
+        assert run.cfg.transfer.source_checkpoint == "best"  # what run.sh evaluates and keeps
     assert [r.cfg.seed for r in transfers] == [100 * i for i in range(spec.seeds)]
     if source is None or "{seed}" in source:  # the baselines of every row on the target, whatever its source
         assert all(r.cfg.transfer.source is None for r in runs if r.role == "baseline")
@@ -79,44 +70,8 @@ def test_rows_on_one_target_share_its_baselines():
     reference = ROOT / "runs" / "manipulation" / "reference"
     copies = [path for path in seen if path.is_relative_to(reference)]
     assert len(copies) == 6
-    for path in copies:  # the reference rows' baselines are copies of the others' (BASELINES in row.sh)
+    for path in copies:  # the reference rows' baselines are copies of the others' (run.sh copies them)
         assert config_changes(seen[ROOT / "runs" / "manipulation" / path.relative_to(reference)], seen[path]) == []
-
-
-def test_a_row_with_baselines_elsewhere_copies_the_complete_ones_it_lacks(tmp_path):
-    """row.sh with BASELINES=DIR copies DIR's complete baselines of its group (config, curve, summary) into
-    RUNS before its sweep, and leaves an unfinished one and one RUNS already holds alone."""
-    shared, runs = tmp_path / "shared" / "lift-to-place" / "sac" / "baseline", tmp_path / "runs"
-    for seed in (0, 100, 200):
-        (shared / f"seed-{seed}").mkdir(parents=True)
-        for name in ("config.yaml", "eval.csv", "summary.json"):
-            if not (seed == 200 and name == "summary.json"):  # seed 200 has not finished
-                (shared / f"seed-{seed}" / name).write_text(f"{name} {seed}")
-    mine = runs / "lift-to-place" / "sac" / "baseline" / "seed-100"
-    mine.mkdir(parents=True)
-    env = {**os.environ, "RUNS": str(runs), "BASELINES": str(tmp_path / "shared"), "DRLTG": "false", "FORCE": "1"}
-    done = subprocess.run(["bash", str(SCRIPTS / "row.sh"), "demonstrations-reference-place"], cwd=ROOT, env=env,
-                          capture_output=True)
-    assert done.returncode != 0  # DRLTG=false: the sweep after the copies fails
-    copied = runs / "lift-to-place" / "sac" / "baseline"
-    assert sorted(p.name for p in (copied / "seed-0").iterdir()) == ["config.yaml", "eval.csv", "summary.json"]
-    assert (copied / "seed-0" / "eval.csv").read_text() == "eval.csv 0"
-    assert not list(mine.iterdir()) and not (copied / "seed-200").exists()
-
-
-def test_a_source_written_with_seed_serves_each_transfer_run_from_its_own_seed(tmp_path):
-    runs = plan_runs("fourrooms/northeast-shifted", "model-reuse", frames=100, out=tmp_path, seeds=3, seed=7,
-                     overrides=["transfer.source=kept/seed-{seed}"])
-    got = [(role, cfg.seed, cfg.transfer.source) for role, cfg, _ in runs]
-    kept = Path.cwd() / "kept"
-    assert got == [("baseline", 7, None), ("transfer", 7, str(kept / "seed-7")),
-                   ("baseline", 107, None), ("transfer", 107, str(kept / "seed-107")),
-                   ("baseline", 207, None), ("transfer", 207, str(kept / "seed-207"))]
-    # a source without {seed} serves every transfer run; the baselines have none either way
-    runs = plan_runs("fourrooms/northeast-shifted", "model-reuse", frames=100, out=tmp_path, seeds=2,
-                     overrides=["transfer.source=kept/one"])
-    assert {(role, cfg.transfer.source) for role, cfg, _ in runs} == {("baseline", None),
-                                                                             ("transfer", "kept/one")}
 
 
 @pytest.mark.parametrize("row", [r for r in ROWS if "model-reuse" in load_spec(SPECS / f"{r}.yaml").methods[0]])
@@ -138,34 +93,8 @@ def test_the_rows_that_reuse_weights_build_the_learner_of_their_kept_source(row,
     assert not (report.widened or report.narrowed or report.skipped), report.summary()
 
 
-def test_a_soc_lift_learner_hands_every_weight_to_a_soc_lift_place_learner():
-    """The soft option-critic row: SOC-4's weights on lift fit its learner on lift-place entry for entry
-    (the tasks share one observation layout), so model reuse copies them all."""
-    pytest.importorskip("robosuite")
-    import torch
-
-    from drltg.config import resolve
-    from drltg.envs import make_env
-    from drltg.learners import make_agent
-    from drltg.modules import load_weights
-
-    agents = []
-    for seed, task in enumerate(("lift", "lift-place")):
-        torch.manual_seed(seed)
-        env = make_env(task)
-        agents.append(make_agent(env, resolve(task=task, algo="soc", overrides=["soc.num_options=4"])))
-        env.close()
-    source, target = agents
-    report = load_weights(target.loss, source.loss.state_dict())
-    assert not (report.widened or report.narrowed or report.skipped or report.unused)
-    state = target.loss.state_dict()
-    assert state.keys() == source.loss.state_dict().keys()
-    for name, value in source.loss.state_dict().items():
-        assert torch.equal(state[name], value), name
-
-
 def test_rebuild_keeps_only_the_rows_runs_and_their_relative_source(tmp_path):
-    """row.sh's `rebuild.py --only`: the row's baselines, transfers and source runs are copied in the runs'
+    """run.sh's `rebuild.py --only`: the row's baselines, transfers and source runs are copied in the runs'
     layout, another row's are not, and a source path relative to the run still names the kept source."""
     import importlib.util
 
@@ -263,61 +192,42 @@ def test_the_soc_source_learns_lift_from_the_same_demonstrations_as_the_sac_sour
 
     from drltg.config import resolve
 
-    text = (SCRIPTS / "queue.sh").read_text()
-    text = text.replace("$SOC_FRAMES", re.search(r"SOC_FRAMES:-(\d+)", text).group(1))
-    configs = {name: resolve_args("lift", line) for name, line in re.findall(r'^\s+\[([\w-]+)\]="([^"]*)"', text, re.M)}
+    configs = {name: resolve_args("lift", line) for name, line in SOURCES.items()}
     sac, soc = configs["lift-sac-ln-half"], configs["lift-soc4"]
     assert config_changes(sac, soc) == ["algo", "network.layer_norm", "transfer.demo_ratio"]
-    kept = resolve(task="lift", overrides=shlex.split(re.search(r'^EVAL="([^"]*)"', text, re.M).group(1))[1::2])
+    kept = resolve(task="lift", overrides=shlex.split(re.search(r'^EVAL="([^"]*)"', SCRIPT, re.M).group(1))[1::2])
     assert kept.checkpoint.keep_best  # best.pt, which the rows reuse
     assert (soc.algo, soc.soc.num_options, soc.frames) == ("soc", 4, 60_000)
     assert (soc.transfer.method, soc.transfer.source) == ("demonstrations", "demonstrator:lift")
 
 
-def test_the_kept_measurements_are_the_runs_their_scripts_train():
-    """Each kept run in results/manipulation/measurements/NAME/ has the config NAME.sh trains for its seed
-    (so the script reproduces it), and its best checkpoint is kept and evaluated; a measurement's seeds
-    (0, 100, 200) are kept as they finish."""
-    import yaml
-
-    subprocess.run(["bash", "-n", str(SCRIPTS / "measurements" / "measure.sh")], check=True)
-    scripts = sorted(p for p in (SCRIPTS / "measurements").glob("*.sh") if p.stem != "measure")
-    kept_any = False
-    for script in scripts:
-        subprocess.run(["bash", "-n", str(script)], check=True)
-        text = script.read_text()
-        assert re.search(r"^NAME=([\w-]+)$", text, re.M).group(1) == script.stem
-        assert text.rstrip().endswith('. "$(dirname "$0")/measure.sh"')
-        task = re.search(r"^TASK=([\w-]+)$", text, re.M).group(1)
-        line = " ".join(re.search(r'^ARGS="([^"]*)"', text, re.M | re.S).group(1).split())
-        resolve_args(task, line)  # a script whose runs are still to come resolves its config too
-        folder = SCRIPTS / "measurements" / script.stem
-        if not folder.exists():
-            continue
-        kept_any = True
-        kept = sorted(folder.glob("seed-*"))
-        assert kept and {p.name for p in kept} <= {"seed-0", "seed-100", "seed-200"}
-        for run in kept:
-            seed = int(run.name.split("-")[1])
-            saved = yaml.safe_load((run / "config.yaml").read_text())
-            assert config_changes(saved, resolve_args(task, line, seed=seed)) == []
-            assert (run / "checkpoints" / "best.pt").is_file() and list(run.glob("evaluate-best-*-50ep.json"))
-    assert kept_any
-
-
-def test_the_queue_reuses_the_kept_sources_and_trains_none(tmp_path):
-    """With every source kept in results/manipulation/sources/, queue.sh copies them into RUNS and trains,
-    keeps and evaluates nothing (DRLTG=false would fail the script if it were called)."""
+def test_the_script_reuses_the_kept_sources_and_copies_a_reference_rows_baselines(tmp_path):
+    """With every source kept in results/manipulation/sources/, run.sh copies them into RUNS and trains, keeps
+    and evaluates none; a reference row then copies the complete baselines of its group (config, curve,
+    summary), not an unfinished one nor one it holds; DRLTG=false fails the script at the row's sweep."""
     import filecmp
 
     runs = tmp_path / "runs"
-    env = {**os.environ, "RUNS": str(runs), "ROWS": " ", "DRLTG": "false", "PYTHON": "false"}
-    subprocess.run(["bash", str(SCRIPTS / "queue.sh")], cwd=ROOT, env=env, check=True, capture_output=True)
-    for name in queue_sources():
+    shared = runs / "lift-to-place" / "sac" / "baseline"
+    for seed in (0, 100, 200):
+        (shared / f"seed-{seed}").mkdir(parents=True)
+        for name in ("config.yaml", "eval.csv", "summary.json"):
+            if not (seed == 200 and name == "summary.json"):  # seed 200 has not finished
+                (shared / f"seed-{seed}" / name).write_text(f"{name} {seed}")
+    mine = runs / "reference" / "lift-to-place" / "sac" / "baseline" / "seed-100"
+    mine.mkdir(parents=True)
+    env = {**os.environ, "RUNS": str(runs), "ROWS": "demonstrations-reference-place", "DRLTG": "false",
+           "FORCE": "1"}
+    done = subprocess.run(["bash", str(SCRIPTS / "run.sh")], cwd=ROOT, env=env, capture_output=True, text=True)
+    assert done.returncode != 0 and "No such file" not in done.stderr, done.stderr
+    for name in SOURCES:
         for seed in (0, 100, 200):
             kept, run = SCRIPTS / "sources" / name / f"seed-{seed}", runs / "sources" / name / f"seed-{seed}"
             assert filecmp.cmp(kept / "checkpoints" / "best.pt", run / "checkpoints" / "best.pt", shallow=False)
-            assert (run / "summary.json").read_text() == (kept / "summary.json").read_text()
+    copied = runs / "reference" / "lift-to-place" / "sac" / "baseline"
+    assert sorted(p.name for p in (copied / "seed-0").iterdir()) == ["config.yaml", "eval.csv", "summary.json"]
+    assert (copied / "seed-0" / "eval.csv").read_text() == "eval.csv 0"
+    assert not list(mine.iterdir()) and not (copied / "seed-200").exists()
 
 
 @pytest.mark.parametrize("row", ["demonstrations-place", "demonstrations-barrier"])
