@@ -1,11 +1,10 @@
 """Fill the generated regions of README.md, docs/ and results/ with drltg's own outputs for the committed runs.
 
-    python results/claims.py           # rewrite every region between <!-- claims:NAME --> and <!-- /claims:NAME -->
-    python results/claims.py --check   # change nothing; name the files whose regions differ and exit 1
-
-A region is a list of drltg's outputs, nothing computed here: the headline that ``drltg report`` prints
-(:func:`drltg.analysis.claims.headline`, each report read alone) for every report under the folders named,
-a table ``drltg sweep`` wrote (``summary.md``, ``aggregates.md``), or a reference table of drltg's registries.
+    python results/claims.py [--check]   # rewrite each region between <!-- claims:NAME --> and <!-- /claims:NAME -->
+                                         # (--check: change nothing, name the files that differ and exit 1)
+A region pastes drltg's outputs, computing nothing: the headline ``drltg report`` prints for every report under
+the folders named (:func:`drltg.analysis.claims.headline`, each read alone), a table ``drltg sweep`` wrote
+(``summary.md``, ``aggregates.md``), or a table of drltg's registries.
 """
 from __future__ import annotations
 
@@ -13,6 +12,7 @@ import json
 import sys
 from pathlib import Path
 
+from drltg import config
 from drltg.analysis.claims import headline
 from drltg.analysis.tables import render
 
@@ -33,11 +33,6 @@ def table(path: str) -> str:
     return (ROOT / path).read_text()
 
 
-def _builtin(obj) -> bool:
-    """Defined by drltg itself, not by a plugin or a test registered in the same process."""
-    return getattr(obj, "__module__", "").startswith("drltg.")
-
-
 def tasks(kind: str) -> str:
     """The registered tasks and pairs of one kind: ``rooms`` (FourRooms and its grid), ``robosuite``, ``gym``."""
     from drltg.envs import PAIRS, TASKS
@@ -45,35 +40,16 @@ def tasks(kind: str) -> str:
     def kind_of(name, t):
         return "rooms" if name.startswith(("fourrooms", "gridrooms")) else "gym" if "gym_id" in t.fixed else "robosuite"
 
-    own = {n: t for n, t in TASKS.items() if _builtin(t.factory) and kind_of(n, t) == kind}
-    pairs = [(f"`{n}`", f"`{p.source}` → `{p.target}`", p.description) for n, p in PAIRS.items()
-             if p.source in own and p.target in own]
+    own = {n: t for n, t in TASKS.items() if kind_of(n, t) == kind}
+    pairs = [(f"`{n}`", f"`{p.source}` → `{p.target}`", p.description) for n, p in PAIRS.items() if p.source in own]
     return (render([("task", "description")] + [(f"`{n}`", t.description) for n, t in own.items()], "markdown")
             + "\n" + render([("pair", "source → target", "description")] + pairs, "markdown"))
 
 
 def methods() -> str:
-    from drltg.config import METHODS
-
     kinds = {None: "—", "run": "a run", "policy": "a run or `demonstrator:TASK`"}
     return render([("`transfer.method`", "source", "what it is")] + [
-        (f"`{n}`", kinds[m.source], m.help) for n, m in METHODS.items() if _builtin(m.build)], "markdown")
-
-
-def config_keys() -> str:
-    """``drltg.config.describe()`` without the keys of a method that is not drltg's own."""
-    from drltg import config
-
-    own = [n for n, m in config.METHODS.items() if _builtin(m.build)]
-    foreign = {f"| `transfer.{k}` |" for k, owner in config.option_owners().items() if owner not in own}
-    lines = []
-    for line in config.describe().splitlines():
-        if line.startswith("| `transfer.method` |"):
-            cells = line.split(" | ")
-            line = " | ".join([*cells[:2], "one of " + ", ".join(own), *cells[3:]])
-        if not line.startswith(tuple(foreign)):
-            lines.append(line)
-    return "\n".join(lines) + "\n"
+        (f"`{n}`", kinds[m.source], m.help) for n, m in config.METHODS.items()], "markdown")
 
 
 REGIONS = {
@@ -98,7 +74,7 @@ REGIONS = {
                       "tasks-gym": lambda: tasks("gym"),
                       "lift-summary": lambda: headlines("results/sweep-lift-demonstrations/lift/sac/demonstrations",
                                                         "results/sweep-lift-to-place", "results/lift-dense/vs-seed")},
-    "docs/training.md": {"config": config_keys},
+    "docs/training.md": {"config": config.describe},
     "docs/methods.md": {"methods": methods},
     "docs/results.md": {"results-table": lambda: table(f"{GRADED}/aggregates.md"),
                         "results-verdicts": lambda: headlines(GRADED),

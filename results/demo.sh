@@ -1,10 +1,8 @@
 #!/usr/bin/env bash
-# `drltg demo`, timed, kept in results/demo/: every run's config, curve and summary, the report, and the
-# machine it ran on (results/demo/machine.json), which README quotes through results/claims.py.
+# `drltg demo`, timed, kept in results/demo/ with its report and the machine it ran on (machine.json):
 #   bash results/demo.sh "a shared 2-core AMD EPYC virtual machine (CPU only, torch 2.13.0)"
-# From a fresh clone, time the install first and pass its wall seconds on, so the README quotes both:
+# From a fresh clone, time the install and pass it on (INSTALL_NOTE says how it was installed):
 #   /usr/bin/time -f %e -o install.txt make install && INSTALL_S=$(cat install.txt) bash results/demo.sh "..."
-# (INSTALL_NOTE="pip's download cache warm" says how it was installed)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 machine=${1:?describe the machine in a few words}

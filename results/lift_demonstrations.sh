@@ -1,11 +1,7 @@
 #!/usr/bin/env bash
-# Lift from the scripted demonstrator, three ways, against plain SAC on Lift's sparse reward:
-#   bash results/lift_demonstrations.sh        (RUNS=runs/sweep-lift-demonstrations WORKERS=1 by default)
-# Trains examples/sweeps/lift-demonstrations.yaml (3 seeds x 30k frames: baselines, demonstrations with
-# behaviour cloning, policy reuse, jumpstart; 12 runs, about 20 minutes each on one core; re-running
-# finishes what is missing), keeps every run's curve and config in results/sweep-lift-demonstrations/,
-# reports the evaluation return (threshold 100) and, in METHOD/report-success/, the success rate
-# (threshold 0.8, the target of a working method).
+# Lift from the scripted demonstrator three ways (examples/sweeps/lift-demonstrations.yaml, 12 runs of 30k frames):
+#   bash results/lift_demonstrations.sh  (RUNS=runs/sweep-lift-demonstrations WORKERS=1; re-running finishes the rest)
+# kept and reported (return, threshold 100; METHOD/report-success/: success rate, threshold 0.8) in results/.
 set -euo pipefail
 RUNS=${RUNS:-runs/sweep-lift-demonstrations}
 WORKERS=${WORKERS:-1}

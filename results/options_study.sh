@@ -1,11 +1,8 @@
 #!/usr/bin/env bash
-# "Do options transfer better than plain SAC under model reuse?" on the FourRooms near and far pairs:
-#   bash results/options_study.sh        (RUNS=runs/sweep-options WORKERS=2 by default)
-# Trains examples/sweeps/options.yaml (soft option-critic with K = 2 and K = 4 options: sources,
-# baselines and model-reuse runs, 5 seeds each; re-running finishes what is missing), keeps its curves
-# and reports in results/sweep-options/, then sets each SOC learner's model-reuse runs against SAC's
-# (results/sweep-fourrooms-graded: the same seeds, source budget, target budget and evaluations) in
-# results/sweep-options/head-to-head/PAIR-kK/, paired by seed.
+# Do options transfer better than plain SAC under model reuse? (examples/sweeps/options.yaml, FourRooms near, far)
+#   bash results/options_study.sh   (RUNS=runs/sweep-options WORKERS=2; re-running finishes the rest)
+# kept and reported in results/sweep-options/, then each SOC learner's model-reuse runs against SAC's (the graded
+# sweep's: same seeds, budgets, evaluations) in head-to-head/PAIR-kK/, paired by seed.
 set -euo pipefail
 RUNS=${RUNS:-runs/sweep-options}
 WORKERS=${WORKERS:-2}

@@ -1,11 +1,7 @@
 #!/usr/bin/env bash
-# Gymnasium's Pendulum-v1, gravity 10 -> 15 (the pair pendulum-heavier), model reuse against plain SAC:
-#   bash results/pendulum_heavier.sh      (RUNS=runs/pendulum-heavier by default)
-# 5 paired seeds: a source run on pendulum/g10 per seed, then baseline and transfer on pendulum/g15, 6k
-# frames each with the tasks' SAC settings (2x64 nets, one update per frame), evaluated every 1k frames on
-# 10 episodes; 15 runs in one single-threaded process at the lowest priority. Re-running finishes what is
-# missing. Keeps every run's curve and config in results/pendulum-heavier/, reports the evaluation return
-# (threshold -400: the pendulum swung up and held) and regenerates results/README.md's sentences from it.
+# Pendulum-v1, gravity 10 -> 15 (pair pendulum-heavier), model reuse against plain SAC, 5 paired seeds x 6k frames:
+#   bash results/pendulum_heavier.sh   (RUNS=runs/pendulum-heavier; re-running finishes the rest)
+# kept in results/pendulum-heavier/, reported (threshold -400: swung up and held), the prose regenerated.
 set -euo pipefail
 RUNS=${RUNS:-runs/pendulum-heavier}
 DRLTG=${DRLTG:-drltg}

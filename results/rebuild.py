@@ -1,40 +1,41 @@
-"""Keep a sweep's curves in results/ and rebuild every report and table from them.
+"""Keep a sweep's curves in results/ and report them, or re-make committed reports under today's rules.
 
-    python results/rebuild.py results/NAME [--from runs/SWEEP] [--threshold 0.5]
+    python results/rebuild.py results/NAME [--from runs/SWEEP [--only FOLDER ...]] [--threshold 0.5]
+    python results/rebuild.py --again [FOLDER ...]      # default: every report under results/
 
-``--from`` copies, for every run of a ``drltg sweep`` folder, the files that define and record it
-(``config.yaml``, ``eval.csv``, ``summary.json``: small text; no checkpoints or logs) into
-``results/NAME`` with the same layout, and writes ``transfer.source`` relative to the run directory, so
-the folder can be moved and read anywhere. Then, with or without ``--from``, every
-``PAIR/ALGO[/VARIANT]/METHOD/transfer`` is reported against the ``baseline`` beside it with ``drltg report``
-into ``METHOD/report/`` (JSON, CSV and the PNG plot), and the folder gets ``summary.{csv,md}`` and the
-``transfer_matrix.png`` heatmap and the aggregates over pairs, as ``drltg sweep`` writes them. The same curves always give the same
-reports (a test re-runs one and compares it with the committed JSON).
+``--from`` copies each finished run's ``config.yaml``, ``eval.csv`` and ``summary.json`` from a ``drltg sweep``
+folder in its layout (``transfer.source`` made relative), then every ``PAIR/ALGO[/VARIANT]/METHOD/transfer`` is
+reported against the ``baseline`` beside it into ``METHOD/report/``. ``--again`` writes each
+``transfer_metrics.json`` again from the runs and choices it records, today's defaults for the rest. A sweep's
+``summary.md``, aggregates and ``transfer_matrix.png`` are rebuilt as ``drltg sweep`` writes them.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shutil
 import sys
 from pathlib import Path
 
-import yaml
-
 # Python puts this script's folder first on the path, where results/coverage/ would shadow the coverage
 # package that numba (imported by rliable's bootstrap library) probes for.
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+
+import yaml  # noqa: E402
 
 from drltg.analysis.report import transfer_report  # noqa: E402
 from drltg.experiments.summary import plot_transfer_matrix, summary_aggregates, summary_tables  # noqa: E402
 from drltg.store import rundir  # noqa: E402
 
-KEPT = ("config.yaml", "eval.csv", "summary.json")
+ROOT = Path(__file__).resolve().parents[1]
+GIVEN = ("baseline_label", "transfer_label", "tag", "format", "crossing", "sustain", "smooth", "jumpstart_window",
+         "asymptote_window", "trend_window", "convergence_margin", "confidence", "bootstrap", "seed", "ratio_eps",
+         "allow_mixed", "allow_mismatch", "include_unfinished")  # the settings a report records as given
 
 
 def keep_curves(sweep: Path, dest: Path, only: list[str] = ()) -> int:
-    """Copy every complete run's defining files from ``sweep`` to ``dest`` (only those under one of the
-    folders ``only``, relative to ``sweep``, where given); returns how many runs."""
+    """Copy every finished run's files from ``sweep`` to ``dest`` (only under ``only``'s folders, where given)."""
     count = 0
     for summary in sorted(sweep.rglob("summary.json")):
         run = summary.parent
@@ -42,7 +43,7 @@ def keep_curves(sweep: Path, dest: Path, only: list[str] = ()) -> int:
             continue
         target = dest / run.relative_to(sweep)
         target.mkdir(parents=True, exist_ok=True)
-        for name in KEPT:
+        for name in ("config.yaml", "eval.csv", "summary.json"):
             shutil.copyfile(run / name, target / name)
         cfg = yaml.safe_load((target / "config.yaml").read_text())
         source = cfg["transfer"].get("source")
@@ -53,40 +54,79 @@ def keep_curves(sweep: Path, dest: Path, only: list[str] = ()) -> int:
     return count
 
 
-def rebuild(root: Path, threshold) -> list[dict]:
-    """Report every ``PAIR/ALGO[/VARIANT]/METHOD/transfer`` folder under ``root`` against the ``baseline``
-    beside its method folder; write the summary files."""
+def report_again(path: Path) -> dict:
+    """The report at ``path`` written again from its own runs and settings, without the outputs it lacked."""
+    st = json.loads(path.read_text())["settings"]
+    kw = {k: st[k] for k in GIVEN if k in st} | {"threshold": st.get("threshold_given")}
+    if st.get("budget_source") == "--budget":
+        kw["budget"] = st["budget"]
+    if st.get("value_range_given") is not None:  # else the range is found again: a rate's, or the task's
+        kw["value_range"] = tuple(st["value_range_given"])
+    runs = {side: [_here(p) for p in st[side]] for side in ("baseline", "transfer")}
+    outputs = ("transfer_metrics.csv", "transfer_plot.png", "transfer_plot.svg")
+    absent = [name for name in outputs if not (path.parent / name).exists()]
+    result = transfer_report(runs["baseline"], runs["transfer"], path.parent, **kw)
+    for name in absent:
+        (path.parent / name).unlink(missing_ok=True)
+    return result
+
+
+def _here(path: str) -> Path:
+    """A run's path relative to the repository (a report written on another checkout names its absolute path)."""
+    parts = Path(path).parts
+    if not Path(path).is_absolute():
+        return Path(path)
+    return Path(*parts[min(parts.index(top) for top in ("results", "tests") if top in parts):])
+
+
+def summarise(folder: Path, results: dict[Path, dict]) -> None:
+    """A sweep-shaped folder's summary files from its ``PAIR/ALGO[/VARIANT]/METHOD/report``s."""
     rows = []
-    for transfer in sorted(root.glob("**/transfer")):
-        method_dir = transfer.parent
-        group = method_dir.parent
-        if not (group / "baseline").is_dir():
+    for report, result in sorted(results.items()):
+        if report.name != "report" or not report.is_relative_to(folder):
             continue
-        pair, algo, *variant = group.relative_to(root).parts
-        result = transfer_report(group / "baseline", transfer, method_dir / "report", threshold=threshold,
-                                 baseline_label="no transfer", transfer_label=method_dir.name)
-        (method_dir / "report" / "transfer_plot.svg").unlink()  # the PNG is kept; the SVG is rebuilt on demand
-        rows.append({"pair": pair, "algo": algo, "variant": "/".join(variant), "method": method_dir.name,
-                     "report": str((method_dir / "report").relative_to(root)), "metrics": result["metrics"],
+        pair, algo, *variant = report.parent.parent.relative_to(folder).parts
+        rows.append({"pair": pair, "algo": algo, "variant": "/".join(variant), "method": report.parent.name,
+                     "report": str(report.relative_to(folder)), "metrics": result["metrics"],
                      "per_seed": result["per_seed"], "value_range": result["settings"].get("value_range")})
     csv_text, md_text = summary_tables(rows)
-    rundir.write_files(root, {"summary.csv": csv_text.encode(), "summary.md": md_text.encode(),
-                              "transfer_matrix.png": plot_transfer_matrix(rows), **summary_aggregates(rows)})
-    return rows
+    rundir.write_files(folder, {"summary.csv": csv_text.encode(), "summary.md": md_text.encode(),
+                                "transfer_matrix.png": plot_transfer_matrix(rows), **summary_aggregates(rows)})
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("root", type=Path, help="the results folder, e.g. results/sweep-fourrooms-graded")
-    parser.add_argument("--from", dest="sweep", type=Path, help="a drltg sweep folder to take the curves from")
-    parser.add_argument("--only", action="append", default=[], metavar="FOLDER",
-                        help="with --from, keep only the runs under FOLDER (relative to the sweep; repeatable)")
-    parser.add_argument("--threshold", default="0.5", help="report threshold (default 0.5)")
+    parser.add_argument("folders", nargs="*", type=Path)
+    parser.add_argument("--again", action="store_true")
+    parser.add_argument("--from", dest="sweep", type=Path)
+    parser.add_argument("--only", action="append", default=[])
+    parser.add_argument("--threshold", default="0.5")
     args = parser.parse_args()
-    if args.sweep is not None:
-        print(f"kept {keep_curves(args.sweep.resolve(), args.root.resolve(), args.only)} runs from {args.sweep}")
-    rows = rebuild(args.root, float(args.threshold) if not args.threshold.endswith("%") else args.threshold)
-    print(f"rebuilt {len(rows)} reports and {args.root / 'summary.md'}")
+    folders = [f.resolve() for f in args.folders or [ROOT / "results"]]
+    results = {}
+    if args.again:
+        os.chdir(ROOT)  # the reports name their runs relative to the repository
+        for path in sorted({p for f in folders for p in f.glob("**/transfer_metrics.json")}):
+            results[path.parent] = report_again(path)
+            print(f"[{len(results)}] {path.relative_to(ROOT)}", flush=True)
+    else:
+        root = folders[0]
+        if args.sweep is not None:
+            print(f"kept {keep_curves(args.sweep.resolve(), root, args.only)} runs from {args.sweep}")
+        threshold = args.threshold if args.threshold.endswith("%") else float(args.threshold)
+        for transfer in sorted(root.glob("**/transfer")):
+            if (transfer.parent.parent / "baseline").is_dir():
+                out = transfer.parent / "report"
+                results[out] = transfer_report(transfer.parent.parent / "baseline", transfer, out, threshold=threshold,
+                                               baseline_label="no transfer", transfer_label=transfer.parent.name)
+                (out / "transfer_plot.svg").unlink()  # the PNG is kept; the SVG is rebuilt on demand
+        summarise(root, results)
+        print(f"rebuilt {len(results)} reports and {root / 'summary.md'}")
+        return
+    for md in sorted({m for f in folders for m in f.glob("**/summary.md")}):
+        if (md.parent / "summary.csv").exists():
+            summarise(md.parent, results)
+            print(f"summary: {md.relative_to(ROOT)}")
 
 
 if __name__ == "__main__":

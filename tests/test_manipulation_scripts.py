@@ -133,28 +133,22 @@ def test_keep_source_keeps_the_weights_and_refuses_an_unfinished_run(tmp_path):
     (run / "checkpoints").mkdir(parents=True)
     for name in ("config.yaml", "eval.csv"):
         (run / name).write_text(name)
-    weights = {"actor.weight": torch.arange(6.0).reshape(2, 3)}
-    torch.save({"loss": weights, "frames": 60000, "buffer": torch.zeros(1000), "optimizer": {}},
-               run / "checkpoints" / "last.pt")
+    weights = {name: {"actor.weight": torch.full((2, 3), float(i))} for i, name in enumerate(("last.pt", "best.pt"))}
+    for name, frames in (("last.pt", 60000), ("best.pt", 25000)):
+        torch.save({"loss": weights[name], "frames": frames, "buffer": torch.zeros(1000), "optimizer": {}},
+                   run / "checkpoints" / name)
     with pytest.raises(UsageError, match="no summary.json"):
         keep_source(run, tmp_path / "kept")
     (run / "summary.json").write_text("{}")
     keep_source(run, tmp_path / "kept")
-    kept = torch.load(tmp_path / "kept" / "checkpoints" / "last.pt", weights_only=True)
-    assert set(kept) == {"loss", "frames"} and kept["frames"] == 60000
-    assert torch.equal(kept["loss"]["actor.weight"], weights["actor.weight"])
+    for name, frames in (("last.pt", 60000), ("best.pt", 25000)):
+        kept = torch.load(tmp_path / "kept" / "checkpoints" / name, weights_only=True)
+        assert set(kept) == {"loss", "frames"} and kept["frames"] == frames
+        assert torch.equal(kept["loss"]["actor.weight"], weights[name]["actor.weight"])
     assert (tmp_path / "kept" / "config.yaml").read_text() == "config.yaml"
-    assert not (tmp_path / "kept" / "checkpoints" / "best.pt").exists()  # a run without keep_best has none
-
-    best = {"actor.weight": -torch.arange(6.0).reshape(2, 3)}
-    torch.save({"loss": best, "frames": 25000, "buffer": torch.zeros(1000), "optimizer": {}},
-               run / "checkpoints" / "best.pt")
-    keep_source(run, tmp_path / "kept-best")
-    kept = torch.load(tmp_path / "kept-best" / "checkpoints" / "best.pt", weights_only=True)
-    assert set(kept) == {"loss", "frames"} and kept["frames"] == 25000
-    assert torch.equal(kept["loss"]["actor.weight"], best["actor.weight"])
-    last = torch.load(tmp_path / "kept-best" / "checkpoints" / "last.pt", weights_only=True)
-    assert last["frames"] == 60000 and torch.equal(last["loss"]["actor.weight"], weights["actor.weight"])
+    (run / "checkpoints" / "best.pt").unlink()  # a run without keep_best has none, nor has its kept copy
+    keep_source(run, tmp_path / "kept-last")
+    assert not (tmp_path / "kept-last" / "checkpoints" / "best.pt").exists()
 
 
 @pytest.mark.parametrize("seed", [0, 100, 200])
@@ -166,39 +160,6 @@ def test_kept_lift_sources_are_weights_only_and_load_as_actors(seed):
     assert set(torch.load(source / "checkpoints" / "last.pt", weights_only=True)) == {"loss", "frames"}
     actor = load_actor(source)
     assert sum(p.numel() for p in actor.parameters()) > 0
-
-
-def resolve_args(task: str, line: str, **kwargs):
-    """The config ``drltg train TASK`` resolves from the flags of a script's ``line``."""
-    import shlex
-
-    from drltg.config import resolve
-
-    args, overrides = shlex.split(line), []
-    for flag, value in zip(args[::2], args[1::2]):
-        if flag == "-o":
-            overrides.append(value)
-        elif flag == "--options":
-            overrides.append(f"soc.num_options={value}")
-        else:
-            kwargs[flag.removeprefix("--")] = int(value) if flag == "--frames" else value
-    return resolve(task=task, overrides=overrides, **kwargs)
-
-
-def test_the_soc_source_learns_lift_from_the_same_demonstrations_as_the_sac_source():
-    """lift-soc4's config is lift-sac-ln-half's but for the learner and the SAC critics' stabilisers
-    (LayerNorm, half of every batch demonstrated): the same demonstrator, episodes, cloning weight and frames."""
-    import shlex
-
-    from drltg.config import resolve
-
-    configs = {name: resolve_args("lift", line) for name, line in SOURCES.items()}
-    sac, soc = configs["lift-sac-ln-half"], configs["lift-soc4"]
-    assert config_changes(sac, soc) == ["algo", "network.layer_norm", "transfer.demo_ratio"]
-    kept = resolve(task="lift", overrides=shlex.split(re.search(r'^EVAL="([^"]*)"', SCRIPT, re.M).group(1))[1::2])
-    assert kept.checkpoint.keep_best  # best.pt, which the rows reuse
-    assert (soc.algo, soc.soc.num_options, soc.frames) == ("soc", 4, 60_000)
-    assert (soc.transfer.method, soc.transfer.source) == ("demonstrations", "demonstrator:lift")
 
 
 def test_the_script_reuses_the_kept_sources_and_copies_a_reference_rows_baselines(tmp_path):

@@ -1,10 +1,8 @@
-"""Keep a finished source run in the repo: its config, curve and summary, and the learner's weights only.
+"""Keep a finished source run: ``python results/manipulation/keep_source.py RUN_DIR DEST_DIR``.
 
-    python results/manipulation/keep_source.py RUN_DIR DEST_DIR
-
-The replay buffer and optimiser state (about 420 MB on Lift) are left out, so DEST_DIR serves as
-``transfer.source`` (model reuse, policy reuse, value shaping) but cannot be resumed. A run trained with
-``checkpoint.keep_best=true`` keeps ``checkpoints/best.pt`` too (``transfer.source_checkpoint=best``).
+Its config, curve and summary, and of ``checkpoints/last.pt`` (and ``best.pt``, where kept) the learner's
+weights alone: without the replay buffer and optimiser state (about 420 MB on Lift) DEST_DIR serves as
+``transfer.source`` but cannot be resumed.
 """
 import shutil
 import sys

@@ -2,17 +2,15 @@
 # The manipulation study in one command: bash results/manipulation/run.sh   (hours; re-running finishes what is
 # missing; RUNS=runs/manipulation WORKERS=2 DRLTG=drltg PYTHON=python; ROWS="..." picks rows, FORCE=1 reports a
 # reported row again, TRAIN_SOURCES=1 trains the kept sources anew, EARLIER=1 reports the earlier runs alone).
-# 1. The sources RUNS/sources/NAME/seed-<s>, seeds 0, 100, 200, keeping their best checkpoint, which the rows
-#    reuse: lift-sac-ln-half (SAC, LayerNorm critics, half of every batch from 50 demonstrator episodes, cloning
-#    at weight 10, 60k frames) and lift-soc4 (SOC with 4 options, the same demonstrations). A source kept in
-#    results/manipulation/sources/ is copied rather than trained; each is kept (keep_source.py) and its best.pt
-#    evaluated on 50 fresh episodes.
-# 2. Each row, examples/sweeps/manipulation-rows/ROW.yaml, with `drltg sweep --no-seed-groups` in RUNS (one
-#    target's baselines serve every row on it; the reference rows' transfers go to RUNS/reference, with copies of
-#    the others' complete baselines); its runs kept and reported (rebuild.py) in results/manipulation/ROW/, and in
-#    report-STAGE/ the success rate (threshold 0.8 on Lift, 0.5 placing) and, placing, the lifted rate (0.8).
-# 3. The earlier implementation's rows (tests/data/sb3_runs, one run a side) in results/manipulation/earlier/ROW/,
-#    whole and cut at the study's 100k frames (at-100k/).
+# 1. The sources RUNS/sources/NAME/seed-<s>, seeds 0, 100, 200, each keeping its best checkpoint, which the rows
+#    reuse (SOURCE below); one kept in results/manipulation/sources/ is copied rather than trained, then kept
+#    (keep_source.py) and its best.pt evaluated on 50 fresh episodes.
+# 2. Each row, examples/sweeps/manipulation-rows/ROW.yaml, by `drltg sweep --no-seed-groups` in RUNS (a target's
+#    baselines serve every row on it; the reference rows' transfers go to RUNS/reference beside copies of the
+#    others' complete baselines), kept and reported (rebuild.py) in results/manipulation/ROW/, with report-STAGE/
+#    for the success rate (threshold 0.8 on Lift, 0.5 placing) and, placing, the lifted rate (0.8).
+# 3. EARLIER=1: the earlier implementation's rows (tests/data/sb3_runs, a run a side) in earlier/ROW/, whole
+#    and cut at the study's 100k frames (at-100k/).
 set -euo pipefail
 RUNS=${RUNS:-runs/manipulation} WORKERS=${WORKERS:-2} DRLTG=${DRLTG:-drltg} PYTHON=${PYTHON:-python}
 ROWS=${ROWS:-"lift-shaping pi-reuse-place pi-reuse-barrier model-reuse-place soc-model-reuse-place

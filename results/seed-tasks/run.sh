@@ -3,7 +3,8 @@
 # re-running skips finished runs and resumes the others; hours). 1. the sources on lift-dense, seeds 60-62, 60k
 # frames, with the demonstrator's 50 episodes, best.pt scored on 50 fresh episodes; 2. each row's baseline and
 # transfer runs, seeds 10-12, 300k frames (transfer seed s reuses source seed s + 50 at best.pt), WORKERS at a
-# time; 3. each row's reports into results/seed-tasks/ROW/. The lift-place-seed SAC baselines are seed_tasks.sh's.
+# time, the lift-place-seed SAC baselines first as one seed group (one process); 3. each row's reports into
+# results/seed-tasks/ROW/.
 set -euo pipefail
 RUNS=${RUNS:-runs/seed-tasks} WORKERS=${WORKERS:-2} DRLTG=${DRLTG:-drltg}
 export OMP_NUM_THREADS=1
@@ -24,6 +25,11 @@ for name in lift-dense-sac lift-dense-soc4; do for s in 60 61 62; do
   $DRLTG evaluate "$RUNS/sources/$name/seed-$s" --checkpoint best --episodes 50
 done; done
 ROW="-o eval.every=10000 -o eval.episodes=10 -o checkpoint.every=20000"
+base=$RUNS/lift-place-seed/sac/baseline resume=""; [ -f "$base/seed-10/config.yaml" ] && resume=--resume
+[ -f "$base/seed-12/summary.json" ] ||
+  $DRLTG train lift-place-seed --seed 10 --seeds 3 --frames 300000 --run-dir "$base" --no-progress $resume $ROW
+for s in 10 11 12; do keep=results/seed-tasks/lift-place-seed/sac/baseline/seed-$s; mkdir -p "$keep"
+  cp "$base/seed-$s"/{config.yaml,eval.csv,summary.json} "$keep/"; done
 rows=(  # row | target | algo | its learner flags | baseline folder | transfer flags | source (none: -)
   "shaping-lift-seed|lift|sac||baseline|-o env.reward_shaping=true|-"
   "pi-reuse-place-seed|lift-place-seed|sac||baseline|-o transfer.method=policy-reuse|lift-dense-sac"
