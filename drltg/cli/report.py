@@ -47,6 +47,11 @@ def run(args) -> int:
             for source, row in zip(result["sources"], result["table"])]
         print(f"{args.metric}:")
         print(tables.render(rows, "text", align="l" + "r" * len(result["targets"])), end="")
+        across = result["across_cells"]
+        if across is not None:
+            print(f"across all {len(across['pairs'])} paired cell(s), {across['seed_pairs']} seed pairs: "
+                  f"{across['verdict']} (mean over cells of the mean return gain {across['mean_difference']:+.4g}; "
+                  f"{across['test']} test, p = {across['p']:.3g})")
         print(f"wrote {result['out_dir']}/transfer_matrix.{{png,svg,csv,json}}")
         return 0
     if not args.baseline or not args.transfer:
