@@ -336,6 +336,23 @@ def test_transfer_matrix(sb3_runs, tmp_path, capsys):
         report.find_matrix_cells(tmp_path / "matrix")
 
 
+def test_a_matrix_gives_one_verdict_across_its_cells(tmp_path):
+    """The stratified sign-flip test over the cells, a stratum a cell (hand-counted in tests/test_metrics.py):
+    gains 1, 2, 3 | 4, 5, 6, 7, every pair up: p = 2/2^7; gains 3, 6, -3 | 2, 4: p = 8/32."""
+    def cells(*gains):
+        return {("src", f"t{j}"): (flat([0.0] * len(g), seeds=list(range(len(g))), prefix="b"),
+                                   flat([float(x) for x in g], seeds=list(range(len(g))), prefix="t"))
+                for j, g in enumerate(gains)}
+
+    up = report.transfer_matrix(cells([1, 2, 3], [4, 5, 6, 7]), tmp_path / "up")["across_cells"]
+    assert (up["pairs"], up["seed_pairs"], up["p"], up["verdict"]) == (
+        ["src -> t0", "src -> t1"], 7, pytest.approx(2 / 128), "higher")
+    assert up["mean_difference"] == pytest.approx((2 + 5.5) / 2)
+    mixed = report.transfer_matrix(cells([3, 6, -3], [2, 4]), tmp_path / "mixed")["across_cells"]
+    assert (mixed["p"], mixed["verdict"]) == (pytest.approx(0.25), "undecided")
+    assert json.loads((tmp_path / "mixed" / "transfer_matrix.json").read_text())["across_cells"]["p"] == 0.25
+
+
 # ------------------------------------------------------------------------- statistics of issue 13
 def flat(values, seeds=None, frames=(0, 10, 20, 30), prefix="run", **config):
     """One constant curve per value: every per-seed score (initial, final, mean return) is the value."""
