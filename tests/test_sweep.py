@@ -165,7 +165,11 @@ def test_local_grid_trains_each_run_once_and_reports(local):
         report = json.loads((out / r["pair"] / "sac" / r["method"] / "report" / "transfer_metrics.json").read_text())
         assert float(r["transfer_ratio"]) == pytest.approx(report["metrics"]["transfer_ratio"])
         assert r["seeds"] == "1+1"
-    assert (out / "summary.md").read_text().count("| fourrooms-") == 4
+    summary_md = (out / "summary.md").read_text()
+    assert sum(line.startswith("| fourrooms-") for line in summary_md.splitlines()) == 4  # a row per report
+    across = json.loads((out / "across_targets.json").read_text())  # a method over its 2 targets, 1 seed each
+    assert [(e["method"], e["pairs"], e["seed_pairs"]) for e in across] == [
+        (m, ["fourrooms-near", "fourrooms-far"], 2) for m in ("model-reuse", "reward-shaping")]
     assert (out / "transfer_matrix.png").read_bytes()[:4] == b"\x89PNG"
 
 
