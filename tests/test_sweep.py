@@ -342,3 +342,11 @@ def test_the_summary_gives_each_method_one_verdict_across_its_targets():
                                                                   "undecided", ["mid"])
     md = summary.summary_tables(rows)[1]
     assert "Across targets:" in md and "| sac | a | near, far | 7 | +3.75 | 0.016 | 0.031 | higher |" in md
+
+
+def test_the_summary_names_what_its_intervals_assume():
+    row = _row("a", 1.0, 0.001)
+    row["metrics"]["mean_return_gain_ci_assumes"] = "only the declared range (worst case over it)"
+    md = summary.summary_tables([row], "mean_return_gain")[1]
+    assert "Each interval is its report's, assuming only the declared range (worst case over it)." in md
+    assert "assuming" not in summary.summary_tables([_row("a", 1.0, 0.001)], "mean_return_gain")[1]

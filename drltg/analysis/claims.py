@@ -193,8 +193,10 @@ def verdict_of(report: Mapping, name: str, p_adjusted: Adjusted | None = None, f
     interval that holds 0, about how many seeds would decide."""
     m, st = report["metrics"], report["settings"]
     if m.get(f"{name}_verdict") == "equivalent":
+        labelled = magnitudes(report, name)
         return (f"{estimate(m[name])}, equivalent ({m[f'{name}_verdict_test']}, p = "
-                f"{p_text(m[f'{name}_verdict_p'])}; the exact test could not tell it from no effect)")
+                f"{p_text(m[f'{name}_verdict_p'])}; the exact test could not tell it from no effect)"
+                + ("" if labelled is None else f"; {labelled}"))
     ci, design = m.get(f"{name}_ci"), design_of(report)
     p = p_adjusted if p_adjusted is not None else Adjusted(None, exact_p(m, name))
     labelled = magnitudes(report, name)

@@ -123,8 +123,11 @@ def summary_tables(rows: list[dict], primary_metric: str | None = None) -> tuple
                 cells.append(tables.estimate(value, ci, ".3g") + mark)
         csv_rows.append(line + [r["report"] if m else "", r.get("note", "")])
         md.append([f"{r['pair']} {r['variant']}".strip(), r["algo"], r["method"], *cells, seeds or r.get("note", "")])
+    labels = sorted({m[f"{name}_ci_assumes"] for r in rows for m in [r["metrics"] or {}] for name in SUMMARY_COLUMNS
+                     if f"{name}_ci_assumes" in m})
+    assumed = "" if not labels else f" Each interval is its report's, assuming {'; or '.join(labels)}."
     md_text = (f"{headline}\n\n{tables.render(md, 'markdown')}\n"
-               f"\\* a finding: Holm-adjusted p < {LEVEL:g} within the family above.\n")
+               f"\\* a finding: Holm-adjusted p < {LEVEL:g} within the family above.{assumed}\n")
     across = across_targets_table(across_targets(rows))
     if across:
         md_text += f"\n{across}"

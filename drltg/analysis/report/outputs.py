@@ -82,7 +82,11 @@ def magnitudes_table(result: dict, style: str = "text") -> str:
     rows = [("metric", "verdict (exact test)", *(head for _, head, _ in columns)),
             ("", "assumes exchangeable runs under no effect", *(f"assumes {assumes[key]}" for key, *_ in columns))]
     for n in names:
-        verdict = f"{m[f'{n}_verdict']} ({m[f'{n}_verdict_test']}, p {_p(m[f'{n}_verdict_p'], '= ')})"
+        p = m[f"{n}_verdict_p"]
+        verdict = f"{m[f'{n}_verdict']} ({m[f'{n}_verdict_test']}, p {'< 0.001' if p < 0.001 else f'= {p:.3f}'}"
+        if m[f"{n}_verdict"] == "equivalent":  # TOST, unlike the exact test, assumes what a t interval does
+            verdict += f", assuming {ASSUMES['normal differences' if st.get('paired') else 'normal scores']}"
+        verdict += ")"
         cells = [tables.estimate(m[n] if point is None else m.get(f"{n}{point}"), m.get(f"{n}{key}"))
                  if m.get(f"{n}{key}") else "" for key, _, point in columns]
         rows.append((n, verdict, *cells))
@@ -90,8 +94,8 @@ def magnitudes_table(result: dict, style: str = "text") -> str:
     return title + tables.render(rows, style).rstrip("\n")
 
 
-def _p(p, equals: str = "") -> str:
-    return "" if p is None else "<0.001" if p < 0.001 else f"{equals}{p:.3f}"
+def _p(p) -> str:
+    return "" if p is None else "<0.001" if p < 0.001 else f"{p:.3f}"
 
 
 def _family_line(st: dict) -> str:
