@@ -145,7 +145,7 @@ def across_pairs(members: Sequence[tuple[str, Mapping]], score: str = "mean_retu
     Returns ``pairs`` (the strata, in order), ``seed_pairs`` (in all), ``mean_difference`` (the mean over pairs of
     their mean differences), ``test``, ``p`` and ``unpaired`` (reports whose sides share no seed, left out);
     ``None`` when none pairs."""
-    from drltg.analysis.stats import STRATIFIED_EXACT_PAIRS, stratified_sign_flip
+    from drltg.analysis.stats import STRATIFIED_EXACT_PAIRS, STRATIFIED_RESAMPLES, stratified_sign_flip
 
     strata, pairs, unpaired = [], [], []
     for pair, per_seed in members:
@@ -162,6 +162,6 @@ def across_pairs(members: Sequence[tuple[str, Mapping]], score: str = "mean_retu
     statistic, p = stratified_sign_flip(strata, seed=seed)
     n = sum(map(len, strata))
     test = ("stratified sign-flip, exact" if n <= STRATIFIED_EXACT_PAIRS else
-            "stratified sign-flip, Monte Carlo (9,999 sign patterns)")
+            f"stratified sign-flip, Monte Carlo ({STRATIFIED_RESAMPLES:,} sign patterns)")
     return {"score": score, "pairs": pairs, "seed_pairs": n, "mean_difference": statistic / len(strata),
             "test": test, "p": p, "unpaired": unpaired}
