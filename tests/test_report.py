@@ -351,6 +351,12 @@ def test_a_matrix_gives_one_verdict_across_its_cells(tmp_path):
     mixed = report.transfer_matrix(cells([3, 6, -3], [2, 4]), tmp_path / "mixed")["across_cells"]
     assert (mixed["p"], mixed["verdict"]) == (pytest.approx(0.25), "undecided")
     assert json.loads((tmp_path / "mixed" / "transfer_matrix.json").read_text())["across_cells"]["p"] == 0.25
+    # rliable's aggregates over the cells, of raw mean returns (no range given) and the first 3 runs of each cell (the
+    # fewest a cell has): gains 1, 2, 3 and 4, 5, 6 over baselines of 0, so the mean over cells differs by (2 + 5) / 2
+    aggregates = report.transfer_matrix(cells([1, 2, 3], [4, 5, 6, 7]), tmp_path / "agg")["aggregates"]
+    assert aggregates["runs_per_pair"] == 3 and not aggregates["normalised"]
+    assert aggregates["difference"]["mean"][0] == pytest.approx((2 + 5) / 2)
+    assert aggregates["probability_of_improvement"][0] == 1.0
 
 
 # ------------------------------------------------------------------------- statistics of issue 13
