@@ -162,3 +162,27 @@ def test_a_betting_interval_holds_0_and_says_how_many_seeds_would_decide():
         "+1.00: no interval without the curves' range (--value-range), so no verdict")
     assert cl.betting_seeds([0.5] * 3, [0.5] * 3, (0, 1), paired=True) is None  # alike: no number decides
 
+
+
+def test_a_labelled_report_names_what_each_interval_assumes():
+    """The sentence states the exact test's verdict, then each magnitude with what it assumes, all read from the
+    report's numbers and labels (``<key>_assumes``)."""
+    m = {"n_seeds_baseline": 7, "n_seeds_transfer": 7, "mean_return_gain": 3.2857, "mean_return_gain_p_exact": 0.03,
+         "mean_return_gain_ci": [-4.5, 11.0], "mean_return_gain_ci_assumes": cl.RANGE_ONLY,
+         "mean_return_gain_t_interval": [0.37, 6.2], "mean_return_gain_t_interval_assumes": "normal differences",
+         "mean_return_gain_median": 3.0, "mean_return_gain_median_interval": [-1.0, 9.0],
+         "mean_return_gain_median_interval_level": 1 - 2 / 128, "mean_return_gain_median_interval_assumes":
+         "independent pairs, any shape", "mean_return_gain_verdict": "higher"}
+    labelled = {"metrics": m, "settings": {"paired": True, "confidence": 0.95, "value_range": [-20, 20],
+                                           "interval_method": "auto"}, "per_seed": {}}
+    assert cl.verdict_of(labelled, "mean_return_gain") == (
+        "+3.29, higher with transfer (exact sign-flip test, p = 0.03); 95% intervals: mean [+0.37, +6.20] by paired "
+        "t, assuming normal differences; median +3.00 [\u22121.00, +9.00] by order statistics (at 98.4%), assuming "
+        "independent pairs, any shape; [\u22124.50, +11.00] as the worst case over the declared range [-20, 20]")
+    # a number changed in the report changes the sentence
+    changed = {**labelled, "metrics": {**m, "mean_return_gain_median_interval": [0.5, 8.0]}}
+    assert "median +3.00 [+0.50, +8.00] by order statistics" in cl.verdict_of(changed, "mean_return_gain")
+    # without labels (a report made before them) the sentence reads as it did
+    bare = {**labelled, "metrics": {k: v for k, v in m.items() if not k.endswith("_assumes")}}
+    assert cl.verdict_of(bare, "mean_return_gain") == (
+        "+3.29 [\u22124.50, +11.00], higher with transfer (exact sign-flip test, p = 0.03)")

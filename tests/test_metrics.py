@@ -273,3 +273,61 @@ def test_shape_of_per_seed_scores():
     assert stats.shape_of([0, 0, 0, 0, 0, 0, 0, 0, 0, 10]) == "skewed"
     assert stats.shape_of([0, 0, 0, 0, 0, 10, 10, 10, 10, 10]) == "bimodal"
     assert stats.shape_of([-1.2, -0.8, -0.4, -0.2, 0.0, 0.1, 0.3, 0.5, 0.9, 1.1]) is None
+
+
+def test_the_median_interval_by_hand():
+    # 7 differences, sorted -1, 1, 2, 3, 4, 5, 9. P(Bin(7, 1/2) <= 0) = 1/128 (twice: 0.0156 <= 0.05) and
+    # P(<= 1) = 8/128 (twice: 0.125 > 0.05), so rank k = 1: [d_(1), d_(7)] at 1 - 2/128
+    assert stats.median_interval([3, -1, 4, 1, 5, 9, 2]) == pytest.approx((3.0, -1.0, 9.0, 1 - 2 / 128))
+    # at 80%: P(<= 1) twice is 16/128 <= 0.2, P(<= 2) = 29/128 twice 0.45 > 0.2, so k = 2: [d_(2), d_(6)]
+    assert stats.median_interval([3, -1, 4, 1, 5, 9, 2], 0.80) == pytest.approx((3.0, 1.0, 5.0, 1 - 16 / 128))
+    # 10 pairs: P(<= 1) = 11/1024 (twice 0.021), P(<= 2) = 56/1024 (twice 0.109): k = 2, [d_(2), d_(9)]
+    assert stats.median_interval(np.arange(10.0)) == pytest.approx((4.5, 1.0, 8.0, 1 - 22 / 1024))
+    # 5 pairs: even [min, max] covers only 1 - 2/32 = 0.9375 < 0.95
+    median, lo, hi, level = stats.median_interval([1, 2, 3, 4, 5])
+    assert median == 3 and np.isnan([lo, hi, level]).all()
+
+
+def test_the_median_interval_covers_skewed_and_learn_or_not_differences():
+    """Distribution-free: at least its stated level for any shape (exponential differences, median log 2;
+    learn-or-not, +1 with probability 0.6 else 0, median 1), 2,000 experiments of 10 pairs a shape."""
+    rng = np.random.default_rng(0)
+    for draw, median in ((lambda: rng.exponential(1.0, 10), np.log(2)),
+                         (lambda: (rng.random(10) < 0.6).astype(float), 1.0)):
+        hits = []
+        for _ in range(2000):
+            _, lo, hi, level = stats.median_interval(draw())
+            hits.append(lo <= median <= hi)
+        assert level == pytest.approx(1 - 22 / 1024)
+        assert np.mean(hits) >= level - 3 * np.sqrt(level * (1 - level) / 2000)
+
+
+def test_the_stratified_sign_flip_test_by_hand():
+    # strata (3, 6, -3) and (2, 4): S = mean 2 + mean 3 = 5, the sum of terms d/n = 1, 2, -1 | 1, 2. Each of the
+    # 2^5 = 32 sign patterns flips terms of size F in all (|terms| sum to 7): S* = 7 - 2F, so |S*| >= 5 where
+    # F <= 1 (none flipped, or one of the three 1s: 4 patterns) or F >= 6 (the mirror images: 4); p = 8/32
+    assert stats.stratified_sign_flip([[3, 6, -3], [2, 4]]) == pytest.approx((5.0, 8 / 32))
+    # strata (1, 2, 3) and (-4, -5): S = 2 - 4.5 = -2.5; in sixths the |terms| are 2, 4, 6 | 12, 15 (sum 39) and
+    # |39 - 2F| >= 15 where F <= 12: {}, {2}, {4}, {6}, {12}, {2, 4}, {2, 6}, {4, 6}, {2, 4, 6} (9), or F >= 27
+    # (their 9 complements): p = 18/32. Pooled, the sum -3 of |d| 1..5 (15) is reached where F <= 6 (13 subsets)
+    # or F >= 9 (13): 26/32; the stratified weights matter
+    assert stats.stratified_sign_flip([[1, 2, 3], [-4, -5]]) == pytest.approx((-2.5, 18 / 32))
+    assert stats.permutation_test([0] * 5, [1, 2, 3, -4, -5], paired=True) == pytest.approx(26 / 32)
+    # every pair up: only the two extreme patterns of 2^5
+    assert stats.stratified_sign_flip([[1, 2, 3], [4, 5]]) == pytest.approx((2 + 4.5, 2 / 32))
+    assert stats.stratified_sign_flip([[1, -1], [2, -2]]) == (0.0, 1.0)
+    with pytest.raises(ValueError, match="at least one"):
+        stats.stratified_sign_flip([[1.0], []])
+
+
+def test_one_stratum_is_the_paired_sign_flip_test_and_monte_carlo_agrees_with_the_count():
+    rng = np.random.default_rng(1)
+    d = rng.normal(0.5, 1.0, 11)
+    assert stats.stratified_sign_flip([d])[1] == pytest.approx(stats.permutation_test(np.zeros(11), d, paired=True))
+    strata = [rng.normal(0.3, 1.0, n) for n in (5, 7, 6)]
+    exact = stats.stratified_sign_flip(strata)[1]
+    statistic, p = stats.stratified_sign_flip(strata, exact_pairs=10, n_resamples=19999, seed=3)
+    assert statistic == pytest.approx(sum(s.mean() for s in strata))
+    assert round(p * 20000) == pytest.approx(p * 20000)  # (b + 1) / (m + 1)
+    assert abs(p - exact) < 4 * np.sqrt(exact * (1 - exact) / 19999)
+    assert stats.stratified_sign_flip(strata, exact_pairs=10, n_resamples=19999, seed=3)[1] == p  # seeded

@@ -113,7 +113,12 @@ def test_an_equivalence_margin_turns_an_undecided_mean_difference_into_equivalen
     assert m["mean_return_gain_verdict_p"] < 0.05
     from drltg.analysis.claims import verdict_of
 
-    assert verdict_of(report, "mean_return_gain").startswith(
-        "+0.00, equivalent (TOST within +-0.05, paired t, p = ")
+    said = verdict_of(report, "mean_return_gain")
+    assert said.startswith("+0.00, equivalent (TOST within +-0.05, paired t, p = ")
+    assert "by paired t, assuming normal differences" in said  # TOST stands on the t interval's assumption
+    from drltg.analysis.report import outputs
+
+    assert "equivalent (TOST within +-0.05, paired t, p < 0.001, assuming normal differences)" in \
+        outputs.magnitudes_table(report)
     with pytest.raises(UsageError, match="--equivalence-margin must be a finite number above 0"):
         report_from_curves(frames, base, trans, equivalence_margin=-1)

@@ -336,6 +336,29 @@ def test_transfer_matrix(sb3_runs, tmp_path, capsys):
         report.find_matrix_cells(tmp_path / "matrix")
 
 
+def test_a_matrix_gives_one_verdict_across_its_cells(tmp_path):
+    """The stratified sign-flip test over the cells, a stratum a cell (hand-counted in tests/test_metrics.py):
+    gains 1, 2, 3 | 4, 5, 6, 7, every pair up: p = 2/2^7; gains 3, 6, -3 | 2, 4: p = 8/32."""
+    def cells(*gains):
+        return {("src", f"t{j}"): (flat([0.0] * len(g), seeds=list(range(len(g))), prefix="b"),
+                                   flat([float(x) for x in g], seeds=list(range(len(g))), prefix="t"))
+                for j, g in enumerate(gains)}
+
+    up = report.transfer_matrix(cells([1, 2, 3], [4, 5, 6, 7]), tmp_path / "up")["across_cells"]
+    assert (up["pairs"], up["seed_pairs"], up["p"], up["verdict"]) == (
+        ["src -> t0", "src -> t1"], 7, pytest.approx(2 / 128), "higher")
+    assert up["mean_difference"] == pytest.approx((2 + 5.5) / 2)
+    mixed = report.transfer_matrix(cells([3, 6, -3], [2, 4]), tmp_path / "mixed")["across_cells"]
+    assert (mixed["p"], mixed["verdict"]) == (pytest.approx(0.25), "undecided")
+    assert json.loads((tmp_path / "mixed" / "transfer_matrix.json").read_text())["across_cells"]["p"] == 0.25
+    # rliable's aggregates over the cells, of raw mean returns (no range given) and the first 3 runs of each cell (the
+    # fewest a cell has): gains 1, 2, 3 and 4, 5, 6 over baselines of 0, so the mean over cells differs by (2 + 5) / 2
+    aggregates = report.transfer_matrix(cells([1, 2, 3], [4, 5, 6, 7]), tmp_path / "agg")["aggregates"]
+    assert aggregates["runs_per_pair"] == 3 and not aggregates["normalised"]
+    assert aggregates["difference"]["mean"][0] == pytest.approx((2 + 5) / 2)
+    assert aggregates["probability_of_improvement"][0] == 1.0
+
+
 # ------------------------------------------------------------------------- statistics of issue 13
 def flat(values, seeds=None, frames=(0, 10, 20, 30), prefix="run", **config):
     """One constant curve per value: every per-seed score (initial, final, mean return) is the value."""
@@ -663,7 +686,8 @@ def test_json_keys_keep_their_published_order():
                          flat([2.0, 4.0, 7.0], seeds=[0, 1, 2], prefix="t"), threshold=1.5)
     keys = [k for k in res["metrics"] if not k.endswith(("_ci", "_iqm", "_p_value", "_p_adjusted", "_p_exact",
                                                          "_verdict", "_verdict_test", "_verdict_p",
-                                                         "_pairs_for_80_power"))]
+                                                         "_pairs_for_80_power", "_assumes", "_median",
+                                                         "_interval", "_interval_level"))]
     assert keys == [
         "n_seeds_baseline", "n_seeds_transfer", "mean_return_gain", "jumpstart", "asymptotic_performance",
         "transfer_ratio", "probability_of_improvement", "probability_of_improvement_initial",
@@ -698,6 +722,42 @@ def test_every_comparison_carries_the_exact_test_s_verdict(gains, paired, verdic
         assert m[f"{name}_verdict"] == verdict
         assert m[f"{name}_verdict_test"] == ("sign-flip" if paired else "permutation")
         assert m[f"{name}_verdict_p"] == pytest.approx(p)
+
+
+def test_each_magnitude_says_what_it_assumes():
+    """7 pairs with differences 3, -1, 4, 1, 5, 9, 2 (sorted -1, 1, 2, 3, 4, 5, 9): the order-statistic interval of
+    their median is [d_(1), d_(7)] = [-1, 9] at 1 - 2/128 (P(Bin(7, 1/2) <= 1) = 8/128 is too likely for k = 2); the
+    paired t interval is 23/7 +- t_{0.975, 6} s_d / sqrt 7; the betting interval is the worst case over the range."""
+    gains = [3.0, -1.0, 4.0, 1.0, 5.0, 9.0, 2.0]
+    base = [float(i % 3) for i in range(7)]
+    b = flat(base, seeds=list(range(7)), prefix="b")
+    t = flat([x + g for x, g in zip(base, gains)], seeds=list(range(7)), prefix="t")
+    res = report.compute(b, t, value_range=(-20.0, 20.0))
+    m = res["metrics"]
+    assert m["mean_return_gain_median"] == 3.0
+    assert m["mean_return_gain_median_interval"] == [-1.0, 9.0]
+    assert m["mean_return_gain_median_interval_level"] == pytest.approx(1 - 2 / 128)
+    assert m["mean_return_gain_median_interval_assumes"] == "independent pairs, any shape"
+    half = 2.446912 * np.std(gains, ddof=1) / np.sqrt(7)
+    assert m["mean_return_gain_t_interval"] == pytest.approx([23 / 7 - half, 23 / 7 + half], abs=1e-5)
+    assert m["mean_return_gain_t_interval_assumes"] == "normal differences"
+    assert m["mean_return_gain_ci_assumes"] == "only the declared range (worst case over it)"
+    assert m["probability_of_improvement_ci_assumes"] == "independent pairs, any shape"
+    # the verdict is the sign-flip test's, not any interval's: of |d| 3, 1, 4, 1, 5, 9, 2 (sum 25), flipping a sum
+    # F <= 1 ({}, either 1) keeps |sum| >= 23, as do the 3 mirror patterns: p = 6/128 < 0.05
+    assert m["mean_return_gain_verdict"] == "higher"
+    assert m["mean_return_gain_verdict_p"] == pytest.approx(6 / 128)
+    # every interval of the report carries its label
+    assert all(f"{k}_assumes" in m for k in m if k.endswith(("_ci", "_interval")))
+    table = report.format_table(res)
+    assert "worst case over the declared range [-20, 20]" in table and "assumes normal differences" in table
+    assert "assumes independent pairs, any shape" in table and "3 [-1, 9]" in table
+    unpaired = report.compute(flat(base, prefix="b"), flat(gains, prefix="t"), value_range=(-20.0, 20.0))["metrics"]
+    assert unpaired["mean_return_gain_t_interval_assumes"] == "normal scores on each side"
+    assert "mean_return_gain_median_interval" not in unpaired  # the order statistics need pairs
+    ranged_t = report.compute(b, t, interval="t")["metrics"]
+    assert ranged_t["mean_return_gain_ci_assumes"] == "normal differences"
+    assert ranged_t["mean_return_gain_ci"] == pytest.approx(ranged_t["mean_return_gain_t_interval"])
 
 
 def test_runs_of_two_methods_under_one_side_need_allow_mixed(tmp_path, capsys):

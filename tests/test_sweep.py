@@ -165,7 +165,11 @@ def test_local_grid_trains_each_run_once_and_reports(local):
         report = json.loads((out / r["pair"] / "sac" / r["method"] / "report" / "transfer_metrics.json").read_text())
         assert float(r["transfer_ratio"]) == pytest.approx(report["metrics"]["transfer_ratio"])
         assert r["seeds"] == "1+1"
-    assert (out / "summary.md").read_text().count("| fourrooms-") == 4
+    summary_md = (out / "summary.md").read_text()
+    assert sum(line.startswith("| fourrooms-") for line in summary_md.splitlines()) == 4  # a row per report
+    across = json.loads((out / "across_targets.json").read_text())  # a method over its 2 targets, 1 seed each
+    assert [(e["method"], e["pairs"], e["seed_pairs"]) for e in across] == [
+        (m, ["fourrooms-near", "fourrooms-far"], 2) for m in ("model-reuse", "reward-shaping")]
     assert (out / "transfer_matrix.png").read_bytes()[:4] == b"\x89PNG"
 
 
@@ -314,3 +318,35 @@ def test_the_summary_counts_findings_after_holm_over_its_named_family():
     assert "| 1 [0, 2]* |" in md_text and "| -2 [-3, -1]* |" in md_text
     header = csv_text.splitlines()[0].split(",")
     assert "mean_return_gain_p_value" in header and "mean_return_gain_p_holm_sweep" in header
+
+
+def _scored(pair, method, gains, seeds=None):
+    seeds = list(range(len(gains))) if seeds is None else seeds
+    return {"pair": pair, "algo": "sac", "variant": "", "method": method, "report": "r",
+            "metrics": {"n_seeds_baseline": len(gains), "n_seeds_transfer": len(gains), "mean_return_gain": 0.0},
+            "per_seed": {"baseline": [{"seed": i, "mean_return": 1.0} for i in range(len(gains))],
+                         "transfer": [{"seed": s, "mean_return": 1.0 + g} for s, g in zip(seeds, gains)]}}
+
+
+def test_the_summary_gives_each_method_one_verdict_across_its_targets():
+    """Hand-counted stratified sign-flip tests: method a, pairs 1, 2, 3 on near and 4, 5, 6, 7 on far, every pair
+    up: 2 of 2^7 patterns, p = 1/64; method b, (3, 6, -3) and (2, 4): p = 8/32 (tests/test_metrics.py). Holm over the
+    two: 1/32 and 1/4, so a is higher than no transfer and b undecided."""
+    rows = [_scored("near", "a", [1, 2, 3]), _scored("far", "a", [4, 5, 6, 7]), _scored("near", "b", [3, 6, -3]),
+            _scored("far", "b", [2, 4]), _scored("mid", "b", [1, 1], seeds=[7, 8])]  # shares no seed: left out
+    a, b = summary.across_targets(rows)
+    assert (a["method"], a["pairs"], a["seed_pairs"], a["p"], a["p_holm"], a["verdict"]) == (
+        "a", ["near", "far"], 7, pytest.approx(1 / 64), pytest.approx(1 / 32), "higher")
+    assert a["mean_difference"] == pytest.approx((2 + 5.5) / 2) and a["test"] == "stratified sign-flip, exact"
+    assert (b["p"], b["p_holm"], b["verdict"], b["unpaired"]) == (pytest.approx(0.25), pytest.approx(0.25),
+                                                                  "undecided", ["mid"])
+    md = summary.summary_tables(rows)[1]
+    assert "Across targets:" in md and "| sac | a | near, far | 7 | +3.75 | 0.016 | 0.031 | higher |" in md
+
+
+def test_the_summary_names_what_its_intervals_assume():
+    row = _row("a", 1.0, 0.001)
+    row["metrics"]["mean_return_gain_ci_assumes"] = "only the declared range (worst case over it)"
+    md = summary.summary_tables([row], "mean_return_gain")[1]
+    assert "Each interval is its report's, assuming only the declared range (worst case over it)." in md
+    assert "assuming" not in summary.summary_tables([_row("a", 1.0, 0.001)], "mean_return_gain")[1]

@@ -134,3 +134,34 @@ def aggregates_table(entries: Sequence[Mapping]) -> str:
         rows.append((e["algo"], label, f"{len(e['pairs'])} x {e['runs_per_pair']}", *cells,
                      tables.estimate(value, ci, ".2g")))
     return tables.render(rows, "markdown")
+
+
+def across_pairs(members: Sequence[tuple[str, Mapping]], score: str = "mean_return", seed: int = 0) -> dict | None:
+    r"""One method against no transfer over several pairs at once: the stratified exact sign-flip test
+    (:func:`drltg.analysis.stats.stratified_sign_flip`) of the sum of the pairs' mean differences.
+
+    ``members``: ``(pair, per_seed)`` of each report (its ``per_seed`` JSON); a pair is a stratum of the
+    differences :math:`T_i - B_i` of ``score`` over the seeds its two sides share, its signs flipped within it.
+    Returns ``pairs`` (the strata, in order), ``seed_pairs`` (in all), ``mean_difference`` (the mean over pairs of
+    their mean differences), ``test``, ``p`` and ``unpaired`` (reports whose sides share no seed, left out);
+    ``None`` when none pairs."""
+    from drltg.analysis.stats import STRATIFIED_EXACT_PAIRS, STRATIFIED_RESAMPLES, stratified_sign_flip
+
+    strata, pairs, unpaired = [], [], []
+    for pair, per_seed in members:
+        b, t = ({x["seed"]: x[score] for x in per_seed[side] if x.get("seed") is not None and x.get(score) is not None}
+                for side in ("baseline", "transfer"))
+        shared = sorted(set(b) & set(t))
+        if shared:
+            strata.append([t[k] - b[k] for k in shared])
+            pairs.append(pair)
+        else:
+            unpaired.append(pair)
+    if not strata:
+        return None
+    statistic, p = stratified_sign_flip(strata, seed=seed)
+    n = sum(map(len, strata))
+    test = ("stratified sign-flip, exact" if n <= STRATIFIED_EXACT_PAIRS else
+            f"stratified sign-flip, Monte Carlo ({STRATIFIED_RESAMPLES:,} sign patterns)")
+    return {"score": score, "pairs": pairs, "seed_pairs": n, "mean_difference": statistic / len(strata),
+            "test": test, "p": p, "unpaired": unpaired}

@@ -5,8 +5,10 @@ A researcher quotes sentences, not tables, so every sentence that states a resul
 
 - **a difference** is called higher / lower only when the exact randomization test (sign-flip over pairs,
   permutation of runs), which keeps its level at any seed count and assumes no range or normality, rejects
-  "no effect" at ``LEVEL``, Holm-adjusted where a family is read together; its interval is the magnitude
-  beside it, labelled by the report with what it assumes, not the gate. Otherwise the difference is
+  "no effect" at ``LEVEL``, Holm-adjusted where a family is read together; its intervals are the magnitudes
+  beside it, each named with what it assumes (the report's ``<key>_assumes``: the t interval normal
+  differences, the median's order statistics independent pairs only, the betting interval the worst case over
+  the declared range), never the gate. Otherwise the difference is
   "undecided at N pairs", naming the test's p-value, and a design too small for the test to reach the
   level at all (fewer than 6 pairs) says so. Only where no exact test exists does an interval decide ("no
   evidence of a difference at this budget", "no interval, so no verdict", "no interval without the
@@ -23,6 +25,7 @@ from typing import Mapping, NamedTuple, Sequence
 import numpy as np
 
 from drltg.analysis import stats
+from drltg.analysis.report.inference import ASSUMES
 
 LEVEL = 0.05
 MINUS = "\u2212"
@@ -108,17 +111,17 @@ def smallest_exact_p(n: int, paired: bool, n_other: int | None = None) -> float:
 
 def verdict(value: float, ci: Sequence | None, p_adjusted: float | Adjusted | None = None,
             family: int | None = None, higher: str = "higher with transfer", lower: str = "lower with transfer",
-            design: tuple[int, bool] | None = None, about: int | None = None) -> str:
+            design: tuple[int, bool] | None = None, about: int | None = None, bare: bool = False) -> str:
     """``+1.08 [+0.91, +1.24], higher with transfer (exact sign-flip test, p = 0.031)`` or ``...: undecided at 5
     pairs (...)``: the word comes from :func:`direction`, the exact test's p-value (Holm-adjusted where a
     family is read together) is named beside it. A design too small for the exact test to reach the level at
     all says so (3 pairs: p >= 0.25). Where no exact test was made, the interval decides as before: "no
     evidence of a difference at this budget" for one holding 0, "no interval, so no verdict" for a non-zero
     difference without one; ``about``: the seeds at which a range-bounded interval that holds 0 would decide
-    (:func:`betting_seeds`)."""
+    (:func:`betting_seeds`); ``bare``: the value alone, its intervals said apart (:func:`magnitudes`)."""
     t, exact, size = p_adjusted if isinstance(p_adjusted, Adjusted) else (p_adjusted, None, 1)
     sign = direction(value, ci, p_adjusted)
-    text = estimate(value, ci)
+    text = signed(value) if bare else estimate(value, ci)
     if exact is not None:
         k = max(family or 1, size)
         after = " after Holm" if k > 1 else ""
@@ -163,18 +166,21 @@ def verdict_of(report: Mapping, name: str, p_adjusted: Adjusted | None = None, f
     interval that holds 0, about how many seeds would decide."""
     m, st = report["metrics"], report["settings"]
     if m.get(f"{name}_verdict") == "equivalent":
+        labelled = magnitudes(report, name)
         return (f"{estimate(m[name])}, equivalent ({m[f'{name}_verdict_test']}, p = "
-                f"{p_text(m[f'{name}_verdict_p'])}; the exact test could not tell it from no effect)")
+                f"{p_text(m[f'{name}_verdict_p'])}; the exact test could not tell it from no effect)"
+                + ("" if labelled is None else f"; {labelled}"))
     ci, design = m.get(f"{name}_ci"), design_of(report)
     p = p_adjusted if p_adjusted is not None else Adjusted(None, exact_p(m, name))
+    labelled = magnitudes(report, name)
     if p.exact is not None:
-        said = verdict(m[name], ci, p, family, design=design, **words)
+        said = verdict(m[name], ci, p, family, design=design, bare=labelled is not None, **words)
         plan = f"{name}_pairs_for_80_power"
         if plan in m and m.get(f"{name}_verdict") == "undecided" and ": undecided" in said:
             need = "more than 1,000" if m[plan] is None else f"about {m[plan]}"
             said += (f"; {need} pairs would give this difference 80% power (planned from its mean and the 80% "
                      "upper bound of its spread, for a test at 0.05 alone)")
-        return said
+        return said if labelled is None else f"{said}; {labelled}"
     auto = st.get("interval_method") == "auto" and design[0] >= 3
     if auto and not has_interval(ci) and st.get("value_range") is None and m.get(name) is not None:
         return f"{estimate(m[name])}: {NO_RANGE}"
@@ -187,6 +193,40 @@ def verdict_of(report: Mapping, name: str, p_adjusted: Adjusted | None = None, f
 
 
 NO_RANGE = "no interval without the curves' range (--value-range), so no verdict"
+RANGE_ONLY = ASSUMES["range"]
+"""The label a report gives a betting interval (``<key>_assumes``): the worst case over the range, not a gate."""
+
+
+def magnitudes(report: Mapping, name: str) -> str | None:
+    """The intervals beside a difference's verdict, each named with what it assumes, from the report's labels
+    (``<key>_assumes``): ``95% intervals: mean [+0.10, +0.70] by paired t, assuming normal differences; median
+    +0.38 [+0.05, +0.80] by order statistics (at 98.4%), assuming independent pairs, any shape; [−0.20, +0.90]
+    as the worst case over the declared range [−0.3, 1]``. ``None`` for a report without labels."""
+    m, st = report["metrics"], report["settings"]
+    if f"{name}_ci_assumes" not in m and f"{name}_t_interval_assumes" not in m:
+        return None
+    parts, t_ci, median_ci = [], m.get(f"{name}_t_interval"), m.get(f"{name}_median_interval")
+    if t_ci:
+        t = "paired t" if st.get("paired") else "t with Welch's standard error"
+        parts.append(f"mean {interval_text(t_ci)} by {t}, assuming {m[f'{name}_t_interval_assumes']}")
+    if median_ci:
+        parts.append(f"median {estimate(m[f'{name}_median'], median_ci)} by order statistics (at "
+                     f"{100 * m[f'{name}_median_interval_level']:.1f}%), assuming "
+                     f"{m[f'{name}_median_interval_assumes']}")
+    if m.get(f"{name}_ci"):
+        if m.get(f"{name}_ci_assumes") == RANGE_ONLY:
+            rng = st.get("value_range")
+            where = "" if rng is None else f" [{rng[0]:g}, {rng[1]:g}]"
+            parts.append(f"{interval_text(m[f'{name}_ci'])} as the worst case over the declared range{where}")
+        elif not t_ci:
+            parts.append(f"{interval_text(m[f'{name}_ci'])}, assuming {m[f'{name}_ci_assumes']}")
+    if not parts:
+        return None
+    return f"{100 * float(st.get('confidence', 0.95)):g}% intervals: " + "; ".join(parts)
+
+
+def interval_text(ci: Sequence, digits: int = 2) -> str:
+    return f"[{signed(ci[0], digits)}, {signed(ci[1], digits)}]"
 
 
 def betting_seeds(b: Sequence[float], t: Sequence[float], value_range: Sequence[float], paired: bool,
@@ -236,13 +276,15 @@ def sequential_verdict(report: Mapping) -> str:
     or undecided at the cap; it says which look and why it stopped."""
     m, seq = report["metrics"], report["settings"]["sequential"]
     last, k, total = seq["taken"][-1], len(seq["taken"]), len(seq["looks"])
-    text = estimate(m["mean_return_gain"], m.get("mean_return_gain_ci"))
+    labelled = magnitudes(report, "mean_return_gain")
+    after = "" if labelled is None else f"; {labelled}"
+    text = estimate(m["mean_return_gain"], None if labelled else m.get("mean_return_gain_ci"))
     look = (f"exact sign-flip test at look {k} of {total}, {last['pairs']} pairs: p = {p_text(last['p'])} against "
             f"its share {p_text(last['alpha'])} of {LEVEL:g}")
     if seq["stopped"] == "decided" and signed(m["mean_return_gain"]) != signed(0):
         word = "higher with transfer" if m["mean_return_gain"] > 0 else "lower with transfer"
-        return f"{text}, {word} ({look}; seeds added until decided)"
-    return f"{text}: undecided at the cap of {last['pairs']} pairs ({look}; seeds added until the cap)"
+        return f"{text}, {word} ({look}; seeds added until decided){after}"
+    return f"{text}: undecided at the cap of {last['pairs']} pairs ({look}; seeds added until the cap){after}"
 
 
 def headline(report: Mapping, metric: str = "mean_return_gain") -> str:

@@ -14,12 +14,15 @@ measures them and chose ``t_interval`` as the default)
     ``poi_interval``          interval of a probability of improvement inside [0, 1] (Clopper-Pearson
                               for pairs, Newcombe's method 5 for the Mann-Whitney estimate); never
                               ``[1, 1]``.
+    ``median_interval``       distribution-free interval of the median of paired differences from their
+                              order statistics (the sign test inverted; exact binomial ranks).
     ``trend``                 least-squares slope and its standard error (is a curve still changing?).
 
 Tests (two-sided p-values)
     ``t_test``                the test dual to ``t_interval``; ``sign_test`` exact, over pairs;
     ``permutation_test``      exact (or seeded Monte Carlo) relabelling test of no effect, valid at any
-                              number of seeds; ``equivalence_test`` two one-sided tests (TOST);
+                              number of seeds; ``stratified_sign_flip`` the same over pairs in several
+                              strata (the targets of a family); ``equivalence_test`` two one-sided tests (TOST);
     ``holm``                  Holm's adjustment of a family of p-values; ``shape_of`` flags skewed or
                               bimodal per-seed scores.
 """
@@ -321,6 +324,31 @@ def ratio_interval(area_baseline, area_transfer, paired: bool = False,
     return ends[0], ends[1]
 
 
+def median_interval(differences, confidence: float = 0.95) -> tuple[float, float, float, float]:
+    r"""The median of paired differences and its distribution-free interval from their order statistics:
+    ``(median, low, high, level)`` with :math:`[d_{(k)}, d_{(n+1-k)}]`, :math:`k` the largest rank with
+    :math:`2 P(\mathrm{Bin}(n, 1/2) \le k - 1) \le \alpha` and ``level`` :math:`= 1 - 2 P(\mathrm{Bin}(n, 1/2) \le
+    k - 1) \ge` ``confidence``, the coverage it holds.
+
+    Each difference falls below the median with probability 1/2 whatever its distribution, so the count below is
+    :math:`\mathrm{Bin}(n, 1/2)` (``scipy.stats.binom``): the interval assumes independent, identically distributed
+    pairs and nothing of the differences' shape (the sign test inverted). It is ``nan`` where even
+    :math:`[d_{(1)}, d_{(n)}]` holds less than ``confidence`` (:math:`1 - 2/2^n`: 5 pairs give 0.9375 < 0.95)."""
+    from scipy import stats as sst
+
+    alpha = 2 * _check_confidence(confidence)
+    d = np.sort(as_array(differences).ravel())
+    n = d.size
+    if n == 0:
+        raise ValueError("a median interval needs at least one difference")
+    tails = 2 * sst.binom.cdf(np.arange(n), n, 0.5)
+    k = int((tails <= alpha * (1 + 1e-12)).sum())
+    median = float(np.median(d))
+    if k == 0:
+        return median, math.nan, math.nan, math.nan
+    return median, float(d[k - 1]), float(d[n - k]), float(1.0 - tails[k - 1])
+
+
 def paired_probability_of_improvement(baseline, transfer) -> float:
     r""":math:`\frac1n\sum_i 1[t_i > b_i] + \tfrac12 1[t_i = b_i]` over pairs ``(b_i, t_i)``."""
     d = as_array(transfer) - as_array(baseline)
@@ -411,6 +439,59 @@ def permutation_test(baseline, transfer, paired: bool = False, statistic: str = 
                                  vectorized=True, n_resamples=n_resamples, alternative="two-sided",
                                  rng=np.random.default_rng(seed))
     return float(min(1.0, res.pvalue))
+
+
+STRATIFIED_EXACT_PAIRS = 40
+"""Up to this many pairs in all the stratified sign-flip test counts every sign pattern (two halves of at most
+2^20 sums each, met by sorting); above it, a seeded Monte Carlo."""
+
+
+STRATIFIED_RESAMPLES = 99_999
+"""Random sign patterns of the stratified test's Monte Carlo: its smallest p is 1e-5, room for Holm over methods."""
+
+
+def stratified_sign_flip(strata: Sequence, seed: int = 0, n_resamples: int = STRATIFIED_RESAMPLES,
+                         exact_pairs: int = STRATIFIED_EXACT_PAIRS) -> tuple[float, float]:
+    r"""Two-sided exact sign-flip test that a method changes nothing on any target of a family:
+    ``(statistic, p)``.
+
+    ``strata``: one sequence of paired differences :math:`d_{ji} = T_{ji} - B_{ji}` a stratum (a target with its
+    own baseline). The statistic is the sum over strata of the per-stratum mean difference,
+    :math:`S = \sum_j ar d_j`, so every target weighs alike whatever its seed count. Under no effect each pair's
+    two runs are exchangeable, so each :math:`d_{ji}` keeps or flips its sign with probability 1/2, within its
+    stratum and independently of every other: :math:`p = \#\{arepsilon : |S(arepsilon)| \ge |S|\} / 2^N`
+    over all :math:`2^N` patterns of the :math:`N` pairs (exact up to ``exact_pairs``), else
+    :math:`(b + 1)/(m + 1)` with :math:`b` of :math:`m` = ``n_resamples`` seeded random patterns at least as
+    extreme. Valid at any seed count with no range or normality; one stratum gives the paired sign-flip test of
+    the mean (:func:`permutation_test`)."""
+    groups = [as_array(x).ravel() for x in strata]
+    if not groups or any(g.size == 0 for g in groups):
+        raise ValueError("every stratum needs at least one paired difference")
+    terms = np.concatenate([g / g.size for g in groups])
+    observed = float(terms.sum())
+    tol = 1e-9 * float(np.abs(terms).sum())  # sums of the same terms in another order differ in the last bits
+    if abs(observed) <= tol:
+        return observed, 1.0
+    if terms.size <= exact_pairs:
+        half = terms.size // 2
+        a, b = _signed_sums(terms[:half]), np.sort(_signed_sums(terms[half:]))
+        at_least = b.size - np.searchsorted(b, abs(observed) - a - tol, side="left")
+        at_most = np.searchsorted(b, -abs(observed) - a + tol, side="right")
+        return observed, float((at_least + at_most).sum()) / 2.0 ** terms.size
+    rng = np.random.default_rng(seed)
+    extreme = 0
+    for start in range(0, n_resamples, 10_000):
+        signs = rng.choice((-1.0, 1.0), size=(min(10_000, n_resamples - start), terms.size))
+        extreme += int((np.abs(signs @ terms) >= abs(observed) - tol).sum())
+    return observed, (extreme + 1) / (n_resamples + 1)
+
+
+def _signed_sums(x: Array) -> Array:
+    """:math:`\sum_i \varepsilon_i x_i` for every one of the :math:`2^n` sign patterns :math:`\varepsilon`."""
+    sums = np.zeros(1)
+    for v in x:
+        sums = np.concatenate([sums + v, sums - v])
+    return sums
 
 
 def holm(p_values: Sequence[float | None]) -> list[float | None]:

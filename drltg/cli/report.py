@@ -47,6 +47,17 @@ def run(args) -> int:
             for source, row in zip(result["sources"], result["table"])]
         print(f"{args.metric}:")
         print(tables.render(rows, "text", align="l" + "r" * len(result["targets"])), end="")
+        across = result["across_cells"]
+        if across is not None:
+            print(f"across all {len(across['pairs'])} paired cell(s), {across['seed_pairs']} seed pairs: "
+                  f"{across['verdict']} (mean over cells of the mean return gain {across['mean_difference']:+.4g}; "
+                  f"{across['test']} test, p = {across['p']:.3g})")
+        agg = result["aggregates"]
+        if agg is not None:
+            (iqm, (lo, hi)), (poi, (plo, phi)) = agg["difference"]["iqm"], agg["probability_of_improvement"]
+            print(f"aggregates over {len(agg['pairs'])} cells x {agg['runs_per_pair']} runs (rliable, 95% stratified "
+                  f"bootstrap): IQM difference {iqm:+.4g} [{lo:+.4g}, {hi:+.4g}], P(T > B) {poi:.3g} [{plo:.3g}, "
+                  f"{phi:.3g}]; all in transfer_matrix.json")
         print(f"wrote {result['out_dir']}/transfer_matrix.{{png,svg,csv,json}}")
         return 0
     if not args.baseline or not args.transfer:

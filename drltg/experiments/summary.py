@@ -2,7 +2,8 @@
 counts findings in, and the transfer-matrix heatmap. Pure functions of the report rows: they write nothing."""
 from __future__ import annotations
 
-__all__ = ["SUMMARY_COLUMNS", "LEVEL", "p_of", "sweep_family", "summary_tables", "summary_aggregates", "plot_transfer_matrix"]
+__all__ = ["SUMMARY_COLUMNS", "LEVEL", "p_of", "sweep_family", "across_targets", "across_targets_table",
+           "summary_tables", "summary_aggregates", "plot_transfer_matrix"]
 
 SUMMARY_COLUMNS = ("mean_return_gain", "jumpstart", "asymptotic_performance", "transfer_ratio",
                    "probability_of_improvement", "time_to_threshold_baseline", "time_to_threshold_transfer")
@@ -48,6 +49,52 @@ def sweep_family(rows: list[dict], primary_metric: str | None = None) -> tuple[d
     return adjusted, headline
 
 
+def across_targets(rows: list[dict], score: str = "mean_return", seed: int = 0) -> list[dict]:
+    r"""Per (algo, variant, method), one verdict over all the targets of the sweep: does the method change
+    ``score`` against no transfer anywhere?
+
+    Each report whose runs pair by seed is a stratum of the stratified exact sign-flip test
+    (:func:`drltg.analysis.aggregate.across_pairs`: the sum of the per-target mean differences, signs flipped within
+    each target's seed pairs), valid at any seed count with no range or normality. The methods are read together:
+    the verdict (``higher`` / ``lower`` than no transfer, else ``undecided``) is at ``LEVEL`` after Holm over them.
+    Each entry: ``algo``, ``variant``, ``method`` and :func:`~drltg.analysis.aggregate.across_pairs`'s keys, with
+    ``p_holm`` and ``verdict``."""
+    from drltg.analysis.aggregate import across_pairs
+    from drltg.analysis.stats import holm
+
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        if r.get("per_seed"):
+            groups.setdefault((r["algo"], r["variant"], r["method"]), []).append(r)
+    out = []
+    for (algo, variant, method), members in groups.items():
+        found = across_pairs([(r["pair"], r["per_seed"]) for r in members], score, seed)
+        if found is not None:
+            out.append({"algo": algo, "variant": variant, "method": method, **found})
+    for entry, adjusted in zip(out, holm([e["p"] for e in out])):
+        decided = adjusted < LEVEL and entry["mean_difference"] != 0
+        entry["p_holm"] = adjusted
+        entry["verdict"] = ("higher" if entry["mean_difference"] > 0 else "lower") if decided else "undecided"
+    return out
+
+
+def across_targets_table(entries: list[dict]) -> str:
+    """The Markdown section of :func:`across_targets`: a line that names the test and the family, then a table."""
+    from drltg.analysis import tables
+
+    if not entries:
+        return ""
+    rows = [["algo", "method", "targets", "seed pairs", "mean over targets of the mean difference", "p", "p (Holm)",
+             "verdict against no transfer"]]
+    for e in entries:
+        rows.append([e["algo"], f"{e['method']} {e['variant']}".strip(), ", ".join(e["pairs"]), e["seed_pairs"],
+                     f"{e['mean_difference']:+.3g}", f"{e['p']:.2g}", f"{e['p_holm']:.2g}", e["verdict"]])
+    return (f"Across targets: each method against no transfer over all its targets at once, by the stratified exact "
+            f"sign-flip test of the sum of the per-target mean differences in {entries[0]['score']} (signs flipped "
+            f"within each target's seed pairs; no range or normality assumed), Holm over the {len(entries)} "
+            f"method(s) at {LEVEL:g}.\n\n" + tables.render(rows, "markdown"))
+
+
 def summary_tables(rows: list[dict], primary_metric: str | None = None) -> tuple[str, str]:
     """The cells' metrics (value, CI bounds, p-value and the sweep-wide Holm-adjusted p-value) as CSV, and
     as a Markdown table under the headline of :func:`sweep_family`."""
@@ -76,8 +123,14 @@ def summary_tables(rows: list[dict], primary_metric: str | None = None) -> tuple
                 cells.append(tables.estimate(value, ci, ".3g") + mark)
         csv_rows.append(line + [r["report"] if m else "", r.get("note", "")])
         md.append([f"{r['pair']} {r['variant']}".strip(), r["algo"], r["method"], *cells, seeds or r.get("note", "")])
+    labels = sorted({m[f"{name}_ci_assumes"] for r in rows for m in [r["metrics"] or {}] for name in SUMMARY_COLUMNS
+                     if f"{name}_ci_assumes" in m})
+    assumed = "" if not labels else f" Each interval is its report's, assuming {'; or '.join(labels)}."
     md_text = (f"{headline}\n\n{tables.render(md, 'markdown')}\n"
-               f"\\* a finding: Holm-adjusted p < {LEVEL:g} within the family above.\n")
+               f"\\* a finding: Holm-adjusted p < {LEVEL:g} within the family above.{assumed}\n")
+    across = across_targets_table(across_targets(rows))
+    if across:
+        md_text += f"\n{across}"
     return tables.render(csv_rows, "csv"), md_text
 
 

@@ -59,7 +59,7 @@ from drltg.errors import UsageError
 from drltg.experiments.backends import LocalBackend, RayBackend
 from drltg.experiments.executor import Run, execute, frames_done, registrations, seed_groups
 from drltg.experiments.spec import Spec, load_spec, parse_spec
-from drltg.experiments.summary import plot_transfer_matrix, summary_aggregates, summary_tables
+from drltg.experiments.summary import across_targets, plot_transfer_matrix, summary_aggregates, summary_tables
 from drltg.store import rundir
 
 
@@ -336,6 +336,8 @@ def _write_summary(spec: Spec, out: Path, runs: list[Run], cells: list[Cell], st
     if any(r["metrics"] for r in rows):
         files["transfer_matrix.png"] = plot_transfer_matrix(rows, metric)
     files.update(summary_aggregates(rows))
+    if across := across_targets(rows):
+        files["across_targets.json"] = (json.dumps(across, indent=1) + "\n").encode()
     rundir.write_files(out, files)
     return {"rows": rows, "status": {r.path: status[r.path] for r in runs}, "summary": md_text,
             "logs": {r.path: r.log for r in runs}}

@@ -79,6 +79,7 @@ def _compare(metric: Metric, b: np.ndarray, t: np.ndarray, paired: bool, w: Wind
         ci, why = _confidence_interval(metric, value, b, t, paired, w, s)
         if ci is not None:
             out[f"{metric.name}_ci"] = ci
+            out[f"{metric.name}_ci_assumes"] = interval_assumes(metric.kind, paired, s.interval)
             out.update(_p_values(metric, b, t, paired, w, s, warnings))
         else:
             if why and why not in warnings:
@@ -88,6 +89,57 @@ def _compare(metric: Metric, b: np.ndarray, t: np.ndarray, paired: bool, w: Wind
     if metric.iqm:
         out[f"{metric.name}_iqm"] = _estimate(metric, b, t, paired, M.interquartile_mean, w.scale, eps)
     out.update(_verdict(metric, value, b, t, paired, s, out))
+    if enough and metric.kind == "difference":
+        out.update(magnitudes(metric.name, b, t, paired, w, s))
+    return out
+
+
+ASSUMES = {
+    "range": "only the declared range (worst case over it)",
+    "normal differences": "normal differences",
+    "normal scores": "normal scores on each side",
+    "normal areas": "normal areas (Fieller)",
+    "resampling": "that the seeds stand for their distribution (bootstrap)",
+    "pairs": "independent pairs, any shape",
+    "runs": "independent runs, a normal approximation of the score (Newcombe)",
+    "line": "normal scatter about a straight line",
+}
+"""What each interval assumes, as ``<key>_assumes`` gives it beside every ``<key>`` interval in the metrics: the
+test that decides a verdict assumes none of these (exchangeable runs under no effect only)."""
+
+
+def interval_assumes(kind: str, paired: bool, interval: str) -> str:
+    """The label of the ``<name>_ci`` of a comparison of ``kind`` under ``--interval interval``."""
+    if kind == "poi":
+        return ASSUMES["pairs" if paired else "runs"]
+    if interval == "auto":
+        return ASSUMES["range"]
+    if kind == "ratio":
+        return ASSUMES["normal areas"]
+    if interval in ("t", "welch"):
+        return ASSUMES["normal differences" if paired else "normal scores"]
+    return ASSUMES["resampling"]
+
+
+def magnitudes(name: str, b: np.ndarray, t: np.ndarray, paired: bool, w: Window, s: ReportSettings) -> dict:
+    r"""The magnitudes beside a mean difference's verdict, each with what it assumes (``<key>_assumes``):
+    ``<name>_t_interval``, the t interval (paired on :math:`d_i`, or Welch's standard error with Hsu's degrees of
+    freedom), which assumes normal differences (scores); and, paired, ``<name>_median`` of the :math:`d_i` with
+    ``<name>_median_interval``, the order-statistic interval of their median (:func:`stats.median_interval`, at the
+    coverage ``<name>_median_interval_level`` it holds, at least ``confidence``), which assumes independent pairs
+    only. Each is left out where it does not exist (no spread; too few pairs for the order statistics)."""
+    out: dict = {}
+    lo, hi = (float(x) for x in stats.t_interval(b, t, paired=paired, confidence=float(s.confidence)))
+    if math.isfinite(lo) and math.isfinite(hi):
+        out[f"{name}_t_interval"] = _within(lo, hi, w.value_range)
+        out[f"{name}_t_interval_assumes"] = ASSUMES["normal differences" if paired else "normal scores"]
+    if paired:
+        median, lo, hi, level = stats.median_interval(t - b, float(s.confidence))
+        out[f"{name}_median"] = median
+        if math.isfinite(lo):
+            out[f"{name}_median_interval"] = [lo, hi]
+            out[f"{name}_median_interval_level"] = level
+            out[f"{name}_median_interval_assumes"] = ASSUMES["pairs"]
     return out
 
 
@@ -310,6 +362,7 @@ def _trend_values(metric: Metric, side: str, tr: dict, s: ReportSettings, warnin
     out = {metric.key(side): tr["change"]}
     if tr["ci"] is not None:
         out[f"{metric.key(side)}_ci"] = tr["ci"]
+        out[f"{metric.key(side)}_ci_assumes"] = ASSUMES["line"]
         out[f"{metric.key(side)}_p_value"] = tr["p_value"]
     if tr["verdict"].startswith("still"):
         warnings.append(

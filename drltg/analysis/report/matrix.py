@@ -69,6 +69,8 @@ def transfer_matrix(
         "metric": metric,
         "cells": [{"source": source, "target": target, "metrics": r["metrics"], "settings": r["settings"]}
                   for (source, target), r in results.items()],
+        "across_cells": across_cells(results, s.seed, 1.0 - float(s.confidence)),
+        "aggregates": cell_aggregates(results, s.seed, float(s.confidence)),
     }
     out = Path(out_dir) if out_dir is not None else fresh_dir(f"matrix-{metric}")
     rundir.write_files(out, {
@@ -78,3 +80,32 @@ def transfer_matrix(
         "transfer_matrix.svg": svg,
     })
     return {**obj, "out_dir": str(out), "table": table.tolist(), "sources": sources, "targets": targets}
+
+
+def across_cells(results: dict, seed: int = 0, level: float = 0.05) -> dict | None:
+    """The transfer runs against the baseline over every cell at once (:func:`drltg.analysis.aggregate.across_pairs`:
+    the stratified exact sign-flip test of the sum of the cells' mean return gains, a stratum a cell), with its
+    verdict at ``level``: ``higher`` / ``lower`` / ``undecided``; ``None`` where no cell pairs its runs by seed."""
+    from drltg.analysis.aggregate import across_pairs
+
+    found = across_pairs([(f"{source} -> {target}", r["per_seed"]) for (source, target), r in results.items()],
+                         seed=seed)
+    if found is None:
+        return None
+    decided = found["p"] < level and found["mean_difference"] != 0
+    return {**found, "verdict": ("higher" if found["mean_difference"] > 0 else "lower") if decided else "undecided"}
+
+
+def cell_aggregates(results: dict, seed: int = 0, confidence: float = 0.95) -> dict | None:
+    """rliable's aggregates of the transfer runs against the baseline over the cells
+    (:func:`drltg.analysis.aggregate.sweep_aggregates`: IQM, median, mean, optimality gap and P(T > B) of the per-seed
+    mean returns, normalised by each cell's value range where it has one, with stratified-bootstrap intervals);
+    ``None`` for a single cell."""
+    from drltg.analysis.aggregate import sweep_aggregates
+
+    if len(results) < 2:
+        return None
+    rows = [{"pair": f"{source} -> {target}", "algo": "", "variant": "", "method": "transfer", "per_seed": r["per_seed"],
+             "value_range": r["settings"].get("value_range")} for (source, target), r in results.items()]
+    entries = sweep_aggregates(rows, seed=seed, confidence=confidence)
+    return entries[0] if entries else None

@@ -7,7 +7,8 @@ import re
 from pathlib import Path
 
 from drltg.analysis import tables
-from drltg.analysis.report.catalogue import table_rows
+from drltg.analysis.report.catalogue import of_kind, table_rows
+from drltg.analysis.report.inference import ASSUMES
 from drltg.analysis.tables import number
 from drltg.errors import UsageError
 from drltg.store import rundir
@@ -52,10 +53,45 @@ def format_table(result: dict) -> str:
         + f"; {st.get('pairing', 'unpaired').split(':')[0]}\n"
         + _family_line(st) + "\n\n"
     )
-    rows = [("metric", "value", f"{round(100 * st['confidence'])}% CI", "p", "p (Holm)", "note")]
-    rows += [(name, _shown(name, value, st["threshold"]), tables.interval((lo, hi)), _p(p), _p(adjusted),
+    rows = [("metric", "value", f"{round(100 * st['confidence'])}% CI", "CI assumes", "p", "p (Holm)", "note")]
+    rows += [(name, _shown(name, value, st["threshold"]), tables.interval((lo, hi)),
+              m.get(f"{name}_ci_assumes", "") if tables.interval((lo, hi)) else "", _p(p), _p(adjusted),
               _note(name, st)) for name, value, lo, hi, p, adjusted in metrics_rows(m)]
-    return head + tables.render(rows, "text", align="lrlrrl").rstrip("\n")
+    table = head + tables.render(rows, "text", align="lrllrrl").rstrip("\n")
+    block = magnitudes_table(result)
+    return table if not block else f"{table}\n\n{block}"
+
+
+def magnitudes_table(result: dict, style: str = "text") -> str:
+    """The mean differences' verdicts (the exact test's) beside their magnitudes, each column headed by what it
+    assumes: the t interval, the median difference's order-statistic interval, and the betting interval as the
+    worst case over the declared range; empty where the report gives no verdict."""
+    m, st = result["metrics"], result["settings"]
+    names = [metric.name for metric in of_kind("difference") if f"{metric.name}_verdict" in m]
+    if not names:
+        return ""
+    level = f"{round(100 * st['confidence'])}%"
+    rng = st.get("value_range")
+    columns = [("_t_interval", f"mean, {'paired ' if st.get('paired') else ''}t {level}", None),
+               ("_median_interval", f"median, order statistics (>= {level})", "_median"),
+               ("_ci", "worst case over the declared range" + (f" [{number(rng[0])}, {number(rng[1])}]" if rng else ""),
+                None)]
+    columns = [c for c in columns if any(m.get(f"{n}{c[0]}_assumes") for n in names)
+               and (c[0] != "_ci" or any(m.get(f"{n}_ci_assumes") == ASSUMES["range"] for n in names))]
+    assumes = {key: next(m[f"{n}{key}_assumes"] for n in names if m.get(f"{n}{key}_assumes")) for key, *_ in columns}
+    rows = [("metric", "verdict (exact test)", *(head for _, head, _ in columns)),
+            ("", "assumes exchangeable runs under no effect", *(f"assumes {assumes[key]}" for key, *_ in columns))]
+    for n in names:
+        p = m[f"{n}_verdict_p"]
+        verdict = f"{m[f'{n}_verdict']} ({m[f'{n}_verdict_test']}, p {'< 0.001' if p < 0.001 else f'= {p:.3f}'}"
+        if m[f"{n}_verdict"] == "equivalent":  # TOST, unlike the exact test, assumes what a t interval does
+            verdict += f", assuming {ASSUMES['normal differences' if st.get('paired') else 'normal scores']}"
+        verdict += ")"
+        cells = [tables.estimate(m[n] if point is None else m.get(f"{n}{point}"), m.get(f"{n}{key}"))
+                 if m.get(f"{n}{key}") else "" for key, _, point in columns]
+        rows.append((n, verdict, *cells))
+    title = "mean differences: the verdict, and magnitudes beside it, each with what it assumes\n"
+    return title + tables.render(rows, style).rstrip("\n")
 
 
 def _p(p) -> str:
