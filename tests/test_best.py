@@ -340,6 +340,7 @@ def test_a_source_without_best_pt_is_one_sentence(trained, tmp_path, capsys):
 
     src = shutil.copytree(trained, tmp_path / "src")
     (src / "checkpoints" / "best.pt").unlink()
+    (src / "checkpoints" / "best.safetensors").unlink()
     assert main(["train", "fourrooms/northeast", "--run-dir", str(tmp_path / "t"), "-o", "transfer.method=model-reuse",
                  "-o", f"transfer.source={src}", "-o", "transfer.source_checkpoint=best"]) == 2
     err = capsys.readouterr().err.strip()
