@@ -75,7 +75,7 @@ def test_the_networks_file_is_a_header_and_raw_tensor_bytes_only(source):
     data = (source / networks.NETWORKS["last"]).read_bytes()
     (size,) = struct.unpack("<Q", data[:8])
     entries = json.loads(data[8:8 + size])
-    assert entries.pop("__metadata__")["format"] == "drltg networks"
+    assert json.loads(entries.pop("__metadata__")["drltg"])["format"] == "drltg networks"
     body, weights = data[8 + size:], checkpoint(source)["loss"]
     assert set(entries) == set(weights)
     spans = sorted(tuple(e["data_offsets"]) for e in entries.values())
@@ -156,3 +156,10 @@ def test_a_run_from_before_networks_files_is_read_from_its_checkpoint(source, tm
     (run / manifest.MANIFEST).write_text(manifest.dumps(files))
     for name in ("last", "best"):
         assert same(drltg.transfer.load_agent(run, checkpoint=name).loss.state_dict(), checkpoint(source, name)["loss"])
+
+
+def test_the_same_networks_give_the_same_bytes(source):
+    """A run reproduced bit for bit writes the same file (safetensors orders its metadata entries anew each
+    time, so drltg keeps its own in one entry)."""
+    weights, info = rundir.load_networks(source)
+    assert {networks.encode(weights, **info) for _ in range(20)} == {(source / networks.NETWORKS["last"]).read_bytes()}

@@ -34,7 +34,8 @@ def encode(loss_state: dict, frames: int, updates: int) -> bytes:
     from safetensors.torch import save
 
     tensors = {name: value.detach().to("cpu", copy=True).contiguous() for name, value in loss_state.items()}
-    return save(tensors, metadata={"format": FORMAT, "frames": str(frames), "updates": str(updates)})
+    info = json.dumps({"format": FORMAT, "frames": frames, "updates": updates}, sort_keys=True)
+    return save(tensors, metadata={"drltg": info})  # one entry: safetensors writes a mapping in no fixed order
 
 
 def header(data: bytes, path: Path) -> dict:
@@ -42,10 +43,10 @@ def header(data: bytes, path: Path) -> dict:
     :class:`UsageError` sentence."""
     try:
         (size,) = struct.unpack("<Q", data[:8])
-        meta = json.loads(data[8:8 + size])["__metadata__"]
-        if meta["format"] != FORMAT:
+        meta = json.loads(json.loads(data[8:8 + size])["__metadata__"]["drltg"])
+        if meta["format"] != FORMAT or not all(type(meta[k]) is int for k in ("frames", "updates")):
             raise ValueError
-        return {"frames": int(meta["frames"]), "updates": int(meta["updates"])}
+        return {"frames": meta["frames"], "updates": meta["updates"]}
     except (struct.error, ValueError, KeyError, TypeError):
         raise UsageError(f"'{path}' is not a drltg networks file (safetensors with drltg's header).") from None
 

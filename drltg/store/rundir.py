@@ -4,7 +4,7 @@
     eval.csv             frames,return_mean,return_std,episodes[,success_rate,lifted_rate,pushed_rate]  (one row per
                          evaluation; a rate column the earlier rows of a resumed run lack is empty there)
     logs/csv/, logs/tensorboard/   training scalars (TorchRL CSVLogger + TensorboardLogger)
-    checkpoints/last.pt  weights, optimizer, replay buffer and RNG state (for --resume and model reuse)
+    checkpoints/last.pt  weights, optimizer, replay buffer and RNG state (for --resume)
     checkpoints/best.pt  with checkpoint.keep_best: the same, saved at the best evaluation (drltg.training.best)
     checkpoints/last.safetensors, best.safetensors   the networks of last.pt and best.pt alone, saved with
                          them: what reusing the run as a source reads (drltg.store.networks)

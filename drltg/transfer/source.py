@@ -74,10 +74,10 @@ def _check_source_run(run: Path, t: TransferConfig) -> None:
     if not (run / CONFIG).is_file():
         raise UsageError(f"transfer.source '{t.source}' holds no {CONFIG}; is it a drltg run directory?")
     if not is_complete(run) and not t.allow_incomplete:
-        saved = networks.read_header(run, t.source_checkpoint) or {}
+        frames = load_networks(run, t.source_checkpoint)[1]["frames"]
         raise UsageError(
             f"transfer.source '{t.source}' did not finish (no {SUMMARY}; its checkpoint is at frame "
-            f"{saved.get('frames', '?')}); finish it with `drltg train --resume --run-dir {t.source}`, or reuse it "
+            f"{frames}); finish it with `drltg train --resume --run-dir {t.source}`, or reuse it "
             "as it is with transfer.allow_incomplete=true."
         )
 
