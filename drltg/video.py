@@ -54,9 +54,10 @@ def _policy_and_env(args):
         return policy, env, env, "demonstrator", args.task
 
     run = Path(args.source).expanduser().resolve()
-    config, checkpoint = run / rundir.CONFIG, run / rundir.CHECKPOINT
-    if not config.is_file() or not checkpoint.is_file():
-        raise UsageError(f"'{run}' is not a run directory with {rundir.CONFIG} and {rundir.CHECKPOINT.as_posix()}.")
+    config = run / rundir.CONFIG
+    if not config.is_file():
+        raise UsageError(f"'{run}' is not a run directory: it holds no {rundir.CONFIG}.")
+    weights, _ = rundir.load_networks(run)
     from torchrl.envs import TransformedEnv
 
     from drltg import config as config_lib
@@ -72,7 +73,7 @@ def _policy_and_env(args):
         check_same_spaces(build_env(cfg), base, f"run '{run.name}' ({cfg.task})",
                           f"task '{task}'")
     agent = make_agent(base, cfg)
-    agent.loss.load_state_dict(rundir.load_checkpoint(run)["loss"])
+    agent.loss.load_state_dict(weights)
     env = TransformedEnv(base)
     for transform in agent.env_transforms:
         env.append_transform(transform.clone())

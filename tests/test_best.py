@@ -5,6 +5,7 @@ best.pt must come from is known; the weights at each evaluation are recorded to 
 """
 import json
 import math
+from pathlib import Path
 
 import pytest
 import torch
@@ -14,7 +15,7 @@ import drltg.training.loop as loop
 from drltg import config as config_lib
 from drltg.cli import main
 from drltg.errors import UsageError
-from drltg.store import rundir
+from drltg.store import networks, rundir
 from drltg.training.loop import read_eval_csv, train
 
 TINY = [
@@ -160,6 +161,27 @@ def test_a_stop_between_last_pt_and_best_pt_is_repaired_on_resume(tmp_path, monk
     run = train(keep_best_cfg(), tmp_path / "run", resume=True, progress=False)
     assert load(run)["frames"] == 512 and same(load(run)["loss"], weights[512])
     rundir.manifest.verify(run, "checkpoints/best.pt")
+
+
+def test_a_stop_between_best_pt_and_its_networks_file_is_repaired_on_resume(tmp_path, monkeypatch):
+    """best.safetensors is written after best.pt; stopped between them, the run holds the networks of the
+    previous best beside the new best.pt, and no later evaluation improves on it to write them again."""
+    weights = script(monkeypatch, rows({0: 0.0, 256: 0.25, 512: 0.5, 768: 0.5, 1024: 0.0}))
+    real = rundir.write_tracked
+
+    def stop_before_networks(run_dir, name, data):
+        if name == "checkpoints/best.safetensors" and networks.header(data, Path(name))["frames"] == 512:
+            raise KeyboardInterrupt
+        return real(run_dir, name, data)
+
+    monkeypatch.setattr(rundir, "write_tracked", stop_before_networks)
+    with pytest.raises(KeyboardInterrupt):
+        train(keep_best_cfg(), tmp_path / "run", progress=False)
+    assert load(tmp_path / "run")["frames"] == 512 and networks.read_header(tmp_path / "run", "best")["frames"] == 256
+    monkeypatch.setattr(rundir, "write_tracked", real)
+    run = train(keep_best_cfg(), tmp_path / "run", resume=True, progress=False)
+    saved, info = rundir.load_networks(run, "best")
+    assert info["frames"] == 512 and same(saved, weights[512]) and same(saved, load(run)["loss"])
 
 
 def test_a_resume_without_the_best_pt_is_refused_in_one_sentence(tmp_path, monkeypatch, capsys):
@@ -339,6 +361,7 @@ def test_a_source_without_best_pt_is_one_sentence(trained, tmp_path, capsys):
 
     src = shutil.copytree(trained, tmp_path / "src")
     (src / "checkpoints" / "best.pt").unlink()
+    (src / "checkpoints" / "best.safetensors").unlink()
     assert main(["train", "fourrooms/northeast", "--run-dir", str(tmp_path / "t"), "-o", "transfer.method=model-reuse",
                  "-o", f"transfer.source={src}", "-o", "transfer.source_checkpoint=best"]) == 2
     err = capsys.readouterr().err.strip()

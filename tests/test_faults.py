@@ -53,7 +53,7 @@ def damage(path: Path, rng: random.Random) -> str:
 
 def read_everything(run: Path) -> None:
     """What drltg reads of a finished run: its curve and config (report), every logged scalar file, its
-    checkpoint (model or policy reuse, video) and its summary."""
+    checkpoint (resume), its networks file (reuse, evaluate, video) and its summary."""
     from drltg.analysis.curves import read_csvlogger, read_run, read_tensorboard
 
     read_run(run)
@@ -62,6 +62,7 @@ def read_everything(run: Path) -> None:
     for path in sorted((run / "logs" / "tensorboard").rglob("*tfevents*")):
         read_tensorboard(path)
     rundir.load_checkpoint(run)
+    rundir.load_networks(run)
     status = rundir.summary_status(run)
     if status[0] != "complete":
         raise UsageError(status[1])

@@ -15,6 +15,7 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
+import torch
 
 from drltg.cli import main
 from drltg.store import atomic, manifest, rundir
@@ -69,6 +70,11 @@ def _finished_like(run: Path, reference: Path) -> str | None:
         return "not complete"
     for name in manifest.read(run):
         manifest.verify(run, name)
+    saved, info = rundir.load_networks(run)
+    ckpt = torch.load(run / rundir.CHECKPOINT, weights_only=True)
+    if info != {"frames": ckpt["frames"], "updates": ckpt["updates"]} or saved.keys() != ckpt["loss"].keys() or not all(
+            torch.equal(saved[k], ckpt["loss"][k]) for k in saved):
+        return f"last.safetensors holds the networks of frame {info['frames']}, not those of last.pt"
     frames = [[r["frames"] for r in rundir.read_eval_csv(d / "eval.csv")] for d in (run, reference)]
     return None if frames[0] == frames[1] else f"evaluations at {frames[0]}, not {frames[1]}"
 
@@ -79,7 +85,8 @@ def test_a_run_killed_at_any_write_is_finished_by_resuming_it(tmp_path, after):
     code, renames = _run(train_args(reference))
     assert code == 0
     names = Counter(Path(dst).relative_to(reference).as_posix() for dst in renames)
-    assert {"config.yaml", "manifest.json", "eval.csv", "checkpoints/last.pt", "summary.json"} <= set(names)
+    assert {"config.yaml", "manifest.json", "eval.csv", "checkpoints/last.pt", "checkpoints/last.safetensors",
+            "summary.json"} <= set(names)
     assert names["checkpoints/last.pt"] >= 2  # the first checkpoint and a later one
     wrong = []
     for k, dst in enumerate(renames, 1):

@@ -131,7 +131,8 @@ def test_refuses_when_nothing_matches():
         load_weights(nn.Linear(3, 2), nn.Linear(2, 2).state_dict(), input_map=[0, 1, 2])
 
 
-def test_load_from_run_reads_the_checkpoint(tmp_path):
+def test_load_from_run_reads_a_run_without_networks_file_from_its_checkpoint(tmp_path):
+    """A run written before networks files: a checkpoint, no manifest."""
     source, target = agent(seed=0), agent(observe_goal=True, seed=1)
     (tmp_path / "checkpoints").mkdir()
     torch.save({"loss": source.loss.state_dict(), "frames": 10}, tmp_path / "checkpoints" / "last.pt")

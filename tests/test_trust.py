@@ -11,7 +11,7 @@ import torch
 
 from drltg.cli import main
 from drltg.errors import UsageError
-from drltg.store import manifest, rundir
+from drltg.store import manifest, networks, rundir
 from tests.test_reliability import (
     one_sentence,
     source,  # noqa: F401  (fixture: a finished tiny SAC run)
@@ -42,6 +42,17 @@ def poison(run, marker, name="last"):
         (run / manifest.MANIFEST).write_text(manifest.dumps(files))
 
 
+def as_old_run(run):
+    """``run`` as drltg wrote runs before networks files: reusing it reads the networks from the checkpoint."""
+    files = manifest.read(run)
+    for name in networks.NETWORKS.values():
+        (run / name).unlink(missing_ok=True)
+        files.pop(name.as_posix(), None)
+    if files:
+        (run / manifest.MANIFEST).write_text(manifest.dumps(files))
+    return run
+
+
 @pytest.fixture(scope="module")
 def unfinished(tmp_path_factory):
     """A run whose checkpoint is at frame 128 of a 256-frame budget (summary.json removed)."""
@@ -61,8 +72,15 @@ def marker(tmp_path):
 
 @pytest.fixture
 def evil(source, tmp_path, marker):  # noqa: F811
-    run = tmp_path / "evil"
-    shutil.copytree(source, run)
+    run = as_old_run(shutil.copytree(source, tmp_path / "evil"))
+    poison(run, marker)
+    return run
+
+
+@pytest.fixture
+def evil_beside_networks(source, tmp_path, marker):  # noqa: F811
+    """The poisoned checkpoint in a run that has its networks file."""
+    run = shutil.copytree(source, tmp_path / "evil-with-networks")
     poison(run, marker)
     return run
 
@@ -115,8 +133,7 @@ def test_load_actor_refuses_it(evil):
 
 
 def test_the_preflight_of_an_unfinished_source_refuses_it(unfinished, tmp_path, marker, capsys):
-    reused = tmp_path / "source"
-    shutil.copytree(unfinished, reused)
+    reused = as_old_run(shutil.copytree(unfinished, tmp_path / "source"))
     poison(reused, marker)
     reuse = ["-o", "transfer.method=policy-reuse", "-o", f"transfer.source={reused}"]
     one_sentence(capsys, main(train_args(tmp_path / "t", *reuse)), 2, "never allowed to run code")
@@ -138,6 +155,22 @@ def test_an_experiment_worker_refuses_it(evil, tmp_path, marker, capsys):
     out = capsys.readouterr().out
     assert code != 0 and "failed runs:" in out and "never allowed to run code" in out, out
     assert "Traceback" not in out
+
+
+@pytest.mark.parametrize("command", ["model-reuse", "policy-reuse", "value-shaping", "evaluate", "video", "load_actor"])
+def test_what_reads_only_the_networks_never_opens_the_checkpoint(evil_beside_networks, tmp_path, command, capsys):
+    """Reusing, evaluating or filming a run reads its networks file: the poisoned checkpoint beside it is
+    not opened, so the run works and the payload never runs (the ``marker`` fixture checks)."""
+    run = evil_beside_networks
+    if command == "load_actor":
+        from drltg.transfer import load_actor
+
+        load_actor(run)
+        return
+    args = {"evaluate": ["evaluate", str(run), "--episodes", "2"],
+            "video": ["video", str(run), "--out", str(tmp_path / "v"), "--max-steps", "5"]}.get(command) or \
+        train_args(tmp_path / "t", "-o", f"transfer.method={command}", "-o", f"transfer.source={run}")
+    assert main(args) == 0, capsys.readouterr().err
 
 
 def test_committed_checkpoints_read_as_data():

@@ -4,8 +4,10 @@
     eval.csv             frames,return_mean,return_std,episodes[,success_rate,lifted_rate,pushed_rate]  (one row per
                          evaluation; a rate column the earlier rows of a resumed run lack is empty there)
     logs/csv/, logs/tensorboard/   training scalars (TorchRL CSVLogger + TensorboardLogger)
-    checkpoints/last.pt  weights, optimizer, replay buffer and RNG state (for --resume and model reuse)
+    checkpoints/last.pt  weights, optimizer, replay buffer and RNG state (for --resume)
     checkpoints/best.pt  with checkpoint.keep_best: the same, saved at the best evaluation (drltg.training.best)
+    checkpoints/last.safetensors, best.safetensors   the networks of last.pt and best.pt alone, saved with
+                         them: what reusing the run as a source reads (drltg.store.networks)
     model_reuse.txt      what model reuse loaded (model-reuse runs)
     summary.json         the run is finished when it exists: status complete (or diverged, with the reason)
     manifest.json        SHA-256 of the checkpoints and eval.csv, and when the run ends (written last) of
@@ -27,7 +29,7 @@ from typing import Any
 
 from drltg.errors import UsageError
 from drltg.regular import MAX_LOG_BYTES, MAX_META_BYTES, read_bytes
-from drltg.store import manifest
+from drltg.store import manifest, networks
 from drltg.store.atomic import atomic_path, atomic_write, refuse_special, write_directory, write_files
 from drltg.store.lock import LOCK, lock
 
@@ -50,7 +52,7 @@ EVAL_COLUMNS = ["frames", "return_mean", "return_std", "episodes", *(f"{flag}_ra
 __all__ = ["atomic_write", "atomic_torch_save", "atomic_path", "write_files", "write_directory", "read_eval_csv",
            "write_eval_csv", "read_config", "write_config", "absolute_source", "is_complete", "check_directory",
            "check_contents", "refuse_special", "lock",
-           "load_checkpoint", "checkpoint_path", "missing_checkpoint", "truncate_logs", "RunWriter"]
+           "load_checkpoint", "load_networks", "checkpoint_path", "missing_checkpoint", "truncate_logs", "RunWriter"]
 
 
 # ------------------------------------------------------------------------------------------ config
@@ -354,6 +356,51 @@ def load_checkpoint(run_dir: str | Path, map_location="cpu", mmap: bool = False,
     return ckpt
 
 
+def has_networks(run_dir: str | Path, checkpoint: str = "last") -> bool:
+    """Whether :func:`load_networks` finds the networks of ``checkpoint``: its networks file, or for a run
+    written before drltg saved one, the checkpoint itself."""
+    run = Path(run_dir)
+    return (run / networks.NETWORKS[checkpoint]).is_file() or (
+        (run / checkpoint_path(checkpoint)).is_file() and not networks.listed(run, checkpoint))
+
+
+def load_networks(run_dir: str | Path, checkpoint: str = "last", map_location="cpu") -> tuple[dict, dict]:
+    """``(loss state dict, {"frames", "updates"})``: the networks of a run's ``checkpoint`` (``last`` or
+    ``best``) from ``checkpoints/<checkpoint>.safetensors`` (:mod:`drltg.store.networks`), never from the
+    training checkpoint. A run written before drltg saved networks files has none, and its manifest does
+    not list one: its networks are read from the checkpoint's ``"loss"`` entry instead, as data only
+    (:func:`load_checkpoint`); that is the only path on which reusing a run opens its checkpoint."""
+    run = Path(run_dir)
+    check_contents(run)
+    ckpt_name = checkpoint_path(checkpoint)  # refuses a name other than last or best
+    name = networks.NETWORKS[checkpoint]
+    if (run / name).is_file():
+        return networks.load(run, checkpoint, map_location)
+    if networks.listed(run, checkpoint):
+        raise UsageError(f"'{run_dir}' holds no {name.as_posix()} though its manifest lists it; restore the file, "
+                         "or train the run again.")
+    if not (run / ckpt_name).is_file():
+        raise UsageError(missing_checkpoint(run_dir, checkpoint))
+    ckpt = load_checkpoint(run, map_location=map_location, mmap=True, checkpoint=checkpoint)
+    return ckpt["loss"], {"frames": ckpt.get("frames"), "updates": ckpt.get("updates")}
+
+
+def sync_networks(run_dir: str | Path, checkpoint: str, ckpt: dict | None = None) -> None:
+    """Make the networks file of ``checkpoint`` hold its checkpoint's networks, as a resumed run starts.
+    Each checkpoint is written before its networks file, so a kill between the two leaves the file of an
+    earlier checkpoint (or none); ``last``'s is written again at the next checkpoint, but ``best``'s only at
+    the next improvement, so both are compared here (``frames`` and ``updates``) and rewritten where they
+    differ. ``ckpt``: the checkpoint already loaded, if any."""
+    run = Path(run_dir)
+    if not (run / checkpoint_path(checkpoint)).is_file():
+        return
+    ckpt = ckpt if ckpt is not None else load_checkpoint(run, mmap=True, checkpoint=checkpoint)
+    saved = networks.read_header(run, checkpoint)
+    if saved != {"frames": ckpt["frames"], "updates": ckpt["updates"]}:
+        write_tracked(run, networks.NETWORKS[checkpoint].as_posix(),
+                      networks.encode(ckpt["loss"], ckpt["frames"], ckpt["updates"]))
+
+
 # -------------------------------------------------------------------------------------------- logs
 def truncate_logs(run_dir: str | Path, frame: int, tensorboard: bool = False) -> None:
     """Drop every logged scalar after ``frame`` (CSVLogger files and TensorBoard event files).
@@ -453,11 +500,13 @@ class RunWriter:
     def checkpoint(self, state: dict, frames: int, updates: int, *, last: bool = True, best: bool = False) -> None:
         """Save ``state`` (weights, optimiser, buffer, RNG) with the counters a resume needs, as ``last.pt``
         and, for the best evaluation so far (:mod:`drltg.training.best`), the same content as ``best.pt``
-        after it."""
+        after it; each checkpoint's networks alone after it (``last.safetensors``, ``best.safetensors``)."""
         evaluations = [r["frames"] for r in self.rows]
-        for name in [CHECKPOINT] * last + [BEST] * best:
+        weights = networks.encode(state["loss"], frames, updates)
+        for name in ["last"] * last + ["best"] * best:
             atomic_torch_save({**state, "frames": frames, "updates": updates, "evaluations": evaluations},
-                              self.run_dir / name)
+                              self.run_dir / CHECKPOINTS[name])
+            write_tracked(self.run_dir, networks.NETWORKS[name].as_posix(), weights)
 
     def finish(self, frames: int, updates: int, wall: float, timed_frames: int, extra: dict | None = None) -> None:
         """Write summary.json: the run is complete. ``wall`` is the time of the last start (a resumed run's

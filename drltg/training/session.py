@@ -205,6 +205,8 @@ def resume_state(cfg: RunConfig, run_dir: Path) -> tuple[dict | None, list[dict]
             "it or start the run again in another --run-dir."
         )
     best.check_resume(cfg, run_dir, ckpt, rows)
+    for name in ("last", "best"):
+        rundir.sync_networks(run_dir, name, ckpt if name == "last" else None)
     return ckpt, rows
 
 

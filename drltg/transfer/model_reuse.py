@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 from pydantic import Field
 
 from drltg.config import Bool, RunConfig, Str
-from drltg.store.rundir import MODEL_REUSE, load_checkpoint
+from drltg.store.rundir import MODEL_REUSE, load_networks
 from drltg.transfer.registry import Transfer, TransferMethod
 
 if TYPE_CHECKING:
@@ -19,16 +19,16 @@ if TYPE_CHECKING:
 
 
 def load_from_run(loss_module: nn.Module, run_dir: str | Path, *, checkpoint: str = "last", **kwargs) -> LoadReport:
-    """Initialise ``loss_module`` from ``<run_dir>/checkpoints/last.pt`` (``checkpoint="best"``: ``best.pt``),
-    its ``"loss"`` entry.
+    """Initialise ``loss_module`` from the networks of ``<run_dir>/checkpoints/last.pt`` (``checkpoint="best"``:
+    of ``best.pt``), read from their networks file ``last.safetensors`` without opening the training checkpoint.
 
-    Keyword arguments go to :func:`load_weights`. The checkpoint is read as data only
-    (:func:`drltg.store.rundir.load_checkpoint`): a run from anyone can be loaded.
+    Keyword arguments go to :func:`load_weights`. The file is data only and checked against the run's
+    manifest (:func:`drltg.store.rundir.load_networks`): a run from anyone can be loaded.
     """
     from drltg.modules.weights import load_weights
 
-    saved = load_checkpoint(Path(run_dir).expanduser(), checkpoint=checkpoint)
-    return load_weights(loss_module, saved["loss"], **kwargs)
+    saved, _ = load_networks(Path(run_dir).expanduser(), checkpoint)
+    return load_weights(loss_module, saved, **kwargs)
 
 
 def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:

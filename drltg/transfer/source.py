@@ -1,7 +1,8 @@
 """Where transferred knowledge comes from: ``transfer.source``, a source run or a scripted demonstrator.
 
-``transfer.source`` is a drltg run directory (its ``config.yaml`` and ``checkpoints/last.pt``, or
-``checkpoints/best.pt`` with ``transfer.source_checkpoint=best``), or for methods that reuse a policy on
+``transfer.source`` is a drltg run directory (its ``config.yaml`` and the networks of ``checkpoints/last.pt``,
+or of ``checkpoints/best.pt`` with ``transfer.source_checkpoint=best``, read from the networks file saved
+beside each, :mod:`drltg.store.networks`), or for methods that reuse a policy on
 the manipulation tasks ``demonstrator:TASK``, the scripted policy of ``TASK``
 (:func:`drltg.envs.robosuite.demonstrator_for`) acting as the past policy. :func:`check` runs before
 anything is trained or written; :func:`source_actor` rebuilds the past policy. In user code,
@@ -18,13 +19,16 @@ from drltg.config import RunConfig, TransferConfig
 from drltg.envs import make_env
 from drltg.envs.robosuite.layout import TASKS as MANIPULATION
 from drltg.errors import UsageError
+from drltg.store import networks
+from drltg.store.networks import NETWORKS
 from drltg.store.rundir import (
     CONFIG,
     SUMMARY,
     check_contents,
     checkpoint_path,
+    has_networks,
     is_complete,
-    load_checkpoint,
+    load_networks,
     missing_checkpoint,
 )
 from drltg.transfer.registry import get_method
@@ -62,19 +66,19 @@ def check(cfg: RunConfig) -> None:
 
 
 def _check_source_run(run: Path, t: TransferConfig) -> None:
-    name = checkpoint_path(t.source_checkpoint)
-    if t.source_checkpoint == "best" and not (run / name).is_file() and (run / CONFIG).is_file():
+    if t.source_checkpoint == "best" and not has_networks(run, "best") and (run / CONFIG).is_file():
         raise UsageError(f"transfer.source_checkpoint=best: {missing_checkpoint(t.source, 'best')}")
-    if not (run / name).is_file():
-        raise UsageError(f"transfer.source '{t.source}' holds no {name.as_posix()}; train the source first.")
+    if not has_networks(run, t.source_checkpoint) and not networks.listed(run, t.source_checkpoint):
+        raise UsageError(f"transfer.source '{t.source}' holds no {NETWORKS[t.source_checkpoint].as_posix()} (nor "
+                         f"{checkpoint_path(t.source_checkpoint).as_posix()}); train the source first.")
     if not (run / CONFIG).is_file():
         raise UsageError(f"transfer.source '{t.source}' holds no {CONFIG}; is it a drltg run directory?")
     if not is_complete(run) and not t.allow_incomplete:
-        frames = load_checkpoint(run, mmap=True, checkpoint=t.source_checkpoint).get("frames", "?")
+        frames = load_networks(run, t.source_checkpoint)[1]["frames"]
         raise UsageError(
-            f"transfer.source '{t.source}' did not finish (no {SUMMARY}; its checkpoint is at frame {frames}); "
-            f"finish it with `drltg train --resume --run-dir {t.source}`, or reuse it as it is with "
-            "transfer.allow_incomplete=true."
+            f"transfer.source '{t.source}' did not finish (no {SUMMARY}; its checkpoint is at frame "
+            f"{frames}); finish it with `drltg train --resume --run-dir {t.source}`, or reuse it "
+            "as it is with transfer.allow_incomplete=true."
         )
 
 
@@ -109,12 +113,13 @@ class Rebuilt(NamedTuple):
     """one env of the run's task, built with its ``env`` settings"""
     cfg: RunConfig
     frames: int | None
-    """the checkpoint's frame"""
+    """the frame of the checkpoint the networks are from"""
 
 
 def rebuild(run_dir, device: str = "cpu", checkpoint: str = "last") -> Rebuilt:
-    """A run's learner, its env and its config, rebuilt from ``config.yaml`` and ``checkpoints/last.pt``
-    (``checkpoint="best"``: ``best.pt``); anything that keeps it from being built is one
+    """A run's learner, its env and its config, rebuilt from ``config.yaml`` and the networks of
+    ``checkpoints/last.pt`` (``checkpoint="best"``: of ``best.pt``), read from ``last.safetensors``
+    (:func:`drltg.store.rundir.load_networks`); anything that keeps it from being built is one
     :class:`UsageError` sentence."""
     from drltg.learners import make_agent
 
@@ -122,10 +127,10 @@ def rebuild(run_dir, device: str = "cpu", checkpoint: str = "last") -> Rebuilt:
     check_contents(run)
     if not (run / CONFIG).is_file():
         raise UsageError(f"'{run_dir}' is not a drltg run directory: it holds no {CONFIG}.")
-    ckpt = checkpoint_path(checkpoint)
-    if not (run / ckpt).is_file():
+    if not has_networks(run, checkpoint) and not networks.listed(run, checkpoint):
         raise UsageError(missing_checkpoint(run_dir, checkpoint) if checkpoint == "best" else
-                         f"'{run_dir}' is not a drltg run directory: it holds no {ckpt.as_posix()}.")
+                         f"'{run_dir}' is not a drltg run directory: it holds no {NETWORKS[checkpoint].as_posix()} "
+                         f"(nor {checkpoint_path(checkpoint).as_posix()}).")
     from drltg import safe_yaml
 
     data = safe_yaml.load_file(run / CONFIG)
@@ -137,8 +142,7 @@ def rebuild(run_dir, device: str = "cpu", checkpoint: str = "last") -> Rebuilt:
     except UsageError as err:
         raise UsageError(f"run '{run_dir}' cannot be rebuilt: {err}") from None
     agent = make_agent(env, cfg)
-    loaded = load_checkpoint(run, map_location=device, checkpoint=checkpoint)
-    saved = loaded.get("loss", {})
+    saved, info = load_networks(run, checkpoint, map_location=device)
     mismatch = _first_mismatch(agent.loss.state_dict(), saved)
     if mismatch:
         raise UsageError(
@@ -146,7 +150,7 @@ def rebuild(run_dir, device: str = "cpu", checkpoint: str = "last") -> Rebuilt:
             f"({mismatch})."
         )
     agent.loss.load_state_dict(saved)
-    return Rebuilt(agent, env, cfg, loaded.get("frames"))
+    return Rebuilt(agent, env, cfg, info.get("frames"))
 
 
 def _first_mismatch(expected: dict, saved: dict) -> str | None:
@@ -161,9 +165,10 @@ def _first_mismatch(expected: dict, saved: dict) -> str | None:
 
 def load_agent(run_dir, *, device: str = "cpu", checkpoint: str = "last"):
     """A trained run's learner (:class:`drltg.learners.Agent`: actor, loss with critics, temperature),
-    rebuilt from the run directory's ``config.yaml`` and ``checkpoints/last.pt`` (``checkpoint="best"``:
-    ``best.pt``, kept with ``checkpoint.keep_best``). Prints nothing. The checkpoint is read as data only (no
-    code in it runs), so a run from anyone can be loaded."""
+    rebuilt from the run directory's ``config.yaml`` and the networks of ``checkpoints/last.pt``
+    (``checkpoint="best"``: of ``best.pt``, kept with ``checkpoint.keep_best``), read from their networks file
+    ``last.safetensors`` without opening the training checkpoint. Prints nothing. The file is data only (no
+    code in it runs) and checked against the run's manifest, so a run from anyone can be loaded."""
     return rebuild(run_dir, device, checkpoint).agent
 
 
