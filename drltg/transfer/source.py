@@ -20,6 +20,7 @@ from drltg.envs.robosuite.layout import TASKS as MANIPULATION
 from drltg.errors import UsageError
 from drltg.store.rundir import (
     CONFIG,
+    DEMONSTRATOR,
     SUMMARY,
     check_contents,
     checkpoint_path,
@@ -32,9 +33,6 @@ from drltg.transfer.registry import get_method
 if TYPE_CHECKING:
     from tensordict.nn import TensorDictModuleBase
     from torchrl.envs import EnvBase
-
-DEMONSTRATOR = "demonstrator:"
-
 
 def check(cfg: RunConfig) -> None:
     """Fail early, before anything is trained or written, on a source the method cannot use."""
