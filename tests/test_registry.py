@@ -68,7 +68,7 @@ def test_unknown_task_names_it_and_suggests_a_close_name():
 
 
 def test_unknown_option_is_a_usage_error():
-    with pytest.raises(UsageError, match=r"no option 'goal_radus'.*goal_radius"):
+    with pytest.raises(UsageError, match=r"^keyword 'goal_radus' is not an option of task .*goal_radius"):
         make_env("fourrooms/northeast", goal_radus=0.3)
     with pytest.raises(UsageError, match="free space"):
         make_env("fourrooms/northeast", goal=(5.0, 3.0))
