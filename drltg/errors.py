@@ -19,6 +19,12 @@ class RunFailed(RuntimeError):
     """A run that ended without a usable result (its losses diverged): one sentence, exit code 1."""
 
 
+def short(value) -> str:
+    """``repr(value)`` cut to 60 characters, as an error sentence quotes what it was given."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def closest(word, choices) -> str | None:
     """The choice a mistyped ``word`` most likely meant, or None: a near spelling (similarity >= 0.75) or one
     that holds the word (``gpus`` -> ``num_gpus``). A loose match (``name`` -> ``frames``) says little, so a

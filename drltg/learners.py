@@ -253,8 +253,6 @@ class UpdateStep:
         agent: the :class:`Agent` whose ``loss``, ``optimizer`` and ``target_updater`` are stepped.
         loss_terms: ``loss_terms(batch) -> {"loss_<name>": scalar}``, extra terms added to the loss's
             (a transfer method's, e.g. behaviour cloning on demonstrations).
-        compile: run the step through ``torch.compile`` (on the 2-core CPU it compiled for about a
-            minute and was not faster; see ``benchmarks/README.md``).
         cudagraphs: capture the step in a CUDA graph with tensordict's ``CudaGraphModule`` (every
             tensor on one CUDA device, a fixed batch shape; Adam is switched to ``capturable``).
         threads: torch CPU threads the step runs in, torch's setting restored after it (``None``: torch's
@@ -264,11 +262,9 @@ class UpdateStep:
             (``python -m benchmarks threads``).
     """
 
-    def __init__(self, agent: Agent, *, loss_terms=None, compile: bool = False, cudagraphs: bool = False,
-                 threads: int | None = 1):
+    def __init__(self, agent: Agent, *, loss_terms=None, cudagraphs: bool = False, threads: int | None = 1):
         self.agent = agent
         self.loss_terms = loss_terms
-        self.compile = compile
         self.cudagraphs = cudagraphs
         self.threads = threads
         if cudagraphs:
@@ -291,8 +287,6 @@ class UpdateStep:
                 target_updater.step()
             return losses.detach()
 
-        if self.compile:
-            step = torch.compile(step)
         if self.cudagraphs:
             from tensordict.nn import CudaGraphModule
 

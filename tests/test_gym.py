@@ -169,8 +169,8 @@ def test_a_plugin_registers_gym_variants_that_a_sweep_and_gymnasium_take(tmp_pat
     source, target = pair_ids("test-plugin-pendulum")
     assert target == "drltg/test-plugin-pendulum-heavy-v0"
     assert gymnasium.make(target).unwrapped._env._env.unwrapped.g == 20.0  # Gymnasium -> drltg -> Gymnasium
-    with pytest.raises(UsageError, match=r"^task 'test-plugin/pendulum-heavy' has no option 'l'; its options are: "
-                       r"g.$"):  # a variant's options are the keywords it was registered with
+    with pytest.raises(UsageError, match=r"^keyword 'l' is not an option of task 'test-plugin/pendulum-heavy'; its "
+                       r"options are: g.$"):  # a variant's options are the keywords it was registered with
         make_env("test-plugin/pendulum-heavy", l=1.5)
 
 

@@ -19,7 +19,8 @@ def test_area_uses_the_real_frame_axis():
 
 def test_area_within_a_budget_interpolates_the_end_point():
     # y(45) = 10 + 15/30 * 30 = 25
-    assert M.value_at(F, Y, 45) == pytest.approx(25)
+    frames, values = M.truncate(F, Y, stop=45)
+    assert frames.tolist() == [0, 10, 30, 45] and values.tolist() == pytest.approx([0, 10, 10, 25])
     assert M.area_under_curve(F, Y, stop=45) == pytest.approx(50 + 200 + 15 * (10 + 25) / 2)
     assert M.area_under_curve(F, Y, start=10, stop=30) == pytest.approx(200)
 

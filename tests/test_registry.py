@@ -68,7 +68,7 @@ def test_unknown_task_names_it_and_suggests_a_close_name():
 
 
 def test_unknown_option_is_a_usage_error():
-    with pytest.raises(UsageError, match=r"no option 'goal_radus'.*goal_radius"):
+    with pytest.raises(UsageError, match=r"^keyword 'goal_radus' is not an option of task .*goal_radius"):
         make_env("fourrooms/northeast", goal_radus=0.3)
     with pytest.raises(UsageError, match="free space"):
         make_env("fourrooms/northeast", goal=(5.0, 3.0))
@@ -156,3 +156,31 @@ def test_a_factory_named_module_attr_is_imported_when_the_task_is_built(scratch_
     scratch_registry.register_task("lost", "drltg.envs.nowhere:Env", "a module that does not exist")
     with pytest.raises(UsageError, match=r"^task 'lost': its factory 'drltg.envs.nowhere:Env' cannot be imported"):
         scratch_registry.make_env("lost")
+
+
+def test_options_are_checked_once_by_the_task_for_make_env_and_the_config():
+    """One rule reads an option as the type of its declared default (an int from an integral number, a float
+    from any finite number, a list from a sequence of numbers); make_env and a config say the same sentence,
+    naming the keyword or the config key."""
+    from drltg import config as config_lib
+
+    spec = get_task("fourrooms/northeast")
+    checked = spec.check({"horizon": 1e2, "step_cost": 1, "goal": (2, 4.5), "observe_goal": True})
+    assert checked == {"horizon": 100, "step_cost": 1.0, "goal": [2, 4.5], "observe_goal": True}
+    assert (type(checked["horizon"]), type(checked["step_cost"]), type(checked["goal"])) == (int, float, list)
+    assert make_env("fourrooms/northeast", horizon=7.0).horizon == 7
+    declares = "(task 'fourrooms/northeast' declares {}), got {}."
+    for key, value, words in [("horizon", 2.5, "an integer"), ("horizon", "7", "an integer"),
+                              ("horizon", True, "an integer"), ("step_cost", float("inf"), "a number"),
+                              ("step_cost", None, "a number"), ("observe_goal", 1, "true or false"),
+                              ("goal", [], "a list of numbers"), ("goal", [1.0, "x"], "a list of numbers")]:
+        default = f"{key}={spec.keywords()[key]!r}"
+        with pytest.raises(UsageError) as err:
+            make_env("fourrooms/northeast", **{key: value})
+        assert str(err.value) == f"keyword '{key}' must be {words} " + declares.format(default, repr(value))
+        with pytest.raises(UsageError) as err:
+            config_lib.resolve({"env": {key: value}}, [], task="fourrooms/northeast")
+        assert str(err.value) == f"config key 'env.{key}' must be {words} " + declares.format(default, repr(value))
+    with pytest.raises(UsageError, match=r"^keyword 'colour' is not an option of task 'fourrooms/northeast'; its "
+                                         r"options are: goal, goal_radius, horizon, "):
+        make_env("fourrooms/northeast", colour="red")

@@ -238,7 +238,7 @@ def test_gymnasium_ids_check_options_and_actions():
 
     import drltg  # noqa: F401  (registers the ids)
 
-    with pytest.raises(ValueError, match="option 'horizon' must be of type int"):
+    with pytest.raises(ValueError, match="keyword 'horizon' must be an integer"):
         gym.make("drltg/fourrooms-northeast-v0", horizon="abc")
     with pytest.raises(ValueError, match="num_envs must be a positive integer"):
         gym.make_vec("drltg/fourrooms-northeast-v0", num_envs=0)

@@ -71,14 +71,6 @@ def checked_curve(frames, values) -> tuple[Array, Array]:
     return f, v
 
 
-def value_at(frames, values, frame: float) -> float:
-    """The curve at ``frame``, linearly interpolated between evaluations (never extrapolated)."""
-    f, v = checked_curve(frames, values)
-    if not f[0] <= frame <= f[-1]:
-        raise ValueError(f"frame {frame:g} lies outside the curve's range [{f[0]:g}, {f[-1]:g}]")
-    return float(np.interp(frame, f, v))
-
-
 def truncate(frames, values, start: float | None = None, stop: float | None = None) -> tuple[Array, Array]:
     """The curve on ``[start, stop]``, with interpolated end points where they fall between evaluations."""
     f, v = checked_curve(frames, values)

@@ -5,6 +5,7 @@ import argparse
 import json
 from pathlib import Path
 
+from drltg.config.values import EVAL_SEED_OFFSET, FRESH_SEED_OFFSET
 from drltg.errors import UsageError
 
 
@@ -14,8 +15,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="checkpoints/last.pt (default) or best.pt (kept with -o checkpoint.keep_best=true)")
     p.add_argument("--episodes", type=int, default=100, metavar="N", help="fresh episodes to evaluate (default 100)")
     p.add_argument("--seed", type=int, metavar="S",
-                   help="seed of the evaluation env (default: the run's seed + 30000; its training evaluations "
-                        "used seed + 10000)")
+                   help=f"seed of the evaluation env (default: the run's seed + {FRESH_SEED_OFFSET}; its training "
+                        f"evaluations used seed + {EVAL_SEED_OFFSET})")
     p.add_argument("--device", default="cpu", help="torch device (default cpu)")
     p.add_argument("--out", type=Path, metavar="FILE",
                    help="JSON result (default: RUN_DIR/evaluate-<checkpoint>-seed<S>-<N>ep.json)")

@@ -19,7 +19,7 @@ checked against the keywords its factory declares (:func:`validate`).
 from drltg.config import sections
 from drltg.config.checks import check_device, validate
 from drltg.config.diff import config_changes, describe, dump, env_keys_set_once
-from drltg.config.env_options import env_defaults, env_model, task_env
+from drltg.config.env_options import env_defaults, task_env
 from drltg.config.overrides import (
     ENV_EXECUTION_KEYS,
     as_config,
@@ -47,6 +47,9 @@ from drltg.config.run import (
 )
 from drltg.config.sections import *  # noqa: F403 (the section models, listed in sections.__all__)
 from drltg.config.values import (
+    DEMO_SEED_OFFSET,
+    EVAL_SEED_OFFSET,
+    FRESH_SEED_OFFSET,
     MAX_EPISODES,
     MAX_SEEDS,
     MAX_THREADS,
@@ -65,9 +68,9 @@ from drltg.config.values import (
 __all__ = [
     "RunConfig", "resolve", "build", "validate", "as_config", "updated", "describe", "dump", "keys", "defaults",
     "config_changes", "env_keys_set_once", "refuse_conflicts", "parse_override", "frame_count", "load_yaml",
-    "merge", "set_key", "task_env", "env_defaults", "env_model", "check_device",
+    "merge", "set_key", "task_env", "env_defaults", "check_device",
     "Int", "Float", "Bool", "Str", "Number", "Probability", "Section", "MAX_EPISODES", "MAX_SEEDS", "MAX_THREADS",
-    "SEED_STRIDE", "run_seeds", "source_seed",
+    "SEED_STRIDE", "run_seeds", "source_seed", "EVAL_SEED_OFFSET", "DEMO_SEED_OFFSET", "FRESH_SEED_OFFSET",
     *sections.__all__, "TransferConfig",
     "METHODS", "LEARNERS", "Registry", "TRANSFER_KEYS", "ENV_EXECUTION_KEYS",
     "method_names", "get_method", "option_owners", "options_model", "transfer_model", "_model",

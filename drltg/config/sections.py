@@ -30,6 +30,11 @@ class CollectorConfig(Section):
     frames_per_batch: Int = Field(32, ge=1, le=MAX_BATCH, description="frames per collector batch, a multiple of num_envs")
     init_random_frames: Int = Field(1024, ge=0, le=MAX_FRAMES, description="random-action warm-up frames")
 
+    @property
+    def warm_up_frames(self) -> int:
+        """The frames of random actions a run takes: ``init_random_frames`` rounded up to whole batches."""
+        return -(-self.init_random_frames // self.frames_per_batch) * self.frames_per_batch
+
 
 class BufferConfig(Section):
     size: Int = Field(100_000, ge=1, description="replay capacity (transitions)")

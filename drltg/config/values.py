@@ -17,6 +17,7 @@ from pydantic.fields import FieldInfo
 
 from drltg.config.registry import LEARNERS, method_names
 from drltg.errors import closest
+from drltg.errors import short as _short  # noqa: F401 (the config modules quote values with it)
 
 
 def _finite_number(value: Any) -> Any:
@@ -64,6 +65,14 @@ experiment's or sweep's baseline and transfer runs alike, so runs of one seed pa
 trained; a source run of run i uses ``seed + 100 i + 50`` (:func:`source_seed`), no target run's seed."""
 
 
+EVAL_SEED_OFFSET = 10_000
+DEMO_SEED_OFFSET = 20_000
+FRESH_SEED_OFFSET = 30_000
+"""The envs of run ``seed`` are seeded apart: training ``seed``, its evaluations ``seed + EVAL_SEED_OFFSET``,
+a transfer's demonstrations ``seed + DEMO_SEED_OFFSET``, ``drltg evaluate`` by default
+``seed + FRESH_SEED_OFFSET``."""
+
+
 def run_seeds(first: int, count: int) -> list[int]:
     """The seeds of ``count`` runs from ``first``: ``first + 100 i``."""
     return [first + SEED_STRIDE * i for i in range(count)]
@@ -96,11 +105,6 @@ class Section(BaseModel):
     """A config section: unknown keys are refused, assignments are checked."""
 
     model_config = ConfigDict(extra="forbid", validate_assignment=True)
-
-
-def _short(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _number_text(x: float | None) -> str | None:

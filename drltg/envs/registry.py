@@ -20,12 +20,13 @@ import functools
 import importlib
 import importlib.util
 import inspect
+import math
 import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Sequence
 
-from drltg.errors import UsageError, closest
+from drltg.errors import UsageError, closest, short
 
 if TYPE_CHECKING:
     import torch
@@ -92,6 +93,85 @@ class TaskSpec:
             read = {name: p.default for name, p in params.items()
                     if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY) and name != "self"}
         return {name: default for name, default in {**read, **self.defaults}.items() if name not in self.fixed}
+
+    def check(self, given: dict[str, Any], *, key: Callable[[str], str] = "keyword {!r}".format) -> dict[str, Any]:
+        """``given`` read as the types of the task's declared defaults (:meth:`keywords`): the one check of
+        env options, made by ``make_env`` and by a config (``key`` names an option in its sentences, e.g.
+        ``config key 'env.horizon'``); torch-free where :meth:`keywords` is. A registration field stated
+        with the task's own value is dropped (:meth:`without_registration`); an unknown key, a registration
+        field, or a value of another type is one sentence naming the key. Ranges are the env's to check."""
+        given = self.without_registration(given)
+        declared = {k: v for k, v in self.keywords().items() if k not in BUILD_KEYWORDS}
+        for name, value in given.items():
+            if name in self.fixed:
+                raise UsageError(f"{key(name)} cannot be set: it is part of the task {self.name!r} as registered "
+                                 f"({name}={self.fixed[name]!r}), not an option, got {short(value)}.")
+            if name not in declared:
+                raise UsageError(f"{key(name)} is not an option of task {self.name!r}; its options are: "
+                                 f"{', '.join(sorted(declared)) or 'none'}.")
+        checked = {}
+        for name, value in given.items():
+            what, read = _kind(declared[name])
+            try:
+                checked[name] = read(value)
+            except (TypeError, ValueError, OverflowError):
+                raise UsageError(f"{key(name)} must be {what} (task {self.name!r} declares {name}="
+                                 f"{declared[name]!r}), got {short(value)}.") from None
+        return checked
+
+
+BUILD_KEYWORDS = ("batch_size", "device", "seed")
+"""``make_env``'s own keywords, which every factory takes: no option of a task."""
+
+
+def _number(value: Any) -> float | int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(value)
+    if not (isinstance(value, numbers.Integral) or math.isfinite(value)):
+        raise ValueError(value)
+    return value
+
+
+def _integer(value: Any) -> int:
+    if not (isinstance(_number(value), numbers.Integral) or float(value).is_integer()):
+        raise ValueError(value)
+    return int(value)
+
+
+def _exactly(kind: type) -> Callable[[Any], Any]:
+    def read(value):
+        if not isinstance(value, kind):
+            raise TypeError(value)
+        return value
+    return read
+
+
+def _list_of(read: Callable[[Any], Any], least: int) -> Callable[[Any], list]:
+    def read_list(value):
+        if not isinstance(value, (list, tuple)) or len(value) < least:
+            raise TypeError(value)
+        return [read(v) for v in value]
+    return read_list
+
+
+def _kind(default: Any) -> tuple[str, Callable[[Any], Any]]:
+    """What an option whose declared default is ``default`` takes, in words, and its reader: a bool takes
+    ``True``/``False`` only; an int an integral number (``1e3`` is 1000); a float a finite number (read as
+    float); a str a string; a list of numbers (or strings) one of the like; any other default any value."""
+    if isinstance(default, bool):
+        return "true or false", _exactly(bool)
+    if isinstance(default, int):
+        return "an integer", _integer
+    if isinstance(default, float):
+        return "a number", lambda v: float(_number(v))
+    if isinstance(default, str):
+        return "a string", _exactly(str)
+    if isinstance(default, (list, tuple)) and default:
+        if all(isinstance(v, numbers.Real) and not isinstance(v, bool) for v in default):
+            return "a list of numbers", _list_of(_number, 1)
+        if all(isinstance(v, str) for v in default):
+            return "a list of strings", _list_of(_exactly(str), 0)
+    return "any value", lambda v: v
 
 
 class _Options(dict):
@@ -238,29 +318,6 @@ def register_pair(name: str, source: str, target: str, description: str, *, repl
     return spec
 
 
-def _check_options(spec: TaskSpec, options: dict[str, Any]) -> None:
-    fixed = sorted(set(options) & set(spec.fixed))
-    if fixed:
-        raise UsageError(f"task {spec.name!r}: {fixed[0]!r} is part of the task as registered "
-                         f"({spec.fixed[fixed[0]]!r}), not an option; register another task to change it.")
-    declared = spec.keywords()
-    unknown = sorted(set(options) - set(declared))
-    if unknown:
-        known = ", ".join(sorted(set(declared) - {"batch_size", "device", "seed"})) or "none"
-        raise UsageError(f"task {spec.name!r} has no option {unknown[0]!r}; its options are: {known}.")
-    for name, value in options.items():
-        default = declared[name]
-        kinds = _SCALAR_KINDS.get(type(default))
-        if kinds and value is not None and (not isinstance(value, kinds) or
-                                            (isinstance(value, bool) and not isinstance(default, bool))):
-            raise UsageError(f"task {spec.name!r}: option {name!r} must be of type {type(default).__name__} (its "
-                             f"default is {default!r}), got {value!r}.")
-
-
-_SCALAR_KINDS = {bool: (bool,), int: (numbers.Integral,), float: (numbers.Real,), str: (str,)}
-"""What a factory's scalar keyword accepts, by the type of its default (an int where a float is declared)."""
-
-
 def make_env(
     name: str,
     *,
@@ -271,8 +328,7 @@ def make_env(
 ) -> EnvBase:
     """Builds the task ``name`` with its defaults updated by ``overrides``, then seeds it."""
     spec = get_task(name)
-    options = {**spec.defaults, **spec.without_registration(overrides)}
-    _check_options(spec, options)
+    options = {**spec.defaults, **spec.check(overrides)}
     env = spec.factory(batch_size=batch_size, device=device, **spec.fixed, **options)
     from torchrl.envs import EnvBase
 

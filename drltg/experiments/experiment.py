@@ -232,6 +232,20 @@ def check_existing(runs: list) -> None:
             raise UsageError(f"'{run.path}' exists but holds no config.yaml; move it away or use another --out.")
 
 
+def make_out(runs: list, out: Path) -> None:
+    """The last checks before any work, then ``out`` made: no run directory holds another run
+    (:func:`check_existing`), what a script registered reaches the workers
+    (:func:`~drltg.experiments.executor.registrations`)."""
+    from drltg.experiments.executor import registrations
+
+    check_existing(runs)
+    registrations(runs)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise UsageError(f"cannot create --out '{out}' ({err.strerror}).") from None
+
+
 GROWS = ("seeds", "max_seeds")
 """Settings an experiment folder may be run again with: more (or fewer) seeds train what is new and report
 the planned pairs; the runs already there are reused."""
@@ -328,7 +342,7 @@ def _run(pair, method, frames, out, seeds, seed, algo, source_frames, overrides,
     """One experiment of ``seeds`` pairs (``counted``: how its settings name the seed count)."""
     from drltg.analysis.report import parse_threshold
     from drltg.analysis.report.settings import parse_range
-    from drltg.experiments.executor import check_order, registrations
+    from drltg.experiments.executor import check_order
 
     parse_threshold(threshold)
     parse_range(value_range)
@@ -345,12 +359,7 @@ def _run(pair, method, frames, out, seeds, seed, algo, source_frames, overrides,
     _check_settings(saved, settings)
     planned = as_runs(runs, out)
     check_order(planned)
-    check_existing(planned)
-    registrations(planned)  # what a worker process could not register is refused now
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise UsageError(f"cannot create --out '{out}' ({err.strerror}).") from None
+    make_out(planned, out)
     return execute_and_report(runs, out, saved, settings, workers=workers, name="experiment", threshold=threshold,
                               method=method, group_seeds=group_seeds, progress=progress, value_range=value_range)
 

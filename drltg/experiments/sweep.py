@@ -57,7 +57,7 @@ import yaml
 from drltg.config import RunConfig
 from drltg.errors import UsageError
 from drltg.experiments.backends import LocalBackend, RayBackend
-from drltg.experiments.executor import Run, execute, frames_done, registrations, seed_groups
+from drltg.experiments.executor import Run, execute, frames_done, seed_groups
 from drltg.experiments.spec import Spec, load_spec, parse_spec
 from drltg.experiments.summary import across_targets, plot_transfer_matrix, summary_aggregates, summary_tables
 from drltg.store import rundir
@@ -204,7 +204,7 @@ def sweep(spec: str | Path | dict, out: str | Path, *, backend: str = "local", w
         >>> result = drltg.sweep("examples/sweeps/fourrooms.yaml", "runs/sweep", workers=2)
     """
     from drltg.analysis.report import check_metric
-    from drltg.experiments.experiment import check_existing, check_runs
+    from drltg.experiments.experiment import check_existing, check_runs, make_out
 
     if workers is not None and workers < 1:
         raise UsageError("--workers must be at least 1.")
@@ -218,12 +218,7 @@ def sweep(spec: str | Path | dict, out: str | Path, *, backend: str = "local", w
     rundir.refuse_run_directory(out, "--out")
     runs, cells = plan(parsed, out)
     check_runs([(r.role, r.cfg, r.path) for r in runs])
-    check_existing(runs)
-    registrations(runs)  # what a worker process could not register is refused now
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise UsageError(f"cannot create --out '{out}' ({err.strerror}).") from None
+    make_out(runs, out)
     with rundir.lock(out, "sweep folder"):
         check_existing(runs)  # another sweep may have written them meanwhile
         if backend == "ray":

@@ -56,13 +56,17 @@ __all__ = ["atomic_write", "atomic_torch_save", "atomic_path", "write_files", "w
 
 
 # ------------------------------------------------------------------------------------------ config
+DEMONSTRATOR = "demonstrator:"
+"""``transfer.source=demonstrator:TASK`` names the scripted policy of TASK, not a run directory."""
+
+
 def absolute_source(cfg: dict, base: Path) -> dict:
     """``cfg`` (the mapping a config file holds) with a relative ``transfer.source`` read as relative to
     ``base`` (a run directory, or the folder of a config file); a demonstrator or an absolute path stays as
     it is."""
     section = cfg.get("transfer") if isinstance(cfg, dict) else None
     source = section.get("source") if isinstance(section, dict) else None
-    if not isinstance(source, str) or source.startswith("demonstrator:") or Path(source).expanduser().is_absolute():
+    if not isinstance(source, str) or source.startswith(DEMONSTRATOR) or Path(source).expanduser().is_absolute():
         return cfg
     return {**cfg, "transfer": {**section, "source": os.path.normpath(Path(base).resolve() / source)}}
 
@@ -84,7 +88,7 @@ def write_config(run_dir: str | Path, cfg: Any) -> None:
     run_dir = Path(run_dir)
     data = cfg.model_dump()
     source = data["transfer"]["source"]
-    if isinstance(source, str) and not source.startswith("demonstrator:"):
+    if isinstance(source, str) and not source.startswith(DEMONSTRATOR):
         data["transfer"]["source"] = os.path.relpath(Path(source).expanduser().resolve(), run_dir.resolve())
     atomic_write(run_dir / CONFIG, yaml.safe_dump(data, sort_keys=False))
 

@@ -13,7 +13,6 @@ from __future__ import annotations
 import contextlib
 import functools
 import logging
-import math
 import signal
 import sys
 import threading
@@ -26,11 +25,11 @@ import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictSequential
 from torchrl.collectors import Collector
-from torchrl.data import LazyTensorStorage, ReplayBuffer
+from torchrl.data import ReplayBuffer
 from torchrl.envs import EnvBase, ExplorationType, RewardSum, TransformedEnv, set_exploration_type
 
 from drltg import config
-from drltg.config import RunConfig
+from drltg.config import EVAL_SEED_OFFSET, RunConfig
 from drltg.envs import get_task, make_env
 from drltg.envs.limits import MAX_HORIZON
 from drltg.errors import UsageError
@@ -39,7 +38,7 @@ from drltg.store import rundir
 from drltg.store.rundir import EPISODE_FLAGS, RunWriter, is_complete, read_eval_csv
 from drltg.training import best, health, preflight
 from drltg.training.progress import Progress
-from drltg.training.replay import buffer_state
+from drltg.training.replay import buffer_state, replay_buffer
 from drltg.training.session import RunSession
 from drltg.transfer import Transfer, get_method
 from drltg.transfer.source import check as check_source
@@ -60,10 +59,6 @@ def build_env(cfg: RunConfig, **kwargs) -> EnvBase:
         raise
     except (TypeError, ValueError) as err:
         raise UsageError(f"task '{cfg.task}' cannot be built with env settings {cfg.env} ({err}).") from None
-
-
-EVAL_SEED_OFFSET = 10_000
-"""The evaluation env is seeded ``seed + 10_000``, the training env ``seed`` (demonstrations: ``+ 20_000``)."""
 
 
 def make_envs(cfg: RunConfig, agent_transforms=()) -> tuple[EnvBase, EnvBase]:
@@ -189,10 +184,7 @@ def train(
         transfer = get_method(cfg.transfer.method).build(cfg, agent, probe, resuming=session.checkpoints[0] is not None)
         for t in transfer.train_transforms:  # after RewardSum: train/episode_return stays the task's return
             train_env.append_transform(t)
-        buffer = ReplayBuffer(
-            storage=LazyTensorStorage(cfg.buffer.size, device=cfg.device),
-            batch_size=cfg.buffer.batch_size,
-        )
+        buffer = replay_buffer(cfg)
         session.restore([agent], [buffer])
         session.claim()
         preflight.warn_budget(cfg)  # every check passed and the directory is ours: training starts now
@@ -210,7 +202,7 @@ def make_collector(cfg: RunConfig, env: EnvBase, policy, frames: int = 0, seeds:
     """TorchRL's single-process collector for the frames left after ``frames`` (per seed), random
     actions until ``collector.init_random_frames``; ``seeds`` runs in step share one batched env."""
     fpb = cfg.collector.frames_per_batch
-    init_random = math.ceil(cfg.collector.init_random_frames / fpb) * fpb
+    init_random = cfg.collector.warm_up_frames
     return Collector(
         env,
         policy,
@@ -319,7 +311,7 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
     the loop itself writes no file. ``frames`` counts one seed's frames.
     """
     col, opt, seeds = cfg.collector, cfg.optim, learner.seeds
-    init_random = math.ceil(col.init_random_frames / col.frames_per_batch) * col.frames_per_batch
+    init_random = col.warm_up_frames
 
     saved = frames  # the frame of the latest last.pt (a resumed run's checkpoint; none yet at frame 0)
     clock = PhaseClock()

@@ -8,7 +8,6 @@ factory that ignores the batch size it is given trains on 1 env and evaluates 1 
 """
 from __future__ import annotations
 
-import math
 import os
 import sys
 from typing import Callable
@@ -41,7 +40,7 @@ def budget_warnings(cfg: RunConfig) -> list[str]:
     """Why a budget cannot learn or cannot be followed, one sentence each: every frame within the random
     warm-up (no update at all), or fewer than two evaluations after frame 0."""
     col = cfg.collector
-    warm_up = math.ceil(col.init_random_frames / col.frames_per_batch) * col.frames_per_batch
+    warm_up = col.warm_up_frames
     if cfg.frames < warm_up:
         return [f"{cfg.frames:,} frames lie within the {warm_up:,} random warm-up frames "
                 "(collector.init_random_frames): the run will make no update, so it learns nothing."]

@@ -4,22 +4,20 @@ The training evaluations that chose ``best.pt`` cannot also measure it: the best
 evaluations overstates the policy it picks. :func:`evaluate_run` runs the checkpoint's deterministic
 actor through the training loop's own :func:`~drltg.training.loop.evaluate` on ``episodes`` new
 episodes, from an env seeded apart from every env of training: the training env is seeded ``seed``,
-its evaluations ``seed + 10_000``, demonstrations ``seed + 20_000``, and this evaluation by default
-``seed + 30_000`` (``seed``: the run's). Each rate comes with its exact (Clopper-Pearson) 95%
-interval, [B(0.025; k, n - k + 1), B(0.975; k + 1, n - k)] for k of n episodes, whose coverage is at
-least 95% whatever the rate: the conservative choice for a claim that a policy succeeds reliably.
+its evaluations ``seed + EVAL_SEED_OFFSET``, demonstrations ``seed + DEMO_SEED_OFFSET``, and this
+evaluation by default ``seed + FRESH_SEED_OFFSET`` (``seed``: the run's; the offsets are in
+:mod:`drltg.config.values`). Each rate comes with its exact (Clopper-Pearson) 95% interval,
+[B(0.025; k, n - k + 1), B(0.975; k + 1, n - k)] for k of n episodes, whose coverage is at least 95% whatever
+the rate: the conservative choice for a claim that a policy succeeds reliably.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
+from drltg.config.values import FRESH_SEED_OFFSET
 from drltg.errors import UsageError
 
 __all__ = ["evaluate_run", "rate_interval", "FRESH_SEED_OFFSET"]
-
-FRESH_SEED_OFFSET = 30_000
-"""The default seed of :func:`evaluate_run` is the run's seed plus this."""
-
 
 def rate_interval(successes: int, episodes: int, confidence: float = 0.95) -> tuple[float, float]:
     """The exact (Clopper-Pearson) interval of a rate observed as ``successes`` of ``episodes``."""

@@ -10,7 +10,12 @@ from __future__ import annotations
 
 import torch
 from tensordict import TensorDict
-from torchrl.data import ReplayBuffer
+from torchrl.data import LazyTensorStorage, ReplayBuffer
+
+
+def replay_buffer(cfg) -> ReplayBuffer:
+    """A run's replay buffer: ``buffer.size`` transitions on the run's device, ``buffer.batch_size`` a sample."""
+    return ReplayBuffer(storage=LazyTensorStorage(cfg.buffer.size, device=cfg.device), batch_size=cfg.buffer.batch_size)
 
 
 def buffer_state(buffer: ReplayBuffer) -> dict:

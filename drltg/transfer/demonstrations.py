@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pydantic import Field
 
-from drltg.config import Bool, Float, Int, Probability, RunConfig
+from drltg.config import DEMO_SEED_OFFSET, Bool, Float, Int, Probability, RunConfig
 from drltg.errors import UsageError
 from drltg.transfer.registry import Transfer, TransferMethod
 
@@ -28,7 +28,7 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
                              f"(set -o transfer.{key}=0).")
     policy = source_actor(cfg, env)
     demo_env = TransformedEnv(make_env(cfg.task, batch_size=(cfg.collector.num_envs,), device=cfg.device,
-                                       seed=cfg.seed + 20_000, **cfg.env))
+                                       seed=cfg.seed + DEMO_SEED_OFFSET, **cfg.env))
     for transform in agent.env_transforms:
         demo_env.append_transform(transform.clone())
     try:

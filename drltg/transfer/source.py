@@ -23,6 +23,7 @@ from drltg.store import networks
 from drltg.store.networks import NETWORKS
 from drltg.store.rundir import (
     CONFIG,
+    DEMONSTRATOR,
     SUMMARY,
     check_contents,
     checkpoint_path,
@@ -36,9 +37,6 @@ from drltg.transfer.registry import get_method
 if TYPE_CHECKING:
     from tensordict.nn import TensorDictModuleBase
     from torchrl.envs import EnvBase
-
-DEMONSTRATOR = "demonstrator:"
-
 
 def check(cfg: RunConfig) -> None:
     """Fail early, before anything is trained or written, on a source the method cannot use."""

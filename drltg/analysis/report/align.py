@@ -17,6 +17,7 @@ from drltg.analysis.report.checks import Sides, run_name
 from drltg.analysis.report.settings import MAX_LENGTH_RATIO, ReportSettings, parse_frames, parse_threshold, task_returns
 from drltg.analysis.tables import number
 from drltg.errors import UsageError
+from drltg.store.rundir import DEMONSTRATOR
 
 
 @dataclass
@@ -221,7 +222,7 @@ def _source_frames(transfer: Sequence[Curve], s: ReportSettings) -> tuple[list[f
         if c.config is None:
             return None, "not given: pass --source-frames N for logs without a drltg config.yaml"
         source = (c.config.get("transfer") or {}).get("source")
-        if source is None or str(source).startswith("demonstrator:"):
+        if source is None or str(source).startswith(DEMONSTRATOR):
             frames.append(0.0)
             continue
         found = _frames_of_run(Path(c.source).parent, str(source))
