@@ -284,14 +284,19 @@ def test_a_group_stopped_inside_an_evaluation_saves_each_seed_there_and_evaluate
         assert [r["frames"] for r in read_eval_csv(tmp_path / f"seed-{seed}" / "eval.csv")] == [0, 256, 512]
 
 
-def test_a_method_without_a_grouped_form_trains_its_seeds_one_after_another(group_run, tmp_path, capsys):
+def test_a_method_without_a_grouped_form_trains_its_seeds_one_after_another(tmp_path, capsys):
     from drltg.training.seeds import train_seeds
+    from drltg.transfer import Transfer, TransferMethod, register_method
+    from drltg.transfer.registry import METHODS
 
-    cfg = tiny_cfg(frames=64, **{"transfer.method": "demonstrations", "transfer.source": str(group_run / "seed-3"),
-                                 "transfer.demo_episodes": 1, "env.horizon": 16})
-    dirs = train_seeds(config_lib.updated(cfg, {"eval.every": 64}), tmp_path, 2, progress=False)
+    try:
+        register_method(TransferMethod("test-alone", "nothing", lambda *a, **k: Transfer()))
+        cfg = tiny_cfg(frames=64, **{"transfer.method": "test-alone", "eval.every": 64})
+        dirs = train_seeds(cfg, tmp_path, 2, progress=False)
+    finally:
+        METHODS.pop("test-alone", None)
     err = capsys.readouterr().err
-    assert "transfer method demonstrations has no grouped form; training the 2 seeds one after another" in err
+    assert "transfer method test-alone has no grouped form; training the 2 seeds one after another" in err
     assert [d.name for d in dirs] == ["seed-3", "seed-103"] and all((d / "summary.json").is_file() for d in dirs)
 
 
