@@ -132,6 +132,43 @@ def lift_runs(n: int, frames: int, rounds: int) -> dict:
     }
 
 
+TERM_OPTIONS = ["-o", "transfer.method=demonstrations", "-o", "transfer.demo_episodes=8"]
+"""Demonstrations on FourRooms: a quarter of every batch from the source policy's episodes, and the
+behaviour-cloning term (a :class:`~drltg.losses.terms.LossTerm`) on them at every update."""
+
+
+def loss_term_runs(n: int = 4, frames: int = 2048, rounds: int = 1) -> dict:
+    """A method with a loss term, whole commands on ``fourrooms/northeast`` (task defaults):
+    ``drltg train TASK --seeds n`` with :data:`TERM_OPTIONS` (its seeds as one group, each seed's
+    behaviour-cloning term inside the vmapped loss) against the same command with ``--no-group`` (the seeds
+    one after another in one process, as the method trained before its loss term grouped), alternating by
+    round, after one source run of ``frames`` frames. Loop frames/s: every seed's frames over the training
+    loops' time (summary.json), start-up excluded; command wall time with it."""
+    walls, loops = {"group": [], "separate": []}, {"group": [], "separate": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        source = Path(tmp) / "source"
+        _command(["--frames", str(frames), "--seed", "50"], source)
+        options = [*TERM_OPTIONS, "-o", f"transfer.source={source}", "--seeds", str(n), "--frames", str(frames)]
+        for r in range(rounds):
+            for kind in ("group", "separate") if r % 2 == 0 else ("separate", "group"):
+                root = Path(tmp) / f"{kind}-{r}"
+                walls[kind].append(_command([*options, *(["--no-group"] if kind == "separate" else [])], root))
+                loops[kind].append(sum(_loop_seconds(d) for d in sorted(root.glob("seed-*")))
+                                   / (n if kind == "group" else 1))
+    median = {kind: sorted(xs)[len(xs) // 2] for kind, xs in loops.items()}
+    wall = {kind: sorted(xs)[len(xs) // 2] for kind, xs in walls.items()}
+    return {
+        "seeds": n, "frames_per_seed": frames, "rounds": rounds,
+        "loop_frames_per_s": {kind: round(n * frames / t, 1) for kind, t in median.items()},
+        "command_wall_s": {kind: round(t, 1) for kind, t in wall.items()},
+        "ratio_loop": round(median["separate"] / median["group"], 3),
+        "ratio_command_wall": round(wall["separate"] / wall["group"], 3),
+        "commands": {"group": f"drltg train {TASK} --seeds {n} --frames {frames} {' '.join(TERM_OPTIONS)} "
+                              "-o transfer.source=SOURCE",
+                     "separate": "the same with --no-group"},
+    }
+
+
 def run_lift(device: str = "cpu", quick: bool = False) -> dict:
     if device != "cpu":
         return {"missing": "the lift-seeds suite measures single-threaded CPU runs"}

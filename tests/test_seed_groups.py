@@ -351,11 +351,11 @@ def test_runs_that_differ_only_in_their_seed_form_one_unit(tmp_path):
               run("r100", seed=100, **{"transfer.method": "reward-shaping"})]
     reused = [run(f"p{s}", needs=tmp_path / f"s{s + 50}", seed=s,
                   **{"transfer.method": "demonstrations", "transfer.source": str(tmp_path / f"s{s + 50}")})
-              for s in (0, 100)]  # a buffer of demonstrations: no grouped form
+              for s in (0, 100)]  # each seed's demonstrations and behaviour-cloning term: grouped too
     units = seed_groups([baseline[0], source[0], transfer[0], soc[0], shaped[0], reused[0], baseline[1], source[1],
                          transfer[1], soc[1], shaped[1], reused[1]])
     assert [[r.path.name for r in unit] for unit in units] == [
-        ["b0", "b100"], ["s50", "s150"], ["t0", "t100"], ["o0", "o100"], ["r0", "r100"], ["p0"], ["p100"]]
+        ["b0", "b100"], ["s50", "s150"], ["t0", "t100"], ["o0", "o100"], ["r0", "r100"], ["p0", "p100"]]
 
 
 def test_an_experiment_leaves_worker_process_groups_to_train_seeds(tmp_path):

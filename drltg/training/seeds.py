@@ -27,8 +27,9 @@ supports it (:func:`group_support`) the seeds train as one :class:`SeedGroup`:
   its weight (:class:`StackedLoss`); a transfer's minibatches (demonstrations) from seed k's buffer.
 
 A transfer method groups if it declares a grouped form (``TransferMethod.grouped``; ``a+b`` if every part
-does): it may set anything but a whole collector policy, and its loss terms must be ``LossTerm`` s. The configs of a group may differ in ``transfer.source`` (an experiment's
-transfer run of seed s reads its own seed's source run). Otherwise the seeds train one after another with
+does): it may set anything but a whole collector policy, and its loss terms must be ``LossTerm`` s. The
+configs of a group may differ in ``transfer.source`` (an experiment's transfer run of seed s reads its own
+seed's source run). Otherwise the seeds train one after another with
 :func:`~drltg.training.loop.train`.
 
 What a seed in a group shares with its run alone: its initial networks (built under
