@@ -175,3 +175,48 @@ def test_an_experiment_with_demonstrations_trains_its_transfer_runs_as_one_seed_
     first, second = (out / "logs" / "transfer" / f"seed-{s}.log" for s in (0, 100))
     assert f"start seed group {out / 'transfer' / 'seed-0'}, {out / 'transfer' / 'seed-100'}" in first.read_text()
     assert "trains in a seed group" in second.read_text()
+
+
+def test_a_soc_groups_demonstrations_are_labelled_with_each_seeds_current_networks(tmp_path):
+    """The option labels' pi_Omega(.|s) in seed k's block are seed k's policy over options with the group's
+    current (stacked) parameters, not with the networks seed k started from."""
+    from torchrl.data import LazyTensorStorage, ReplayBuffer
+    from torchrl.envs import TransformedEnv
+
+    from drltg.losses.behaviour_cloning import OPTION_PROBS
+    from drltg.training import loop, seeds
+    from drltg.transfer import get_method
+    from tests.test_seed_groups import tiny_cfg
+
+    options = {"algo": "soc", "soc.num_options": 3}
+    source = seeds.train_seeds(tiny_cfg(frames=64, **options), tmp_path / "src", 1, progress=False)[0]
+    cfgs = [tiny_cfg(seed=s, **options, **{"transfer.method": "demonstrations", "transfer.source": str(source),
+                                           **DEMOS}) for s in (3, 4)]
+    agents, transfers, buffers = [], [], []
+    for c in cfgs:
+        torch.manual_seed(c.seed)
+        probe, agent = loop.check_config(c)
+        agents.append(agent)
+        transfers.append(get_method("demonstrations").build(c, agent, probe, resuming=False))
+        buffer = ReplayBuffer(storage=LazyTensorStorage(100), batch_size=32)
+        env = TransformedEnv(loop.build_env(c, batch_size=(4,), seed=c.seed))
+        for t in agent.env_transforms:  # the option the loss reads
+            env.append_transform(t.clone())
+        buffer.extend(env.rollout(10, break_when_any_done=False).reshape(-1).select(*agent.loss.in_keys))
+        buffers.append(buffer)
+    seen = []
+    for k, agent in enumerate(agents):  # what the labels' pi_Omega(.|s) reads, seed by seed
+        def recorded(td, *a, loss=agent.loss, k=k, real=agent.loss.option_values, **kw):
+            seen.append((k, loss.actor_network_params.detach().clone(), loss.qvalue_network_params.detach().clone()))
+            return real(td, *a, **kw)
+        agent.loss.option_values = recorded
+    group = SeedGroup(agents, terms=[t.loss_terms for t in transfers])
+    with torch.no_grad():  # the group's networks move away from the ones the seeds started from
+        for value in group.params.values(True, True):
+            value.add_(0.3 * torch.randn_like(value))
+    batch = next(iter(seeds.GroupLearner(group, buffers, None, transfers).batches(1)))
+    assert batch[OPTION_PROBS].shape == (2, 32, 3) and [k for k, _, _ in seen] == [0, 1]
+    for k, actor, qvalue in seen:
+        assert (actor == group.params[k]["actor_network_params"]).all()
+        assert (qvalue == group.params[k]["qvalue_network_params"]).all()
+        assert not (actor == agents[k].loss.actor_network_params).all()

@@ -399,13 +399,16 @@ class GroupLearner:
 
     def _transfer_batches(self, count: int):
         """Seed k's minibatches from its transfer's ``batches`` (demonstrations mixed into its own samples),
-        drawn one batch at a time with seed k's current parameters in its own modules: a batch may depend on
-        them (the soft option-critic's option labels of demonstrations, drawn just before their update)."""
+        one batch at a time. For the soft option-critic, whose demonstrations' option labels are drawn with
+        the networks just before their update, seed k's batch is drawn with seed k's current parameters in its
+        own modules; the other learners' batches read no parameter and skip that swap (about 1.6 ms a seed on
+        FourRooms' networks)."""
         iterators = [iter(make(buffer, count)) for make, buffer in zip(self.make_batches, self.buffers)]
+        reads_params = isinstance(self.group.loss, SoftOptionCriticLoss)
         for _ in range(count):
             batch = []
             for k, iterator in enumerate(iterators):
-                with self.group.seed_params(k):
+                with self.group.seed_params(k) if reads_params else contextlib.nullcontext():
                     batch.append(next(iterator))
             yield torch.stack(batch)
 
