@@ -132,6 +132,49 @@ def lift_runs(n: int, frames: int, rounds: int) -> dict:
     }
 
 
+TERM_OPTIONS = ["-o", "transfer.method=demonstrations", "-o", "transfer.demo_episodes=8"]
+"""Demonstrations on FourRooms: a quarter of every batch from the source policy's episodes, and the
+behaviour-cloning term (a :class:`~drltg.losses.terms.LossTerm`) on them at every update."""
+
+
+def loss_term_runs(n: int = 4, frames: int = 2048, rounds: int = 1) -> dict:
+    """A method with a loss term, whole commands on ``fourrooms/northeast`` (task defaults):
+    ``drltg train TASK --seeds n`` with :data:`TERM_OPTIONS` (its seeds as one group, each seed's
+    behaviour-cloning term inside the vmapped loss) against the same command with ``--no-group`` (the seeds
+    one after another in one process, as the method trained before its loss term grouped), and the same pair
+    without a transfer method (the plain learner's ratio, for reference), alternating by round, after one
+    source run of ``frames`` frames. Loop frames/s: every seed's frames over the training loops' time
+    (summary.json), start-up excluded; command wall time with it."""
+    kinds = ("terms_group", "terms_separate", "plain_group", "plain_separate")
+    walls, loops = {k: [] for k in kinds}, {k: [] for k in kinds}
+    with tempfile.TemporaryDirectory() as tmp:
+        source = Path(tmp) / "source"
+        _command(["--frames", str(frames), "--seed", "50"], source)
+        terms = [*TERM_OPTIONS, "-o", f"transfer.source={source}"]
+        for r in range(rounds):
+            for kind in kinds if r % 2 == 0 else reversed(kinds):
+                root = Path(tmp) / f"{kind}-{r}"
+                args = [*(terms if kind.startswith("terms") else []), "--seeds", str(n), "--frames", str(frames),
+                        *(["--no-group"] if kind.endswith("separate") else [])]
+                walls[kind].append(_command(args, root))
+                loops[kind].append(sum(_loop_seconds(d) for d in sorted(root.glob("seed-*")))
+                                   / (n if kind.endswith("group") else 1))
+    median = {kind: sorted(xs)[len(xs) // 2] for kind, xs in loops.items()}
+    wall = {kind: sorted(xs)[len(xs) // 2] for kind, xs in walls.items()}
+    return {
+        "seeds": n, "frames_per_seed": frames, "rounds": rounds,
+        "loop_frames_per_s": {kind: round(n * frames / t, 1) for kind, t in median.items()},
+        "command_wall_s": {kind: round(t, 1) for kind, t in wall.items()},
+        "ratio_loop": {m: round(median[f"{m}_separate"] / median[f"{m}_group"], 3) for m in ("terms", "plain")},
+        "ratio_command_wall": {m: round(wall[f"{m}_separate"] / wall[f"{m}_group"], 3) for m in ("terms", "plain")},
+        "commands": {"terms_group": f"drltg train {TASK} --seeds {n} --frames {frames} {' '.join(TERM_OPTIONS)} "
+                                    "-o transfer.source=SOURCE",
+                     "terms_separate": "the same with --no-group",
+                     "plain_group": f"drltg train {TASK} --seeds {n} --frames {frames}",
+                     "plain_separate": "the same with --no-group"},
+    }
+
+
 def run_lift(device: str = "cpu", quick: bool = False) -> dict:
     if device != "cpu":
         return {"missing": "the lift-seeds suite measures single-threaded CPU runs"}

@@ -284,14 +284,19 @@ def test_a_group_stopped_inside_an_evaluation_saves_each_seed_there_and_evaluate
         assert [r["frames"] for r in read_eval_csv(tmp_path / f"seed-{seed}" / "eval.csv")] == [0, 256, 512]
 
 
-def test_a_method_without_a_grouped_form_trains_its_seeds_one_after_another(group_run, tmp_path, capsys):
+def test_a_method_without_a_grouped_form_trains_its_seeds_one_after_another(tmp_path, capsys):
     from drltg.training.seeds import train_seeds
+    from drltg.transfer import Transfer, TransferMethod, register_method
+    from drltg.transfer.registry import METHODS
 
-    cfg = tiny_cfg(frames=64, **{"transfer.method": "demonstrations", "transfer.source": str(group_run / "seed-3"),
-                                 "transfer.demo_episodes": 1, "env.horizon": 16})
-    dirs = train_seeds(config_lib.updated(cfg, {"eval.every": 64}), tmp_path, 2, progress=False)
+    try:
+        register_method(TransferMethod("test-alone", "nothing", lambda *a, **k: Transfer()))
+        cfg = tiny_cfg(frames=64, **{"transfer.method": "test-alone", "eval.every": 64})
+        dirs = train_seeds(cfg, tmp_path, 2, progress=False)
+    finally:
+        METHODS.pop("test-alone", None)
     err = capsys.readouterr().err
-    assert "transfer method demonstrations has no grouped form; training the 2 seeds one after another" in err
+    assert "transfer method test-alone has no grouped form; training the 2 seeds one after another" in err
     assert [d.name for d in dirs] == ["seed-3", "seed-103"] and all((d / "summary.json").is_file() for d in dirs)
 
 
@@ -346,11 +351,11 @@ def test_runs_that_differ_only_in_their_seed_form_one_unit(tmp_path):
               run("r100", seed=100, **{"transfer.method": "reward-shaping"})]
     reused = [run(f"p{s}", needs=tmp_path / f"s{s + 50}", seed=s,
                   **{"transfer.method": "demonstrations", "transfer.source": str(tmp_path / f"s{s + 50}")})
-              for s in (0, 100)]  # a buffer of demonstrations: no grouped form
+              for s in (0, 100)]  # each seed's demonstrations and behaviour-cloning term: grouped too
     units = seed_groups([baseline[0], source[0], transfer[0], soc[0], shaped[0], reused[0], baseline[1], source[1],
                          transfer[1], soc[1], shaped[1], reused[1]])
     assert [[r.path.name for r in unit] for unit in units] == [
-        ["b0", "b100"], ["s50", "s150"], ["t0", "t100"], ["o0", "o100"], ["r0", "r100"], ["p0"], ["p100"]]
+        ["b0", "b100"], ["s50", "s150"], ["t0", "t100"], ["o0", "o100"], ["r0", "r100"], ["p0", "p100"]]
 
 
 def test_an_experiment_leaves_worker_process_groups_to_train_seeds(tmp_path):

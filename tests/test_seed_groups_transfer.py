@@ -158,9 +158,9 @@ def test_value_shaping_shapes_each_block_with_its_own_sources_value(sources):
 
 @pytest.mark.parametrize("method, grouped", [("none", True), ("reward-shaping", True), ("value-shaping", True),
                                              ("model-reuse", True), ("policy-reuse", True), ("jumpstart", True),
-                                             ("demonstrations", False), ("model-reuse+reward-shaping", True),
+                                             ("demonstrations", True), ("model-reuse+reward-shaping", True),
                                              ("reward-shaping+policy-reuse", True),
-                                             ("model-reuse+demonstrations", False)])
+                                             ("model-reuse+demonstrations", True)])
 def test_a_method_groups_only_if_it_and_every_part_declare_it(method, grouped):
     assert get_method(method).grouped is grouped
     reason = seeds.group_support(tiny_cfg(**{"transfer.method": method}))

@@ -27,7 +27,9 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.envs import ExplorationType, set_exploration_type
 
-__all__ = ["behaviour_cloning", "option_labels", "OPTION_PROBS"]
+from drltg.losses.terms import LossTerm
+
+__all__ = ["behaviour_cloning", "BehaviourCloning", "option_labels", "OPTION_PROBS"]
 
 OPTION_PROBS = "option_probs"
 """Where :func:`option_labels` leaves ``pi_Omega(.|s)`` of the demonstrations it labelled (``[B, K]``, zero
@@ -94,33 +96,36 @@ def behaviour_cloning(loss, count: int, weight: float | Callable[[], float], *, 
     above the actor's own, so the term fades where the learner has become better than its demonstrator.
     ``weight`` may be a function read at every step (an annealed weight); ``pi_Omega`` is read from the
     batch's ``OPTION_PROBS`` where :func:`option_labels` left it. Returns ``loss_terms(batch)`` for
-    :class:`~drltg.learners.UpdateStep`, with ``bc_accepted``, the (``pi_Omega``-weighted) share of
-    demonstrations kept."""
-    actor, actor_params = loss.actor_network, loss.actor_network_params
-    num_options = _num_options(loss)
-    option_key = loss.tensor_keys.option if num_options > 1 else None
-    obs_keys = [k for k in actor.in_keys if k != option_key]
+    :class:`~drltg.learners.UpdateStep` (a :class:`~drltg.losses.terms.LossTerm`), with ``bc_accepted``, the
+    (``pi_Omega``-weighted) share of demonstrations kept."""
+    return BehaviourCloning(loss, count, weight, q_filter=q_filter)
 
-    def per_option(demo: TensorDictBase) -> TensorDictBase:
-        """The demonstrations' inputs ``[k, K]``, one copy per option (``[k, 1]`` without options)."""
-        td = demo.select(*obs_keys, "action").unsqueeze(-1).expand(*demo.batch_size, num_options).clone(False)
-        if option_key is not None:
-            options = torch.arange(num_options, device=td.device).unsqueeze(-1)
-            td.set(option_key, options.expand(*td.batch_size, 1))
-        return td
 
-    def loss_terms(batch: TensorDictBase) -> dict[str, torch.Tensor]:
-        demo = batch[:count]
+class BehaviourCloning(LossTerm):
+    """:func:`behaviour_cloning`'s term; it reads the actor's and critics' parameters of the loss it is
+    evaluated with (:class:`~drltg.losses.terms.LossTerm`), so a seed group evaluates each seed's term with
+    that seed's parameters."""
+
+    def __init__(self, loss, count: int, weight: float | Callable[[], float], *, q_filter: bool = False):
+        super().__init__(loss, weight)
+        self.count, self.q_filter = count, q_filter
+
+    def evaluate(self, loss, batch: TensorDictBase, weights: torch.Tensor) -> dict[str, torch.Tensor]:
+        actor, num_options = loss.actor_network, _num_options(loss)
+        option_key = loss.tensor_keys.option if num_options > 1 else None
+        demo = batch[:self.count]
         probs = demo.get(OPTION_PROBS) if OPTION_PROBS in demo.keys() else _option_probs(loss, demo)
-        pair = per_option(demo)
-        with set_exploration_type(ExplorationType.DETERMINISTIC), actor_params.to_module(actor):
+        # the demonstrations' inputs [k, K], one copy per option ([k, 1] without options)
+        obs_keys = [k for k in actor.in_keys if k != option_key]
+        pair = demo.select(*obs_keys, "action").unsqueeze(-1).expand(*demo.batch_size, num_options).clone(False)
+        if option_key is not None:
+            options = torch.arange(num_options, device=pair.device).unsqueeze(-1)
+            pair.set(option_key, options.expand(*pair.batch_size, 1))
+        with set_exploration_type(ExplorationType.DETERMINISTIC), loss.actor_network_params.to_module(actor):
             action = actor(pair.exclude("action"))["action"]
         error = (action - pair["action"]).pow(2).sum(-1)
         accepted = torch.ones_like(error)
-        if q_filter:
+        if self.q_filter:
             accepted = (_min_q(loss, pair) > _min_q(loss, pair.clone(False).set("action", action.detach()))).float()
-        w = weight() if callable(weight) else weight
-        return {"loss_actor_bc": w * (probs * error * accepted).sum(-1).mean(),
+        return {"loss_actor_bc": weights[0] * (probs * error * accepted).sum(-1).mean(),
                 "bc_accepted": (probs * accepted).sum(-1).mean()}
-
-    return loss_terms

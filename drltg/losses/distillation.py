@@ -32,7 +32,9 @@ from tensordict.nn import ProbabilisticTensorDictSequential, TensorDictModuleBas
 from torch import distributions as D
 from torchrl.envs import ExplorationType, set_exploration_type
 
-__all__ = ["KickstartingWeight", "distillation"]
+from drltg.losses.terms import LossTerm
+
+__all__ = ["KickstartingWeight", "distillation", "Distillation"]
 
 EXPONENTIAL_FLOOR = 0.01
 r"""An exponential weight reaches :math:`\lambda_0 \cdot 0.01` at ``frames``, then 0."""
@@ -105,13 +107,24 @@ def distillation(loss, teacher: TensorDictModuleBase, weight: float | Callable[[
 
     ``weight`` may be a function read at every step (:class:`KickstartingWeight` behind a frame counter).
     The term is named ``loss_actor_*``, so TD3's policy delay skips it with the actor's own loss. Returns
-    ``loss_terms(batch)`` for :class:`~drltg.learners.UpdateStep`; with weight 0 the update is the learner's
-    own, exactly."""
-    actor, actor_params = loss.actor_network, loss.actor_network_params
-    student_stochastic, teacher_stochastic = _is_stochastic(actor), _is_stochastic(teacher)
+    ``loss_terms(batch)`` for :class:`~drltg.learners.UpdateStep` (a :class:`~drltg.losses.terms.LossTerm`,
+    which a seed group evaluates for every seed at once, each with its own teacher); with weight 0 the
+    update is the learner's own, exactly."""
+    return Distillation(loss, teacher, weight)
 
-    def loss_terms(batch: TensorDictBase) -> dict[str, torch.Tensor]:
-        w = weight() if callable(weight) else weight
+
+class Distillation(LossTerm):
+    """:func:`distillation`'s term: the teacher is its submodule (frozen), the student the actor of the loss
+    it is evaluated with (:class:`~drltg.losses.terms.LossTerm`), so a seed group stacks the seeds' teachers
+    and evaluates seed k's term with seed k's teacher and actor."""
+
+    def __init__(self, loss, teacher: TensorDictModuleBase, weight: float | Callable[[], float]):
+        super().__init__(loss, weight)
+        self.teacher = teacher
+
+    def evaluate(self, loss, batch: TensorDictBase, weights: torch.Tensor) -> dict[str, torch.Tensor]:
+        actor, teacher = loss.actor_network, self.teacher
+        student_stochastic, teacher_stochastic = _is_stochastic(actor), _is_stochastic(teacher)
         states = batch.select(*actor.in_keys, *teacher.in_keys, strict=False)
         with torch.no_grad():
             if teacher_stochastic and student_stochastic:
@@ -119,7 +132,7 @@ def distillation(loss, teacher: TensorDictModuleBase, weight: float | Callable[[
             else:
                 with set_exploration_type(ExplorationType.DETERMINISTIC):
                     teacher_action = teacher(states.clone(False))["action"]
-        with actor_params.to_module(actor):
+        with loss.actor_network_params.to_module(actor):
             if student_stochastic:
                 student_dist = actor.get_dist(states.clone(False))
                 if teacher_stochastic:
@@ -131,6 +144,4 @@ def distillation(loss, teacher: TensorDictModuleBase, weight: float | Callable[[
                     action = actor(states.clone(False))["action"]
                 gap = (action - teacher_action).pow(2)
         gap = gap.reshape(*states.batch_size, -1).sum(-1)
-        return {"loss_actor_distill": w * gap.mean(), "distill_gap": gap.detach().mean()}
-
-    return loss_terms
+        return {"loss_actor_distill": weights[0] * gap.mean(), "distill_gap": gap.detach().mean()}

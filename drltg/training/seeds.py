@@ -22,10 +22,14 @@ supports it (:func:`group_support`) the seeds train as one :class:`SeedGroup`:
   on its own envs (:func:`seed_block_transforms`), each seed's policy-reuse mixer over its own source
   (:class:`SeedBlocks`), model reuse loading each seed's own source before the seeds are stacked.
 
+* a transfer's loss terms (behaviour cloning, distillation) inside the vmapped loss: seed k's
+  :class:`~drltg.losses.terms.LossTerm` with seed k's parameters, its stacked state (seed k's teacher) and
+  its weight (:class:`StackedLoss`); a transfer's minibatches (demonstrations) from seed k's buffer.
+
 A transfer method groups if it declares a grouped form (``TransferMethod.grouped``; ``a+b`` if every part
-does): it may set train transforms and a mixer, not a whole policy, minibatches or loss terms
-(``demonstrations`` has none). The configs of a group may differ in ``transfer.source`` (an experiment's
-transfer run of seed s reads its own seed's source run). Otherwise the seeds train one after another with
+does): it may set anything but a whole collector policy, and its loss terms must be ``LossTerm`` s. The
+configs of a group may differ in ``transfer.source`` (an experiment's transfer run of seed s reads its own
+seed's source run). Otherwise the seeds train one after another with
 :func:`~drltg.training.loop.train`.
 
 What a seed in a group shares with its run alone: its initial networks (built under
@@ -40,6 +44,7 @@ group (same ``--seeds`` and ``--seed``). Each seed's summary.json records its gr
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 import functools
 import sys
@@ -59,6 +64,7 @@ from drltg.envs.goal_env import GoalEnv
 from drltg.errors import UsageError
 from drltg.learners import Agent, UpdateStep, sample_batches
 from drltg.losses import SoftOptionCriticLoss
+from drltg.losses.terms import LossTerm
 from drltg.modules import make_option_policy
 from drltg.store import rundir
 from drltg.training import best, health, preflight
@@ -89,21 +95,40 @@ GROUPED_ALGOS = ("sac", "td3", "soc")
 class StackedLoss(torch.nn.Module):
     """The seeds' losses as one loss: ``params`` holds every seed's loss parameters and buffers stacked
     along a leading seed dimension, and ``forward(batch)`` runs ``loss`` under each seed's slice on that
-    seed's slice of ``batch`` (one ``torch.vmap``), returning the losses with a leading seed dimension."""
+    seed's slice of ``batch`` (one ``torch.vmap``), returning the losses with a leading seed dimension.
 
-    def __init__(self, loss: LossModule, params: TensorDictBase, randomness: str = "different"):
+    ``terms`` (one :class:`~drltg.losses.terms.LossTerm` per seed, a transfer method's extra terms) are
+    evaluated in the same vmapped call: seed k's with seed k's slice of the loss, of the terms' stacked
+    state (each seed's teacher) and of their weights, read for every seed at every step."""
+
+    def __init__(self, loss: LossModule, params: TensorDictBase, randomness: str = "different",
+                 terms: Sequence[LossTerm] = ()):
         super().__init__()
         self.params = params
         self.__dict__["seed_loss"] = loss  # run under each seed's parameters; not a submodule of its own
-        self._losses = torch.vmap(self._seed_losses, (0, 0), randomness=randomness)
+        self.__dict__["terms"] = list(terms)
+        self.__dict__["seed_term"] = None
+        self.term_state = None
+        if self.terms:  # one seed's term, reading the group's loss; each seed's state is swapped into it
+            self.__dict__["seed_term"] = copy.deepcopy(self.terms[0], memo={id(self.terms[0].loss): loss})
+            state = TensorDict.from_modules(*self.terms)
+            self.term_state = state.detach().clone() if not state.is_empty() else None
+        dims = (0, None if self.term_state is None else 0, None if not self.terms else 0, 0)
+        self._losses = torch.vmap(self._seed_losses, dims, randomness=randomness)
 
-    def _seed_losses(self, params: TensorDictBase, batch: TensorDictBase) -> TensorDictBase:
+    def _seed_losses(self, params: TensorDictBase, state: TensorDictBase | None, weights: torch.Tensor | None,
+                     batch: TensorDictBase) -> TensorDictBase:
         # an unlocked copy: the loss swaps its own sub-parameters in and out while it runs
         with params.copy().unlock_().to_module(self.seed_loss):
-            return self.seed_loss(batch)
+            losses = self.seed_loss(batch)
+            if self.seed_term is not None:
+                with contextlib.nullcontext() if state is None else state.copy().unlock_().to_module(self.seed_term):
+                    losses.update(self.seed_term.evaluate(self.seed_loss, batch, weights))
+            return losses
 
     def forward(self, batch: TensorDictBase) -> TensorDictBase:
-        return self._losses(self.params, batch)
+        weights = torch.stack([t.weights() for t in self.terms]).to(batch.device) if self.terms else None
+        return self._losses(self.params, self.term_state, weights, batch)
 
 
 def stacked_soft_update(loss: LossModule, params: TensorDictBase, eps: float) -> SoftUpdate:
@@ -133,9 +158,10 @@ class SeedGroup:
         randomness: ``torch.vmap``'s randomness for the losses' random draws: ``"different"`` draws
             independent noise per seed; ``"same"`` shares one draw, which is what a single update
             draws from the same generator state (the equality test).
+        terms: each seed's extra loss terms (:class:`StackedLoss`), built on its own agent's loss.
     """
 
-    def __init__(self, agents: Sequence[Agent], randomness: str = "different"):
+    def __init__(self, agents: Sequence[Agent], randomness: str = "different", terms: Sequence[LossTerm] = ()):
         self.agents = list(agents)
         for agent in self.agents:  # the buffers a TorchRL loss registers on its first call (SAC's target entropy)
             getattr(agent.loss, "target_entropy", None)
@@ -149,7 +175,7 @@ class SeedGroup:
         self.optimizer = torch.optim.Adam(params, **first.optimizer.defaults)
         if first.optimizer.state:
             self.optimizer.load_state_dict(self._stacked_optimizer_state())
-        self.stacked = StackedLoss(self.loss, self.params, randomness)
+        self.stacked = StackedLoss(self.loss, self.params, randomness, terms)
         target_updater = stacked_soft_update(first.loss, self.params, first.target_updater.eps)
         self.step = UpdateStep(Agent(first.actor, first.policy, self.stacked, target_updater, self.optimizer),
                                threads=None)
@@ -159,6 +185,10 @@ class SeedGroup:
         """One step for every seed; ``batch`` has a leading seed dimension. Returns the detached losses
         (each entry with a leading seed dimension)."""
         return self.step(batch, update_actor)
+
+    def seed_params(self, k: int):
+        """A context in which seed k's own modules hold its current (stacked) parameters, without a copy."""
+        return self.params[k].copy().unlock_().to_module(self.agents[k].loss)
 
     def sync(self) -> None:
         """Copy the stacked parameters into each seed's own modules."""
@@ -349,6 +379,7 @@ class GroupLearner:
         if transfers[0].mixer is not None:  # seed k's mixer (policy reuse over its own source) on its envs
             self.policy = TensorDictSequential(self.policy, SeedBlocks([t.mixer for t in transfers]))
         self.on_frames = [t.on_frames for t in transfers if t.on_frames is not None]
+        self.make_batches = None if transfers[0].batches is None else [t.batches for t in transfers]
         self.in_keys = list(group.loss.in_keys)
 
     def split(self, data: TensorDictBase) -> list[TensorDictBase]:
@@ -361,8 +392,25 @@ class GroupLearner:
             buffer.extend(piece.select(*self.in_keys))
 
     def batches(self, count: int):
-        per_seed = [sample_batches(buffer, count) for buffer in self.buffers]
-        return (torch.stack(batch) for batch in zip(*per_seed))
+        if self.make_batches is None:
+            per_seed = [sample_batches(buffer, count) for buffer in self.buffers]
+            return (torch.stack(batch) for batch in zip(*per_seed))
+        return self._transfer_batches(count)
+
+    def _transfer_batches(self, count: int):
+        """Seed k's minibatches from its transfer's ``batches`` (demonstrations mixed into its own samples),
+        one batch at a time. For the soft option-critic, whose demonstrations' option labels are drawn with
+        the networks just before their update, seed k's batch is drawn with seed k's current parameters in its
+        own modules; the other learners' batches read no parameter and skip that swap (about 1.6 ms a seed on
+        FourRooms' networks)."""
+        iterators = [iter(make(buffer, count)) for make, buffer in zip(self.make_batches, self.buffers)]
+        reads_params = isinstance(self.group.loss, SoftOptionCriticLoss)
+        for _ in range(count):
+            batch = []
+            for k, iterator in enumerate(iterators):
+                with self.group.seed_params(k) if reads_params else contextlib.nullcontext():
+                    batch.append(next(iterator))
+            yield torch.stack(batch)
 
     def update(self, batch: TensorDictBase, update_actor: bool) -> TensorDictBase:
         return self.group.update(batch, update_actor)
@@ -436,12 +484,16 @@ def seed_block_transforms(name: str, transfers: list[Transfer]) -> list:
     """The group's training-env transforms: position by position, the seeds' own transforms joined into
     one: their shapings into one :class:`~drltg.transforms.PotentialShaping` whose potential on block k is
     seed k's (:class:`SeedBlockPotential`), a primer (policy reuse's episode choice) once for every block.
-    A grouped method sets nothing a group cannot give each seed (a whole collector policy, minibatches, loss
-    terms)."""
-    for field in ("policy", "batches", "loss_terms"):
-        if getattr(transfers[0], field) is not None:
-            raise UsageError(f"transfer method {name} is registered with grouped=True but sets the Transfer's "
-                             f"{field}, which a seed group cannot give each seed; register it without grouped.")
+    A grouped method sets nothing a group cannot give each seed: a whole collector policy, or loss terms
+    that are not :class:`~drltg.losses.terms.LossTerm` modules (a plain function of the batch reads one
+    seed's parameters, not the group's)."""
+    if transfers[0].policy is not None:
+        raise UsageError(f"transfer method {name} is registered with grouped=True but sets the Transfer's policy, "
+                         "which a seed group cannot give each seed; register it without grouped.")
+    if transfers[0].loss_terms is not None and not isinstance(transfers[0].loss_terms, LossTerm):
+        raise UsageError(f"transfer method {name} is registered with grouped=True but its loss_terms is not a "
+                         "drltg.losses.terms.LossTerm, which a seed group evaluates with each seed's parameters; "
+                         "make it one or register the method without grouped.")
     joined = []
     for parts in zip(*(t.train_transforms for t in transfers), strict=True):
         first = parts[0]
@@ -500,11 +552,11 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
         buffers = [ReplayBuffer(storage=LazyTensorStorage(cfg.buffer.size, device=cfg.device),
                                 batch_size=cfg.buffer.batch_size) for _ in cfgs]
         session.restore(agents, buffers)
-        group = SeedGroup(agents)
         seeds = [c.seed for c in cfgs]
         transforms = agents[0].env_transforms  # what the policy needs the env to carry (SOC's option)
-        train_env = group_train_env(cfgs, transforms, transfers)
+        train_env = group_train_env(cfgs, transforms, transfers)  # which refuses a transfer a group cannot give
         session.callback(train_env.close, raise_if_closed=False)  # worker processes, where the task has them
+        group = SeedGroup(agents, terms=[t.loss_terms for t in transfers if t.loss_terms is not None])
         eval_env = _group_env(cfg, seeds, cfg.eval.episodes, EVAL_SEED_OFFSET, transforms)
         best.check_metric(cfg, eval_env)
         session.callback(eval_env.close, raise_if_closed=False)

@@ -62,6 +62,7 @@ DEMONSTRATIONS = TransferMethod(
     source="policy",
     takes=("batches",),
     algos=("sac", "td3", "soc"),
+    grouped=True,
     options={
         "demo_episodes": (Int, Field(50, ge=1, description="demonstrations: episodes of the source policy collected")),
         "demo_ratio": (Probability, Field(0.25, description="demonstrations: share of every batch drawn from them")),

@@ -55,7 +55,8 @@ class Transfer:
             ``n`` samples of the replay buffer.
         loss_terms: ``loss_terms(batch) -> {"loss_<name>": scalar}``, added to the learner's losses at
             every gradient step (a term named ``loss_actor_*`` is skipped with the actor's, under TD3's
-            policy delay).
+            policy delay); a grouped method's is a :class:`~drltg.losses.terms.LossTerm`, which a seed
+            group evaluates inside its vmapped loss with each seed's parameters.
         files: written into the run directory when the run starts (``name -> text``).
         summary: entries added to the run's ``summary.json``.
     """
@@ -94,9 +95,10 @@ class TransferMethod:
         grouped: whether its seeds can train as one seed group (:mod:`drltg.training.seeds`). The group
             calls ``build`` once per seed, on that seed's learner before the seeds' parameters are
             stacked, and shapes seed k's block of its batched env with seed k's ``train_transforms``
-            joined by their ``seed_blocks`` (:meth:`drltg.transforms.PotentialShaping.seed_blocks`), seed
-            k's ``mixer`` on seed k's envs and every seed's ``on_frames``; a method whose ``Transfer``
-            sets the policy, batches or loss terms has no grouped form.
+            joined (:func:`drltg.training.seeds.seed_block_transforms`), seed k's ``mixer`` on seed k's
+            envs, seed k's ``batches`` of seed k's buffer, seed k's ``loss_terms`` (a
+            :class:`~drltg.losses.terms.LossTerm`) with seed k's parameters, and every seed's
+            ``on_frames``; a method whose ``Transfer`` sets the policy has no grouped form.
     """
 
     name: str
@@ -225,6 +227,11 @@ def _join(parts: list[Transfer]) -> Transfer:
 
     def loss_terms(batch) -> dict:
         return {k: v for f in terms for k, v in f(batch).items()}
+
+    from drltg.losses.terms import LossTerm, LossTerms
+
+    if terms and all(isinstance(f, LossTerm) for f in terms):
+        loss_terms = LossTerms(terms)  # which a seed group can evaluate inside its vmapped loss
 
     return Transfer(
         train_transforms=[x for t in parts for x in t.train_transforms],
