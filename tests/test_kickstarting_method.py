@@ -3,9 +3,10 @@ with the configured weight schedule, and at weight 0 trains exactly as the basel
 import json
 
 import pytest
+import torch
 
 from drltg.cli import main
-from drltg.store.rundir import read_eval_csv
+from drltg.store.rundir import load_checkpoint, read_eval_csv
 from tests.test_experiment import TINY
 
 LOGGED = ["-o", "log.every=16", "-o", "transfer.kick_frames=256"]
@@ -44,22 +45,36 @@ def test_weight_zero_trains_exactly_as_the_baseline_of_the_seed(experiment, tmp_
             *LOGGED, "-o", "transfer.method=kickstarting", "-o", f"transfer.source={experiment / 'source' / 'seed-50'}",
             "-o", "transfer.kick_weight=0", "--run-dir", str(tmp_path / "zero")]
     assert main(args) == 0
-    baseline = read_eval_csv(experiment / "baseline" / "seed-0" / "eval.csv")
-    assert read_eval_csv(tmp_path / "zero" / "eval.csv") == baseline
-    assert len(baseline) > 1
-    # the same with the term on changes the run: the comparison can fail
-    assert main([*args[:-3], "-o", "transfer.kick_weight=1", "--run-dir", str(tmp_path / "one")]) == 0
-    assert read_eval_csv(tmp_path / "one" / "eval.csv") != baseline
+    baseline = experiment / "baseline" / "seed-0"
+    assert read_eval_csv(tmp_path / "zero" / "eval.csv") == read_eval_csv(baseline / "eval.csv")
+    assert _same_weights(tmp_path / "zero", baseline)
+    # the same with the term on ends with other weights: the comparison can fail
+    assert main([*args[:-4], "-o", "transfer.kick_weight=1", "--run-dir", str(tmp_path / "one")]) == 0
+    assert not _same_weights(tmp_path / "one", baseline)
 
 
-@pytest.mark.parametrize("algo", ["td3", "soc"])
-def test_td3_and_soft_option_critic_learners_are_kickstarted_by_a_source_of_their_kind(algo, tmp_path):
-    common = ["--algo", algo, "--frames", "256", "--no-progress", *TINY, "-o", "log.every=16"]
-    assert main(["train", "fourrooms/northeast", *common, "--run-dir", str(tmp_path / "src")]) == 0
-    assert main(["train", "fourrooms/northeast-shifted", *common, "-o", "transfer.method=kickstarting",
+def _same_weights(run, other):
+    mine, theirs = (load_checkpoint(r)["loss"] for r in (run, other))
+    return mine.keys() == theirs.keys() and all(torch.equal(mine[k], theirs[k]) for k in mine)
+
+
+@pytest.mark.parametrize("algo, source_algo", [("td3", "td3"), ("soc", "sac")])
+def test_td3_and_soft_option_critic_learners_are_kickstarted(algo, source_algo, tmp_path):
+    common = ["--frames", "256", "--no-progress", *TINY, "-o", "log.every=16"]
+    assert main(["train", "fourrooms/northeast", "--algo", source_algo, *common, "--run-dir", str(tmp_path / "src")]) == 0
+    assert main(["train", "fourrooms/northeast-shifted", "--algo", algo, *common, "-o", "transfer.method=kickstarting",
                  "-o", f"transfer.source={tmp_path / 'src'}", "--run-dir", str(tmp_path / "run")]) == 0
     distill = _logged(tmp_path / "run", "loss_actor_distill")
     assert distill and all(v > 0 for _, v in distill)
+
+
+def test_a_soft_option_critic_teacher_is_refused_in_one_sentence(tmp_path, capsys):
+    common = ["--frames", "128", "--no-progress", *TINY]
+    assert main(["train", "fourrooms/northeast", "--algo", "soc", *common, "--run-dir", str(tmp_path / "src")]) == 0
+    assert main(["train", "fourrooms/northeast-shifted", *common, "-o", "transfer.method=kickstarting",
+                 "-o", f"transfer.source={tmp_path / 'src'}", "--run-dir", str(tmp_path / "run")]) == 2
+    assert "kickstarting distils a SAC or TD3 source's actor" in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
 
 
 def test_a_decay_other_than_linear_or_exponential_is_refused_naming_the_key():

@@ -22,12 +22,17 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     draws what it would draw without transfer, and ``kick_weight=0`` trains exactly as the baseline."""
     import torch
 
-    from drltg.losses import KickstartingWeight, distillation
+    from drltg.errors import UsageError
+    from drltg.losses import KickstartingWeight, SoftOptionCriticLoss, distillation
     from drltg.transfer.source import source_agent
 
     t = cfg.transfer
     with torch.random.fork_rng(devices=[]):
-        teacher = source_agent(cfg, env).actor.requires_grad_(False)
+        source = source_agent(cfg, env)
+    if isinstance(source.loss, SoftOptionCriticLoss):
+        raise UsageError(f"kickstarting distils a SAC or TD3 source's actor; transfer.source '{t.source}' is a soft "
+                         "option-critic run, whose policy acts through its options.")
+    teacher = source.actor.requires_grad_(False)
     schedule = KickstartingWeight(t.kick_weight, t.kick_frames, t.kick_decay)
     frames = [0]
 
