@@ -221,7 +221,7 @@ def test_the_registry_tables_list_every_builtin_task_method_and_key():
     methods, keys = g.reference.methods_table(), g.reference.config_table()
     builtin = {n for n, m in METHODS.items() if m.build.__module__.startswith("drltg.")}
     assert {"none", "reward-shaping", "value-shaping", "policy-reuse", "jumpstart", "model-reuse",
-            "demonstrations"} <= builtin
+            "demonstrations", "kickstarting", "sf-gpi"} <= builtin
     assert all(f"| `{name}` |" in methods for name in builtin)
     assert all(f"| `{name}` |" in tasks for name, t in TASKS.items() if t.factory.__module__.startswith("drltg."))
     assert all(f"| `{name}` |" in tasks for name in ("fourrooms-near", "gridrooms-far", "lift-to-place"))

@@ -53,7 +53,7 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
 
 KICKSTARTING = TransferMethod(
     "kickstarting",
-    "policy distillation: the learner's loss plus w_f * D(pi_source || pi_learner) on replayed states, w_f falling to 0",
+    "policy distillation: the learner's loss plus w_f * D(pi_source, pi_learner) on replayed states, w_f falling to 0",
     _build,
     source="run",
     algos=("sac", "td3", "soc"),
