@@ -118,3 +118,24 @@ def test_the_mixer_reads_the_learners_live_critics(tmp_path):
             p.add_(1.0)
     after = own(TensorDict({"observation": obs}, batch_size=[2]))["learner_action_value"]
     assert not torch.allclose(before, after)
+
+
+def test_a_sweep_runs_both_new_methods_on_one_source_and_baseline(tmp_path):
+    import yaml
+
+    from tests.test_sweep import TINY as SWEEP_TINY
+
+    spec = tmp_path / "sweep.yaml"
+    spec.write_text(yaml.safe_dump({"pairs": ["gridrooms-near"], "methods": ["kickstarting", "sf-gpi"], "seeds": 1,
+                                    "frames": 256, "threshold": 0,
+                                    "overrides": {**SWEEP_TINY, "transfer.sf_frames": 256, "transfer.sf_updates": 10,
+                                                  "transfer.kick_frames": 128}}))
+    out = tmp_path / "out"
+    assert main(["sweep", str(spec), "--out", str(out)]) == 0
+    group = out / "gridrooms-near" / "sac"
+    assert [p.name for p in (group / "source").iterdir()] == ["seed-50"]
+    assert [p.name for p in (group / "baseline").iterdir()] == ["seed-0"]
+    for method in ("kickstarting", "sf-gpi"):
+        assert (group / method / "report" / "transfer_metrics.json").is_file()
+    summary = json.loads((group / "sf-gpi" / "transfer" / "seed-0" / "summary.json").read_text())
+    assert summary["successor_feature_frames"] == 256
