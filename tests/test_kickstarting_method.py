@@ -61,7 +61,8 @@ def _same_weights(run, other):
 @pytest.mark.parametrize("algo, source_algo", [("td3", "td3"), ("soc", "sac")])
 def test_td3_and_soft_option_critic_learners_are_kickstarted(algo, source_algo, tmp_path):
     common = ["--frames", "256", "--no-progress", *TINY, "-o", "log.every=16"]
-    assert main(["train", "fourrooms/northeast", "--algo", source_algo, *common, "--run-dir", str(tmp_path / "src")]) == 0
+    source = ["train", "fourrooms/northeast", "--algo", source_algo, *common, "--run-dir", str(tmp_path / "src")]
+    assert main(source) == 0
     assert main(["train", "fourrooms/northeast-shifted", "--algo", algo, *common, "-o", "transfer.method=kickstarting",
                  "-o", f"transfer.source={tmp_path / 'src'}", "--run-dir", str(tmp_path / "run")]) == 0
     distill = _logged(tmp_path / "run", "loss_actor_distill")

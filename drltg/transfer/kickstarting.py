@@ -58,7 +58,8 @@ KICKSTARTING = TransferMethod(
     source="run",
     algos=("sac", "td3", "soc"),
     options={
-        "kick_weight": (Float, Field(1.0, ge=0, description="kickstarting: weight of the distillation term at frame 0")),
+        "kick_weight": (Float, Field(1.0, ge=0,
+                                     description="kickstarting: weight of the distillation term at frame 0")),
         "kick_frames": (Int, Field(10_000, ge=0, description="kickstarting: frames over which the weight falls to 0 "
                                                              "(0: constant)")),
         "kick_decay": (Literal["linear", "exponential"],

@@ -141,15 +141,17 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     from torchrl.data import OneHot
 
     from drltg.collectors import GPIPolicy
+    from drltg.losses import SoftOptionCriticLoss
     from drltg.modules import GoalFeatures
-    from drltg.transfer.source import rebuild
+    from drltg.transfer.source import check_same_spaces, rebuild
 
     t = cfg.transfer
     with torch.random.fork_rng(devices=[]):
         source = rebuild(t.source, cfg.device, t.source_checkpoint)
         _check_shared(source.cfg.task, source.cfg.env, cfg.task, cfg.env)
-        from drltg.transfer.source import check_same_spaces
-
+        if isinstance(source.agent.loss, SoftOptionCriticLoss):
+            raise UsageError(f"sf-gpi evaluates a SAC or TD3 source's actor; transfer.source '{t.source}' is a soft "
+                             "option-critic run, whose policy acts through its options.")
         check_same_spaces(source.env, env, f"transfer.source '{t.source}' ({source.cfg.task})", f"task '{cfg.task}'")
         target_env = getattr(env, "base_env", env)
         source_goal, goal = source.env.goal.tolist(), target_env.goal.tolist()
@@ -164,7 +166,8 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
         own, gpi = [], GPIPolicy([critic], w, policies=[source.agent.actor], include_action=True)
     mixer = TensorDictSequential(*own, gpi, TensorDictModule(_chose_source, in_keys=["gpi_index"],
                                                               out_keys=["reused"]))
-    return Transfer(mixer=mixer, summary={"successor_feature_frames": frames, "gpi_weights": w.tolist()})
+    return Transfer(mixer=mixer, summary={"successor_feature_frames": frames,
+                                          "gpi_weights": [round(x, 6) for x in w.tolist()]})
 
 
 SF_GPI = TransferMethod(
