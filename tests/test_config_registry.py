@@ -13,7 +13,8 @@ from drltg.errors import UsageError
 from tests.test_reliability import train_args
 
 ROOT = Path(__file__).resolve().parents[1]
-BUILTIN = ("none", "reward-shaping", "value-shaping", "policy-reuse", "jumpstart", "model-reuse", "demonstrations")
+BUILTIN = ("none", "reward-shaping", "value-shaping", "policy-reuse", "jumpstart", "model-reuse", "demonstrations",
+           "kickstarting", "sf-gpi")
 
 RESOLVE_EVERY_METHOD = """
 from drltg.config import resolve

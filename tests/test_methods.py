@@ -34,7 +34,7 @@ def _source_run(path, task="fourrooms/northeast", algo="sac"):
 @pytest.mark.parametrize("name", sorted(METHODS))
 def test_every_method_builds_a_transfer_for_a_run(name, tmp_path):
     method = get_method(name)
-    overrides = [f"transfer.method={name}", "transfer.demo_episodes=1"]
+    overrides = [f"transfer.method={name}", "transfer.demo_episodes=1", "transfer.sf_frames=16", "transfer.sf_updates=1"]
     if method.source is not None:
         overrides.append(f"transfer.source={_source_run(tmp_path / 'src')[0]}")
     cfg = _cfg("fourrooms/northeast", *overrides)
@@ -47,6 +47,7 @@ def test_every_method_builds_a_transfer_for_a_run(name, tmp_path):
         "policy-reuse": {"train_transforms", "mixer", "on_frames"},
         "jumpstart": {"train_transforms", "mixer", "on_frames"},
         "model-reuse": {"files"}, "demonstrations": {"batches", "loss_terms", "summary"},
+        "kickstarting": {"loss_terms", "on_frames", "summary"}, "sf-gpi": {"mixer", "summary"},
     }
     assert changed == expected[name]
 

@@ -8,6 +8,8 @@
     model-reuse      modules.load_weights(source run's checkpoint -> the learner)           (model_reuse)
     demonstrations   collectors.collect_demonstrations + mixed_batches, losses.behaviour_cloning
                                                                                             (demonstrations)
+    kickstarting     losses.distillation(source actor, KickstartingWeight)                  (kickstarting)
+    sf-gpi           modules.GoalFeatures, losses.SuccessorFeatureLoss, collectors.GPIPolicy (sf_gpi)
 
 A trained run as a source, in one call each (they print nothing): ``load_actor(run_dir)`` (the past
 policy of policy reuse), ``load_critic(run_dir)`` (its value V(s), the potential of value shaping),
@@ -19,18 +21,20 @@ its ``best.pt`` (``transfer.source_checkpoint`` for the methods).
 run (:class:`Transfer`); :mod:`drltg.transfer.source` reads ``transfer.source``. The built-in methods are
 the entry points of the group ``drltg.methods`` (``pyproject.toml``), found by the config's registry
 (:data:`drltg.config.METHODS`, here ``METHODS``) on its first lookup: importing this package registers
-nothing (``a+b`` names a combination, :func:`combine`); all but demonstrations
-train their seeds as one seed group (``TransferMethod.grouped``, :mod:`drltg.training.seeds`),
-demonstrations one after another; the parts themselves
+nothing (``a+b`` names a combination, :func:`combine`); all but demonstrations, kickstarting and sf-gpi
+train their seeds as one seed group (``TransferMethod.grouped``, :mod:`drltg.training.seeds`), those three
+one after another; the parts themselves
 (``drltg.transforms``, ``drltg.collectors``, ``drltg.losses``, ``drltg.modules``) register nothing.
 """
 from drltg.transfer.registry import METHODS, Transfer, TransferMethod, combine, get_method, register_method
-from drltg.transfer import reward_shaping, value_shaping, policy_reuse, model_reuse, demonstrations  # noqa: I001
+from drltg.transfer import (  # noqa: I001
+    reward_shaping, value_shaping, policy_reuse, model_reuse, demonstrations, kickstarting, sf_gpi,
+)
 from drltg.transfer.model_reuse import load_from_run
 from drltg.transfer.source import load_actor, load_agent, load_critic
 
 __all__ = [
     "METHODS", "Transfer", "TransferMethod", "combine", "get_method", "register_method",
     "load_actor", "load_critic", "load_agent", "load_from_run",
-    "reward_shaping", "value_shaping", "policy_reuse", "model_reuse", "demonstrations",
+    "reward_shaping", "value_shaping", "policy_reuse", "model_reuse", "demonstrations", "kickstarting", "sf_gpi",
 ]

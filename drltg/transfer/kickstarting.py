@@ -1,0 +1,69 @@
+r"""The kickstarting method: the learner's own loss plus a decaying distillation term towards the source's actor.
+
+:math:`L = L_{RL} + \lambda_f \cdot \mathrm{mean}_i\, D(\pi_T(\cdot|s_i), \pi_S(\cdot|s_i))` on replayed states
+(:func:`drltg.losses.distillation`), :math:`\lambda_f` the :class:`~drltg.losses.KickstartingWeight` of the
+frames collected so far.
+"""
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field
+
+from drltg.config import Float, Int, RunConfig
+from drltg.transfer.registry import Transfer, TransferMethod
+
+WEIGHT = "distill_weight"
+"""The logged training scalar (``train/distill_weight``): the weight of the term at each update."""
+
+
+def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
+    """The teacher is the source run's actor; it is rebuilt under a forked random state, so the learner
+    draws what it would draw without transfer, and ``kick_weight=0`` trains exactly as the baseline."""
+    import torch
+
+    from drltg.errors import UsageError
+    from drltg.losses import KickstartingWeight, SoftOptionCriticLoss, distillation
+    from drltg.transfer.source import source_agent
+
+    t = cfg.transfer
+    with torch.random.fork_rng(devices=[]):
+        source = source_agent(cfg, env)
+    if isinstance(source.loss, SoftOptionCriticLoss):
+        raise UsageError(f"kickstarting distils a SAC or TD3 source's actor; transfer.source '{t.source}' is a soft "
+                         "option-critic run, whose policy acts through its options.")
+    teacher = source.actor.requires_grad_(False)
+    schedule = KickstartingWeight(t.kick_weight, t.kick_frames, t.kick_decay)
+    frames = [0]
+
+    def weight() -> float:
+        return schedule(frames[0])
+
+    def tell(f: int) -> None:
+        frames[0] = f
+
+    term = distillation(agent.loss, teacher, weight)
+
+    def loss_terms(batch) -> dict:
+        return {**term(batch), WEIGHT: torch.tensor(weight())}
+
+    return Transfer(loss_terms=loss_terms, on_frames=tell,
+                    summary={"kickstarting": {"weight": t.kick_weight, "frames": t.kick_frames, "decay": t.kick_decay}})
+
+
+KICKSTARTING = TransferMethod(
+    "kickstarting",
+    "policy distillation: the learner's loss plus w_f * D(pi_source, pi_learner) on replayed states, w_f falling to 0",
+    _build,
+    source="run",
+    algos=("sac", "td3", "soc"),
+    options={
+        "kick_weight": (Float, Field(1.0, ge=0,
+                                     description="kickstarting: weight of the distillation term at frame 0")),
+        "kick_frames": (Int, Field(10_000, ge=0, description="kickstarting: frames over which the weight falls to 0 "
+                                                             "(0: constant)")),
+        "kick_decay": (Literal["linear", "exponential"],
+                       Field("linear", description="kickstarting: how the weight falls (exponential: to 1% at "
+                                                   "kick_frames, then 0)")),
+    },
+)

@@ -1,0 +1,186 @@
+r"""The sf-gpi method: the source policy's successor features, the target's reward weights, and GPI as the
+behaviour policy of an ordinary learner.
+
+For goal-reaching tasks that share their dynamics (FourRooms, grid FourRooms: only the goal moves),
+:math:`\phi(s') = [\text{in source goal}, \text{in target goal}, 1]` (:class:`~drltg.modules.GoalFeatures`)
+writes both rewards exactly, :math:`r = \phi^\top w`, with the target's :math:`w` from its goal and step cost
+(:meth:`~drltg.modules.GoalFeatures.task_weights`). At build time the source policy acts for ``sf_frames``
+frames in the source task (its exploration policy, from an env seeded apart) and
+:math:`\psi^{\pi_S}` is learnt by TD on them (:class:`~drltg.losses.SuccessorFeatureLoss`, the next action
+the source's deterministic one). The collector then acts by GPI (:class:`~drltg.collectors.GPIPolicy`):
+
+- continuous actions: :math:`a = \arg\max_{a_j \in \{\pi_S(s), a_L\}} \psi^{\pi_S}(s, a_j)^\top w`, the source's
+  action or the learner's own sampled one :math:`a_L`;
+- discrete actions: :math:`a = \arg\max_a \max(\psi^{\pi_S}(s, a)^\top w, \min_k Q^L_k(s, a))`, with the
+  learner's own twin-critic values as one more policy (Barreto et al. 2018).
+
+The learner trains on what GPI collects with its own loss, and is evaluated alone; ``reused`` marks the steps
+where the source's value won (``train/reused_fraction``).
+"""
+from __future__ import annotations
+
+from pydantic import Field
+
+from drltg.config import Int, RunConfig
+from drltg.errors import UsageError
+from drltg.transfer.registry import Transfer, TransferMethod
+
+SHARED = ("goal", "step_cost")
+"""The env options that set the reward alone; every other one is the dynamics, the same on both tasks."""
+OWN_VALUES = "learner_action_value"
+
+
+def _refusal(why: str) -> UsageError:
+    return UsageError(f"sf-gpi needs source and target tasks that differ only in reward (the goal of a FourRooms "
+                      f"or grid FourRooms task); {why}.")
+
+
+def _check_task(task: str) -> None:
+    from drltg.envs import get_task
+
+    if not set(SHARED) <= set(get_task(task).keywords()):
+        raise _refusal(f"task '{task}' has no goal to write its reward as features")
+
+
+def _check_shared(source_task: str, source_env: dict, task: str, env: dict) -> None:
+    """Refuse a source task of another factory, or with other env options than the reward's."""
+    from drltg.envs import get_task
+
+    _check_task(source_task)
+    if get_task(source_task).entry != get_task(task).entry:
+        raise _refusal(f"the source task '{source_task}' and the target task '{task}' are different environments")
+    mine, theirs = ({k: v for k, v in {**get_task(name).keywords(), **opts}.items() if k not in SHARED}
+                    for name, opts in ((source_task, source_env), (task, env)))
+    differ = sorted(k for k in {*mine, *theirs} if mine.get(k) != theirs.get(k))
+    if differ:
+        raise _refusal(f"the source task '{source_task}' and '{task}' differ in env.{', env.'.join(differ)}")
+
+
+def _check(cfg: RunConfig) -> None:
+    """The target must be a goal task; a source run already there must be one of the same dynamics."""
+    from pathlib import Path
+
+    from drltg import safe_yaml
+    from drltg.store.rundir import CONFIG
+
+    _check_task(cfg.task)
+    saved = Path(str(cfg.transfer.source or "")).expanduser() / CONFIG
+    if cfg.transfer.source and saved.is_file():
+        data = safe_yaml.load_file(saved)
+        if isinstance(data, dict) and isinstance(data.get("task"), str):
+            _check_shared(data["task"], data.get("env") or {}, cfg.task, cfg.env)
+
+
+def _learnt_successor_features(cfg: RunConfig, source, features, discrete: bool):
+    """psi of the source's deterministic policy, by TD on ``sf_frames`` frames its exploration policy collects
+    in the source task (Adam at ``optim.lr``, ``optim.gamma``, a soft target at ``optim.tau``)."""
+    import torch
+    from torchrl.data import LazyTensorStorage, ReplayBuffer
+    from torchrl.envs import TransformedEnv
+    from torchrl.objectives import SoftUpdate
+
+    from drltg.envs import make_env
+    from drltg.losses import SuccessorFeatureLoss
+    from drltg.modules import make_sf_critic
+
+    t, n = cfg.transfer, cfg.collector.num_envs
+    env = TransformedEnv(make_env(source.cfg.task, batch_size=(n,), device=cfg.device, seed=cfg.seed + 30_000,
+                                  **source.cfg.env))
+    for transform in source.agent.env_transforms:
+        env.append_transform(transform.clone())
+    try:
+        with torch.no_grad():
+            data = env.rollout(-(-t.sf_frames // n), source.agent.policy, break_when_any_done=False)
+    finally:
+        env.close()
+    data = features(data.reshape(-1))
+    obs = env.full_observation_spec_unbatched["observation"].shape[-1]
+    action = env.full_action_spec_unbatched["action"].shape[-1]
+    critic = make_sf_critic(obs, features.num_features, num_cells=cfg.network.hidden,
+                            **({"num_actions": action} if discrete else {"action_dim": action})).to(cfg.device)
+    loss = SuccessorFeatureLoss(critic, policy=source.agent.actor)
+    loss.make_value_estimator(gamma=cfg.optim.gamma)
+    buffer = ReplayBuffer(storage=LazyTensorStorage(data.numel(), device=cfg.device),
+                          batch_size=cfg.buffer.batch_size)
+    buffer.extend(data.select(*loss.in_keys))
+    target, optimizer = SoftUpdate(loss, tau=cfg.optim.tau), torch.optim.Adam(loss.parameters(), lr=cfg.optim.lr)
+    for _ in range(t.sf_updates):
+        optimizer.zero_grad(set_to_none=True)
+        loss(buffer.sample())["loss_sf"].backward()
+        optimizer.step()
+        target.step()
+    return critic, data.numel()
+
+
+def _learner_values(loss):
+    """``observation -> min_k Q_k(s, .)``, the live twin critics of a discrete-SAC learner: GPI's own values."""
+    import torch
+    from tensordict import TensorDict
+
+    def values(observation: torch.Tensor) -> torch.Tensor:
+        td, qs = TensorDict({"observation": observation}, batch_size=observation.shape[:-1]), []
+        with torch.no_grad():
+            for params in loss.qvalue_network_params.unbind(0):
+                with params.to_module(loss.qvalue_network):
+                    qs.append(loss.qvalue_network(td.copy())["action_value"])
+        return torch.stack(qs).amin(0)
+
+    return values
+
+
+def _chose_source(index):
+    """``reused``: the source's value (discrete) or action (continuous) won, index 0; the learner's is the last."""
+    return index == 0
+
+
+def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
+    """The source's psi learnt at build time (under a forked random state: the learner draws what it would
+    draw without transfer), GPI after the learner's policy in the collector."""
+    import torch
+    from tensordict.nn import TensorDictModule, TensorDictSequential
+    from torchrl.data import OneHot
+
+    from drltg.collectors import GPIPolicy
+    from drltg.losses import SoftOptionCriticLoss
+    from drltg.modules import GoalFeatures
+    from drltg.transfer.source import check_same_spaces, rebuild
+
+    t = cfg.transfer
+    with torch.random.fork_rng(devices=[]):
+        source = rebuild(t.source, cfg.device, t.source_checkpoint)
+        _check_shared(source.cfg.task, source.cfg.env, cfg.task, cfg.env)
+        if isinstance(source.agent.loss, SoftOptionCriticLoss):
+            raise UsageError(f"sf-gpi evaluates a SAC or TD3 source's actor; transfer.source '{t.source}' is a soft "
+                             "option-critic run, whose policy acts through its options.")
+        check_same_spaces(source.env, env, f"transfer.source '{t.source}' ({source.cfg.task})", f"task '{cfg.task}'")
+        target_env = getattr(env, "base_env", env)
+        source_goal, goal = source.env.goal.tolist(), target_env.goal.tolist()
+        features = GoalFeatures.for_env(target_env, [source_goal] + ([goal] if goal != source_goal else []))
+        discrete = isinstance(env.full_action_spec_unbatched["action"], OneHot)
+        critic, frames = _learnt_successor_features(cfg, source, features, discrete)
+    w = features.task_weights(goal, target_env.step_cost)
+    if discrete:
+        own = [TensorDictModule(_learner_values(agent.loss), in_keys=["observation"], out_keys=[OWN_VALUES])]
+        gpi = GPIPolicy([critic], w, own_value_key=OWN_VALUES)
+    else:
+        own, gpi = [], GPIPolicy([critic], w, policies=[source.agent.actor], include_action=True)
+    mixer = TensorDictSequential(*own, gpi, TensorDictModule(_chose_source, in_keys=["gpi_index"],
+                                                              out_keys=["reused"]))
+    return Transfer(mixer=mixer, summary={"successor_feature_frames": frames,
+                                          "gpi_weights": [round(x, 6) for x in w.tolist()]})
+
+
+SF_GPI = TransferMethod(
+    "sf-gpi",
+    "successor features of the source policy valued on the target's reward; the collector acts by GPI",
+    _build,
+    source="run",
+    algos=("sac",),
+    takes=("policy",),
+    check=_check,
+    options={
+        "sf_frames": (Int, Field(10_000, ge=1, description="sf-gpi: frames the source policy acts in the source "
+                                                           "task to learn its successor features")),
+        "sf_updates": (Int, Field(2_000, ge=1, description="sf-gpi: TD steps on them")),
+    },
+)

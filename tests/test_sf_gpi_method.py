@@ -1,0 +1,141 @@
+"""The sf-gpi method end to end: the source's successor features with the target's exact reward weights, GPI as
+the collector's policy, and the one-sentence refusal of pairs that differ in more than the reward."""
+import json
+
+import pytest
+import torch
+from tensordict import TensorDict
+from torchrl.envs import ExplorationType, set_exploration_type
+
+from drltg import config as config_lib
+from drltg.cli import main
+from drltg.collectors import GPIPolicy
+from drltg.envs import make_env
+from drltg.errors import UsageError
+from drltg.learners import make_agent
+from drltg.training.loop import AgentLearner
+from drltg.transfer import get_method
+from tests.test_experiment import TINY
+from tests.test_methods import _source_run
+
+SF = ["-o", "transfer.sf_frames=512", "-o", "transfer.sf_updates=20"]
+REFUSAL = "sf-gpi needs source and target tasks that differ only in reward"
+
+
+def _build(tmp_path, source_task, target_task, **source_env):
+    run, _ = _source_run(tmp_path / "src", task=source_task)
+    cfg = config_lib.resolve({}, ["network.hidden=[8,8]", "collector.num_envs=2", "collector.frames_per_batch=8",
+                                  "transfer.method=sf-gpi", f"transfer.source={run}", "transfer.sf_frames=64",
+                                  "transfer.sf_updates=2"], task=target_task)
+    env = make_env(target_task, batch_size=(2,), seed=0)
+    agent = make_agent(env, cfg)
+    return cfg, agent, env, get_method("sf-gpi").build(cfg, agent, env, resuming=False)
+
+
+def _gpi(transfer):
+    (gpi,) = [m for m in transfer.mixer.module if isinstance(m, GPIPolicy)]
+    return gpi
+
+
+def test_grid_targets_weights_are_the_exact_ones_of_its_goal_and_gpi_is_the_collectors_policy(tmp_path):
+    cfg, agent, env, transfer = _build(tmp_path, "gridrooms/northeast", "gridrooms/northeast-shifted")
+    # phi(s') = [at (3, 9), at (4, 9), 1]; the target pays 1 at (4, 9) and -0.01 elsewhere: w = (0, 1.01, -0.01)
+    assert _gpi(transfer).weights.tolist() == pytest.approx([0.0, 1.01, -0.01])
+    assert transfer.summary["successor_feature_frames"] == 64
+    learner = AgentLearner(agent, None, None, transfer)
+    td = learner.policy(env.reset())
+    # discrete GPI: the chosen action is the argmax over the source's psi . w and the learner's own Q
+    q = _gpi(transfer).action_values(td)
+    assert td["gpi_value"].squeeze(-1).tolist() == pytest.approx(q.amax((-2, -1)).tolist())
+    assert torch.equal(td["action"].argmax(-1), q.amax(-2).argmax(-1))
+    assert torch.equal(td["reused"], td["gpi_index"] == 0)
+
+
+def test_continuous_gpi_acts_with_the_source_action_or_the_learners_own(tmp_path):
+    cfg, agent, env, transfer = _build(tmp_path, "fourrooms/northeast", "fourrooms/northeast-shifted")
+    # phi(s') = [in disc (8, 8), in disc (8, 7), 1]
+    assert _gpi(transfer).weights.tolist() == pytest.approx([0.0, 1.01, -0.01])
+    torch.manual_seed(0)
+    td = env.reset()
+    learner_action = agent.policy(td.clone())["action"]
+    with set_exploration_type(ExplorationType.DETERMINISTIC):
+        source_action = _gpi(transfer).policies[0](td.clone())["action"]
+    torch.manual_seed(0)
+    out = AgentLearner(agent, None, None, transfer).policy(td.clone())
+    chosen = torch.where(out["reused"], source_action, learner_action)
+    assert torch.equal(out["action"], chosen)
+
+
+def test_the_experiment_on_grid_rooms_runs_reports_and_logs_how_often_the_source_won(tmp_path):
+    out = tmp_path / "near"
+    assert main(["experiment", "gridrooms-near", "--method", "sf-gpi", "--seeds", "1", "--frames", "512",
+                 "--out", str(out), "--threshold", "0", "--no-progress", *TINY, *SF, "-o", "log.every=16"]) == 0
+    assert json.loads((out / "report" / "transfer_metrics.json").read_text())["metrics"]["n_seeds_transfer"] == 1
+    run = out / "transfer" / "seed-0"
+    assert json.loads((run / "summary.json").read_text())["successor_feature_frames"] == 512
+    (path,) = (run / "logs" / "csv").rglob("reused_fraction.csv")
+    rows = [(int(step), float(value)) for step, value in (line.split(",") for line in path.read_text().split())]
+    assert [step for step, _ in rows] == list(range(16, 513, 16))
+    # random actions until frame 128: GPI does not act there; after it, every batch's choices are in [0, 1]
+    assert all(f == 0 for step, f in rows if step <= 128)
+    assert all(0 <= f <= 1 for _, f in rows) and any(f > 0 for step, f in rows if step > 128)
+
+
+@pytest.mark.parametrize("pair", ["pendulum-heavier", "lift-to-place"])
+def test_a_pair_without_goal_features_is_refused_in_one_sentence_before_training(pair, tmp_path, capsys):
+    assert main(["experiment", pair, "--method", "sf-gpi", "--frames", "256", "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert REFUSAL in err and "has no goal" in err and "Traceback" not in err
+    assert not (tmp_path / "x").exists()
+
+
+def test_a_source_of_other_dynamics_is_refused_at_config_time(tmp_path):
+    run, _ = _source_run(tmp_path / "src", task="gridrooms/northeast")
+    with pytest.raises(UsageError, match=f"{REFUSAL}.*are different environments"):
+        config_lib.resolve({}, ["transfer.method=sf-gpi", f"transfer.source={run}"], task="fourrooms/northeast")
+    longer = config_lib.resolve({}, ["env.horizon=50"], task="fourrooms/northeast")
+    (run / "config.yaml").write_text(config_lib.dump(longer))
+    with pytest.raises(UsageError, match=f"{REFUSAL}.*differ in env.horizon"):
+        config_lib.resolve({}, ["transfer.method=sf-gpi", f"transfer.source={run}"], task="fourrooms/southwest")
+    same = config_lib.resolve({}, ["transfer.method=sf-gpi", f"transfer.source={run}", "env.horizon=50"],
+                              task="fourrooms/southwest")
+    assert same.transfer.source == str(run)
+
+
+def test_sf_gpi_trains_a_sac_learner_only():
+    with pytest.raises(UsageError, match="sf-gpi, which works with algo sac"):
+        config_lib.resolve({}, ["transfer.method=sf-gpi"], task="fourrooms/northeast-shifted", algo="td3")
+
+
+def test_the_mixer_reads_the_learners_live_critics(tmp_path):
+    """Discrete: the learner's own values are min_k Q_k(s, .) of its current parameters, not a copy."""
+    cfg, agent, env, transfer = _build(tmp_path, "gridrooms/northeast", "gridrooms/northeast-shifted")
+    own = transfer.mixer.module[0]
+    obs = env.reset()["observation"]
+    before = own(TensorDict({"observation": obs}, batch_size=[2]))["learner_action_value"]
+    with torch.no_grad():
+        for p in agent.loss.qvalue_network_params.values(True, True):
+            p.add_(1.0)
+    after = own(TensorDict({"observation": obs}, batch_size=[2]))["learner_action_value"]
+    assert not torch.allclose(before, after)
+
+
+def test_a_sweep_runs_both_new_methods_on_one_source_and_baseline(tmp_path):
+    import yaml
+
+    from tests.test_sweep import TINY as SWEEP_TINY
+
+    spec = tmp_path / "sweep.yaml"
+    spec.write_text(yaml.safe_dump({"pairs": ["gridrooms-near"], "methods": ["kickstarting", "sf-gpi"], "seeds": 1,
+                                    "frames": 256, "threshold": 0,
+                                    "overrides": {**SWEEP_TINY, "transfer.sf_frames": 256, "transfer.sf_updates": 10,
+                                                  "transfer.kick_frames": 128}}))
+    out = tmp_path / "out"
+    assert main(["sweep", str(spec), "--out", str(out)]) == 0
+    group = out / "gridrooms-near" / "sac"
+    assert [p.name for p in (group / "source").iterdir()] == ["seed-50"]
+    assert [p.name for p in (group / "baseline").iterdir()] == ["seed-0"]
+    for method in ("kickstarting", "sf-gpi"):
+        assert (group / method / "report" / "transfer_metrics.json").is_file()
+    summary = json.loads((group / "sf-gpi" / "transfer" / "seed-0" / "summary.json").read_text())
+    assert summary["successor_feature_frames"] == 256
