@@ -86,3 +86,14 @@ def test_a_decay_other_than_linear_or_exponential_is_refused_naming_the_key():
         kick_decay == "exponential"
     with pytest.raises(UsageError, match="transfer.kick_decay"):
         config_lib.resolve({}, ["transfer.method=kickstarting", "transfer.kick_decay=cosine"])
+
+
+def test_kickstarted_seeds_train_as_one_seed_group(tmp_path):
+    out = tmp_path / "near"
+    assert main(["experiment", "fourrooms-near", "--method", "kickstarting", "--seeds", "2", "--frames", "256",
+                 "--out", str(out), "--threshold", "0", "--no-progress", *TINY, *LOGGED]) == 0
+    (log,) = (out / "logs" / "transfer").glob("*.log")
+    assert "start seed group" in log.read_text()
+    for seed in ("seed-0", "seed-100"):
+        weights = _logged(out / "transfer" / seed, "distill_weight")
+        assert weights and weights[0][1] == 0.5  # each seed's own schedule, as a run alone

@@ -144,4 +144,5 @@ class Distillation(LossTerm):
                     action = actor(states.clone(False))["action"]
                 gap = (action - teacher_action).pow(2)
         gap = gap.reshape(*states.batch_size, -1).sum(-1)
-        return {"loss_actor_distill": weights[0] * gap.mean(), "distill_gap": gap.detach().mean()}
+        return {"loss_actor_distill": weights[0] * gap.mean(), "distill_gap": gap.detach().mean(),
+                "distill_weight": weights[0].detach()}

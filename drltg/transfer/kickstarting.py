@@ -14,12 +14,15 @@ from drltg.config import Float, Int, RunConfig
 from drltg.transfer.registry import Transfer, TransferMethod
 
 WEIGHT = "distill_weight"
-"""The logged training scalar (``train/distill_weight``): the weight of the term at each update."""
+"""The logged training scalar (``train/distill_weight``): the weight of the term at each update, which the
+distillation term reports beside its value."""
 
 
 def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     """The teacher is the source run's actor; it is rebuilt under a forked random state, so the learner
-    draws what it would draw without transfer, and ``kick_weight=0`` trains exactly as the baseline."""
+    draws what it would draw without transfer, and ``kick_weight=0`` trains exactly as the baseline. The term
+    goes to the learner as it is (a :class:`~drltg.losses.terms.LossTerm`), so a seed group evaluates each
+    seed's term with that seed's own teacher."""
     import torch
 
     from drltg.errors import UsageError
@@ -42,12 +45,7 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     def tell(f: int) -> None:
         frames[0] = f
 
-    term = distillation(agent.loss, teacher, weight)
-
-    def loss_terms(batch) -> dict:
-        return {**term(batch), WEIGHT: torch.tensor(weight())}
-
-    return Transfer(loss_terms=loss_terms, on_frames=tell,
+    return Transfer(loss_terms=distillation(agent.loss, teacher, weight), on_frames=tell,
                     summary={"kickstarting": {"weight": t.kick_weight, "frames": t.kick_frames, "decay": t.kick_decay}})
 
 
@@ -57,6 +55,7 @@ KICKSTARTING = TransferMethod(
     _build,
     source="run",
     algos=("sac", "td3", "soc"),
+    grouped=True,
     options={
         "kick_weight": (Float, Field(1.0, ge=0,
                                      description="kickstarting: weight of the distillation term at frame 0")),
