@@ -203,7 +203,7 @@ def test_seeds_auto_stops_at_the_first_look_below_its_share(monkeypatch, tmp_pat
 
     trained = []
 
-    def fake_run(pair, method, frames, out, seeds, *rest, value_range=None):
+    def fake_run(pair, method, frames, out, seeds, *rest, value_range=None, source_success=None):
         trained.append(seeds)
         folder = tmp_path / "report"
         folder.mkdir(exist_ok=True)

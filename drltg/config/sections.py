@@ -94,6 +94,9 @@ class SOCConfig(Section):
 class EvalConfig(Section):
     every: Int = Field(5_000, ge=1, le=MAX_FRAMES, description="frames between evaluations")
     episodes: Int = Field(16, ge=1, le=MAX_EPISODES, description="evaluation episodes")
+    stop_at_success: Optional[Annotated[Float, Field(gt=0, le=1)]] = Field(
+        None, description="end the run at the first evaluation whose success rate reaches this (its last "
+                          "checkpoint that policy); null: train every frame")
 
 
 class CheckpointConfig(Section):

@@ -56,6 +56,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="frame budget of each target run (50000, 50k, 1e4, 1.5M)")
     p.add_argument("--source-frames", type=config_lib.frame_count,
                    help="frame budget of each source run (default --frames)")
+    p.add_argument("--source-success", type=float, metavar="RATE",
+                   help="end each source run at its first evaluation whose success rate reaches RATE (its "
+                        "eval.stop_at_success), --source-frames its cap: sources reused at one success criterion")
     p.add_argument("--out", type=Path, required=True, help="experiment directory")
     p.add_argument("--workers", type=int, default=1, help="runs trained in parallel processes (default 1)")
     p.add_argument("--no-seed-groups", action="store_true",
@@ -84,7 +87,7 @@ MAX_SEEDS = config_lib.MAX_SEEDS
 """The most runs a side one experiment plans (a larger count is a typo, and planning it would take long)."""
 SEED_MAX = 2**31 - 1
 PLAN_KEYS = {"task": "the PAIR argument", "algo": "--algo", "seed": "--seed", "frames": "--frames or --source-frames",
-             "transfer.method": "--method"}
+             "transfer.method": "--method", "eval.stop_at_success": "--source-success"}
 """The config keys an experiment sets per run, and the option that sets them."""
 
 
@@ -118,6 +121,7 @@ def plan_runs(
     seeds: int = 5,
     seed: int = 0,
     source_frames: int | None = None,
+    source_success: float | None = None,
     base: dict | None = None,
     overrides: list[str] = (),
 ) -> list[tuple[str, RunConfig, Path]]:
@@ -125,7 +129,9 @@ def plan_runs(
 
     Transfer runs go to ``out/transfer``, source and baseline runs to ``shared/{source,baseline}``
     (``shared`` defaults to ``out``; several methods' experiments can share one). ``base`` holds
-    config keys (``{"eval.every": 1000}``) applied before the ``KEY=VALUE`` ``overrides``.
+    config keys (``{"eval.every": 1000}``) applied before the ``KEY=VALUE`` ``overrides``;
+    ``source_success`` is the source runs' ``eval.stop_at_success`` (theirs only: every target trains its budget;
+    ignored where no source run is planned).
     """
     from drltg.envs import PAIRS, TASKS
     from drltg.transfer import get_method
@@ -139,6 +145,8 @@ def plan_runs(
     if source_frames is not None and source_frames < 1:
         raise UsageError(f"--source-frames must be positive, got {source_frames}; omit it to give source runs "
                          "--frames.")
+    if source_success is not None and not (isinstance(source_success, (int, float)) and 0 < source_success <= 1):
+        raise UsageError(f"--source-success must be a success rate in (0, 1], got {source_success!r}.")
     if seeds > MAX_SEEDS:
         raise UsageError(f"--seeds {seeds} is more than the {MAX_SEEDS} runs a side an experiment plans; "
                          "split it into experiments with different --seed.")
@@ -181,7 +189,10 @@ def plan_runs(
                 source = Path(str(given_source).replace(SEED, str(seed_i))).expanduser().resolve()
         else:
             source = shared / "source" / f"seed-{config_lib.source_seed(seed_i)}"
-            sources = [("source", cfg(source_task, config_lib.source_seed(seed_i), source_frames or frames), source)]
+            source_cfg = cfg(source_task, config_lib.source_seed(seed_i), source_frames or frames)
+            if source_success is not None:
+                source_cfg = config_lib.updated(source_cfg, {"eval.stop_at_success": float(source_success)})
+            sources = [("source", source_cfg, source)]
         runs += [*sources, baseline,
                  ("transfer", cfg(target_task, seed_i, frames, method, source), out / "transfer" / f"seed-{seed_i}")]
     return runs
@@ -270,7 +281,8 @@ def _check_settings(path: Path, settings: dict) -> None:
 
 
 def experiment(pair: str, method: str, *, frames: int | str, out: str | Path, seeds: int | str = 5, seed: int = 0,
-               algo: str = "sac", source_frames: int | str | None = None, overrides: Sequence[str] = (),
+               algo: str = "sac", source_frames: int | str | None = None, source_success: float | None = None,
+               overrides: Sequence[str] = (),
                threshold: float | str | None = None, workers: int = 1, group_seeds: bool = True,
                progress: bool = True, max_seeds: int = 20, value_range=None) -> dict:
     """Train one experiment's source, baseline and transfer runs into ``out`` and report the transfer runs
@@ -302,7 +314,7 @@ def experiment(pair: str, method: str, *, frames: int | str, out: str | Path, se
         for k, look in enumerate(plan, 1):
             result = _run(pair, method, frames, out, look.pairs, seed, algo, source_frames, overrides, threshold,
                           workers, group_seeds, progress, {"seeds": "auto", "max_seeds": max_seeds},
-                          value_range=value_range)
+                          value_range=value_range, source_success=source_success)
             p = result["metrics"].get("mean_return_gain_verdict_p", 1.0)
             taken.append(p)
             if progress:
@@ -315,7 +327,7 @@ def experiment(pair: str, method: str, *, frames: int | str, out: str | Path, se
     if isinstance(seeds, bool) or not isinstance(seeds, int):
         raise UsageError(f"--seeds must be a whole number or 'auto', got {seeds!r}.")
     return _run(pair, method, frames, out, seeds, seed, algo, source_frames, overrides, threshold, workers,
-                group_seeds, progress, {"seeds": seeds}, value_range=value_range)
+                group_seeds, progress, {"seeds": seeds}, value_range=value_range, source_success=source_success)
 
 
 def _with_sequential(result: dict, record: dict) -> dict:
@@ -338,7 +350,7 @@ def _with_sequential(result: dict, record: dict) -> dict:
 
 
 def _run(pair, method, frames, out, seeds, seed, algo, source_frames, overrides, threshold, workers, group_seeds,
-         progress, counted: dict, value_range=None) -> dict:
+         progress, counted: dict, value_range=None, source_success=None) -> dict:
     """One experiment of ``seeds`` pairs (``counted``: how its settings name the seed count)."""
     from drltg.analysis.report import parse_threshold
     from drltg.analysis.report.settings import parse_range
@@ -351,10 +363,14 @@ def _run(pair, method, frames, out, seeds, seed, algo, source_frames, overrides,
     overrides = list(overrides)
     config_lib.refuse_conflicts(overrides)
     runs = plan_runs(pair, method, algo=algo, seeds=seeds, seed=seed, frames=frames, source_frames=source_frames,
-                     overrides=overrides, out=out)
+                     source_success=source_success, overrides=overrides, out=out)
+    if source_success is not None and not any(role == "source" for role, _, _ in runs):
+        raise UsageError(f"--source-success applies to the source runs an experiment trains, and {method} on "
+                         f"'{pair}' trains none; leave it out.")
     check_runs(runs)
     settings = {"pair": pair, "method": method, "algo": algo, **counted, "seed": seed, "frames": frames,
-                "source_frames": source_frames, "overrides": overrides}
+                "source_frames": source_frames, **({"source_success": source_success} if source_success else {}),
+                "overrides": overrides}
     saved = out / "experiment.yaml"
     _check_settings(saved, settings)
     planned = as_runs(runs, out)
@@ -368,6 +384,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         result = experiment(args.pair, args.method, frames=args.frames, out=args.out, seeds=args.seeds,
                             seed=args.seed, algo=args.algo, source_frames=args.source_frames,
+                            source_success=args.source_success,
                             overrides=args.overrides, threshold=args.threshold, workers=args.workers,
                             group_seeds=not args.no_seed_groups, progress=not args.no_progress,
                             max_seeds=args.max_seeds, value_range=args.value_range)

@@ -12,13 +12,14 @@ from drltg.experiments.summary import SUMMARY_COLUMNS
 
 __all__ = ["Spec", "parse_spec", "load_spec", "KEYS", "MAX_RUNS", "SET_BY_SWEEP"]
 
-KEYS = ("pairs", "methods", "algos", "seeds", "seed", "frames", "source_frames", "overrides", "grid",
+KEYS = ("pairs", "methods", "algos", "seeds", "seed", "frames", "source_frames", "source_success", "overrides", "grid",
         "threshold", "primary_metric", "value_range", "resources")
 RESOURCES = ("num_cpus", "num_gpus")
 MAX_RUNS = 10_000
 """The most transfer runs one sweep spec may expand to (counted before anything is planned)."""
 SET_BY_SWEEP = {"task": "'pairs'", "algo": "'algos'", "seed": "'seed' and 'seeds'",
-                "frames": "'frames' or 'source_frames'", "transfer.method": "'methods'"}
+                "frames": "'frames' or 'source_frames'", "transfer.method": "'methods'",
+                "eval.stop_at_success": "'source_success'"}
 """The config keys the sweep sets per run, and the spec key that sets them."""
 
 
@@ -31,6 +32,7 @@ class Spec:
     seed: int = 0
     frames: list[int] = field(default_factory=list)
     source_frames: list[int] | None = None
+    source_success: float | None = None
     overrides: dict[str, Any] = field(default_factory=dict)
     grid: dict[str, list] = field(default_factory=dict)
     threshold: float | str | None = None
@@ -104,6 +106,11 @@ def parse_spec(data: Any, where: str = "sweep spec") -> Spec:
         spec.source_frames = _axis(data, "source_frames", int, where)
         if min(spec.source_frames) < 1:
             raise UsageError(f"{where}: 'source_frames' must be positive; omit it to give source runs 'frames'.")
+    success = data.get("source_success")
+    if success is not None:
+        if isinstance(success, bool) or not isinstance(success, (int, float)) or not 0 < success <= 1:
+            raise UsageError(f"{where}: 'source_success' must be a success rate in (0, 1], got {success!r}.")
+        spec.source_success = float(success)
     spec.overrides = _config_keys(data.get("overrides") or {}, "overrides", where)
     spec.grid = _config_keys(data.get("grid") or {}, "grid", where)
     _check_grid(spec.grid, where)

@@ -9,6 +9,8 @@ The spec is a grid (every list is one axis; a scalar is a one-value axis)::
     seeds: 5                                   # runs per side (default 5); first seed `seed` (default 0)
     frames: 20000                              # target budget; a list sweeps it
     source_frames: 40000                       # source budget (default: frames); a list sweeps it
+    source_success: 0.9                        # sources end at the first evaluation with this success
+                                               # rate (eval.stop_at_success), source_frames their cap
     overrides: {eval.every: 1000}              # config keys of every run (a transfer.source given
                                                # here serves every transfer run: no source runs;
                                                # DIR/seed-{seed}: each its own seed's kept run)
@@ -117,7 +119,8 @@ def plan(spec: Spec, out: Path) -> tuple[list[Run], list[Cell]]:
         group = out / pair / algo / variant if variant else out / pair / algo
         for method in spec.methods:
             planned = plan_runs(pair, method, algo=algo, seeds=spec.seeds, seed=spec.seed, frames=frames,
-                                source_frames=source_frames, base={**spec.overrides, **values},
+                                source_frames=source_frames, source_success=spec.source_success,
+                                base={**spec.overrides, **values},
                                 out=group / method, shared=group)
             sides: dict[str, list[Path]] = {"baseline": [], "transfer": []}
             for role, cfg, path in planned:

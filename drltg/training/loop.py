@@ -91,6 +91,9 @@ def check_config(cfg: RunConfig):
     own = str(get_task(cfg.task).entry).startswith("drltg.")  # drltg's tasks: stepped by the suite, not here
     preflight.check_task(cfg, probe, None if own else lambda: build_env(cfg, seed=cfg.seed))
     preflight.check_network(cfg, probe)
+    if cfg.eval.stop_at_success is not None and "success" not in probe.full_observation_spec.keys():
+        raise UsageError(f"eval.stop_at_success={cfg.eval.stop_at_success:g}, but task '{cfg.task}' reports no "
+                         "success; leave it null.")
     agent = make_agent(probe, cfg)
     preflight.check_buffer(cfg, probe, agent.loss.in_keys)
     return probe, agent
@@ -316,23 +319,42 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
     saved = frames  # the frame of the latest last.pt (a resumed run's checkpoint; none yet at frame 0)
     clock = PhaseClock()
 
+    stopped: set[int] = set()  # the seeds whose run ended at eval.stop_at_success (their writers finished)
+
+    def active() -> list[int]:
+        return [k for k in range(len(writers)) if k not in stopped]
+
     @clock.timed("evaluate")
     def run_eval() -> None:
-        for writer, row in zip(writers, learner.evaluate(lambda: stop_if_signalled(before=save_on_stop))):
-            writer.evaluation({"frames": frames, **row})
-        bar.set_note(f"eval return {writers[0].rows[-1]['return_mean']:.3f}")
+        rows = learner.evaluate(lambda: stop_if_signalled(before=save_on_stop))
+        for k in active():
+            writers[k].evaluation({"frames": frames, **rows[k]})
+        bar.set_note(f"eval return {writers[active()[0]].rows[-1]['return_mean']:.3f}")
         if cfg.checkpoint.keep_best:
-            improved = [best.improves(cfg, writer.rows) for writer in writers]
+            improved = [k not in stopped and best.improves(cfg, writer.rows) for k, writer in enumerate(writers)]
             if any(improved):  # last.pt too, so that best.pt is never later than the checkpoint a resume reads
                 save_checkpoint(improved, last=frames > 0)
+        stop_reached()
 
     @clock.timed("checkpoint")
-    def save_checkpoint(improved=(), last: bool = True) -> None:
+    def save_checkpoint(improved=(), last: bool = True, only: list[int] | None = None) -> None:
         nonlocal saved
-        for k, (writer, state) in enumerate(zip(writers, learner.state())):
-            health.check_state(state["loss"], frames, k if seeds > 1 else None)
-            writer.checkpoint(state, frames, updates, last=last, best=bool(improved and improved[k]))
-        saved = frames if last else saved
+        for k, state in enumerate(learner.state()):
+            if k in (active() if only is None else only):
+                health.check_state(state["loss"], frames, k if seeds > 1 else None)
+                writers[k].checkpoint(state, frames, updates, last=last, best=bool(improved and improved[k]))
+        saved = frames if last and only is None else saved
+
+    def stop_reached() -> None:
+        """End each run whose evaluation at this frame meets ``eval.stop_at_success``: its checkpoint here
+        is its last, its summary.json says why it stopped; the group's other seeds train on."""
+        done = [k for k in active() if stop_met(cfg, writers[k].rows, frames)]
+        if done:
+            save_checkpoint(only=done)
+            for k in done:
+                writers[k].close()
+            _finish(cfg, writers, extra_summary, frames, updates, frames - start_frames, clock, start, done)
+            stopped.update(done)
 
     def save_on_stop() -> None:  # before its first checkpoint a stopped run is a failed start (RunSession)
         if 0 < saved < frames:  # inside an evaluation too: the resumed run evaluates first (_evaluation_due)
@@ -340,9 +362,12 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
             log.info("stopped at frame %d with a checkpoint there: --resume continues from it", frames)
 
     bar = Progress(cfg.frames, initial=frames, desc="train", enabled=progress, on_update=on_frames)
+    start, start_frames = clock.start(), frames
     try:
         if _evaluation_due(cfg, writers[0].rows, frames):
             run_eval()
+        else:
+            stop_reached()  # a resumed run stopped by its last evaluation but killed before its summary.json
         next_eval = (frames // cfg.eval.every + 1) * cfg.eval.every
         next_ckpt = (frames // cfg.checkpoint.every + 1) * cfg.checkpoint.every
         next_log = frames + cfg.log.every
@@ -350,6 +375,8 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
         start, start_frames = clock.start(), frames
 
         for data in collector:
+            if not active():
+                break
             stop_if_signalled(before=save_on_stop)
             pieces = learner.split(data)
             frames += pieces[0].numel()
@@ -361,7 +388,8 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
                     updates = _update(learner, opt.updates_per_batch, updates, frames, stats)
             bar.update(pieces[0].numel())
             if frames >= next_log:
-                _log(writers, stats, frames, fps=(frames - start_frames) / (time.perf_counter() - start))
+                fps = (frames - start_frames) / (time.perf_counter() - start)
+                _log([writers[k] for k in active()], [stats[k] for k in active()], frames, fps=fps)
                 next_log = frames + cfg.log.every
             if frames >= next_eval or frames >= cfg.frames:
                 run_eval()
@@ -373,12 +401,13 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
     finally:
         collector.shutdown()
         bar.close()
-        for writer in writers:
-            writer.close()
-    if writers[0].rows[-1]["frames"] != frames:
+        for k in active():
+            writers[k].close()
+    if active() and writers[active()[0]].rows[-1]["frames"] != frames:
         run_eval()
-    save_checkpoint()
-    _finish(cfg, writers, extra_summary, frames, updates, frames - start_frames, clock, start)
+    if active():
+        save_checkpoint()
+        _finish(cfg, writers, extra_summary, frames, updates, frames - start_frames, clock, start, active())
 
 
 def _evaluation_due(cfg: RunConfig, rows: list[dict], frames: int) -> bool:
@@ -391,14 +420,41 @@ def _evaluation_due(cfg: RunConfig, rows: list[dict], frames: int) -> bool:
     return last < frames and (frames >= cfg.frames or last < frames // cfg.eval.every * cfg.eval.every)
 
 
+def stop_met(cfg: RunConfig, rows: list[dict], frames: int) -> bool:
+    """Whether the evaluation at ``frames`` (the last of ``rows``) reaches ``eval.stop_at_success``."""
+    target = cfg.eval.stop_at_success
+    return (target is not None and bool(rows) and rows[-1]["frames"] == frames
+            and rows[-1].get("success_rate", -math.inf) >= target)
+
+
+def stop_summary(cfg: RunConfig, rows: list[dict], frames: int) -> dict:
+    """summary.json's ``stop_at_success`` entry: whether the run met the criterion, and why it ended where it did
+    (``{}`` without one)."""
+    target = cfg.eval.stop_at_success
+    if target is None:
+        return {}
+    if stop_met(cfg, rows, frames):
+        rate = rows[-1]["success_rate"]
+        return {"stop_at_success": {"target": target, "met": True, "frames": frames, "success_rate": rate,
+                                    "reason": f"success rate {rate:g} reached eval.stop_at_success={target:g} "
+                                              f"at frame {frames:,}"}}
+    top = max(r.get("success_rate", -math.inf) for r in rows)
+    return {"stop_at_success": {"target": target, "met": False, "frames": frames, "best_success_rate": top,
+                                "reason": f"success rate never reached eval.stop_at_success={target:g} (best "
+                                          f"{top:g}): trained the whole budget of {frames:,} frames"}}
+
+
 def _finish(cfg: RunConfig, writers: list[RunWriter], extra_summary, frames: int, updates: int, trained: int,
-            clock: PhaseClock, start: float) -> None:
-    """Every writer's ``summary.json``: ``trained`` frames (this session's) in the wall time since ``start``."""
+            clock: PhaseClock, start: float, which: list[int]) -> None:
+    """The ``summary.json`` of the writers ``which``: ``trained`` frames (this session's) in the wall time since
+    ``start``."""
     wall = time.perf_counter() - start
     extras = extra_summary if isinstance(extra_summary, list) else [extra_summary] * len(writers)
-    for writer, extra in zip(writers, extras):
+    for k in which:
+        writer = writers[k]
         writer.finish(frames, updates, wall, trained,
-                      {**(extra or {}), **best.summary(cfg, writer.rows), "wall_time_split_s": clock.split(wall)})
+                      {**(extras[k] or {}), **best.summary(cfg, writer.rows), **stop_summary(cfg, writer.rows, frames),
+                       "wall_time_split_s": clock.split(wall)})
 
 
 class PhaseClock:

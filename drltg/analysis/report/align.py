@@ -217,7 +217,7 @@ def _source_frames(transfer: Sequence[Curve], s: ReportSettings) -> tuple[list[f
     """Frames of source training behind each transfer run, and where they come from."""
     if s.source_frames is not None:
         return [float(s.source_frames)] * len(transfer), "--source-frames"
-    frames = []
+    frames, stopped = [], False
     for c in transfer:
         if c.config is None:
             return None, "not given: pass --source-frames N for logs without a drltg config.yaml"
@@ -225,16 +225,19 @@ def _source_frames(transfer: Sequence[Curve], s: ReportSettings) -> tuple[list[f
         if source is None or str(source).startswith(DEMONSTRATOR):
             frames.append(0.0)
             continue
-        found = _frames_of_run(Path(c.source).parent, str(source))
+        found, ended = _frames_of_run(Path(c.source).parent, str(source))
+        stopped = stopped or ended
         if found is None:
             return None, (f"unknown: the source run '{source}' of {run_name(c)} has no readable config.yaml "
                           "with frames; pass --source-frames N")
         frames.append(found)
-    return frames, "the source run's config.yaml frames (transfer.source of each run; 0 without a source run)"
+    where = ", or those it trained where eval.stop_at_success ended it" if stopped else ""
+    return frames, f"the source run's config.yaml frames{where} (transfer.source of each run; 0 without a source run)"
 
 
-def _frames_of_run(run_dir: Path, source: str) -> float | None:
-
+def _frames_of_run(run_dir: Path, source: str) -> tuple[float | None, bool]:
+    """The frames behind the source run ``source`` (found from ``run_dir``), and whether eval.stop_at_success
+    ended it early."""
     path = Path(source).expanduser()
     for candidate in ([path] if path.is_absolute() else [Path.cwd() / path, run_dir / path, run_dir.parent / path]):
         config = candidate / "config.yaml"
@@ -242,6 +245,22 @@ def _frames_of_run(run_dir: Path, source: str) -> float | None:
             try:
                 frames = (safe_yaml.load(config.read_text(), f"'{config}'") or {}).get("frames")
             except (UsageError, AttributeError):
-                return None
-            return float(frames) if isinstance(frames, (int, float)) else None
-    return None
+                return None, False
+            stopped = _stopped_at(candidate)
+            if stopped is not None:
+                return stopped, True
+            return (float(frames) if isinstance(frames, (int, float)) else None), False
+    return None, False
+
+
+def _stopped_at(run_dir: Path) -> float | None:
+    """The frames a source run trained when ``eval.stop_at_success`` ended it before its budget (its
+    summary.json's ``stop_at_success``), else ``None``: its config's frames are the frames it trained."""
+    import json
+
+    try:
+        stop = json.loads((run_dir / "summary.json").read_text()).get("stop_at_success") or {}
+    except (OSError, ValueError, AttributeError):
+        return None
+    frames = stop.get("frames") if isinstance(stop, dict) and stop.get("met") else None
+    return float(frames) if isinstance(frames, (int, float)) and not isinstance(frames, bool) else None
