@@ -60,6 +60,15 @@ def _quiet_import_robosuite():
     logging.getLogger("robosuite_logs").setLevel(logging.ERROR)
 
 
+@functools.cache
+def _warn_slow_step() -> None:
+    """Said once a process: the lean step is off where its products would not round as robosuite's."""
+    logging.getLogger("drltg").warning(
+        "robosuite tasks step through robosuite's own env.step here (several times slower than drltg's lean step): "
+        "on this CPU NumPy's and numba's BLAS round matrix-vector products differently, so the lean step would not "
+        "be robosuite's step bit for bit; OPENBLAS_CORETYPE=Haswell, set before Python starts, makes them agree.")
+
+
 def osc_pose_config(robot: str = "Panda") -> dict:
     """robosuite 1.5's default composite controller (OSC_POSE arm + gripper), reduced to one arm."""
     from robosuite.controllers import load_composite_controller_config
@@ -94,7 +103,9 @@ class RobosuiteEnv(EnvBase):
             The scene itself is always built with seed 0, so the cube's size (robosuite samples it
             once per model, 0.020-0.022 m) is the same in every env and worker.
         fast: step with :class:`~drltg.envs.robosuite.fast_osc.LeanStep` (the same trajectories as
-            robosuite's ``env.step``, several times faster); ``False`` calls robosuite's ``env.step``.
+            robosuite's ``env.step``, several times faster) where its BLAS rounds as NumPy's
+            (:func:`~drltg.envs.robosuite.fast_osc.blas_agrees`; else robosuite's, with one warning);
+            ``False`` calls robosuite's ``env.step``.
         reward_shaping: robosuite's dense staged reward instead of the task's sparse one (``lift-dense``).
         reward_scale: robosuite's scale of the reward (``None``: unscaled).
         **task_kwargs: passed to the robosuite environment as they are (from code only: a config's ``env``
@@ -153,9 +164,12 @@ class RobosuiteEnv(EnvBase):
         self.layout = layout_of({name: np.size(raw[name]) for name in self.observables})
         self._lean = None
         if fast:
-            from drltg.envs.robosuite.fast_osc import LeanStep
+            from drltg.envs.robosuite.fast_osc import LeanStep, blas_agrees
 
-            self._lean = LeanStep(self._env, self.observables)
+            if blas_agrees():
+                self._lean = LeanStep(self._env, self.observables)
+            else:
+                _warn_slow_step()
         self._step_count = 0
         self._has_lifted = hasattr(self._env, "cube_lifted")
         self._has_pushed = hasattr(self._env, "cube_pushed")

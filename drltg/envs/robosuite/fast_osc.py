@@ -39,6 +39,7 @@ sensors read from the observation cache. What is skipped: robosuite's per-robot 
 """
 from __future__ import annotations
 
+import functools
 from typing import Sequence
 
 import mujoco
@@ -115,6 +116,30 @@ def osc_torques(fresh, jacp, jacr, full_mass, site_xpos, site_xmat, qpos, qvel, 
     tau = np.dot(J_full.T, wrench) + qfrc_bias[dofs]
     tau += nullspace_torques(mass, nullspace, initial_joint, joint_pos, joint_vel)
     return np.clip(tau, low, high)
+
+
+@numba.njit(cache=True)
+def _numba_products(jac, qvel, lam, force, J_full, wrench):
+    return np.dot(jac, qvel), np.dot(lam, force), np.dot(J_full.T, wrench)
+
+
+@functools.cache
+def blas_agrees(trials: int = 32) -> bool:
+    """Whether numba's matrix-vector products (SciPy's OpenBLAS) round as NumPy's (NumPy's own OpenBLAS) for
+    the shapes and layouts of :func:`osc_torques`, on random inputs. The two builds pick their kernels by CPU:
+    on some (AVX-512 ones among them) they pick different ones and the sums round differently, so the lean step
+    would drift from robosuite's by rounding, then by contacts. Setting ``OPENBLAS_CORETYPE`` (e.g. ``Haswell``)
+    before Python starts makes both pick the same kernel."""
+    rng = np.random.default_rng(0)
+    for _ in range(trials):
+        jac, qvel = rng.standard_normal((3, 9)), rng.standard_normal(9)
+        lam, force = rng.standard_normal((3, 3)), rng.standard_normal(3)
+        J_full, wrench = rng.standard_normal((6, 7)), rng.standard_normal(6)
+        ours = _numba_products(jac, qvel, lam, force, J_full, wrench)
+        theirs = (np.dot(jac, qvel), np.dot(lam, force), np.dot(J_full.T, wrench))
+        if not all(np.array_equal(a, b) for a, b in zip(ours, theirs)):
+            return False
+    return True
 
 
 def unsupported_reason(env) -> str | None:
