@@ -3,11 +3,7 @@
 #   bash results/lift_demonstrations.sh  (RUNS=runs/sweep-lift-demonstrations WORKERS=1; re-running finishes the rest)
 # kept and reported (return, threshold 100; METHOD/report-success/: success rate, threshold 0.8) in results/.
 set -euo pipefail
-RUNS=${RUNS:-runs/sweep-lift-demonstrations}
-WORKERS=${WORKERS:-1}
-DRLTG=${DRLTG:-drltg}
-PYTHON=${PYTHON:-python}
-OUT=results/sweep-lift-demonstrations
+RUNS=${RUNS:-runs/sweep-lift-demonstrations} WORKERS=${WORKERS:-1} DRLTG=${DRLTG:-drltg} PYTHON=${PYTHON:-python} OUT=results/sweep-lift-demonstrations
 
 $DRLTG sweep examples/sweeps/lift-demonstrations.yaml --out "$RUNS" --workers "$WORKERS"
 $PYTHON results/rebuild.py "$OUT" --from "$RUNS" --threshold 100

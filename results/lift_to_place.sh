@@ -3,11 +3,7 @@
 #   bash results/lift_to_place.sh   (RUNS=runs/sweep-lift-to-place WORKERS=2; re-running finishes the rest)
 # kept and reported (return, threshold 1; METHOD/report-STAGE/: success and lifted rate, 0.8) in results/.
 set -euo pipefail
-RUNS=${RUNS:-runs/sweep-lift-to-place}
-WORKERS=${WORKERS:-2}
-DRLTG=${DRLTG:-drltg}
-PYTHON=${PYTHON:-python}
-OUT=results/sweep-lift-to-place
+RUNS=${RUNS:-runs/sweep-lift-to-place} WORKERS=${WORKERS:-2} DRLTG=${DRLTG:-drltg} PYTHON=${PYTHON:-python} OUT=results/sweep-lift-to-place
 
 $DRLTG sweep examples/sweeps/lift-to-place.yaml --out "$RUNS" --workers "$WORKERS"
 $PYTHON results/rebuild.py "$OUT" --from "$RUNS" --threshold 1

@@ -3,10 +3,7 @@
 #   bash results/pendulum_heavier.sh   (RUNS=runs/pendulum-heavier; re-running finishes the rest)
 # kept in results/pendulum-heavier/, reported (threshold -400: swung up and held), the prose regenerated.
 set -euo pipefail
-RUNS=${RUNS:-runs/pendulum-heavier}
-DRLTG=${DRLTG:-drltg}
-PYTHON=${PYTHON:-python}
-OUT=results/pendulum-heavier
+RUNS=${RUNS:-runs/pendulum-heavier} DRLTG=${DRLTG:-drltg} PYTHON=${PYTHON:-python} OUT=results/pendulum-heavier
 
 OMP_NUM_THREADS=1 nice -n 19 $DRLTG experiment pendulum-heavier --method model-reuse --seeds 5 \
   --source-frames 6000 --frames 6000 --out "$RUNS" --threshold -400 \

@@ -1,23 +1,12 @@
 #!/usr/bin/env bash
-# "Do options transfer better than plain SAC under model reuse?" on the FourRooms near and far pairs:
-#   bash results/sweep-options/study.sh        (RUNS=runs/sweep-options WORKERS=2 by default)
-# The same command resumes the sweep where it stopped (finished runs are kept) and, once every run is done,
-# rebuilds results/sweep-options/ from it; it replaces results/options_study.sh (the earlier 5-seed study's)
-# once its results are committed.
-# Trains examples/sweeps/options.yaml (SAC and the soft option-critic with K = 4 options: sources trained
-# to success 0.9, capped at 100k frames, then baselines and model-reuse runs, 10 seeds each, in seed
-# groups; re-running finishes what is missing), keeps its curves and reports in results/sweep-options/,
-# lists each source's criterion (met or not, at which frame) in results/sweep-options/sources.md, and sets
-# SOC's model-reuse runs against SAC's in results/sweep-options/head-to-head/PAIR/, paired by seed.
+# "Do options transfer better than plain SAC under model reuse?" (examples/sweeps/options.yaml: SAC and SOC
+# K=4, sources to success 0.9, 10 seed pairs) on FourRooms near and far; a rerun resumes, then rebuilds
+# results/sweep-options/ (curves, reports, sources.md, head-to-head/PAIR: SOC against SAC, paired by seed):
+#   RUNS=runs/sweep-options WORKERS=2 bash results/sweep-options/study.sh
 set -euo pipefail
-RUNS=${RUNS:-runs/sweep-options}
-WORKERS=${WORKERS:-2}
-DRLTG=${DRLTG:-drltg}
-PYTHON=${PYTHON:-python}
-OUT=results/sweep-options
+RUNS=${RUNS:-runs/sweep-options} WORKERS=${WORKERS:-2} DRLTG=${DRLTG:-drltg} PYTHON=${PYTHON:-python} OUT=results/sweep-options
 
 $DRLTG sweep examples/sweeps/options.yaml --out "$RUNS" --workers "$WORKERS"
-# the curves of another spec (the earlier 5-seed study) must not be reported with these: all but this script go
 find "$OUT" -mindepth 1 -maxdepth 1 ! -name study.sh -exec rm -rf {} +
 $PYTHON results/rebuild.py "$OUT" --from "$RUNS"
 $PYTHON - "$OUT" > "$OUT/sources.md" <<'PY'
