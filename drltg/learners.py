@@ -37,7 +37,14 @@ from drltg import config
 from drltg.config import RunConfig
 from drltg.errors import UsageError
 from drltg.losses import SoftOptionCriticLoss
-from drltg.modules import TanhNormal, make_option_actor, make_option_policy, make_option_qvalue, make_termination, option_transforms
+from drltg.modules import (
+    TanhNormal,
+    make_option_actor,
+    make_option_policy,
+    make_option_qvalue,
+    make_termination,
+    option_transforms,
+)
 
 DEACTIVATE_VMAP = True
 """Passed to every loss: the critic copies run in a plain loop instead of under ``torch.vmap``. Same values;

@@ -3,9 +3,7 @@ import json
 import math
 from pathlib import Path
 
-import numpy as np
 import pytest
-import yaml
 
 from drltg.analysis.report import transfer_report
 

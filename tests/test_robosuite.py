@@ -33,8 +33,8 @@ from drltg.envs.robosuite import (  # noqa: E402
     make_robosuite_env,
     potential_for,
 )
-from drltg.envs.robosuite.layout import LIFT_MARGIN, TABLE_TOP_Z, TARGET_RADIUS, TARGET_XY  # noqa: E402
 from drltg.envs.robosuite.fast_osc import blas_agrees  # noqa: E402
+from drltg.envs.robosuite.layout import LIFT_MARGIN, TABLE_TOP_Z, TARGET_RADIUS, TARGET_XY  # noqa: E402
 from drltg.transforms import PotentialShaping  # noqa: E402
 
 TASKS = ("lift", "lift-place", "lift-place-barrier")

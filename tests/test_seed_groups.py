@@ -8,8 +8,8 @@ from torchrl.envs import ExplorationType, TransformedEnv, set_exploration_type
 
 from drltg import config as config_lib
 from drltg.learners import UpdateStep, make_agent
-from drltg.training.seeds import SeedGroup
 from drltg.training.loop import build_env
+from drltg.training.seeds import SeedGroup
 
 SMALL = ["network.hidden=[16,16]"]
 LEARNERS = [("gridrooms/northeast", "sac"), ("fourrooms/northeast", "sac"), ("fourrooms/northeast", "td3"),

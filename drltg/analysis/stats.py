@@ -487,7 +487,7 @@ def stratified_sign_flip(strata: Sequence, seed: int = 0, n_resamples: int = STR
 
 
 def _signed_sums(x: Array) -> Array:
-    """:math:`\sum_i \varepsilon_i x_i` for every one of the :math:`2^n` sign patterns :math:`\varepsilon`."""
+    """:math:`\\sum_i \varepsilon_i x_i` for every one of the :math:`2^n` sign patterns :math:`\varepsilon`."""
     sums = np.zeros(1)
     for v in x:
         sums = np.concatenate([sums + v, sums - v])

@@ -36,7 +36,6 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from torchrl.objectives import LossModule
 from torchrl.objectives.utils import ValueEstimators, default_value_kwargs, distance_loss
 
-
 __all__ = ["SuccessorFeatureLoss"]
 
 

@@ -14,6 +14,7 @@ from typing import Iterator
 
 from drltg.errors import UsageError
 
+
 def _umask() -> int:
     """The process's umask, read without changing it where the system allows (other threads may be
     creating files)."""

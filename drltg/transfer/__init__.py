@@ -14,23 +14,30 @@
 A trained run as a source, in one call each (they print nothing): ``load_actor(run_dir)`` (the past
 policy of policy reuse), ``load_critic(run_dir)`` (its value V(s), the potential of value shaping),
 ``load_agent(run_dir)`` (the whole learner) and ``load_from_run(module, run_dir)`` (its weights into
-another network, model reuse); each reads the run's ``checkpoints/last.pt``, or with ``checkpoint="best"``
-its ``best.pt`` (``transfer.source_checkpoint`` for the methods).
+another network, model reuse); each reads the run's networks file ``checkpoints/last.safetensors``, or with
+``checkpoint="best"`` its ``best.safetensors`` (``transfer.source_checkpoint`` for the methods), never the
+training checkpoint with its replay buffer.
 
 :mod:`drltg.transfer.registry` defines what a method is (:class:`TransferMethod`) and what it adds to a
 run (:class:`Transfer`); :mod:`drltg.transfer.source` reads ``transfer.source``. The built-in methods are
 the entry points of the group ``drltg.methods`` (``pyproject.toml``), found by the config's registry
 (:data:`drltg.config.METHODS`, here ``METHODS``) on its first lookup: importing this package registers
-nothing (``a+b`` names a combination, :func:`combine`); all but demonstrations, kickstarting and sf-gpi
-train their seeds as one seed group (``TransferMethod.grouped``, :mod:`drltg.training.seeds`), those three
-one after another; the parts themselves
+nothing (``a+b`` names a combination, :func:`combine`); all but sf-gpi (whose grid mixer reads the
+learner's live critics) train their seeds as one seed group (``TransferMethod.grouped``,
+:mod:`drltg.training.seeds`); the parts themselves
 (``drltg.transforms``, ``drltg.collectors``, ``drltg.losses``, ``drltg.modules``) register nothing.
 """
-from drltg.transfer.registry import METHODS, Transfer, TransferMethod, combine, get_method, register_method
 from drltg.transfer import (  # noqa: I001
-    reward_shaping, value_shaping, policy_reuse, model_reuse, demonstrations, kickstarting, sf_gpi,
+    demonstrations,
+    kickstarting,
+    model_reuse,
+    policy_reuse,
+    reward_shaping,
+    sf_gpi,
+    value_shaping,
 )
 from drltg.transfer.model_reuse import load_from_run
+from drltg.transfer.registry import METHODS, Transfer, TransferMethod, combine, get_method, register_method
 from drltg.transfer.source import load_actor, load_agent, load_critic
 
 __all__ = [

@@ -13,10 +13,6 @@ from pydantic import Field
 from drltg.config import Float, Int, RunConfig
 from drltg.transfer.registry import Transfer, TransferMethod
 
-WEIGHT = "distill_weight"
-"""The logged training scalar (``train/distill_weight``): the weight of the term at each update, which the
-distillation term reports beside its value."""
-
 
 def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     """The teacher is the source run's actor; it is rebuilt under a forked random state, so the learner
