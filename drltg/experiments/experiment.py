@@ -110,6 +110,26 @@ def refuse_plan_overrides(overrides, where: str, owner: str, flags: dict[str, st
                              f"use {flags[owned]} instead.")
 
 
+def _check_counts(method: str, *, frames: int, seeds: int, seed: int, source_frames: int | None,
+                  source_success: float | None) -> None:
+    """One sentence for an experiment's method, budgets, seed counts or source criterion that cannot be run."""
+    if method == "none":
+        raise UsageError("--method none has nothing to compare; choose a transfer method (`drltg tasks`).")
+    if seeds < 1 or frames < 1:
+        raise UsageError("--seeds and --frames must be positive.")
+    if source_frames is not None and source_frames < 1:
+        raise UsageError(f"--source-frames must be positive, got {source_frames}; omit it to give source runs "
+                         "--frames.")
+    if source_success is not None and not (isinstance(source_success, (int, float)) and 0 < source_success <= 1):
+        raise UsageError(f"--source-success must be a success rate in (0, 1], got {source_success!r}.")
+    if seeds > MAX_SEEDS:
+        raise UsageError(f"--seeds {seeds} is more than the {MAX_SEEDS} runs a side an experiment plans; "
+                         "split it into experiments with different --seed.")
+    if not 0 <= seed <= SEED_MAX - 100 * (seeds - 1) - 50:
+        raise UsageError(f"--seed {seed} with --seeds {seeds} gives run seeds outside [0, {SEED_MAX}] "
+                         f"(run i uses seed + 100 i, its source seed + 100 i + 50).")
+
+
 def plan_runs(
     pair: str,
     method: str,
@@ -138,21 +158,8 @@ def plan_runs(
 
     refuse_plan_overrides(overrides, "-o", "experiment", PLAN_KEYS)
     spec = get_method(method)
-    if spec.name == "none":
-        raise UsageError("--method none has nothing to compare; choose a transfer method (`drltg tasks`).")
-    if seeds < 1 or frames < 1:
-        raise UsageError("--seeds and --frames must be positive.")
-    if source_frames is not None and source_frames < 1:
-        raise UsageError(f"--source-frames must be positive, got {source_frames}; omit it to give source runs "
-                         "--frames.")
-    if source_success is not None and not (isinstance(source_success, (int, float)) and 0 < source_success <= 1):
-        raise UsageError(f"--source-success must be a success rate in (0, 1], got {source_success!r}.")
-    if seeds > MAX_SEEDS:
-        raise UsageError(f"--seeds {seeds} is more than the {MAX_SEEDS} runs a side an experiment plans; "
-                         "split it into experiments with different --seed.")
-    if not 0 <= seed <= SEED_MAX - 100 * (seeds - 1) - 50:
-        raise UsageError(f"--seed {seed} with --seeds {seeds} gives run seeds outside [0, {SEED_MAX}] "
-                         f"(run i uses seed + 100 i, its source seed + 100 i + 50).")
+    _check_counts(spec.name, frames=frames, seeds=seeds, seed=seed, source_frames=source_frames,
+                  source_success=source_success)
     if pair in PAIRS:
         source_task, target_task = PAIRS[pair].source, PAIRS[pair].target
     elif pair in TASKS:  # a task alone: the method needs no source, or the config names one

@@ -11,7 +11,6 @@ directory's lifecycle (checks, lock, resume, cleanup of a failed start) is
 from __future__ import annotations
 
 import contextlib
-import functools
 import logging
 import math
 import signal
@@ -303,6 +302,71 @@ class AgentLearner:
         }]
 
 
+class _Session:
+    """What one :func:`run_loop` call shares between its steps: the frames and updates reached, the frame of
+    the latest ``last.pt``, the seeds already ended by ``eval.stop_at_success``, the clock and the bar."""
+
+    def __init__(self, cfg, learner, writers, frames, updates, stop_if_signalled, extra_summary, bar):
+        self.cfg, self.learner, self.writers, self.bar = cfg, learner, writers, bar
+        self.frames, self.updates, self.saved = frames, updates, frames  # saved: the latest last.pt's frame
+        self.stop_if_signalled, self.extra_summary = stop_if_signalled, extra_summary
+        self.stopped: set[int] = set()
+        self.clock = PhaseClock()
+        self.restart()
+
+    def restart(self) -> None:
+        self.start, self.start_frames = self.clock.start(), self.frames
+
+    def active(self) -> list[int]:
+        return [k for k in range(len(self.writers)) if k not in self.stopped]
+
+    def evaluate(self) -> None:
+        with self.clock("evaluate"):
+            rows = self.learner.evaluate(lambda: self.stop_if_signalled(before=self.save_on_stop))
+            for k in self.active():
+                self.writers[k].evaluation({"frames": self.frames, **rows[k]})
+            self.bar.set_note(f"eval return {self.writers[self.active()[0]].rows[-1]['return_mean']:.3f}")
+            if self.cfg.checkpoint.keep_best:
+                improved = [k not in self.stopped and best.improves(self.cfg, w.rows)
+                            for k, w in enumerate(self.writers)]
+                if any(improved):  # last.pt too, so that best.pt is never later than the checkpoint a resume reads
+                    self.checkpoint(improved, last=self.frames > 0)
+            self.stop_reached()
+
+    def checkpoint(self, improved=(), last: bool = True, only: list[int] | None = None) -> None:
+        with self.clock("checkpoint"):
+            for k, state in enumerate(self.learner.state()):
+                if k in (self.active() if only is None else only):
+                    health.check_state(state["loss"], self.frames, k if self.learner.seeds > 1 else None)
+                    self.writers[k].checkpoint(state, self.frames, self.updates, last=last,
+                                               best=bool(improved and improved[k]))
+            self.saved = self.frames if last and only is None else self.saved
+
+    def stop_reached(self) -> None:
+        """End each run whose evaluation at this frame meets ``eval.stop_at_success``: its checkpoint here
+        is its last, its summary.json says why it stopped; the group's other seeds train on."""
+        done = [k for k in self.active() if stop_met(self.cfg, self.writers[k].rows, self.frames)]
+        if done:
+            self.checkpoint(only=done)
+            for k in done:
+                self.writers[k].close()
+            self.finish(done)
+            self.stopped.update(done)
+
+    def finish(self, which: list[int]) -> None:
+        _finish(self.cfg, self.writers, self.extra_summary, self.frames, self.updates,
+                self.frames - self.start_frames, self.clock, self.start, which)
+
+    def save_on_stop(self) -> None:  # before its first checkpoint a stopped run is a failed start (RunSession)
+        if 0 < self.saved < self.frames:  # inside an evaluation too: the resumed run evaluates first
+            self.checkpoint()
+            log.info("stopped at frame %d with a checkpoint there: --resume continues from it", self.frames)
+
+
+def _next(frames: int, every: int) -> int:
+    return (frames // every + 1) * every
+
+
 def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, frames: int = 0, updates: int = 0,
              progress: bool = True, stop_if_signalled: Callable[..., None] = lambda before=None: None,
              extra_summary: dict | list[dict] | None = None,
@@ -314,101 +378,51 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
     checkpoint and the summary (with ``extra_summary``, one for every writer or a list of one per writer):
     the loop itself writes no file. ``frames`` counts one seed's frames.
     """
-    col, opt, seeds = cfg.collector, cfg.optim, learner.seeds
-    init_random = col.warm_up_frames
-
-    saved = frames  # the frame of the latest last.pt (a resumed run's checkpoint; none yet at frame 0)
-    clock = PhaseClock()
-
-    stopped: set[int] = set()  # the seeds whose run ended at eval.stop_at_success (their writers finished)
-
-    def active() -> list[int]:
-        return [k for k in range(len(writers)) if k not in stopped]
-
-    @clock.timed("evaluate")
-    def run_eval() -> None:
-        rows = learner.evaluate(lambda: stop_if_signalled(before=save_on_stop))
-        for k in active():
-            writers[k].evaluation({"frames": frames, **rows[k]})
-        bar.set_note(f"eval return {writers[active()[0]].rows[-1]['return_mean']:.3f}")
-        if cfg.checkpoint.keep_best:
-            improved = [k not in stopped and best.improves(cfg, writer.rows) for k, writer in enumerate(writers)]
-            if any(improved):  # last.pt too, so that best.pt is never later than the checkpoint a resume reads
-                save_checkpoint(improved, last=frames > 0)
-        stop_reached()
-
-    @clock.timed("checkpoint")
-    def save_checkpoint(improved=(), last: bool = True, only: list[int] | None = None) -> None:
-        nonlocal saved
-        for k, state in enumerate(learner.state()):
-            if k in (active() if only is None else only):
-                health.check_state(state["loss"], frames, k if seeds > 1 else None)
-                writers[k].checkpoint(state, frames, updates, last=last, best=bool(improved and improved[k]))
-        saved = frames if last and only is None else saved
-
-    def stop_reached() -> None:
-        """End each run whose evaluation at this frame meets ``eval.stop_at_success``: its checkpoint here
-        is its last, its summary.json says why it stopped; the group's other seeds train on."""
-        done = [k for k in active() if stop_met(cfg, writers[k].rows, frames)]
-        if done:
-            save_checkpoint(only=done)
-            for k in done:
-                writers[k].close()
-            _finish(cfg, writers, extra_summary, frames, updates, frames - start_frames, clock, start, done)
-            stopped.update(done)
-
-    def save_on_stop() -> None:  # before its first checkpoint a stopped run is a failed start (RunSession)
-        if 0 < saved < frames:  # inside an evaluation too: the resumed run evaluates first (_evaluation_due)
-            save_checkpoint()
-            log.info("stopped at frame %d with a checkpoint there: --resume continues from it", frames)
-
     bar = Progress(cfg.frames, initial=frames, desc="train", enabled=progress, on_update=on_frames)
-    start, start_frames = clock.start(), frames
+    s = _Session(cfg, learner, writers, frames, updates, stop_if_signalled, extra_summary, bar)
     try:
-        if _evaluation_due(cfg, writers[0].rows, frames):
-            run_eval()
+        if _evaluation_due(cfg, writers[0].rows, s.frames):
+            s.evaluate()
         else:
-            stop_reached()  # a resumed run stopped by its last evaluation but killed before its summary.json
-        next_eval = (frames // cfg.eval.every + 1) * cfg.eval.every
-        next_ckpt = (frames // cfg.checkpoint.every + 1) * cfg.checkpoint.every
-        next_log = frames + cfg.log.every
-        stats: list[dict[str, list[float]]] = [defaultdict(list) for _ in range(seeds)]
-        start, start_frames = clock.start(), frames
-
+            s.stop_reached()  # a resumed run stopped by its last evaluation but killed before its summary.json
+        next_eval, next_ckpt = _next(s.frames, cfg.eval.every), _next(s.frames, cfg.checkpoint.every)
+        next_log = s.frames + cfg.log.every
+        stats: list[dict[str, list[float]]] = [defaultdict(list) for _ in range(learner.seeds)]
+        s.restart()
         for data in collector:
-            if not active():
+            if not s.active():
                 break
-            stop_if_signalled(before=save_on_stop)
+            stop_if_signalled(before=s.save_on_stop)
             pieces = learner.split(data)
-            frames += pieces[0].numel()
-            learner.store(pieces, frames)
+            s.frames += pieces[0].numel()
+            learner.store(pieces, s.frames)
             for piece, seed_stats in zip(pieces, stats):
                 _episode_stats(piece, seed_stats)
-            if frames >= init_random:
-                with clock("update"):
-                    updates = _update(learner, opt.updates_per_batch, updates, frames, stats)
+            if s.frames >= cfg.collector.warm_up_frames:
+                with s.clock("update"):
+                    s.updates = _update(learner, cfg.optim.updates_per_batch, s.updates, s.frames, stats)
             bar.update(pieces[0].numel())
-            if frames >= next_log:
-                fps = (frames - start_frames) / (time.perf_counter() - start)
-                _log([writers[k] for k in active()], [stats[k] for k in active()], frames, fps=fps)
-                next_log = frames + cfg.log.every
-            if frames >= next_eval or frames >= cfg.frames:
-                run_eval()
-                next_eval = (frames // cfg.eval.every + 1) * cfg.eval.every
-            if frames >= next_ckpt or frames >= cfg.frames:
-                if saved != frames:  # not saved already with best.pt at this frame
-                    save_checkpoint()
-                next_ckpt = (frames // cfg.checkpoint.every + 1) * cfg.checkpoint.every
+            if s.frames >= next_log:
+                fps = (s.frames - s.start_frames) / (time.perf_counter() - s.start)
+                _log([writers[k] for k in s.active()], [stats[k] for k in s.active()], s.frames, fps=fps)
+                next_log = s.frames + cfg.log.every
+            if s.frames >= next_eval or s.frames >= cfg.frames:
+                s.evaluate()
+                next_eval = _next(s.frames, cfg.eval.every)
+            if s.frames >= next_ckpt or s.frames >= cfg.frames:
+                if s.saved != s.frames:  # not saved already with best.pt at this frame
+                    s.checkpoint()
+                next_ckpt = _next(s.frames, cfg.checkpoint.every)
     finally:
         collector.shutdown()
         bar.close()
-        for k in active():
+        for k in s.active():
             writers[k].close()
-    if active() and writers[active()[0]].rows[-1]["frames"] != frames:
-        run_eval()
-    if active():
-        save_checkpoint()
-        _finish(cfg, writers, extra_summary, frames, updates, frames - start_frames, clock, start, active())
+    if s.active() and writers[s.active()[0]].rows[-1]["frames"] != s.frames:
+        s.evaluate()
+    if s.active():
+        s.checkpoint()
+        s.finish(s.active())
 
 
 def _evaluation_due(cfg: RunConfig, rows: list[dict], frames: int) -> bool:
@@ -459,8 +473,8 @@ def _finish(cfg: RunConfig, writers: list[RunWriter], extra_summary, frames: int
 
 
 class PhaseClock:
-    """Where a loop's wall time went: ``with clock("update"):`` or ``@clock.timed("evaluate")`` add their body's
-    time to a phase; :meth:`split` gives the phases and, as ``collect_and_rest``, what is left of the window."""
+    """Where a loop's wall time went: ``with clock("update"):`` adds its body's time to a phase; :meth:`split`
+    gives the phases and, as ``collect_and_rest``, what is left of the window."""
 
     PHASES = ("update", "evaluate", "checkpoint")
 
@@ -479,15 +493,6 @@ class PhaseClock:
             yield
         finally:
             self.seconds[phase] += time.perf_counter() - begin
-
-    def timed(self, phase: str):
-        def wrap(fn):
-            @functools.wraps(fn)
-            def timed_fn(*args, **kwargs):
-                with self(phase):
-                    return fn(*args, **kwargs)
-            return timed_fn
-        return wrap
 
     def split(self, wall: float) -> dict[str, float]:
         """Seconds per phase over a window of ``wall`` seconds, rounded to 10 ms."""
