@@ -172,7 +172,7 @@ def register(registered: tuple) -> None:
     tasks, methods = registered
     for spec in tasks:
         register_task(spec.name, spec.entry, spec.description, train=spec.train, potential=spec.potential,
-                      replace=True, **spec.defaults)
+                      returns=spec.returns, fixed=spec.fixed, replace=True, **spec.defaults)
     for method in methods:
         register_method(method, replace=True)
 
