@@ -15,6 +15,7 @@ layer import nothing from each other)::
     training     drltg.training
     analysis     drltg.analysis (no torch)
     experiments  drltg.experiments, drltg.video (run, then report)
+    bench        drltg.bench (a suite's tiers run as sweeps, and their leaderboard)
     cli          drltg.cli
 
 Every import counts, those inside functions included: a lazy import is still a dependency.
@@ -44,6 +45,7 @@ LAYERS = [
     ["drltg.training"],
     ["drltg.analysis"],
     ["drltg.experiments", "drltg.video"],
+    ["drltg.bench"],
     ["drltg.cli"],
 ]
 HEAVY = ("torch", "torchrl", "tensordict")

@@ -12,6 +12,7 @@ independently, seeded. A performance profile is the share of runs whose score ex
 """
 from __future__ import annotations
 
+import contextlib
 import warnings
 from typing import Mapping, Sequence
 
@@ -58,29 +59,43 @@ def profile(scores: np.ndarray) -> np.ndarray:
     return (np.asarray(scores)[..., None] > TAUS).mean(axis=tuple(range(np.ndim(scores))))
 
 
+def _estimate(data, func, reps: int, confidence: float):
+    """rliable's stratified-bootstrap point estimate and percentile interval of ``func`` over ``data``."""
+    from rliable import library as rly
+
+    with warnings.catch_warnings():  # arch's notice that its RandomState default is deprecated
+        warnings.simplefilter("ignore", FutureWarning)
+        point, ci = rly.get_interval_estimates({"x": data}, func, reps=reps, confidence_interval_size=confidence)
+    return point["x"], ci["x"]
+
+
+@contextlib.contextmanager
+def _seeded(seed: int):
+    """rliable's stratified bootstrap draws its indices from numpy's global generator (np.random.choice),
+    whatever random_state it is given: seed that generator for these draws and give its state back after."""
+    saved = np.random.get_state()
+    np.random.seed(seed)
+    try:
+        yield
+    finally:
+        np.random.set_state(saved)
+
+
+def interval_estimate(scores: np.ndarray, func, *, reps: int = 2000, confidence: float = 0.95, seed: int = 0) -> list:
+    """``[value, [low, high]]`` of an aggregate ``func`` (e.g. ``rliable.metrics.aggregate_iqm``) of a ``runs x
+    pairs`` score matrix, by rliable's stratified bootstrap, seeded."""
+    with _seeded(seed):
+        value, ci = _estimate(scores, lambda x: np.array([func(x)]), reps, confidence)
+    return [float(value[0]), [float(ci[0][0]), float(ci[1][0])]]
+
+
 def aggregates(baseline: np.ndarray, transfer: np.ndarray, *, reps: int = 2000, confidence: float = 0.95,
                seed: int = 0) -> dict:
     """Each side's aggregates, their differences (transfer - baseline) and P(T > B), each ``[value, [low,
     high]]``; and both sides' performance profiles at :data:`TAUS` with their bands."""
-    from rliable import library as rly
-
-    functions = _functions()
-
-    def estimate(data, func):
-        with warnings.catch_warnings():  # arch's notice that its RandomState default is deprecated
-            warnings.simplefilter("ignore", FutureWarning)
-            point, ci = rly.get_interval_estimates({"x": data}, func, reps=reps,
-                                                   confidence_interval_size=confidence)
-        return point["x"], ci["x"]
-
-    # rliable's stratified bootstrap draws its indices from numpy's global generator (np.random.choice),
-    # whatever random_state it is given: seed that generator for these draws and give its state back after.
-    saved = np.random.get_state()
-    np.random.seed(seed)
-    try:
-        return _estimates(baseline, transfer, functions, estimate)
-    finally:
-        np.random.set_state(saved)
+    with _seeded(seed):
+        return _estimates(baseline, transfer, _functions(),
+                          lambda data, func: _estimate(data, func, reps, confidence))
 
 
 def _estimates(baseline, transfer, functions, estimate) -> dict:

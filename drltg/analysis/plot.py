@@ -301,3 +301,43 @@ def plot_profiles(entries: list[dict]) -> tuple[bytes, bytes]:
     ax.legend(fontsize=8, loc="lower left")
     ax.grid(alpha=0.3)
     return _save(plt, fig)
+
+
+@_plain_text
+def plot_board_profiles(rows: list[dict]) -> tuple[bytes, bytes]:
+    """Performance profiles of a leaderboard's rows (each ``{"label", "profile"}`` from
+    :func:`drltg.analysis.aggregate.aggregates`): the share of runs whose normalised area exceeds tau, with its
+    stratified-bootstrap band; no transfer once, dashed, from the first row."""
+    plt, (fig, ax) = _figure(figsize=(7.5, 4.8))
+    p0 = rows[0]["profile"]
+    ax.plot(p0["tau"], p0["baseline"]["share"], "--", color="0.3", label="no transfer")
+    for r in rows:
+        p = r["profile"]
+        line, = ax.plot(p["tau"], p["transfer"]["share"], label=r["label"])
+        ax.fill_between(p["tau"], p["transfer"]["low"], p["transfer"]["high"], color=line.get_color(), alpha=0.12)
+    ax.set_xlabel("normalised area under the curve, tau")
+    ax.set_ylabel("share of runs with score > tau")
+    ax.set_ylim(-0.02, 1.02)
+    ax.set_title("Performance profiles over the tier's pairs (95% stratified-bootstrap bands)")
+    ax.legend(fontsize=7, loc="lower left")
+    ax.grid(alpha=0.3)
+    return _save(plt, fig)
+
+
+@_plain_text
+def plot_method_curves(title: str, curves: dict[str, tuple], baseline: tuple | None) -> tuple[bytes, bytes]:
+    """One pair's learning curves, a line per method: ``label -> (frames, runs x evaluations)`` of normalised
+    returns, the mean over runs with the band between the 25th and 75th percentile; no transfer dashed."""
+    plt, (fig, ax) = _figure(figsize=(7, 4.2))
+    for label, (frames, values) in ([("no transfer", baseline)] if baseline else []) + list(curves.items()):
+        style = dict(color="0.3", linestyle="--") if label == "no transfer" else {}
+        line, = ax.plot(frames, values.mean(axis=0), label=label, **style)
+        lo, hi = np.percentile(values, [25, 75], axis=0)
+        ax.fill_between(frames, lo, hi, color=line.get_color(), alpha=0.12)
+    ax.set_xlabel("frames")
+    ax.xaxis.set_major_formatter(lambda x, _: _frames(x))
+    ax.set_ylabel("normalised return (mean; band: 25th-75th percentile of runs)")
+    ax.set_title(title)
+    ax.legend(fontsize=7, loc="lower right")
+    ax.grid(alpha=0.3)
+    return _save(plt, fig)

@@ -22,6 +22,7 @@ SUBCOMMANDS = {
                    "train source, baseline and transfer runs over seeds, then report"),
     "sweep": ("drltg.experiments.sweep",
               "many experiments from one YAML spec, on a local process pool or a Ray cluster"),
+    "bench": ("drltg.cli.bench", "the transfer benchmark: run a method on a tier, then the leaderboard"),
     "report": ("drltg.cli.report", "transfer metrics, plots and tables from baseline vs transfer runs"),
     "video": ("drltg.video", "render episodes of a trained policy or the demonstrator to video and a filmstrip"),
 }

@@ -1,0 +1,103 @@
+"""The benchmark's suites: each version fixes, for every tier, the pairs, budgets, seeds and evaluation a
+method is run on, so that a new method lands beside the reference rows without re-running them.
+
+A tier is a few *groups*; a group is one sweep spec without its methods (its pairs share a scale of
+budgets). A version never changes once published: a new protocol is a new version.
+
+**The score of a pair** is forward transfer as Continual World defines it (Wolczyk et al. 2021), on the
+target task's return normalised to [0, 1] by its declared range, :math:`n(x) = (x - lo) / (hi - lo)`:
+
+.. math::  FT = \\frac{AUC_T - AUC_B}{1 - AUC_B}
+
+where :math:`AUC` is the mean of :math:`n` over the budget (the area under the evaluation curve divided by
+the frames) and :math:`AUC_B` no transfer's, averaged over the seeds. Seed :math:`i`'s score is
+:math:`FT_i = (AUC_{T,i} - AUC_{B,i}) / (1 - \\overline{AUC_B})`, so the pair's score is the mean of its
+seeds' and every verdict on it is the report's exact sign-flip test of the paired differences.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from drltg.errors import UsageError, closest
+
+__all__ = ["Group", "Tier", "SUITES", "LATEST", "get_tier", "SMOKE"]
+
+
+@dataclass(frozen=True)
+class Group:
+    """Pairs benchmarked on one sweep spec (``spec`` holds every sweep key but ``methods``)."""
+
+    name: str
+    spec: dict
+
+    @property
+    def pairs(self) -> list[str]:
+        return list(self.spec["pairs"])
+
+    def sweep_spec(self, methods: list[str], smoke: bool = False) -> dict:
+        """The sweep spec that runs ``methods`` on this group (at :data:`SMOKE` budgets where ``smoke``)."""
+        spec = {**self.spec, "methods": list(methods)}
+        if smoke:
+            spec = {**spec, **smoke_budgets(spec)}
+        return spec
+
+
+@dataclass(frozen=True)
+class Tier:
+    name: str
+    summary: str
+    groups: tuple[Group, ...]
+    hours: str = ""
+
+    @property
+    def pairs(self) -> list[str]:
+        return [p for g in self.groups for p in g.pairs]
+
+
+SMOKE = {"seeds": 2, "divisor": 50, "episodes": 2}
+"""A smoke run: 2 seeds, every budget (and the evaluation period) divided by 50, 2 evaluation episodes.
+Its rows are labelled ``smoke`` and never ranked."""
+
+
+def smoke_budgets(spec: dict) -> dict:
+    d = SMOKE["divisor"]
+    frames = {k: max(1, int(spec[k]) // d) for k in ("frames", "source_frames") if k in spec}
+    every = max(1, int(spec.get("overrides", {}).get("eval.every", 5_000)) // d)
+    return {**frames, "seeds": SMOKE["seeds"],
+            "overrides": {**spec.get("overrides", {}), "eval.every": every, "eval.episodes": SMOKE["episodes"]}}
+
+
+_FOURROOMS = {"algos": ["sac"], "seeds": 10, "seed": 0, "frames": 20_000, "source_frames": 40_000,
+              "threshold": 0.5, "overrides": {"eval.every": 1_000}}
+
+V1 = {
+    "quick": Tier(
+        "quick", "FourRooms' graded goals, grid FourRooms and a heavier Pendulum: 8 pairs, 10 paired seeds",
+        (Group("fourrooms", {"pairs": ["fourrooms-near", "fourrooms-inner", "fourrooms-southeast",
+                                       "fourrooms-northwest", "fourrooms-far"], **_FOURROOMS}),
+         Group("gridrooms", {"pairs": ["gridrooms-near", "gridrooms-far"], **_FOURROOMS}),
+         Group("pendulum", {"pairs": ["pendulum-heavier"], "algos": ["sac"], "seeds": 10, "seed": 0,
+                            "frames": 6_000, "source_frames": 6_000, "threshold": -400,
+                            "overrides": {"eval.every": 1_000, "eval.episodes": 10}})),
+        hours="about 0.5 on 2 cores a method (seed groups)"),
+    "manipulation": Tier(
+        "manipulation", "robosuite Lift (dense reward) to Lift+Place, open and over a barrier: 2 pairs, 3 seeds",
+        (Group("lift", {"pairs": ["lift-dense-to-place-seed", "lift-dense-to-place-barrier-seed"],
+                        "algos": ["sac"], "seeds": 3, "seed": 10, "frames": 300_000, "source_frames": 60_000,
+                        "threshold": 1, "overrides": {"eval.every": 10_000, "eval.episodes": 10}}),),
+        hours="about 30 on 2 cores a method"),
+}
+SUITES = {"v1": V1}
+LATEST = "v1"
+
+
+def get_tier(version: str, tier: str) -> Tier:
+    """The tier of a suite version; an unknown name is one sentence."""
+    if version not in SUITES:
+        raise UsageError(f"unknown suite version '{version}'; the versions are {', '.join(SUITES)}.")
+    tiers = SUITES[version]
+    if tier not in tiers:
+        hint = closest(tier, tiers)
+        raise UsageError(f"suite {version} has no tier '{tier}'" +
+                         (f"; did you mean '{hint}'?" if hint else f"; its tiers are {', '.join(tiers)}."))
+    return tiers[tier]

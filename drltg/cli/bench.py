@@ -1,0 +1,68 @@
+"""`drltg bench run --method NAME` and `drltg bench report`: a method on the benchmark's tier, and the
+leaderboard that places it among the reference rows."""
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+from drltg.bench.suite import LATEST, SUITES
+
+REFERENCE = Path("results") / "bench"
+"""The reference rows of a drltg checkout, used where ``--reference`` is not given and this folder exists."""
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--tier", default="quick", help="the suite's tier: quick (default) or manipulation")
+    p.add_argument("--suite", default=LATEST, choices=sorted(SUITES), help=f"suite version (default {LATEST})")
+    p.add_argument("--out", type=Path, default=Path("runs") / "bench",
+                   help="your bench folder (default runs/bench; re-run to resume)")
+    p.add_argument("--reference", default=None, help=f"the reference rows' folder (default {REFERENCE} where it "
+                   "exists; 'none': no reference, train every source and baseline)")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    sub = p.add_subparsers(dest="bench_command", metavar="{run,report}", parser_class=type(p))
+    sub.required = True
+    run_p = sub.add_parser("run", help="train one method on a tier, reusing the reference's sources and baselines")
+    run_p.add_argument("--method", required=True, help="a transfer method (built-in or registered by --import)")
+    _common(run_p)
+    run_p.add_argument("--smoke", action="store_true", help="2 seeds, budgets / 50: checks the path, never ranked")
+    run_p.add_argument("--workers", type=int, default=os.cpu_count(), help="runs in parallel (default: CPU count)")
+    run_p.add_argument("--backend", choices=("local", "ray"), default="local")
+    run_p.add_argument("--no-seed-groups", action="store_true", help="train every run in its own task")
+    run_p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    report_p = sub.add_parser("report", help="the leaderboard: your rows among the reference rows")
+    _common(report_p)
+    report_p.add_argument("--board", type=Path, help="where to write it (default OUT/SUITE/TIER/board)")
+    report_p.add_argument("--reps", type=int, default=2000, help="bootstrap resamples of each interval")
+
+
+def _reference(text: str | None) -> Path | None:
+    if text is None:
+        return REFERENCE if REFERENCE.is_dir() else None
+    return None if text == "none" else Path(text)
+
+
+def run(args: argparse.Namespace) -> int:
+    from drltg.bench import bench_report, bench_run
+    from drltg.bench.board import board_table, pair_table
+
+    reference = _reference(args.reference)
+    if args.bench_command == "run":
+        record = bench_run(args.method, tier=args.tier, out=args.out, version=args.suite, reference=reference,
+                           smoke=args.smoke, workers=args.workers, backend=args.backend,
+                           group_seeds=not args.no_seed_groups, progress=not args.no_progress, imports=args.imports)
+        entry = record["methods"][args.method]
+        for pair, why in entry["left_out"].items():
+            print(f"left out: {pair}: {why}")
+        print(f"{args.method} on {args.suite} {args.tier}{' (smoke)' if args.smoke else ''}: done; "
+              f"{entry['copied']} source and baseline runs taken from {entry['reference'] or 'no reference'}. "
+              f"Next: drltg bench report --out {args.out}" + (" --reference none" if reference is None else ""))
+        return 0
+    board, folder = bench_report(out=args.out, reference=reference, version=args.suite, tier=args.tier,
+                                 board_dir=args.board, reps=args.reps)
+    print(board_table(board))
+    print(pair_table(board))
+    print(f"leaderboard: {folder / 'leaderboard.md'} (JSON, performance profiles and curves beside it)")
+    return 0
