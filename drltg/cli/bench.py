@@ -13,6 +13,8 @@ REFERENCE = Path("results") / "bench"
 
 
 def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--import", dest="imports", action="append", default=argparse.SUPPRESS, metavar="MODULE",
+                   help="import MODULE first, e.g. one that registers your method (repeatable)")
     p.add_argument("--tier", default="quick", help="the suite's tier: quick (default) or manipulation")
     p.add_argument("--suite", default=LATEST, choices=sorted(SUITES), help=f"suite version (default {LATEST})")
     p.add_argument("--out", type=Path, default=Path("runs") / "bench",
