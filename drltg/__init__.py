@@ -27,6 +27,7 @@ when first used)::
                        over seeds, then the report (``drltg experiment``)
     drltg.experiments.sweep  sweep(spec, out): a grid of experiments from a YAML spec or mapping (``drltg sweep``)
     drltg.analysis     transfer metrics, reports, plots and tables from run directories (no torch)
+    drltg.bench        bench_run(method), bench_report(): a method on the benchmark's tier, and the leaderboard
     drltg.cli          the ``drltg`` command
 
 The examples in ``examples/`` compose these parts by hand, one transfer method each.
@@ -51,6 +52,7 @@ _SURFACE = {
     "drltg.training.reevaluate": ["evaluate_run"],
     "drltg.experiments.experiment": ["experiment"],
     "drltg.experiments.sweep": ["sweep"],
+    "drltg.bench": ["bench_run", "bench_report"],
 }
 _WHERE = {name: module for module, names in _SURFACE.items() for name in names}
 

@@ -101,7 +101,9 @@ def bench_report(*, out: str | Path | None = "runs/bench", reference: str | Path
     profiled = [{"label": r["method"] + (" (yours)" if r["kind"] == "yours" else ""), **r["aggregate"]}
                 for r in board["rows"] if r["aggregate"] and not r["marks"]]
     files = {"leaderboard.json": json.dumps(board, indent=1) + "\n",
-             "leaderboard.md": board_markdown(board, the_tier), **_pair_curves(board, the_tier)}
+             "leaderboard.md": board_markdown(board, the_tier),
+             "ranking.md": _best_sentence(board) + "\n\n" + board_table(board), "pairs.md": pair_table(board),
+             **_pair_curves(board, the_tier)}
     if profiled:
         files["profile.png"] = plot_board_profiles(profiled)[0]
     atomic.write_files(folder, files)
