@@ -303,6 +303,39 @@ def test_the_median_interval_covers_skewed_and_learn_or_not_differences():
         assert np.mean(hits) >= level - 3 * np.sqrt(level * (1 - level) / 2000)
 
 
+def test_the_mann_whitney_counts_match_every_ordering():
+    import itertools
+
+    for m, n in ((1, 1), (2, 3), (3, 4), (4, 2)):
+        counts = np.zeros(m * n + 1)
+        for low in itertools.combinations(range(m + n), m):
+            high = [v for v in range(m + n) if v not in low]
+            counts[sum(x < y for x in low for y in high)] += 1
+        assert stats._u_counts(m, n) == pytest.approx(counts)
+
+
+def test_the_shift_interval_by_hand():
+    # 5 + 5 runs, T = B + 10: the 25 differences 10 + (j - i) sorted are 6, 7, 7, 8, 8, 8, ... 13, 13, 14. Of the
+    # 252 orderings 1, 1, 2, 3, 5 give U = 0..4: 2 P(U <= 2) = 8/252 <= 0.05 < 2 P(U <= 3) = 14/252, so k = 3:
+    # [D_(3), D_(23)] = [7, 13] at 1 - 8/252; the Hodges-Lehmann shift is the median difference, 10
+    b = np.arange(5.0)
+    assert stats.shift_interval(b, b + 10) == pytest.approx((10.0, 7.0, 13.0, 1 - 8 / 252))
+    # 3 + 3 runs: even [D_(1), D_(9)] covers only 1 - 2/20 = 0.9
+    shift, lo, hi, level = stats.shift_interval([0, 1, 2], [5, 6, 7])
+    assert shift == 5 and np.isnan([lo, hi, level]).all()
+
+
+def test_the_shift_interval_covers_a_skewed_shift():
+    """Distribution-free: exponential runs shifted by 0.5, 2,000 experiments of 6 + 6 runs, cover 0.5 at least
+    at the level they state."""
+    rng = np.random.default_rng(0)
+    hits = []
+    for _ in range(2000):
+        _, lo, hi, level = stats.shift_interval(rng.exponential(1.0, 6), rng.exponential(1.0, 6) + 0.5)
+        hits.append(lo <= 0.5 <= hi)
+    assert np.mean(hits) >= level - 3 * np.sqrt(level * (1 - level) / 2000)
+
+
 def test_the_stratified_sign_flip_test_by_hand():
     # strata (3, 6, -3) and (2, 4): S = mean 2 + mean 3 = 5, the sum of terms d/n = 1, 2, -1 | 1, 2. Each of the
     # 2^5 = 32 sign patterns flips terms of size F in all (|terms| sum to 7): S* = 7 - 2F, so |S*| >= 5 where

@@ -754,7 +754,11 @@ def test_each_magnitude_says_what_it_assumes():
     assert "assumes independent pairs, any shape" in table and "3 [-1, 9]" in table
     unpaired = report.compute(flat(base, prefix="b"), flat(gains, prefix="t"), value_range=(-20.0, 20.0))["metrics"]
     assert unpaired["mean_return_gain_t_interval_assumes"] == "normal scores on each side"
-    assert "mean_return_gain_median_interval" not in unpaired  # the order statistics need pairs
+    # unpaired, the Hodges-Lehmann shift of the flat curves' values and its Mann-Whitney interval
+    shift, lo, hi, level = stats.shift_interval(base, gains)
+    assert unpaired["mean_return_gain_median"] == shift and unpaired["mean_return_gain_median_interval"] == [lo, hi]
+    assert unpaired["mean_return_gain_median_interval_level"] == level > 0.95
+    assert unpaired["mean_return_gain_median_interval_assumes"] == "independent runs, the sides differing by a shift, any shape"
     ranged_t = report.compute(b, t, interval="t")["metrics"]
     assert ranged_t["mean_return_gain_ci_assumes"] == "normal differences"
     assert ranged_t["mean_return_gain_ci"] == pytest.approx(ranged_t["mean_return_gain_t_interval"])

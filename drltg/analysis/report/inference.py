@@ -101,6 +101,7 @@ ASSUMES = {
     "normal areas": "normal areas (Fieller)",
     "resampling": "that the seeds stand for their distribution (bootstrap)",
     "pairs": "independent pairs, any shape",
+    "shift": "independent runs, the sides differing by a shift, any shape",
     "runs": "independent runs, a normal approximation of the score (Newcombe)",
     "line": "normal scatter about a straight line",
 }
@@ -124,10 +125,11 @@ def interval_assumes(kind: str, paired: bool, interval: str) -> str:
 def magnitudes(name: str, b: np.ndarray, t: np.ndarray, paired: bool, w: Window, s: ReportSettings) -> dict:
     r"""The magnitudes beside a mean difference's verdict, each with what it assumes (``<key>_assumes``):
     ``<name>_t_interval``, the t interval (paired on :math:`d_i`, or Welch's standard error with Hsu's degrees of
-    freedom), which assumes normal differences (scores); and, paired, ``<name>_median`` of the :math:`d_i` with
-    ``<name>_median_interval``, the order-statistic interval of their median (:func:`stats.median_interval`, at the
-    coverage ``<name>_median_interval_level`` it holds, at least ``confidence``), which assumes independent pairs
-    only. Each is left out where it does not exist (no spread; too few pairs for the order statistics)."""
+    freedom), which assumes normal differences (scores); and ``<name>_median`` with ``<name>_median_interval``, an
+    order-statistic interval at the coverage ``<name>_median_interval_level`` it holds, at least ``confidence``:
+    paired, of the median of the :math:`d_i` (:func:`stats.median_interval`), assuming independent pairs only;
+    unpaired, of the Hodges-Lehmann shift, the median of every :math:`T_j - B_i` (:func:`stats.shift_interval`),
+    assuming independent runs whose sides differ by a shift. Each is left out where it does not exist (no spread; too few pairs for the order statistics)."""
     out: dict = {}
     lo, hi = (float(x) for x in stats.t_interval(b, t, paired=paired, confidence=float(s.confidence)))
     if math.isfinite(lo) and math.isfinite(hi):
@@ -135,11 +137,13 @@ def magnitudes(name: str, b: np.ndarray, t: np.ndarray, paired: bool, w: Window,
         out[f"{name}_t_interval_assumes"] = ASSUMES["normal differences" if paired else "normal scores"]
     if paired:
         median, lo, hi, level = stats.median_interval(t - b, float(s.confidence))
-        out[f"{name}_median"] = median
-        if math.isfinite(lo):
-            out[f"{name}_median_interval"] = [lo, hi]
-            out[f"{name}_median_interval_level"] = level
-            out[f"{name}_median_interval_assumes"] = ASSUMES["pairs"]
+    else:
+        median, lo, hi, level = stats.shift_interval(b, t, float(s.confidence))
+    out[f"{name}_median"] = median
+    if math.isfinite(lo):
+        out[f"{name}_median_interval"] = [lo, hi]
+        out[f"{name}_median_interval_level"] = level
+        out[f"{name}_median_interval_assumes"] = ASSUMES["pairs" if paired else "shift"]
     return out
 
 
