@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# drltg bench v1's reference rows, tier quick, kept in results/bench/v1/quick/ with their leaderboard:
+#   bash results/bench.sh     (RUNS=runs/bench; about 2 hours on 2 cores; re-running resumes)
+# 1. baselines and reward/value shaping, policy and model reuse on the FourRooms and grid pairs are the runs of
+#    results/sweep-fourrooms-graded and results/sweep-gridrooms (same protocol), copied in; 2. every built-in method
+#    through `drltg bench run`; 3. each run's config, curve and summary kept, with each source's networks (what a
+#    user's bench run reuses); the reports made again there (every run is there), then the leaderboard.
+set -euo pipefail
+RUNS=${RUNS:-runs/bench} DRLTG=${DRLTG:-drltg} TIER=$RUNS/v1/quick KEEP=results/bench/v1/quick
+METHODS="reward-shaping value-shaping policy-reuse jumpstart model-reuse demonstrations kickstarting sf-gpi"
+export OMP_NUM_THREADS=1
+for cell in results/sweep-{fourrooms-graded,gridrooms}/*/sac/{baseline,{reward,value}-shaping/transfer,{policy,model}-reuse/transfer}; do
+  group=$(cut -d/ -f2 <<< "$cell" | sed 's/sweep-//; s/-graded//') to=$TIER/$group/${cell#results/*/}
+  [ -d "$to" ] || { mkdir -p "$(dirname "$to")" && cp -r "$cell" "$to"; }
+done
+for m in $METHODS; do $DRLTG bench run --method "$m" --out "$RUNS" --reference none --workers 2 --no-progress; done
+(cd "$TIER" && find . -name summary.json -printf '%h\n') | while read -r run; do
+  mkdir -p "$KEEP/$run" && cp "$TIER/$run"/{config.yaml,eval.csv,summary.json} "$KEEP/$run/"
+  [[ $run != */source/* ]] || { mkdir -p "$KEEP/$run/checkpoints" && cp "$TIER/$run/manifest.json" "$KEEP/$run/" &&
+    cp "$TIER/$run/checkpoints/last.safetensors" "$KEEP/$run/checkpoints/"; }
+done
+for m in $METHODS; do $DRLTG bench run --method "$m" --out results/bench --reference none --no-progress > /dev/null; done
+find "$KEEP" \( -name '*.png' -o -name '*.svg' -o -name '*.log' -o -name runs.csv \) -delete
+$DRLTG bench report --out results/bench --reference none && python results/claims.py
