@@ -13,8 +13,9 @@ after another, whole commands, about 20 minutes on one core), ``sweep`` (a FourR
 groups against every run alone, about 15 minutes on 2 cores) and ``threads`` (SAC steps under torch's
 default thread count against one thread, with a core idle and busy; it starts a spinning process) and
 ``coverage`` (the report's intervals on simulated seeds, results/coverage's tables, a few minutes) and
-``checkpoint`` (saving a part-filled 1e6-transition Lift buffer whole and as a checkpoint keeps it) run only
-when named.
+``checkpoint`` (saving a part-filled 1e6-transition Lift buffer whole and as a checkpoint keeps it) and
+``verdict`` (the CPU time of ``fourrooms-near`` model reuse with ``seeds="auto"`` from start to its verdict, seed
+groups against every run alone, tens of minutes; ``--quick`` only checks that it runs) run only when named.
 """
 from __future__ import annotations
 
@@ -34,7 +35,7 @@ import torch
 from benchmarks.common import REPO, machine, versions
 
 DEFAULT = ("env", "robosuite", "sac", "train", "memory", "gymnasium")
-NAMED_ONLY = ("lift", "demo", "seeds", "lift-seeds", "sweep", "threads", "coverage", "checkpoint")
+NAMED_ONLY = ("lift", "demo", "seeds", "lift-seeds", "sweep", "threads", "coverage", "checkpoint", "verdict")
 
 
 def _suite(name: str):
@@ -64,6 +65,8 @@ def _suite(name: str):
         from benchmarks.threads import run
     elif name == "coverage":
         from benchmarks.coverage import run
+    elif name == "verdict":
+        from benchmarks.verdict import run
     else:
         run = _demo
     return run
@@ -142,6 +145,11 @@ def summarize(suites: dict, device: str) -> dict:
     if sweep:
         for clock in ("wall", "cpu"):
             out[f"sweep: every run alone / seed groups ({clock})"] = {"value": sweep[f"ratio_{clock}"]}
+    verdict = suites.get("verdict")
+    if verdict and "ratio_cpu" in verdict:
+        for clock in ("cpu", "wall"):
+            out[f"verdict: fourrooms-near model reuse to its verdict, every run alone / seed groups ({clock})"] = {
+                "value": verdict[f"ratio_{clock}"]}
     mem = suites.get("memory", {}).get("loss_keys")
     if mem:
         out["memory: replay RSS growth / raw bytes"] = {

@@ -3,15 +3,21 @@ transfer run reusing the kept source run of its own seed, >= 3 paired seeds, <= 
 per target shared by every row on it, and the kept sources reused rather than trained again."""
 from __future__ import annotations
 
+import csv
+import filecmp
 import os
 import re
 import subprocess
 from pathlib import Path
 
 import pytest
+import torch
+import yaml
 
 from drltg.config import config_changes
+from drltg.errors import UsageError
 from drltg.experiments.sweep import load_spec, plan
+from drltg.transfer import load_actor
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPTS = ROOT / "results" / "manipulation"
@@ -27,50 +33,33 @@ def runs_of(row: str) -> Path:
     return ROOT / "runs" / "manipulation" / ("reference" if row.startswith("demonstrations-reference-") else "")
 
 
-def test_the_script_parses_and_runs_every_row_spec_and_two_sources():
-    subprocess.run(["bash", "-n", str(SCRIPTS / "run.sh")], check=True)
-    assert sorted(ROWS) == sorted(p.stem for p in SPECS.glob("*.yaml"))
-    assert set(SOURCES) == {"lift-sac-ln-half", "lift-soc4"}
-
-
-@pytest.mark.parametrize("row", ROWS)
-def test_each_row_reuses_the_kept_source_of_its_own_seed(row, monkeypatch):
+def test_each_row_reuses_the_kept_source_of_its_own_seed_and_shares_its_targets_baselines(monkeypatch):
     monkeypatch.chdir(ROOT)  # the scripts run from the repository root
-    spec = load_spec(SPECS / f"{row}.yaml")
-    assert spec.seeds >= 3 and max(spec.frames) <= 300_000 and len(spec.pairs) == len(spec.methods) == 1
-    source = spec.overrides.get("transfer.source")
-    runs, cells = plan(spec, runs_of(row))
-    assert len(cells) == 1 and len(runs) == 2 * spec.seeds  # baselines and transfers, no source trained here
-    transfers = [r for r in runs if r.role == "transfer"]
-    for run in transfers:
-        if source is None or source.startswith("demonstrator:"):  # reward shaping; the scripted reference
-            assert run.cfg.transfer.source == source
-            continue
-        name = SOURCED.fullmatch(source).group(1)
-        assert name in SOURCES
-        kept = ROOT / "runs" / "manipulation" / "sources" / name / f"seed-{run.cfg.seed}"
-        assert run.cfg.transfer.source == str(kept)
-        assert run.cfg.transfer.source_checkpoint == "best"  # what run.sh evaluates and keeps
-    assert [r.cfg.seed for r in transfers] == [100 * i for i in range(spec.seeds)]
-    if source is None or "{seed}" in source:  # the baselines of every row on the target, whatever its source
-        assert all(r.cfg.transfer.source is None for r in runs if r.role == "baseline")
-
-
-def test_rows_on_one_target_share_its_baselines():
     seen: dict[Path, dict] = {}
     for row in ROWS:
-        runs, _ = plan(load_spec(SPECS / f"{row}.yaml"), runs_of(row))
+        spec = load_spec(SPECS / f"{row}.yaml")
+        assert spec.seeds >= 3 and max(spec.frames) <= 300_000 and len(spec.pairs) == len(spec.methods) == 1
+        source = spec.overrides.get("transfer.source")
+        runs, cells = plan(spec, runs_of(row))
+        assert len(cells) == 1 and len(runs) == 2 * spec.seeds  # baselines and transfers, no source trained here
+        transfers = [r for r in runs if r.role == "transfer"]
+        for run in transfers:
+            if source is None or source.startswith("demonstrator:"):  # reward shaping; the scripted reference
+                assert run.cfg.transfer.source == source, row
+                continue
+            kept = ROOT / "runs" / "manipulation" / "sources" / SOURCED.fullmatch(source).group(1)
+            assert kept.name in SOURCES and run.cfg.transfer.source == str(kept / f"seed-{run.cfg.seed}"), row
+            assert run.cfg.transfer.source_checkpoint == "best"  # what run.sh evaluates and keeps
+        assert [r.cfg.seed for r in transfers] == [100 * i for i in range(spec.seeds)], row
         for r in runs:
-            if r.role == "baseline":
-                assert config_changes(seen.setdefault(r.path, r.cfg), r.cfg) == [], r.path
+            if r.role == "baseline":  # the same baselines for every row on the target, whatever its source
+                assert r.cfg.transfer.source is None and config_changes(seen.setdefault(r.path, r.cfg), r.cfg) == []
     groups = {p.parent.relative_to(ROOT / "runs" / "manipulation").as_posix() for p in seen}
     assert groups == {"lift/sac/baseline", "lift-to-place/sac/baseline", "lift-to-place/soc/baseline",
                       "lift-to-place-barrier/sac/baseline", "reference/lift-to-place/sac/baseline",
                       "reference/lift-to-place-barrier/sac/baseline"}
     reference = ROOT / "runs" / "manipulation" / "reference"
-    copies = [path for path in seen if path.is_relative_to(reference)]
-    assert len(copies) == 6
-    for path in copies:  # the reference rows' baselines are copies of the others' (run.sh copies them)
+    for path in [p for p in seen if p.is_relative_to(reference)]:  # copies of the others' (run.sh copies them)
         assert config_changes(seen[ROOT / "runs" / "manipulation" / path.relative_to(reference)], seen[path]) == []
 
 
@@ -93,16 +82,12 @@ def test_the_rows_that_reuse_weights_build_the_learner_of_their_kept_source(row,
     assert not (report.widened or report.narrowed or report.skipped), report.summary()
 
 
-def test_rebuild_keeps_only_the_rows_runs_and_their_relative_source(tmp_path):
+def test_rebuild_keeps_only_the_rows_runs_and_their_relative_source(tmp_path, monkeypatch):
     """run.sh's `rebuild.py --only`: the row's baselines, transfers and source runs are copied in the runs'
     layout, another row's are not, and a source path relative to the run still names the kept source."""
-    import importlib.util
+    monkeypatch.syspath_prepend(str(ROOT / "results"))
+    import rebuild
 
-    import yaml
-
-    spec = importlib.util.spec_from_file_location("rebuild", ROOT / "results" / "rebuild.py")
-    rebuild = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(rebuild)
     runs, kept = tmp_path / "runs", tmp_path / "kept"
     relative = "../../../../../sources/lift-sac/seed-0"
     for folder, source in (("p/sac/baseline/seed-0", None), ("p/sac/m/transfer/seed-0", relative),
@@ -120,23 +105,17 @@ def test_rebuild_keeps_only_the_rows_runs_and_their_relative_source(tmp_path):
     assert (transfer / relative / "eval.csv").is_file()
 
 
-def test_keep_source_keeps_the_weights_and_refuses_an_unfinished_run(tmp_path):
-    import sys
-
-    import torch
-
-    from drltg.errors import UsageError
-    sys.path.insert(0, str(SCRIPTS))
+def test_keep_source_keeps_the_weights_and_refuses_an_unfinished_run(tmp_path, monkeypatch):
+    monkeypatch.syspath_prepend(str(SCRIPTS))
     from keep_source import keep_source
 
     run = tmp_path / "run"
     (run / "checkpoints").mkdir(parents=True)
     for name in ("config.yaml", "eval.csv"):
         (run / name).write_text(name)
-    weights = {name: {"actor.weight": torch.full((2, 3), float(i))} for i, name in enumerate(("last.pt", "best.pt"))}
     for name, frames in (("last.pt", 60000), ("best.pt", 25000)):
-        torch.save({"loss": weights[name], "frames": frames, "buffer": torch.zeros(1000), "optimizer": {}},
-                   run / "checkpoints" / name)
+        torch.save({"loss": {"actor.weight": torch.full((2, 3), float(frames))}, "frames": frames,
+                    "buffer": torch.zeros(1000), "optimizer": {}}, run / "checkpoints" / name)
     with pytest.raises(UsageError, match="no summary.json"):
         keep_source(run, tmp_path / "kept")
     (run / "summary.json").write_text("{}")
@@ -144,30 +123,21 @@ def test_keep_source_keeps_the_weights_and_refuses_an_unfinished_run(tmp_path):
     for name, frames in (("last.pt", 60000), ("best.pt", 25000)):
         kept = torch.load(tmp_path / "kept" / "checkpoints" / name, weights_only=True)
         assert set(kept) == {"loss", "frames"} and kept["frames"] == frames
-        assert torch.equal(kept["loss"]["actor.weight"], weights[name]["actor.weight"])
+        assert torch.equal(kept["loss"]["actor.weight"], torch.full((2, 3), float(frames)))
     assert (tmp_path / "kept" / "config.yaml").read_text() == "config.yaml"
     (run / "checkpoints" / "best.pt").unlink()  # a run without keep_best has none, nor has its kept copy
     keep_source(run, tmp_path / "kept-last")
     assert not (tmp_path / "kept-last" / "checkpoints" / "best.pt").exists()
 
 
-@pytest.mark.parametrize("seed", [0, 100, 200])
-def test_kept_lift_sources_are_weights_only_and_load_as_actors(seed):
-    import torch
-
-    from drltg.transfer import load_actor
-    source = SCRIPTS / "sources" / "lift-sac-ln-half" / f"seed-{seed}"
-    assert set(torch.load(source / "checkpoints" / "last.pt", weights_only=True)) == {"loss", "frames"}
-    actor = load_actor(source)
-    assert sum(p.numel() for p in actor.parameters()) > 0
-
-
 def test_the_script_reuses_the_kept_sources_and_copies_a_reference_rows_baselines(tmp_path):
     """With every source kept in results/manipulation/sources/, run.sh copies them into RUNS and trains, keeps
     and evaluates none; a reference row then copies the complete baselines of its group (config, curve,
-    summary), not an unfinished one nor one it holds; DRLTG=false fails the script at the row's sweep."""
-    import filecmp
-
+    summary), not an unfinished one nor one it holds; DRLTG=false fails the script at the row's sweep. The kept
+    sources are weights only and load as actors."""
+    subprocess.run(["bash", "-n", str(SCRIPTS / "run.sh")], check=True)
+    assert sorted(ROWS) == sorted(p.stem for p in SPECS.glob("*.yaml"))
+    assert set(SOURCES) == {"lift-sac-ln-half", "lift-soc4"}
     runs = tmp_path / "runs"
     shared = runs / "lift-to-place" / "sac" / "baseline"
     for seed in (0, 100, 200):
@@ -185,26 +155,23 @@ def test_the_script_reuses_the_kept_sources_and_copies_a_reference_rows_baseline
         for seed in (0, 100, 200):
             kept, run = SCRIPTS / "sources" / name / f"seed-{seed}", runs / "sources" / name / f"seed-{seed}"
             assert filecmp.cmp(kept / "checkpoints" / "best.pt", run / "checkpoints" / "best.pt", shallow=False)
+            for pt in ("last.pt", "best.pt"):
+                assert set(torch.load(kept / "checkpoints" / pt, weights_only=True)) == {"loss", "frames"}
+            assert sum(p.numel() for p in load_actor(kept).parameters()) > 0
     copied = runs / "reference" / "lift-to-place" / "sac" / "baseline"
     assert sorted(p.name for p in (copied / "seed-0").iterdir()) == ["config.yaml", "eval.csv", "summary.json"]
     assert (copied / "seed-0" / "eval.csv").read_text() == "eval.csv 0"
     assert not list(mine.iterdir()) and not (copied / "seed-200").exists()
 
 
-@pytest.mark.parametrize("row", ["demonstrations-place", "demonstrations-barrier"])
-def test_the_rows_run_the_learned_sources_episodes_without_the_noise_that_stops_them_lifting(row):
-    """The reason the spec gives is the committed measurement: its counts over the sources at sigma 0 and 0.1."""
-    import csv
-
+def test_the_demonstration_rows_run_the_sources_episodes_without_the_noise_that_stops_them_lifting():
+    """The reason each spec gives is the committed measurement: its counts over the sources at sigma 0 and 0.1."""
     with open(SCRIPTS / "placement-diagnostics" / "source-noise.csv") as f:
-        rows = list(csv.DictReader(f))
-
-    def lifted(sigma):
-        cells = [r for r in rows if float(r["sigma"]) == sigma]
-        return sum(int(r["lifted"]) for r in cells), sum(int(r["episodes"]) for r in cells)
-
-    (noisy, n), (clean, m) = lifted(0.1), lifted(0.0)
-    text = " ".join(line.lstrip("# ") for line in (SPECS / f"{row}.yaml").read_text().splitlines())
-    assert f"lift in {noisy} of {n} episodes on lift-place against {clean} of {m} without" in text
-    spec = load_spec(SPECS / f"{row}.yaml")
-    assert "transfer.demo_noise" not in spec.overrides and spec.overrides["transfer.demo_ratio"] == 0.5
+        cells = list(csv.DictReader(f))
+    (noisy, n), (clean, m) = [[sum(int(r[k]) for r in cells if float(r["sigma"]) == sigma)
+                               for k in ("lifted", "episodes")] for sigma in (0.1, 0.0)]
+    for row in ("demonstrations-place", "demonstrations-barrier"):
+        text = " ".join(line.lstrip("# ") for line in (SPECS / f"{row}.yaml").read_text().splitlines())
+        assert f"lift in {noisy} of {n} episodes on lift-place against {clean} of {m} without" in text, row
+        overrides = load_spec(SPECS / f"{row}.yaml").overrides
+        assert "transfer.demo_noise" not in overrides and overrides["transfer.demo_ratio"] == 0.5, row

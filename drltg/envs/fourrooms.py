@@ -50,7 +50,6 @@ from tensordict import TensorDictBase
 from torchrl.data import Bounded
 
 from drltg.envs.goal_env import GoalEnv
-from drltg.envs.limits import MAX_HORIZON
 from drltg.errors import UsageError
 
 ARENA_SIZE = 10.0
@@ -169,7 +168,6 @@ class FourRoomsEnv(GoalEnv):
     """
 
     state_key = "position"
-    _supports_set_state = True
 
     def __init__(
         self,
@@ -186,7 +184,8 @@ class FourRoomsEnv(GoalEnv):
         device: torch.device | str | None = None,
         seed: int | None = None,
     ):
-        super().__init__(device=device, batch_size=torch.Size(batch_size))
+        super().__init__(step_cost=step_cost, horizon=horizon, observe_goal=observe_goal, batch_size=batch_size,
+                         device=device)
         goal_t = torch.as_tensor(goal, dtype=torch.float32)
         if goal_t.shape != (2,) or not bool(in_free_space(goal_t)):
             raise UsageError(f"goal {tuple(goal)} is not a point (x, y) in the free space of the 10x10 arena.")
@@ -195,19 +194,12 @@ class FourRoomsEnv(GoalEnv):
         for name, value in (("goal_radius", goal_radius), ("max_step", max_step)):
             if not value > 0:
                 raise UsageError(f"{name} {value} must be positive.")
-        if horizon < 1:
-            raise UsageError(f"horizon {horizon} must be at least 1 step.")
-        if horizon > MAX_HORIZON:
-            raise UsageError(f"horizon {horizon} is more than the {MAX_HORIZON:,} steps an evaluation runs an episode.")
         if not 16 <= render_size <= 4096:
             raise UsageError(f"render_size is the side of a rendered frame in pixels, from 16 to 4096; got "
                              f"{render_size}.")
         self.goal_radius = float(goal_radius)
         self.max_step = float(max_step)
-        self.step_cost = float(step_cost)
-        self.horizon = int(horizon)
         self.start_room = start_room
-        self.observe_goal = bool(observe_goal)
         self.render_size = int(render_size)
         regions = [ROOMS[start_room]] if start_room else list(ROOMS.values()) + list(DOOR_PASSAGES)
         self.register_buffer("goal", goal_t.to(self.device))
@@ -216,9 +208,7 @@ class FourRoomsEnv(GoalEnv):
         self._region_low, self._region_size = regions[:, :2], regions[:, 2:] - regions[:, :2]
         self._region_areas = self._region_size.prod(-1)
         self._make_spec()
-        if seed is None:
-            seed = torch.empty((), dtype=torch.int64).random_().item()
-        self.set_seed(seed)
+        self._seed_or_draw(seed)
 
     def _make_spec(self):
         position = Bounded(0.0, ARENA_SIZE, (2,), dtype=torch.float32, device=self.device)

@@ -4,21 +4,50 @@ A step pays ``+1`` and terminates on reaching the goal (``success``), costs ``st
 is truncated (never terminated) after ``horizon`` steps. The state is one entry (``state_key``: the
 continuous ``position`` or the grid ``cell``) plus ``step_count``; starts and noise come from a CPU
 generator, the env's own (``set_seed``).
-Subclasses build their specs with :meth:`_state_specs` and write :meth:`_observe`, the start draw and the
+Subclasses pass the common settings to ``GoalEnv.__init__`` (which checks the horizon), build their specs with
+:meth:`_state_specs`, seed with :meth:`_seed_or_draw`, and write :meth:`_observe`, the start draw and the
 move; :meth:`_first` and :meth:`_next` assemble what ``_reset`` and ``_step`` return.
 """
 from __future__ import annotations
+
+from typing import Sequence
 
 import torch
 from tensordict import TensorDict
 from torchrl.data import Bounded, Categorical, Composite, TensorSpec, Unbounded
 from torchrl.envs import EnvBase
 
+from drltg.envs.limits import MAX_HORIZON
+from drltg.errors import UsageError
+
 
 class GoalEnv(EnvBase):
     state_key: str
-    horizon: int
-    step_cost: float
+    _supports_set_state = True
+
+    def __init__(
+        self,
+        *,
+        step_cost: float,
+        horizon: int,
+        observe_goal: bool,
+        batch_size: Sequence[int] | torch.Size,
+        device: torch.device | str | None,
+    ):
+        super().__init__(device=device, batch_size=torch.Size(batch_size))
+        if horizon < 1:
+            raise UsageError(f"horizon {horizon} must be at least 1 step.")
+        if horizon > MAX_HORIZON:
+            raise UsageError(f"horizon {horizon} is more than the {MAX_HORIZON:,} steps an evaluation runs an episode.")
+        self.step_cost = float(step_cost)
+        self.horizon = int(horizon)
+        self.observe_goal = bool(observe_goal)
+
+    def _seed_or_draw(self, seed: int | None) -> None:
+        """Seed the env's generator; ``None`` draws the seed from torch's global RNG."""
+        if seed is None:
+            seed = torch.empty((), dtype=torch.int64).random_().item()
+        self.set_seed(seed)
 
     def _state_specs(self, state: TensorSpec, obs_dim: int) -> None:
         """Set every spec from the state entry's spec and the observation's size."""

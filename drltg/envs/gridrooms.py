@@ -47,7 +47,6 @@ from tensordict import TensorDictBase
 from torchrl.data import Bounded, OneHot
 
 from drltg.envs.goal_env import GoalEnv
-from drltg.envs.limits import MAX_HORIZON
 from drltg.errors import UsageError
 
 LAYOUT = (
@@ -128,7 +127,6 @@ class GridFourRoomsEnv(GoalEnv):
     """
 
     state_key = "cell"
-    _supports_set_state = True
 
     def __init__(
         self,
@@ -145,7 +143,8 @@ class GridFourRoomsEnv(GoalEnv):
         device: torch.device | str | None = None,
         seed: int | None = None,
     ):
-        super().__init__(device=device, batch_size=torch.Size(batch_size))
+        super().__init__(step_cost=step_cost, horizon=horizon, observe_goal=observe_goal, batch_size=batch_size,
+                         device=device)
         goal_t = torch.as_tensor(goal, dtype=torch.int64)
         if goal_t.shape != (2,) or not ((goal_t >= 0) & (goal_t < 13)).all() or WALLS[tuple(goal_t)]:
             raise UsageError(f"goal {tuple(goal)} is not a free cell (row, col) of the 13x13 FourRooms grid.")
@@ -155,18 +154,11 @@ class GridFourRoomsEnv(GoalEnv):
             raise UsageError(f"observation {observation!r} is not 'onehot' or 'coords'.")
         if not 0.0 <= slip <= 1.0:
             raise UsageError(f"slip {slip} is a probability, so it must lie in [0, 1].")
-        if horizon < 1:
-            raise UsageError(f"horizon {horizon} must be at least 1 step.")
-        if horizon > MAX_HORIZON:
-            raise UsageError(f"horizon {horizon} is more than the {MAX_HORIZON:,} steps an evaluation runs an episode.")
         if not 1 <= cell_pixels <= 256:
             raise UsageError(f"cell_pixels is the side of a rendered cell in pixels, from 1 to 256; got {cell_pixels}.")
         self.slip = float(slip)
-        self.step_cost = float(step_cost)
-        self.horizon = int(horizon)
         self.start_room = start_room
         self.observation = observation
-        self.observe_goal = bool(observe_goal)
         self.cell_pixels = int(cell_pixels)
         starts = FREE_CELLS[(FREE_CELLS != goal_t).any(-1)]
         if start_room is not None:
@@ -179,9 +171,7 @@ class GridFourRoomsEnv(GoalEnv):
         self.register_buffer("_cell_index", CELL_INDEX.to(self.device))
         self.register_buffer("_moves", MOVES.to(self.device))
         self._make_spec()
-        if seed is None:
-            seed = torch.empty((), dtype=torch.int64).random_().item()
-        self.set_seed(seed)
+        self._seed_or_draw(seed)
 
     def _make_spec(self):
         cell_dim = N_CELLS if self.observation == "onehot" else 2

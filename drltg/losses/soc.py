@@ -84,6 +84,8 @@ from torchrl.objectives import LossModule
 from torchrl.objectives.sac import compute_rsample_log_prob
 from torchrl.objectives.utils import ValueEstimators, default_value_kwargs, dispatch_value_estimator, distance_loss
 
+from drltg.losses.td_keys import TDKeys
+
 OPTION_POLICIES = ("soft", "egreedy")
 
 
@@ -139,8 +141,9 @@ class SoftOptionCriticLoss(LossModule):
     """
 
     @dataclass
-    class _AcceptedKeys:
-        """Tensordict keys the loss reads and writes (change them with ``.set_keys(...)``).
+    class _AcceptedKeys(TDKeys):
+        """Tensordict keys the loss reads and writes (change them with ``.set_keys(...)``); ``priority``,
+        ``done``, ``terminated`` and ``priority_weight`` as in :class:`~drltg.losses.td_keys.TDKeys`.
 
         Attributes:
             action: the action taken. Defaults to ``"action"``.
@@ -148,9 +151,7 @@ class SoftOptionCriticLoss(LossModule):
             state_action_value: output of the critic. Defaults to ``"state_action_value"``.
             termination_prob: output of the termination network. Defaults to ``"termination_prob"``.
             value: where ``U(s', o)`` is written for the value estimator. Defaults to ``"state_value"``.
-            priority: where the TD error is written. Defaults to ``"td_error"``.
-            reward, done, terminated: as in ``SACLoss``.
-            priority_weight: importance weights of a prioritized buffer. Defaults to ``"priority_weight"``.
+            reward: as in ``SACLoss``.
         """
 
         action: NestedKey = "action"
@@ -158,11 +159,7 @@ class SoftOptionCriticLoss(LossModule):
         state_action_value: NestedKey = "state_action_value"
         termination_prob: NestedKey = "termination_prob"
         value: NestedKey = "state_value"
-        priority: NestedKey = "td_error"
         reward: NestedKey = "reward"
-        done: NestedKey = "done"
-        terminated: NestedKey = "terminated"
-        priority_weight: NestedKey = "priority_weight"
 
     default_keys = _AcceptedKeys
     tensor_keys: _AcceptedKeys

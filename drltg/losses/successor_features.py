@@ -36,6 +36,8 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from torchrl.objectives import LossModule
 from torchrl.objectives.utils import ValueEstimators, default_value_kwargs, distance_loss
 
+from drltg.losses.td_keys import TDKeys
+
 __all__ = ["SuccessorFeatureLoss"]
 
 
@@ -64,25 +66,20 @@ class SuccessorFeatureLoss(LossModule):
     """
 
     @dataclass
-    class _AcceptedKeys:
-        """Tensordict keys the loss reads and writes (change them with ``.set_keys(...)``).
+    class _AcceptedKeys(TDKeys):
+        """Tensordict keys the loss reads and writes (change them with ``.set_keys(...)``); ``priority``,
+        ``done``, ``terminated`` and ``priority_weight`` as in :class:`~drltg.losses.td_keys.TDKeys`
+        (``done`` is never used to stop bootstrapping).
 
         Attributes:
             action: the action taken (one-hot for a discrete critic). Defaults to ``"action"``.
             features: phi of the transition, read under ``"next"``. Defaults to ``"features"``.
             successor_features: the critic's output. Defaults to ``"successor_features"``.
-            priority: where the TD error is written. Defaults to ``"td_error"``.
-            done, terminated: as in TorchRL's losses (``done`` is never used to stop bootstrapping).
-            priority_weight: importance weights of a prioritized buffer. Defaults to ``"priority_weight"``.
         """
 
         action: NestedKey = "action"
         features: NestedKey = "features"
         successor_features: NestedKey = "successor_features"
-        priority: NestedKey = "td_error"
-        done: NestedKey = "done"
-        terminated: NestedKey = "terminated"
-        priority_weight: NestedKey = "priority_weight"
 
     default_keys = _AcceptedKeys
     tensor_keys: _AcceptedKeys
