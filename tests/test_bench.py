@@ -118,6 +118,7 @@ def test_a_plugin_method_joins_the_board_beside_a_reference_row(tmp_path, monkey
     monkeypatch.setitem(suite.SUITES, "test", {"tiny": TINY_TIER})
     monkeypatch.syspath_prepend(str(PLUGIN_DIR))
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(PLUGIN_DIR), os.environ.get("PYTHONPATH", "")]))
+    monkeypatch.setenv("DRLTG_IMPORT", "")  # --import adds the plugin here for the workers: undone after the test
     common = ["--suite", "test", "--tier", "tiny", "--no-progress", "--workers", "2"]
     ref, mine = tmp_path / "ref", tmp_path / "mine"
     assert main(["bench", "run", "--method", "model-reuse", "--out", str(ref), "--reference", "none", *common]) == 0

@@ -280,10 +280,10 @@ def plot_matrix(
 
 
 @_plain_text
-def plot_profiles(entries: list[dict]) -> tuple[bytes, bytes]:
-    """Performance profiles of a sweep (:func:`drltg.analysis.aggregate.sweep_aggregates`): per algo and
-    method, the share of runs whose normalised score exceeds tau, with its stratified-bootstrap band; the
-    baseline of each algo drawn once, dashed."""
+def plot_profiles(entries: list[dict], over: str = "the sweep's pairs") -> tuple[bytes, bytes]:
+    """Performance profiles of a sweep (:func:`drltg.analysis.aggregate.sweep_aggregates`) or a leaderboard: per
+    algo and method, the share of runs whose normalised score exceeds tau, with its stratified-bootstrap band;
+    the baseline of each algo drawn once, dashed."""
     plt, (fig, ax) = _figure(figsize=(7, 4.5))
     drawn = set()
     for e in entries:
@@ -297,29 +297,8 @@ def plot_profiles(entries: list[dict]) -> tuple[bytes, bytes]:
     ax.set_xlabel("normalised score tau" if all(e["normalised"] for e in entries) else "score tau")
     ax.set_ylabel("share of runs with score > tau")
     ax.set_ylim(-0.02, 1.02)
-    ax.set_title("Performance profiles over the sweep's pairs (95% stratified-bootstrap bands)")
+    ax.set_title(f"Performance profiles over {over} (95% stratified-bootstrap bands)")
     ax.legend(fontsize=8, loc="lower left")
-    ax.grid(alpha=0.3)
-    return _save(plt, fig)
-
-
-@_plain_text
-def plot_board_profiles(rows: list[dict]) -> tuple[bytes, bytes]:
-    """Performance profiles of a leaderboard's rows (each ``{"label", "profile"}`` from
-    :func:`drltg.analysis.aggregate.aggregates`): the share of runs whose normalised area exceeds tau, with its
-    stratified-bootstrap band; no transfer once, dashed, from the first row."""
-    plt, (fig, ax) = _figure(figsize=(7.5, 4.8))
-    p0 = rows[0]["profile"]
-    ax.plot(p0["tau"], p0["baseline"]["share"], "--", color="0.3", label="no transfer")
-    for r in rows:
-        p = r["profile"]
-        line, = ax.plot(p["tau"], p["transfer"]["share"], label=r["label"])
-        ax.fill_between(p["tau"], p["transfer"]["low"], p["transfer"]["high"], color=line.get_color(), alpha=0.12)
-    ax.set_xlabel("normalised area under the curve, tau")
-    ax.set_ylabel("share of runs with score > tau")
-    ax.set_ylim(-0.02, 1.02)
-    ax.set_title("Performance profiles over the tier's pairs (95% stratified-bootstrap bands)")
-    ax.legend(fontsize=7, loc="lower left")
     ax.grid(alpha=0.3)
     return _save(plt, fig)
 

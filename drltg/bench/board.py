@@ -28,7 +28,7 @@ from drltg.bench.run import read_record, tier_root
 from drltg.bench.suite import Tier
 from drltg.errors import UsageError
 
-__all__ = ["leaderboard", "board_table", "pair_table", "ALPHA"]
+__all__ = ["leaderboard", "board_table", "pair_table", "label", "ALPHA"]
 
 ALPHA = 0.05
 COMPARED_VERSIONS = ("drltg", "torch")
@@ -196,8 +196,6 @@ def leaderboard(tier: Tier, version: str, *, out: str | Path | None = None, refe
         if best is not None and r is not best:
             r["against_best"] = _against(r, best, seed)
     rows.sort(key=lambda r: (r["rank"] is None, r["rank"] or 0, r["method"]))
-    for r in rows:
-        del r["entry"]["groups"]
     return {"suite": version, "tier": tier.name, "pairs": tier.pairs, "best_reference": best and best["method"],
             "alpha": ALPHA, "rows": rows}
 
@@ -205,7 +203,8 @@ def leaderboard(tier: Tier, version: str, *, out: str | Path | None = None, refe
 _ARROW = {"higher": "↑", "lower": "↓", "undecided": "·"}
 
 
-def _label(r: dict) -> str:
+def label(r: dict) -> str:
+    """A row's name on the board: the method, and whose row it is where it is not the reference's."""
     return r["method"] + (" (yours)" if r["kind"] == "yours" else "")
 
 
@@ -218,11 +217,11 @@ def board_table(board: dict) -> str:
     for r in board["rows"]:
         a = r["aggregate"]
         if not a:
-            rows.append((r["rank"] or "-", _label(r), "0", "n/a", "n/a", "n/a", "", "", "; ".join(r["marks"])))
+            rows.append((r["rank"] or "-", label(r), "0", "n/a", "n/a", "n/a", "", "", "; ".join(r["marks"])))
             continue
         vs = r.get("against_best", {})
         best = f"{vs['verdict']} (p = {vs['p']:.2g})" if "verdict" in vs else ("-" if vs == {} else "")
-        rows.append((r["rank"] or "-", _label(r), f"{len(a['pairs'])} of {len(board['pairs'])}",
+        rows.append((r["rank"] or "-", label(r), f"{len(a['pairs'])} of {len(board['pairs'])}",
                      tables.estimate(*a["ft_iqm"], fmt="+.2f"), f"{a['ft_mean']:+.2f}",
                      tables.estimate(*a["probability_of_improvement"], fmt=".2f"),
                      f"{a['against_none']['verdict']} (p = {a['against_none']['p']:.2g})", best,
@@ -245,5 +244,5 @@ def pair_table(board: dict) -> str:
                 cells.append("missing")
             else:
                 cells.append("n/a" if s["ft"] is None else f"{s['ft']:+.2f} {_ARROW[s['verdict']]}")
-        rows.append((_label(r), *cells))
+        rows.append((label(r), *cells))
     return tables.render(rows, "markdown")

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from drltg.bench.board import ALPHA, board_table, leaderboard, pair_table
+from drltg.bench.board import ALPHA, board_table, label, leaderboard, pair_table
 from drltg.bench.run import tier_root
 from drltg.bench.suite import LATEST, Tier, get_tier
 
@@ -80,7 +80,7 @@ def _pair_curves(board: dict, tier: Tier) -> dict[str, bytes]:
                 baseline = baseline or runs(cell / "baseline", lo, hi)
                 found = runs(cell / r["method"] / "transfer", lo, hi)
                 if found is not None:
-                    lines[r["method"] + (" (yours)" if r["kind"] == "yours" else "")] = found
+                    lines[label(r)] = found
             if lines:
                 files[f"curves-{pair}.png"] = plot_method_curves(f"{pair} ({board['suite']} {board['tier']})",
                                                                  lines, baseline)[0]
@@ -92,19 +92,19 @@ def bench_report(*, out: str | Path | None = "runs/bench", reference: str | Path
                  reps: int = 2000) -> tuple[dict, Path]:
     """Write the leaderboard of ``tier`` (the reference's rows and ``out``'s) into ``board_dir`` (default
     ``<out>/<version>/<tier>/board``); returns the board and the folder."""
-    from drltg.analysis.plot import plot_board_profiles
+    from drltg.analysis.plot import plot_profiles
     from drltg.store import atomic
 
     the_tier = get_tier(version, tier)
     board = leaderboard(the_tier, version, out=out, reference=reference, reps=reps)
     folder = Path(board_dir) if board_dir else tier_root(out if out is not None else reference, version, tier) / "board"
-    profiled = [{"label": r["method"] + (" (yours)" if r["kind"] == "yours" else ""), **r["aggregate"]}
-                for r in board["rows"] if r["aggregate"] and not r["marks"]]
+    profiled = [{"algo": "sac", "method": label(r), "variant": "",
+                 "normalised": True, **r["aggregate"]} for r in board["rows"] if r["aggregate"] and not r["marks"]]
     files = {"leaderboard.json": json.dumps(board, indent=1) + "\n",
              "leaderboard.md": board_markdown(board, the_tier),
              "ranking.md": _best_sentence(board) + "\n\n" + board_table(board), "pairs.md": pair_table(board),
              **_pair_curves(board, the_tier)}
     if profiled:
-        files["profile.png"] = plot_board_profiles(profiled)[0]
+        files["profile.png"] = plot_profiles(profiled, over="the tier's pairs")[0]
     atomic.write_files(folder, files)
     return board, folder

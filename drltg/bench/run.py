@@ -20,7 +20,7 @@ import shutil
 from pathlib import Path
 
 from drltg.bench.suite import LATEST, Group, get_tier
-from drltg.errors import UsageError
+from drltg.errors import RunFailed, UsageError
 from drltg.store import rundir
 
 __all__ = ["bench_run", "tier_root", "read_record", "REFERENCE_FILES"]
@@ -116,7 +116,7 @@ def bench_run(method: str, *, tier: str = "quick", out: str | Path = "runs/bench
     reference_root = None
     if reference is not None and not smoke:
         reference_root = tier_root(rundir.check_directory(reference, "--reference"), version, tier)
-    record = read_record(root)
+    read_record(root)  # a broken record is refused before anything trains
     entry = {"versions": versions(), "smoke": smoke, "imports": list(imports), "groups": {}, "left_out": {},
              "reference": str(reference_root) if reference_root else None, "copied": 0}
     for group in the_tier.groups:
@@ -134,9 +134,9 @@ def bench_run(method: str, *, tier: str = "quick", out: str | Path = "runs/bench
                        progress=progress)
         failed = [str(p) for p, (state, _) in result["status"].items() if state in ("failed", "diverged")]
         if failed:
-            raise UsageError(f"{len(failed)} run(s) of {method} on {group.name} failed or diverged (first: "
-                             f"{failed[0]}); see their logs under {group_out / 'logs'}, then run the same command "
-                             "again to resume.")
+            raise RunFailed(f"{len(failed)} run(s) of {method} on {group.name} failed or diverged (first: "
+                            f"{failed[0]}); see their logs under {group_out / 'logs'}, then run the same command "
+                            "again to resume")
     record = read_record(root)  # another method may have finished meanwhile
     record.setdefault("suite", version)
     record.setdefault("tier", tier)

@@ -16,7 +16,7 @@ seeds' and every verdict on it is the report's exact sign-flip test of the paire
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from drltg.errors import UsageError, closest
 
