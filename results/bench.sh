@@ -6,9 +6,10 @@
 #    through `drltg bench run`; 3. each run's config, curve and summary kept, with each source's networks (what a
 #    user's bench run reuses); the reports made again there (every run is there), then the leaderboard.
 set -euo pipefail
-RUNS=${RUNS:-runs/bench} DRLTG=${DRLTG:-drltg} TIER=$RUNS/v1/quick KEEP=results/bench/v1/quick
+RUNS=${RUNS:-runs/bench} DRLTG=${DRLTG:-drltg} PYTHON=${PYTHON:-python} TIER=$RUNS/v1/quick KEEP=results/bench/v1/quick
 METHODS="reward-shaping value-shaping policy-reuse jumpstart model-reuse demonstrations kickstarting sf-gpi"
 export OMP_NUM_THREADS=1
+shopt -s nullglob && mkdir -p "$TIER" "$KEEP"
 for cell in results/sweep-{fourrooms-graded,gridrooms}/*/sac/{baseline,{reward,value}-shaping/transfer,{policy,model}-reuse/transfer}; do
   group=$(cut -d/ -f2 <<< "$cell" | sed 's/sweep-//; s/-graded//') to=$TIER/$group/${cell#results/*/}
   [ -d "$to" ] || { mkdir -p "$(dirname "$to")" && cp -r "$cell" "$to"; }
@@ -21,4 +22,4 @@ for m in $METHODS; do $DRLTG bench run --method "$m" --out "$RUNS" --reference n
 done
 for m in $METHODS; do $DRLTG bench run --method "$m" --out results/bench --reference none --no-progress > /dev/null; done
 find "$KEEP" \( -name '*.png' -o -name '*.svg' -o -name '*.log' -o -name runs.csv \) -delete
-$DRLTG bench report --out results/bench --reference none && python results/claims.py
+$DRLTG bench report --out results/bench --reference none && $PYTHON results/claims.py

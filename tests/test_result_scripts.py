@@ -66,6 +66,8 @@ def planned(argv: list[str], out: Path, monkeypatch) -> list:
     monkeypatch.setattr("drltg.cli.train._say_how_it_went", lambda run_dir, name=None: None)  # nothing was trained
     monkeypatch.setattr("drltg.experiments.experiment.execute_and_report", stop)
     monkeypatch.setattr("drltg.cli.report.transfer_report", stop)
+    monkeypatch.setattr("drltg.experiments.sweep.sweep", stop)  # drltg bench run's groups
+    monkeypatch.setattr("drltg.bench.report.leaderboard", stop)
     if "--out" in argv:  # what a sweep, an experiment or a report writes goes to the test's folder
         argv = [*argv[:argv.index("--out") + 1], str(out), *argv[argv.index("--out") + 2:]]
     if argv[0] == "sweep":
