@@ -87,6 +87,16 @@ def test_the_board_ranks_rows_on_protocol_and_marks_the_others(tmp_path):
     assert low <= iqm <= high
 
 
+def test_a_pair_the_method_cannot_run_on_is_left_out_with_its_sentence(tmp_path):
+    from drltg.bench.run import applicable_pairs
+
+    gridrooms, pendulum = suite.get_tier("v1", "quick").groups[1:]
+    kept, left_out = applicable_pairs(gridrooms, "demonstrations", False, tmp_path)
+    assert kept == [] and all("discrete actions" in why for why in left_out.values())
+    assert applicable_pairs(pendulum, "sf-gpi", False, tmp_path)[1]["pendulum-heavier"].startswith("sf-gpi needs")
+    assert applicable_pairs(pendulum, "model-reuse", False, tmp_path) == (["pendulum-heavier"], {})
+
+
 @pytest.mark.parametrize("argv, sentence", [
     (["bench", "run", "--method", "none"], "'none' is the baseline"),
     (["bench", "run", "--method", "model-reuse", "--tier", "quik"], "did you mean 'quick'"),

@@ -64,6 +64,7 @@ def versions() -> dict:
 
 def applicable_pairs(group: Group, method: str, smoke: bool, out: Path) -> tuple[list[str], dict[str, str]]:
     """The group's pairs the method runs on, and for each other pair the method's sentence why not."""
+    from drltg.experiments.experiment import check_runs
     from drltg.experiments.spec import parse_spec
     from drltg.experiments.sweep import plan
 
@@ -71,7 +72,8 @@ def applicable_pairs(group: Group, method: str, smoke: bool, out: Path) -> tuple
     for pair in group.pairs:
         spec = {**group.sweep_spec([method], smoke), "pairs": [pair]}
         try:
-            plan(parse_spec(spec, f"suite group {group.name}"), out)
+            runs, _ = plan(parse_spec(spec, f"suite group {group.name}"), out)
+            check_runs([(r.role, r.cfg, r.path) for r in runs])
         except UsageError as err:
             left_out[pair] = str(err).removeprefix(f"suite group {group.name}: ")
         else:

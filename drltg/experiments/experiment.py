@@ -217,7 +217,8 @@ def check_runs(runs: list[tuple[str, RunConfig, Path]]) -> None:
         source = cfg.transfer.source
         if source is None or str(source) not in planned:
             check_source(cfg)
-        key = json.dumps({**cfg.model_dump(), "seed": 0, "frames": 0, "transfer": None}, sort_keys=True, default=str)
+        key = json.dumps({**cfg.model_dump(), "seed": 0, "frames": 0, "transfer": cfg.transfer.method}, sort_keys=True,
+                         default=str)
         if key not in seen:
             seen.add(key)
             check_config(cfg)

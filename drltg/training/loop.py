@@ -94,6 +94,9 @@ def check_config(cfg: RunConfig):
     if cfg.eval.stop_at_success is not None and "success" not in probe.full_observation_spec.keys():
         raise UsageError(f"eval.stop_at_success={cfg.eval.stop_at_success:g}, but task '{cfg.task}' reports no "
                          "success; leave it null.")
+    method = get_method(cfg.transfer.method)
+    if method.check_env is not None:
+        method.check_env(cfg, probe)
     agent = make_agent(probe, cfg)
     preflight.check_buffer(cfg, probe, agent.loss.in_keys)
     return probe, agent

@@ -8,12 +8,21 @@ from drltg.errors import UsageError
 from drltg.transfer.registry import Transfer, TransferMethod
 
 
+def _check_env(cfg: RunConfig, env) -> None:
+    """Behaviour cloning and demonstration noise act on continuous actions."""
+    from torchrl.data import OneHot
+
+    for key, value in (("bc_weight", cfg.transfer.bc_weight), ("demo_noise", cfg.transfer.demo_noise)):
+        if value > 0 and isinstance(env.full_action_spec_unbatched["action"], OneHot):
+            raise UsageError(f"transfer.{key} works on continuous actions; task '{cfg.task}' has discrete actions "
+                             f"(set -o transfer.{key}=0).")
+
+
 def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     """``transfer.demo_episodes`` episodes of the source policy on the training task, from an env
     seeded apart from the training and evaluation envs, kept in a buffer of their own; a resumed run
     collects the same episodes again. For the soft option-critic each sampled demonstration is credited
     to an option drawn from the learner's policy over options (:func:`drltg.losses.option_labels`)."""
-    from torchrl.data import OneHot
     from torchrl.envs import TransformedEnv
 
     from drltg.collectors import collect_demonstrations, demonstration_buffer, mixed_batches
@@ -22,10 +31,7 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     from drltg.transfer.source import source_actor
 
     t = cfg.transfer
-    for key, value in (("bc_weight", t.bc_weight), ("demo_noise", t.demo_noise)):
-        if value > 0 and isinstance(env.full_action_spec_unbatched["action"], OneHot):
-            raise UsageError(f"transfer.{key} works on continuous actions; task '{cfg.task}' has discrete actions "
-                             f"(set -o transfer.{key}=0).")
+    _check_env(cfg, env)
     policy = source_actor(cfg, env)
     demo_env = TransformedEnv(make_env(cfg.task, batch_size=(cfg.collector.num_envs,), device=cfg.device,
                                        seed=cfg.seed + DEMO_SEED_OFFSET, **cfg.env))
@@ -61,6 +67,7 @@ DEMONSTRATIONS = TransferMethod(
     _build,
     source="policy",
     takes=("batches",),
+    check_env=_check_env,
     algos=("sac", "td3", "soc"),
     grouped=True,
     options={

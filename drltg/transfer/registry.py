@@ -88,6 +88,9 @@ class TransferMethod:
             the fields of its pydantic model (:func:`pydantic.create_model`), ``model``, built with the method.
         check: ``check(cfg)`` raises one :class:`UsageError` sentence on a config the method cannot
             run (rules that tie keys together); called by ``drltg.config.validate``.
+        check_env: ``check_env(cfg, env)`` raises one :class:`UsageError` sentence on a task the method cannot
+            run on, from a probe env of it (e.g. its action space); called before any run of a plan starts
+            (:func:`drltg.training.loop.check_config`).
         algos: the learners it works with (``None``: every learner).
         takes: the places of the pipeline it owns alone (``"policy"``: the collector's policy,
             ``"batches"``: the minibatches, ``"weights"``: the learner's initial weights); two methods
@@ -107,6 +110,7 @@ class TransferMethod:
     source: str | None = None
     options: dict[str, tuple[Any, Any]] = field(default_factory=dict)
     check: Callable[[RunConfig], None] | None = None
+    check_env: Callable[[RunConfig, Any], None] | None = None
     algos: tuple[str, ...] | None = None
     takes: tuple[str, ...] = ()
     grouped: bool = False
@@ -194,6 +198,11 @@ def combine(*methods: TransferMethod) -> TransferMethod:
         for m in methods:
             m.validate(cfg)
 
+    def check_env(cfg: RunConfig, env) -> None:
+        for m in methods:
+            if m.check_env is not None:
+                m.check_env(cfg, env)
+
     def build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
         # a part that brings batches of its own (demonstrations) is built last, and collects its data
         # through the other parts' training transforms: its rewards are shaped as the learner's own are
@@ -207,7 +216,8 @@ def combine(*methods: TransferMethod) -> TransferMethod:
 
     options = {k: v for m in methods for k, v in m.options.items()}
     return TransferMethod(name, " + ".join(m.help for m in methods), build, source=source, options=options,
-                          check=check, algos=algos, takes=tuple(owners), grouped=all(m.grouped for m in methods))
+                          check=check, check_env=check_env, algos=algos, takes=tuple(owners),
+                          grouped=all(m.grouped for m in methods))
 
 
 _PLACES = {"policy": "collector's policy", "batches": "minibatches", "weights": "learner's initial weights"}
