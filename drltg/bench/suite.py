@@ -78,7 +78,7 @@ V1 = {
          Group("gridrooms", {"pairs": ["gridrooms-near", "gridrooms-far"], **_FOURROOMS}),
          Group("pendulum", {"pairs": ["pendulum-heavier"], "algos": ["sac"], "seeds": 10, "seed": 0,
                             "frames": 6_000, "source_frames": 6_000, "threshold": -400,
-                            "overrides": {"eval.every": 1_000, "eval.episodes": 10}})),
+                            "overrides": {"eval.every": 500, "eval.episodes": 10}})),
         hours="about 0.5 on 2 cores a method (seed groups)"),
     "manipulation": Tier(
         "manipulation", "robosuite Lift (dense reward) to Lift+Place, open and over a barrier: 2 pairs, 3 seeds",
