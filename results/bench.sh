@@ -1,10 +1,9 @@
 #!/usr/bin/env bash
 # drltg bench v1's reference rows, tier quick, kept in results/bench/v1/quick/ with their leaderboard:
 #   bash results/bench.sh     (RUNS=runs/bench; about 2 hours on 2 cores; re-running resumes)
-# 1. baselines and reward/value shaping, policy and model reuse on the FourRooms and grid pairs are the runs of
-#    results/sweep-fourrooms-graded and results/sweep-gridrooms (same protocol), copied in; 2. every built-in method
-#    through `drltg bench run`; 3. each run's config, curve and summary kept, with each source's networks (what a
-#    user's bench run reuses); the reports made again there (every run is there), then the leaderboard.
+# 1. baselines and reward/value shaping, policy/model reuse on (grid) FourRooms: the graded and grid sweeps' runs (same
+#    protocol); 2. every built-in method by `drltg bench run`; 3. configs, curves, summaries and the sources' networks
+#    (what a user's bench run reuses) kept, the reports made again there (every run is there), the leaderboard.
 set -euo pipefail
 RUNS=${RUNS:-runs/bench} DRLTG=${DRLTG:-drltg} PYTHON=${PYTHON:-python} TIER=$RUNS/v1/quick KEEP=results/bench/v1/quick
 METHODS="reward-shaping value-shaping policy-reuse jumpstart model-reuse demonstrations kickstarting sf-gpi"
