@@ -4,11 +4,9 @@
 # 1. baselines and reward/value shaping, policy/model reuse on (grid) FourRooms: the graded and grid sweeps' runs (same
 #    protocol); 2. every built-in method by `drltg bench run`; 3. configs, curves, summaries and the sources' networks
 #    (what a user's bench run reuses) kept, the reports made again there (every run is there), the leaderboard.
-set -euo pipefail
+set -euo pipefail && shopt -s nullglob && export OMP_NUM_THREADS=1
 RUNS=${RUNS:-runs/bench} DRLTG=${DRLTG:-drltg} PYTHON=${PYTHON:-python} TIER=$RUNS/v1/quick KEEP=results/bench/v1/quick
-METHODS="reward-shaping value-shaping policy-reuse jumpstart model-reuse demonstrations kickstarting sf-gpi"
-export OMP_NUM_THREADS=1
-shopt -s nullglob && mkdir -p "$TIER" "$KEEP"
+METHODS="reward-shaping value-shaping policy-reuse jumpstart model-reuse demonstrations kickstarting sf-gpi" && mkdir -p "$TIER" "$KEEP"
 for cell in results/sweep-{fourrooms-graded,gridrooms}/*/sac/{baseline,{reward,value}-shaping/transfer,{policy,model}-reuse/transfer}; do
   group=$(cut -d/ -f2 <<< "$cell" | sed 's/sweep-//; s/-graded//') to=$TIER/$group/${cell#results/*/}
   [ -d "$to" ] || { mkdir -p "$(dirname "$to")" && cp -r "$cell" "$to"; }

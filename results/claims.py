@@ -52,6 +52,7 @@ def methods() -> str:
         (f"`{n}`", kinds[m.source], m.help) for n, m in config.METHODS.items()], "markdown")
 
 
+BOARD = {f"bench-{f}": lambda f=f: table(f"{BENCH}/board/{f}.md") for f in ("ranking", "pairs")}
 REGIONS = {
     "README.md": {"demo": lambda: headlines("results/demo/report")},
     "results/README.md": {
@@ -68,12 +69,9 @@ REGIONS = {
         "lift-demonstrations-verdicts": lambda: headlines("results/sweep-lift-demonstrations"),
         "lift-to-place-table": lambda: table("results/sweep-lift-to-place/summary.md"),
         "lift-to-place-verdicts": lambda: headlines("results/sweep-lift-to-place"),
-        "bench-ranking": lambda: table(f"{BENCH}/board/ranking.md"),
-        "bench-pairs": lambda: table(f"{BENCH}/board/pairs.md"),
-        "pendulum-heavier": lambda: headlines(f"{BENCH}/pendulum"),
+        **BOARD, "pendulum-heavier": lambda: headlines(f"{BENCH}/pendulum"),
     },
-    "docs/bench.md": {"bench-ranking": lambda: table(f"{BENCH}/board/ranking.md"),
-                      "bench-pairs": lambda: table(f"{BENCH}/board/pairs.md")},
+    "docs/bench.md": BOARD,
     "docs/tasks.md": {"tasks": lambda: tasks("rooms"), "tasks-robosuite": lambda: tasks("robosuite"),
                       "tasks-gym": lambda: tasks("gym"),
                       "lift-summary": lambda: headlines("results/sweep-lift-demonstrations/lift/sac/demonstrations",
