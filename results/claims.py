@@ -17,7 +17,7 @@ from drltg.analysis.claims import headline
 from drltg.analysis.tables import render
 
 ROOT = Path(__file__).resolve().parents[1]
-GRADED, OPTIONS = "results/sweep-fourrooms-graded", "results/sweep-options"
+GRADED, OPTIONS, BENCH = "results/sweep-fourrooms-graded", "results/sweep-options", "results/bench/v1/quick"
 ROWS = ["lift-shaping", "pi-reuse-place", "pi-reuse-barrier", "model-reuse-place", "soc-model-reuse-place",
         "demonstrations-place", "demonstrations-barrier", "combined-place", "combined-barrier",
         "demonstrations-reference-place", "demonstrations-reference-barrier"]
@@ -52,6 +52,7 @@ def methods() -> str:
         (f"`{n}`", kinds[m.source], m.help) for n, m in config.METHODS.items()], "markdown")
 
 
+BOARD = {f"bench-{f}": lambda f=f: table(f"{BENCH}/board/{f}.md") for f in ("ranking", "pairs")}
 REGIONS = {
     "README.md": {"demo": lambda: headlines("results/demo/report")},
     "results/README.md": {
@@ -68,8 +69,9 @@ REGIONS = {
         "lift-demonstrations-verdicts": lambda: headlines("results/sweep-lift-demonstrations"),
         "lift-to-place-table": lambda: table("results/sweep-lift-to-place/summary.md"),
         "lift-to-place-verdicts": lambda: headlines("results/sweep-lift-to-place"),
-        "pendulum-heavier": lambda: headlines("results/pendulum-heavier/report"),
+        **BOARD, "pendulum-heavier": lambda: headlines(f"{BENCH}/pendulum"),
     },
+    "docs/bench.md": BOARD,
     "docs/tasks.md": {"tasks": lambda: tasks("rooms"), "tasks-robosuite": lambda: tasks("robosuite"),
                       "tasks-gym": lambda: tasks("gym"),
                       "lift-summary": lambda: headlines("results/sweep-lift-demonstrations/lift/sac/demonstrations",

@@ -313,7 +313,7 @@ def test_drltg_exports_the_id_functions():
 
 
 # ----------------------------------------------------------------------------- the Pendulum study
-STUDY = ROOT / "results" / "pendulum-heavier"
+STUDY = ROOT / "results" / "bench" / "v1" / "quick" / "pendulum" / "pendulum-heavier" / "sac"
 
 
 def _rounded(value):
@@ -327,18 +327,20 @@ def _rounded(value):
     return value
 
 
-def test_the_pendulum_study_is_reproduced_from_its_committed_curves(tmp_path):
+def test_the_pendulum_rows_are_reproduced_from_their_committed_curves(tmp_path):
     import json
 
     from drltg.analysis.report import transfer_report
 
-    assert len(list(STUDY.glob("*/seed-*/summary.json"))) == 15  # 5 sources, 5 baselines, 5 transfers
-    committed = json.loads((STUDY / "report" / "transfer_metrics.json").read_text())
+    assert len(list(STUDY.glob("source/seed-*/checkpoints/last.safetensors"))) == 10
+    assert len(list(STUDY.glob("baseline/seed-*/summary.json"))) == 10
+    committed = json.loads((STUDY / "model-reuse" / "report" / "transfer_metrics.json").read_text())
     settings = committed["settings"]
-    assert settings["paired"] is True and committed["metrics"]["n_seeds_transfer"] == 5
-    result = transfer_report(STUDY / "baseline", STUDY / "transfer", tmp_path, threshold=settings["threshold"],
-                             baseline_label=settings["baseline_label"], transfer_label=settings["transfer_label"])
-    assert _rounded(result["metrics"]) == _rounded(committed["metrics"])  # its sentences: tests/test_claims.py
+    assert settings["paired"] is True and committed["metrics"]["n_seeds_transfer"] == 10
+    result = transfer_report(STUDY / "baseline", STUDY / "model-reuse" / "transfer", tmp_path,
+                             threshold=settings["threshold"], baseline_label=settings["baseline_label"],
+                             transfer_label=settings["transfer_label"])
+    assert _rounded(result["metrics"]) == _rounded(committed["metrics"])
 
 
 def _upright(options):
