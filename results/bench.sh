@@ -19,4 +19,4 @@ for m in $METHODS; do $DRLTG bench run --method "$m" --out "$RUNS" --reference n
 done
 for m in $METHODS; do $DRLTG bench run --method "$m" --out results/bench --reference none --no-progress > /dev/null; done
 find "$KEEP" \( -name '*.png' -o -name '*.svg' -o -name '*.log' -o -name runs.csv \) -delete
-$DRLTG bench report --out results/bench --reference none && $PYTHON results/claims.py
+$DRLTG bench report --out results/bench --reference results/bench && $PYTHON results/claims.py

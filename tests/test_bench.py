@@ -83,6 +83,10 @@ def test_the_board_ranks_rows_on_protocol_and_marks_the_others(tmp_path):
     # "good" against no transfer: every seed higher on both pairs
     none = rows[("good", "reference")]["aggregate"]["against_none"]
     assert none["verdict"] == "higher" and none["p"] == pytest.approx(2 / 2**12)
+    from drltg.bench.report import board_markdown
+
+    assert "The best reference row is good: IQM of FT" in board_markdown(board, TIER)
+    assert "pairs, higher than no transfer (p = 0.00049" in board_markdown(board, TIER)
     iqm, (low, high) = rows[("good", "reference")]["aggregate"]["ft_iqm"]
     assert low <= iqm <= high
 

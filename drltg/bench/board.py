@@ -114,17 +114,11 @@ def _marks(row: dict, tier: Tier, versions: dict | None) -> list[str]:
     return marks
 
 
-def _interval(matrix: np.ndarray, func, reps: int, seed: int) -> list:
-    from drltg.analysis.aggregate import interval_estimate
-
-    return interval_estimate(matrix, func, reps=reps, seed=seed)
-
-
 def _aggregate(row: dict, reps: int, seed: int) -> dict:
     """IQM of FT and P(T > B) over the row's pairs with stratified-bootstrap intervals, and their verdicts."""
     from rliable import metrics
 
-    from drltg.analysis.aggregate import aggregates, score_matrix
+    from drltg.analysis.aggregate import aggregates, interval_estimate, score_matrix
     from drltg.analysis.stats import stratified_sign_flip
 
     scored = {p: s for p, s in row["pairs"].items() if s["ft_seeds"] is not None}
@@ -137,7 +131,7 @@ def _aggregate(row: dict, reps: int, seed: int) -> dict:
     against_none = aggregates(b, t, reps=reps, seed=seed)
     mean_ft, p = stratified_sign_flip([s["ft_seeds"] for s in scored.values()], seed=seed)
     return {"pairs": list(scored), "runs_per_pair": runs,
-            "ft_iqm": _interval(ft, metrics.aggregate_iqm, reps, seed),
+            "ft_iqm": interval_estimate(ft, metrics.aggregate_iqm, reps=reps, seed=seed),
             "ft_mean": float(np.mean([s["ft"] for s in scored.values()])),
             "probability_of_improvement": against_none["probability_of_improvement"],
             "profile": against_none["profile"],

@@ -25,6 +25,10 @@ def _protocol(tier: Tier) -> list[str]:
     return lines
 
 
+def _against_none(verdict: str) -> str:
+    return "undecided against no transfer" if verdict == "undecided" else f"{verdict} than no transfer"
+
+
 def _best_sentence(board: dict) -> str:
     best = next((r for r in board["rows"] if r["method"] == board["best_reference"] and r["kind"] == "reference"),
                 None)
@@ -33,7 +37,7 @@ def _best_sentence(board: dict) -> str:
     a = best["aggregate"]
     lo, hi = a["ft_iqm"][1]
     return (f"The best reference row is {best['method']}: IQM of FT {a['ft_iqm'][0]:+.2f} [{lo:+.2f}, {hi:+.2f}] over "
-            f"{len(a['pairs'])} pairs, {a['against_none']['verdict']} than no transfer (p = "
+            f"{len(a['pairs'])} pairs, {_against_none(a['against_none']['verdict'])} (p = "
             f"{a['against_none']['p']:.2g}, {a['against_none']['test']}).")
 
 
