@@ -3,7 +3,7 @@ import pytest
 import torch
 
 from drltg.analysis import metrics as M
-from drltg.analysis import stats
+from drltg.analysis import order_stats, stats
 
 # An uneven grid: steps of 10, 20 and 30 frames.
 F = [0, 10, 30, 60]
@@ -279,13 +279,13 @@ def test_shape_of_per_seed_scores():
 def test_the_median_interval_by_hand():
     # 7 differences, sorted -1, 1, 2, 3, 4, 5, 9. P(Bin(7, 1/2) <= 0) = 1/128 (twice: 0.0156 <= 0.05) and
     # P(<= 1) = 8/128 (twice: 0.125 > 0.05), so rank k = 1: [d_(1), d_(7)] at 1 - 2/128
-    assert stats.median_interval([3, -1, 4, 1, 5, 9, 2]) == pytest.approx((3.0, -1.0, 9.0, 1 - 2 / 128))
+    assert order_stats.median_interval([3, -1, 4, 1, 5, 9, 2]) == pytest.approx((3.0, -1.0, 9.0, 1 - 2 / 128))
     # at 80%: P(<= 1) twice is 16/128 <= 0.2, P(<= 2) = 29/128 twice 0.45 > 0.2, so k = 2: [d_(2), d_(6)]
-    assert stats.median_interval([3, -1, 4, 1, 5, 9, 2], 0.80) == pytest.approx((3.0, 1.0, 5.0, 1 - 16 / 128))
+    assert order_stats.median_interval([3, -1, 4, 1, 5, 9, 2], 0.80) == pytest.approx((3.0, 1.0, 5.0, 1 - 16 / 128))
     # 10 pairs: P(<= 1) = 11/1024 (twice 0.021), P(<= 2) = 56/1024 (twice 0.109): k = 2, [d_(2), d_(9)]
-    assert stats.median_interval(np.arange(10.0)) == pytest.approx((4.5, 1.0, 8.0, 1 - 22 / 1024))
+    assert order_stats.median_interval(np.arange(10.0)) == pytest.approx((4.5, 1.0, 8.0, 1 - 22 / 1024))
     # 5 pairs: even [min, max] covers only 1 - 2/32 = 0.9375 < 0.95
-    median, lo, hi, level = stats.median_interval([1, 2, 3, 4, 5])
+    median, lo, hi, level = order_stats.median_interval([1, 2, 3, 4, 5])
     assert median == 3 and np.isnan([lo, hi, level]).all()
 
 
@@ -297,7 +297,7 @@ def test_the_median_interval_covers_skewed_and_learn_or_not_differences():
                          (lambda: (rng.random(10) < 0.6).astype(float), 1.0)):
         hits = []
         for _ in range(2000):
-            _, lo, hi, level = stats.median_interval(draw())
+            _, lo, hi, level = order_stats.median_interval(draw())
             hits.append(lo <= median <= hi)
         assert level == pytest.approx(1 - 22 / 1024)
         assert np.mean(hits) >= level - 3 * np.sqrt(level * (1 - level) / 2000)
@@ -311,7 +311,7 @@ def test_the_mann_whitney_counts_match_every_ordering():
         for low in itertools.combinations(range(m + n), m):
             high = [v for v in range(m + n) if v not in low]
             counts[sum(x < y for x in low for y in high)] += 1
-        assert stats._u_counts(m, n) == pytest.approx(counts)
+        assert order_stats._u_counts(m, n) == pytest.approx(counts)
 
 
 def test_the_shift_interval_by_hand():
@@ -319,9 +319,9 @@ def test_the_shift_interval_by_hand():
     # 252 orderings 1, 1, 2, 3, 5 give U = 0..4: 2 P(U <= 2) = 8/252 <= 0.05 < 2 P(U <= 3) = 14/252, so k = 3:
     # [D_(3), D_(23)] = [7, 13] at 1 - 8/252; the Hodges-Lehmann shift is the median difference, 10
     b = np.arange(5.0)
-    assert stats.shift_interval(b, b + 10) == pytest.approx((10.0, 7.0, 13.0, 1 - 8 / 252))
+    assert order_stats.shift_interval(b, b + 10) == pytest.approx((10.0, 7.0, 13.0, 1 - 8 / 252))
     # 3 + 3 runs: even [D_(1), D_(9)] covers only 1 - 2/20 = 0.9
-    shift, lo, hi, level = stats.shift_interval([0, 1, 2], [5, 6, 7])
+    shift, lo, hi, level = order_stats.shift_interval([0, 1, 2], [5, 6, 7])
     assert shift == 5 and np.isnan([lo, hi, level]).all()
 
 
@@ -331,7 +331,7 @@ def test_the_shift_interval_covers_a_skewed_shift():
     rng = np.random.default_rng(0)
     hits = []
     for _ in range(2000):
-        _, lo, hi, level = stats.shift_interval(rng.exponential(1.0, 6), rng.exponential(1.0, 6) + 0.5)
+        _, lo, hi, level = order_stats.shift_interval(rng.exponential(1.0, 6), rng.exponential(1.0, 6) + 0.5)
         hits.append(lo <= 0.5 <= hi)
     assert np.mean(hits) >= level - 3 * np.sqrt(level * (1 - level) / 2000)
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from drltg.analysis import report, stats
+from drltg.analysis import order_stats, report, stats
 from drltg.analysis.curves import Curve
 from drltg.analysis.report import catalogue, outputs
 from drltg.cli import report as report_cli
@@ -755,7 +755,7 @@ def test_each_magnitude_says_what_it_assumes():
     unpaired = report.compute(flat(base, prefix="b"), flat(gains, prefix="t"), value_range=(-20.0, 20.0))["metrics"]
     assert unpaired["mean_return_gain_t_interval_assumes"] == "normal scores on each side"
     # unpaired, the Hodges-Lehmann shift of the flat curves' values and its Mann-Whitney interval
-    shift, lo, hi, level = stats.shift_interval(base, gains)
+    shift, lo, hi, level = order_stats.shift_interval(base, gains)
     assert unpaired["mean_return_gain_median"] == shift and unpaired["mean_return_gain_median_interval"] == [lo, hi]
     assert unpaired["mean_return_gain_median_interval_level"] == level > 0.95
     assert unpaired["mean_return_gain_median_interval_assumes"] == "independent runs, the sides differing by a shift, any shape"

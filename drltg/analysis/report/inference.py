@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 
 from drltg.analysis import metrics as M
-from drltg.analysis import stats
+from drltg.analysis import order_stats, stats
 from drltg.analysis.curves import Curve
 from drltg.analysis.planning import pairs_for_power
 from drltg.analysis.report.align import Window, eval_grid, on_grid
@@ -127,8 +127,8 @@ def magnitudes(name: str, b: np.ndarray, t: np.ndarray, paired: bool, w: Window,
     ``<name>_t_interval``, the t interval (paired on :math:`d_i`, or Welch's standard error with Hsu's degrees of
     freedom), which assumes normal differences (scores); and ``<name>_median`` with ``<name>_median_interval``, an
     order-statistic interval at the coverage ``<name>_median_interval_level`` it holds, at least ``confidence``:
-    paired, of the median of the :math:`d_i` (:func:`stats.median_interval`), assuming independent pairs only;
-    unpaired, of the Hodges-Lehmann shift, the median of every :math:`T_j - B_i` (:func:`stats.shift_interval`),
+    paired, of the median of the :math:`d_i` (:func:`order_stats.median_interval`), assuming independent pairs only;
+    unpaired, of the Hodges-Lehmann shift, the median of every :math:`T_j - B_i` (:func:`order_stats.shift_interval`),
     assuming independent runs whose sides differ by a shift. Each is left out where it does not exist (no spread; too few pairs for the order statistics)."""
     out: dict = {}
     lo, hi = (float(x) for x in stats.t_interval(b, t, paired=paired, confidence=float(s.confidence)))
@@ -136,9 +136,9 @@ def magnitudes(name: str, b: np.ndarray, t: np.ndarray, paired: bool, w: Window,
         out[f"{name}_t_interval"] = _within(lo, hi, w.value_range)
         out[f"{name}_t_interval_assumes"] = ASSUMES["normal differences" if paired else "normal scores"]
     if paired:
-        median, lo, hi, level = stats.median_interval(t - b, float(s.confidence))
+        median, lo, hi, level = order_stats.median_interval(t - b, float(s.confidence))
     else:
-        median, lo, hi, level = stats.shift_interval(b, t, float(s.confidence))
+        median, lo, hi, level = order_stats.shift_interval(b, t, float(s.confidence))
     out[f"{name}_median"] = median
     if math.isfinite(lo):
         out[f"{name}_median_interval"] = [lo, hi]
