@@ -128,8 +128,18 @@ TINY_TIER = Tier("tiny", "two FourRooms pairs at tiny budgets", (Group("rooms", 
                   "collector.init_random_frames": 64, "optim.updates_per_batch": 1, "log.tensorboard": False}}),))
 
 
-def test_a_plugin_method_joins_the_board_beside_a_reference_row(tmp_path, monkeypatch, capsys):
+def test_a_plugin_method_joins_the_board_beside_a_reference_row(tmp_path, monkeypatch, capsys, request):
+    import sys
+
+    from drltg.config.registry import METHODS
+    from drltg.envs import registry
+
     monkeypatch.setitem(suite.SUITES, "test", {"tiny": TINY_TIER})
+    # the plugin registers its tasks, pair and method in this process: all of them undone after the test
+    monkeypatch.setattr(registry, "TASKS", dict(registry.TASKS))
+    monkeypatch.setattr(registry, "PAIRS", dict(registry.PAIRS))
+    sys.modules.pop("drltg_example_plugin", None)
+    request.addfinalizer(lambda: (METHODS.pop("critic-reuse", None), sys.modules.pop("drltg_example_plugin", None)))
     monkeypatch.syspath_prepend(str(PLUGIN_DIR))
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(PLUGIN_DIR), os.environ.get("PYTHONPATH", "")]))
     monkeypatch.setenv("DRLTG_IMPORT", "")  # --import adds the plugin here for the workers: undone after the test
