@@ -47,7 +47,6 @@ def test_a_committed_report_is_reproduced_from_its_committed_curves(experiment, 
     def scores(per_seed):  # every per-seed number; "source" is the path the curve was read from
         return {side: [{k: v for k, v in row.items() if k != "source"} for row in rows]
                 for side, rows in per_seed.items()}
-
     assert same(scores(rebuilt["per_seed"]), scores(committed["per_seed"]))
 
 

@@ -4,7 +4,8 @@
 # reported row again, TRAIN_SOURCES=1 trains the kept sources anew, EARLIER=1 reports the earlier runs alone).
 # 1. The sources RUNS/sources/NAME/seed-<s>, seeds 0, 100, 200, each keeping its best checkpoint, which the rows
 #    reuse (SOURCE below); one kept in results/manipulation/sources/ is copied rather than trained, then kept
-#    (keep_source.py) and its best.pt evaluated on 50 fresh episodes.
+#    without its training checkpoints (config, curve, summary, manifest, networks) and its best networks
+#    evaluated on 50 fresh episodes.
 # 2. Each row, examples/sweeps/manipulation-rows/ROW.yaml, by `drltg sweep --no-seed-groups` in RUNS (a target's
 #    baselines serve every row on it; the reference rows' transfers go to RUNS/reference beside copies of the
 #    others' complete baselines), kept and reported (rebuild.py) in results/manipulation/ROW/, with report-STAGE/
@@ -45,7 +46,8 @@ for name in "${!SOURCE[@]}"; do for s in 0 100 200; do
 done; done | xargs -r -d '\n' -P "$WORKERS" -I{} bash -c '{}'
 for name in "${!SOURCE[@]}"; do for s in 0 100 200; do
   kept=$OUT/sources/$name/seed-$s
-  [ -f "$kept/checkpoints/last.pt" ] || $PYTHON $OUT/keep_source.py "$RUNS/sources/$name/seed-$s" "$kept"
+  run=$RUNS/sources/$name/seed-$s; [ -f "$kept/summary.json" ] || { mkdir -p "$kept/checkpoints" &&
+    cp "$run"/{config.yaml,eval.csv,summary.json,manifest.json} "$kept/" && cp "$run"/checkpoints/*.safetensors "$kept/checkpoints/"; }
   ls "$kept"/evaluate-best-*-50ep.json > /dev/null 2>&1 || $DRLTG evaluate "$kept" --checkpoint best --episodes 50
 done; done
 for row in $ROWS; do
