@@ -347,8 +347,8 @@ def test_dump_then_load_gives_the_same_config(tmp_path):
     assert config_lib.build(yaml.safe_load(config_lib.dump(cfg))) == cfg
     assert list(yaml.safe_load(config_lib.dump(cfg))) == ["task", "algo", "seed", "frames", "device", "threads",
                                                           "tuned_on", "env",
-                                                          "collector", "buffer", "optim", "network", "sac", "td3",
-                                                          "soc", "eval", "checkpoint", "log", "transfer"]
+                                                          "collector", "buffer", "optim", "network", "eval",
+                                                          "checkpoint", "log", "transfer", "sac", "soc", "td3"]
     assert pickle.loads(pickle.dumps(cfg)) == cfg  # a config goes to worker processes as its values
 
 

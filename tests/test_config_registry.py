@@ -1,6 +1,6 @@
 """What a config may name comes from one registry each (drltg.config.registry): every built-in transfer
-method and learner is known first thing in a fresh process, in any import order, and a learner added to
-``drltg.learners.ALGOS`` is a valid ``--algo``."""
+method and learner is known first thing in a fresh process, in any import order, a learner added to
+``drltg.learners.ALGOS`` is a valid ``--algo``, and its options model is the config section of its name."""
 import subprocess
 import sys
 from pathlib import Path
@@ -49,10 +49,11 @@ def test_every_builtin_method_and_a_combination_resolve_in_a_fresh_process_in_an
 
 def test_importing_the_methods_writes_no_config_state():
     """Importing drltg.transfer registers nothing: the registry finds the methods on its first lookup."""
-    done = _python("import drltg.transfer\nfrom drltg.config.registry import METHODS, LEARNERS\n"
-                   "print(METHODS._found, LEARNERS._found, METHODS._entries, LEARNERS._entries)")
+    done = _python("import drltg.transfer, drltg.learners\nfrom drltg.config.registry import METHODS, LEARNERS, "
+                   "LEARNER_OPTIONS as O\nprint(METHODS._found, LEARNERS._found, O._found, METHODS._entries, "
+                   "LEARNERS._entries, O._entries)")
     assert done.returncode == 0, done.stderr
-    assert done.stdout.split() == ["False", "False", "{}", "{}"]
+    assert done.stdout.split() == ["False", "False", "False", "{}", "{}", "{}"]
 
 
 def test_the_builtin_methods_and_learners_are_the_registrys_entry_points():
@@ -68,10 +69,12 @@ def test_the_builtin_methods_and_learners_are_the_registrys_entry_points():
 
 @pytest.fixture
 def learners():
-    saved = dict(config_lib.LEARNERS)
+    registries = (config_lib.LEARNERS, config_lib.LEARNER_OPTIONS)
+    saved = [dict(registry) for registry in registries]
     yield config_lib.LEARNERS
-    config_lib.LEARNERS.clear()
-    config_lib.LEARNERS.update(saved)
+    for registry, entries in zip(registries, saved):
+        registry.clear()
+        registry.update(entries)
 
 
 def test_a_learner_added_to_algos_is_accepted_by_algo_and_trains(learners, tmp_path, capsys):
@@ -96,6 +99,43 @@ def test_a_learner_added_to_algos_is_accepted_by_algo_and_trains(learners, tmp_p
     del ALGOS["my-sac"]
     with pytest.raises(UsageError, match="^unknown algorithm 'my-sac'"):
         config_lib.build({"algo": "my-sac"})
+
+
+def test_a_learner_s_options_model_is_the_config_section_of_its_name(learners, tmp_path, capsys):
+    """docs/extending.md's way: a :class:`Section` in ``LEARNER_OPTIONS`` under the learner's name gives it
+    typed keys that ``-o`` sets, that are checked like every key, saved in config.yaml and read by the learner."""
+    from pydantic import Field
+
+    from drltg.cli import main
+    from drltg.learners import ALGOS, make_sac_agent
+
+    class MySACOptions(config_lib.Section):
+        temperature: config_lib.Float = Field(0.2, gt=0, description="my_sac: SAC's temperature, kept fixed")
+
+    def make_my_agent(env, cfg):
+        return make_sac_agent(env, config_lib.updated(cfg, {"sac.alpha_init": cfg.my_sac.temperature,
+                                                             "sac.fixed_alpha": True}))
+
+    ALGOS["my_sac"], config_lib.LEARNER_OPTIONS["my_sac"] = make_my_agent, MySACOptions
+    assert config_lib.resolve(algo="my_sac").my_sac.temperature == 0.2
+    assert "my_sac.temperature" in config_lib.keys() and "my_sac.temperature" in config_lib.describe()
+    with pytest.raises(UsageError, match=r"^config key 'my_sac.temperature' must be a number > 0, got -1.$"):
+        config_lib.resolve(overrides=["algo=my_sac", "my_sac.temperature=-1"])
+    args = train_args(tmp_path / "run", "--algo", "my_sac", "-o", "my_sac.temperature=0.5")
+    assert main(args) == 0, capsys.readouterr().err
+    saved = yaml.safe_load((tmp_path / "run" / "config.yaml").read_text())
+    assert saved["my_sac"] == {"temperature": 0.5}
+    from drltg.store.networks import load
+
+    state, _ = load(tmp_path / "run", "last")
+    assert state["log_alpha"].exp().item() == pytest.approx(0.5)  # the learner read its own key
+    del config_lib.LEARNER_OPTIONS["my_sac"]
+    with pytest.raises(UsageError, match="^unknown config key 'my_sac'"):
+        config_lib.build(saved)
+    config_lib.LEARNER_OPTIONS["my-sac"] = MySACOptions
+    with pytest.raises(UsageError, match="^the options of the learner 'my-sac' cannot be a config section of that "
+                                         "name: a learner with options is named as a Python identifier"):
+        config_lib.keys()
 
 
 def test_a_registry_reads_its_group_s_entry_points_and_says_when_drltg_s_own_are_missing(monkeypatch):

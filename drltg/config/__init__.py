@@ -9,10 +9,11 @@ range in its section's model (``describe()`` lists them); a typo or a value out 
 :class:`~drltg.errors.UsageError` sentence naming the key (pydantic's errors are translated), before
 anything is built or written.
 
-Three parts are open-ended: ``algo`` names a registered learner, the ``transfer`` section holds, besides
+Four parts are open-ended: ``algo`` names a registered learner, each registered learner's options are
+the section of its name (``sac``, ``td3``, ``soc``: :data:`LEARNER_OPTIONS`), the ``transfer`` section holds, besides
 ``method``, ``source``, ``allow_incomplete`` and ``source_checkpoint``, the options of every registered
 transfer method (each method's options are a model of its own, ``TransferMethod.model``), both found in
-the registries of :mod:`drltg.config.registry` (:data:`LEARNERS`, :data:`METHODS`), which load drltg's
+the registries of :mod:`drltg.config.registry` (:data:`LEARNERS`, :data:`LEARNER_OPTIONS`, :data:`METHODS`), which load drltg's
 own and the installed plugins' on first lookup; and ``env`` is a mapping of the task's keyword arguments,
 checked against the keywords its factory declares (:func:`validate`).
 """
@@ -31,7 +32,7 @@ from drltg.config.overrides import (
     resolve,
     set_key,
 )
-from drltg.config.registry import LEARNERS, METHODS, Registry, get_method, method_names
+from drltg.config.registry import LEARNER_OPTIONS, LEARNERS, METHODS, Registry, get_method, method_names
 from drltg.config.run import (
     TRANSFER_KEYS,
     RunConfig,
@@ -72,6 +73,6 @@ __all__ = [
     "Int", "Float", "Bool", "Str", "Number", "Probability", "Section", "MAX_EPISODES", "MAX_SEEDS", "MAX_THREADS",
     "SEED_STRIDE", "run_seeds", "source_seed", "EVAL_SEED_OFFSET", "DEMO_SEED_OFFSET", "FRESH_SEED_OFFSET",
     *sections.__all__, "TransferConfig",
-    "METHODS", "LEARNERS", "Registry", "TRANSFER_KEYS", "ENV_EXECUTION_KEYS",
+    "METHODS", "LEARNERS", "LEARNER_OPTIONS", "Registry", "TRANSFER_KEYS", "ENV_EXECUTION_KEYS",
     "method_names", "get_method", "option_owners", "options_model", "transfer_model", "_model",
 ]

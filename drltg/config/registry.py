@@ -1,4 +1,5 @@
-"""What a config may name: the transfer methods (``transfer.method``) and the learners (``algo``).
+"""What a config may name: the transfer methods (``transfer.method``), the learners (``algo``) and the
+learners' options (the section named as the learner: ``sac.alpha_init``).
 
 Each is a :class:`Registry`, a mapping of names that fills itself on its first lookup from the entry
 points of its group, those of drltg itself (``pyproject.toml``) and of every installed plugin::
@@ -6,7 +7,9 @@ points of its group, those of drltg itself (``pyproject.toml``) and of every ins
     [project.entry-points."drltg.methods"]         # a TransferMethod object
     my-method = "my_package.methods:MY_METHOD"
     [project.entry-points."drltg.learners"]        # a make_<algo>_agent(env, cfg) function
-    my-algo = "my_package.learners:make_my_agent"
+    my_algo = "my_package.learners:make_my_agent"
+    [project.entry-points."drltg.learner_options"] # its options: a Section model, in a module without torch
+    my_algo = "my_package.options:MyAlgoOptions"
 
 So :func:`drltg.config.resolve` knows every built-in method and learner first thing in a fresh process,
 whatever was imported before, and importing a method's module changes no config: the entry point is the
@@ -98,6 +101,10 @@ METHODS = Registry("drltg.methods", "transfer method", builtin="none")
 
 LEARNERS = Registry("drltg.learners", "learner", builtin="sac")
 """``algo`` -> its ``make_<algo>_agent(env, cfg)`` (:data:`drltg.learners.ALGOS` is this registry)."""
+
+LEARNER_OPTIONS = Registry("drltg.learner_options", "learner's options", builtin="sac")
+"""A learner's name -> the :class:`~drltg.config.values.Section` model of its options, the config section of
+that name (a learner without options has none). Loaded with the config, so it imports no torch."""
 
 
 def method_names() -> tuple[str, ...]:

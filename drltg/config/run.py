@@ -1,5 +1,6 @@
-"""The run config: :class:`RunConfig` with the registered methods' options (:mod:`drltg.config.registry`),
-its keys, and building one from a mapping with every error as one sentence naming the key."""
+"""The run config: :class:`RunConfig` with the registered learners' and methods' options
+(:mod:`drltg.config.registry`), its keys, and building one from a mapping with every error as one sentence
+naming the key."""
 from __future__ import annotations
 
 import functools
@@ -17,7 +18,7 @@ from pydantic import (
 from pydantic.fields import FieldInfo
 
 from drltg.config.methods import _strict
-from drltg.config.registry import LEARNERS, METHODS, method_names
+from drltg.config.registry import LEARNER_OPTIONS, LEARNERS, METHODS, method_names
 from drltg.config.sections import (
     ENV_HELP,
     BufferConfig,
@@ -27,9 +28,6 @@ from drltg.config.sections import (
     LogConfig,
     NetworkConfig,
     OptimConfig,
-    SACConfig,
-    SOCConfig,
-    TD3Config,
 )
 from drltg.config.values import (
     MAX_FRAMES,
@@ -81,7 +79,9 @@ TRANSFER_KEYS = tuple(TransferConfig.model_fields)
 class RunConfig(Section):
     """One run's configuration. Build it with :func:`resolve` (defaults, task, file, overrides) or
     :func:`build` (a mapping, e.g. a saved ``config.yaml``); :func:`validate` adds the checks that need
-    this machine or the task's env (``device``, ``env``, the transfer method's own rules)."""
+    this machine or the task's env (``device``, ``env``, the transfer method's own rules). The model they
+    build adds a section for each registered learner's options (``sac``, ``td3``, ``soc``: :data:`LEARNER_OPTIONS`)
+    and every registered method's options to ``transfer``."""
 
     task: Str = Field("fourrooms/northeast", description="registered task name (`drltg tasks`)",
                       json_schema_extra=_what("a registered task name"))
@@ -102,9 +102,6 @@ class RunConfig(Section):
     buffer: BufferConfig = Field(default_factory=BufferConfig)
     optim: OptimConfig = Field(default_factory=OptimConfig)
     network: NetworkConfig = Field(default_factory=NetworkConfig)
-    sac: SACConfig = Field(default_factory=SACConfig)
-    td3: TD3Config = Field(default_factory=TD3Config)
-    soc: SOCConfig = Field(default_factory=SOCConfig)
     eval: EvalConfig = Field(default_factory=EvalConfig)
     checkpoint: CheckpointConfig = Field(default_factory=CheckpointConfig)
     log: LogConfig = Field(default_factory=LogConfig)
@@ -178,14 +175,16 @@ def option_owners() -> dict[str, str]:
 
 
 def _model() -> type[RunConfig]:
-    """:class:`RunConfig` whose ``transfer`` section holds the options of every registered method."""
-    METHODS.names()  # found now: the version read next is that of the methods the model holds
-    return _model_at(METHODS.version)
+    """:class:`RunConfig` with a section of each registered learner's options and, in ``transfer``, the
+    options of every registered method."""
+    METHODS.names(), LEARNER_OPTIONS.names()  # found now: the versions read next are those the model holds
+    return _model_at(METHODS.version, LEARNER_OPTIONS.version)
 
 
 @functools.lru_cache(maxsize=4)
-def _model_at(version: int) -> type[RunConfig]:
-    fields: dict[str, Any] = {}
+def _model_at(methods_version: int, learners_version: int) -> type[RunConfig]:
+    fields: dict[str, Any] = {name: (model, Field(default_factory=model)) for name, model in _learner_sections().items()}
+    options: dict[str, Any] = {}
     owners: dict[str, str] = {}
     for method in METHODS.values():
         for key, info in (method.model.model_fields if method.model is not None else {}).items():
@@ -193,12 +192,30 @@ def _model_at(version: int) -> type[RunConfig]:
                 raise UsageError(f"transfer method {method.name!r}: config key 'transfer.{key}' already belongs to "
                                  f"{owners.get(key, 'every method')}; choose another name.")
             owners[key] = method.name
-            fields[key] = (info.annotation, info)
-    if not fields:
-        return RunConfig
-    transfer = create_model("TransferConfig", __base__=TransferConfig, __module__=__name__, **fields)
-    return create_model("RunConfig", __base__=RunConfig, __module__=__name__,
-                        transfer=(transfer, Field(default_factory=transfer)))
+            options[key] = (info.annotation, info)
+    if options:
+        transfer = create_model("TransferConfig", __base__=TransferConfig, __module__=__name__, **options)
+        fields["transfer"] = (transfer, Field(default_factory=transfer))
+    return create_model("RunConfig", __base__=RunConfig, __module__=__name__, **fields) if fields else RunConfig
+
+
+def _learner_sections() -> dict[str, type[BaseModel]]:
+    """The section of each registered learner's options, by the learner's name."""
+    sections = {}
+    for name in LEARNER_OPTIONS:
+        model = LEARNER_OPTIONS[name]
+        if not name.isidentifier() or name in RunConfig.model_fields:
+            raise UsageError(f"the options of the learner {name!r} cannot be a config section of that name: a "
+                             "learner with options is named as a Python identifier that is not a config key.")
+        if not (isinstance(model, type) and issubclass(model, BaseModel)):
+            raise UsageError(f"the options of the learner {name!r} must be a pydantic model (a subclass of "
+                             f"drltg.config.Section), got {_short(model)}.")
+        try:
+            model()
+        except ValidationError:
+            raise UsageError(f"the options of the learner {name!r} must each have a default.") from None
+        sections[name] = model
+    return sections
 
 
 def transfer_model() -> type[TransferConfig]:
