@@ -23,6 +23,7 @@ for method in {methods!r}:
     cfg = resolve(overrides=["transfer.method=" + method])
     assert cfg.transfer.method == method, cfg.transfer.method
 assert resolve(overrides=["transfer.method=policy-reuse", "transfer.psi=0.5"]).transfer.psi == 0.5
+assert resolve(overrides=["algo=soc", "soc.num_options=2"]).soc.num_options == 2  # a learner's own section
 try:
     resolve(overrides=["transfer.method=policy-reuse+jumpstart"])
 except UsageError as err:
