@@ -3,7 +3,8 @@
 #   bash results/bench.sh     (RUNS=runs/bench; about 2 hours on 2 cores; re-running resumes)
 # 1. baselines and reward/value shaping, policy/model reuse on (grid) FourRooms: the graded and grid sweeps' runs (same
 #    protocol); 2. every built-in method by `drltg bench run`; 3. configs, curves, summaries and the sources' networks
-#    (what a user's bench run reuses) kept, the reports made again there (every run is there), the leaderboard.
+#    (what a user's bench run reuses) kept, the reports made again there (every run is there), each group's summary
+#    of every method, the leaderboard.
 set -euo pipefail && shopt -s nullglob && export OMP_NUM_THREADS=1
 RUNS=${RUNS:-runs/bench} DRLTG=${DRLTG:-drltg} PYTHON=${PYTHON:-python} TIER=$RUNS/v1/quick KEEP=results/bench/v1/quick
 METHODS="reward-shaping value-shaping policy-reuse jumpstart model-reuse demonstrations kickstarting sf-gpi" && mkdir -p "$TIER" "$KEEP"
@@ -18,5 +19,6 @@ for m in $METHODS; do $DRLTG bench run --method "$m" --out "$RUNS" --reference n
     cp "$TIER/$run/checkpoints/last.safetensors" "$KEEP/$run/checkpoints/"; }
 done
 for m in $METHODS; do $DRLTG bench run --method "$m" --out results/bench --reference none --no-progress > /dev/null; done
+$PYTHON results/rebuild.py --again "$KEEP" > /dev/null  # each group summary of every method (a bench run summarises its own)
 find "$KEEP" \( -name '*.png' -o -name '*.svg' -o -name '*.log' -o -name runs.csv \) -delete
 $DRLTG bench report --out results/bench --reference results/bench && $PYTHON results/claims.py
