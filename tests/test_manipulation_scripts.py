@@ -3,8 +3,8 @@ kept source of its own seed, >= 3 paired seeds, <= 300k frames, a target's basel
 from __future__ import annotations
 
 import csv
-import importlib.util
 import filecmp
+import importlib.util
 import os
 import re
 import subprocess

@@ -27,6 +27,7 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.envs import ExplorationType, set_exploration_type
 
+from drltg.losses.critics import min_over_critics
 from drltg.losses.terms import LossTerm
 
 __all__ = ["behaviour_cloning", "BehaviourCloning", "option_labels", "OPTION_PROBS"]
@@ -38,11 +39,7 @@ past them), for :func:`behaviour_cloning` in the same update to reuse instead of
 
 def _min_q(loss, td: TensorDictBase) -> torch.Tensor:
     """The smaller of ``loss``'s critics at ``td``'s (observation[, option], action), without gradients."""
-    values = []
-    for params in loss.qvalue_network_params.detach().unbind(0):
-        with params.to_module(loss.qvalue_network):
-            values.append(loss.qvalue_network(td.clone(False))["state_action_value"])
-    return torch.stack(values).amin(0).squeeze(-1)
+    return min_over_critics(loss.qvalue_network, loss.qvalue_network_params.detach(), td).squeeze(-1)
 
 
 def _num_options(loss) -> int:

@@ -114,16 +114,13 @@ def _learnt_successor_features(cfg: RunConfig, source, features, discrete: bool)
 
 def _learner_values(loss):
     """``observation -> min_k Q_k(s, .)``, the live twin critics of a discrete-SAC learner: GPI's own values."""
-    import torch
     from tensordict import TensorDict
 
-    def values(observation: torch.Tensor) -> torch.Tensor:
-        td, qs = TensorDict({"observation": observation}, batch_size=observation.shape[:-1]), []
-        with torch.no_grad():
-            for params in loss.qvalue_network_params.unbind(0):
-                with params.to_module(loss.qvalue_network):
-                    qs.append(loss.qvalue_network(td.copy())["action_value"])
-        return torch.stack(qs).amin(0)
+    from drltg.losses.critics import min_over_critics
+
+    def values(observation):
+        td = TensorDict({"observation": observation}, batch_size=observation.shape[:-1])
+        return min_over_critics(loss.qvalue_network, loss.qvalue_network_params, td, "action_value")
 
     return values
 

@@ -20,6 +20,7 @@ from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.objectives import DiscreteSACLoss, SACLoss, TD3Loss
 
 from drltg.errors import UsageError
+from drltg.losses.critics import min_over_critics
 
 __all__ = ["SourceValue"]
 
@@ -45,12 +46,9 @@ class SourceValue(nn.Module):
         td = TensorDict({"observation": observation}, batch_size=observation.shape[:-1])
         with set_exploration_type(ExplorationType.DETERMINISTIC):
             action = self.actor(td.clone())["action"]
-        values = []
-        for params in self.critic_params.unbind(0):
-            with params.to_module(self.critic):
-                if self.discrete:
-                    q = (self.critic(td.clone())["action_value"] * action).sum(-1, keepdim=True)
-                else:
-                    q = self.critic(td.clone().set("action", action))["state_action_value"]
-            values.append(q)
-        return self.scale * torch.stack(values).amin(0)
+        if self.discrete:  # the one-hot action picks min_k Q_k(s, a) from each action's minimum
+            values = min_over_critics(self.critic, self.critic_params, td, "action_value")
+            value = (values * action).sum(-1, keepdim=True)
+        else:
+            value = min_over_critics(self.critic, self.critic_params, td.set("action", action))
+        return self.scale * value
