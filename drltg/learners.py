@@ -253,8 +253,8 @@ class UpdateStep:
     ``loss(batch) -> backward(sum of loss_* terms) -> optimizer.step() -> target_updater.step()``, the
     sequence of TorchRL's sota SAC loop, for every learner alike, and for a seed group's stacked loss
     (:class:`~drltg.training.seeds.StackedLoss`), whose terms have a leading seed dimension and are summed
-    over it too: seeds share no parameter, so d/d theta_k of the sum is seed k's gradient. ``update_actor=False`` leaves out the
-    actor's loss terms and the target update (TD3's policy delay).
+    over it too: seeds share no parameter, so d/d theta_k of the sum is seed k's gradient. ``update_actor=False``
+    leaves out the actor's loss terms and the target update (TD3's policy delay).
 
     Args:
         agent: the :class:`Agent` whose ``loss``, ``optimizer`` and ``target_updater`` are stepped.

@@ -240,7 +240,8 @@ def test_a_source_path_with_yaml_characters_is_the_path_itself(tmp_path):
     runs = plan_runs("fourrooms-near", "model-reuse", frames=512, out=out, seeds=2)
     sources = {path for role, _, path in runs if role == "source"}
     transfers = [cfg for role, cfg, _ in runs if role == "transfer"]
-    assert [cfg.transfer.source for cfg in transfers] == [str(out / "source" / "seed-50"), str(out / "source" / "seed-150")]
+    assert [cfg.transfer.source for cfg in transfers] == [str(out / "source" / "seed-50"),
+                                                          str(out / "source" / "seed-150")]
     assert {Path(cfg.transfer.source) for cfg in transfers} == sources
     assert all(cfg.transfer.source is None for role, cfg, _ in runs if role != "transfer")
 

@@ -185,7 +185,8 @@ def test_any_hostile_entry_in_a_run_is_a_result_or_one_sentence_and_touches_noth
                            "--out", str(root / "report")],
                 "resume": ["train", "fourrooms/northeast", "--run-dir", str(run), "--resume", "--no-progress"],
                 "evaluate": ["evaluate", str(run), "--episodes", "1"],
-                "video": ["video", str(run), "--episodes", "1", "--max-steps", "2", "--out", str(root / "video")]}[command]
+                "video": ["video", str(run), "--episodes", "1", "--max-steps", "2", "--out", str(root / "video")],
+                }[command]
 
         def hang(*_):
             raise AssertionError(f"{command} still runs after 60 s")

@@ -26,7 +26,8 @@ KILLED = 137
 
 def _files(folder: Path) -> list[str]:
     """Every file below ``folder`` but TensorBoard's, whose names carry the time they were opened."""
-    return sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file() and "tfevents" not in p.name)
+    return sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*")
+                  if p.is_file() and "tfevents" not in p.name)
 
 
 def _run(args: list[str], kill_at: int | None = None, after: bool = False) -> tuple[int, list[str]]:

@@ -34,7 +34,8 @@ def _source_run(path, task="fourrooms/northeast", algo="sac"):
 @pytest.mark.parametrize("name", sorted(METHODS))
 def test_every_method_builds_a_transfer_for_a_run(name, tmp_path):
     method = get_method(name)
-    overrides = [f"transfer.method={name}", "transfer.demo_episodes=1", "transfer.sf_frames=16", "transfer.sf_updates=1"]
+    overrides = [f"transfer.method={name}", "transfer.demo_episodes=1", "transfer.sf_frames=16",
+                 "transfer.sf_updates=1"]
     if method.source is not None:
         overrides.append(f"transfer.source={_source_run(tmp_path / 'src')[0]}")
     cfg = _cfg("fourrooms/northeast", *overrides)

@@ -50,7 +50,8 @@ def test_foreign_logs_of_a_drltg_task_take_its_range_by_name_or_gymnasium_id(tmp
 
 
 def test_a_sweep_spec_takes_a_value_range():
-    spec = parse_spec({"pairs": ["fourrooms-near"], "methods": ["model-reuse"], "frames": 1000, "value_range": [-50, 0]})
+    spec = parse_spec({"pairs": ["fourrooms-near"], "methods": ["model-reuse"], "frames": 1000,
+                       "value_range": [-50, 0]})
     assert spec.value_range == (-50.0, 0.0)
     with pytest.raises(UsageError, match="'value_range' must be \\[LOW, HIGH\\], two numbers"):
         parse_spec({"pairs": ["fourrooms-near"], "methods": ["model-reuse"], "frames": 1000, "value_range": "0,1"})
@@ -83,7 +84,8 @@ def test_a_report_is_named_after_the_methods_and_written_beside_the_runs(tmp_pat
     (report,) = runs.glob("report-*")
     assert report.name == "report-reward-shaping-vs-no-transfer"
     saved = json.loads((report / "transfer_metrics.json").read_text())
-    assert (saved["settings"]["baseline_label"], saved["settings"]["transfer_label"]) == ("no transfer", "reward-shaping")
+    labels = saved["settings"]["baseline_label"], saved["settings"]["transfer_label"]
+    assert labels == ("no transfer", "reward-shaping")
 
 
 def test_an_equivalence_margin_turns_an_undecided_mean_difference_into_equivalent():

@@ -244,7 +244,8 @@ def test_resume_rewrites_the_logs_to_the_checkpoint(copy_of_killed, capsys):
     (lambda run: (run / "eval.csv").unlink(), "eval.csv is missing"),
     (lambda run: (run / "eval.csv").write_bytes((run / "eval.csv").read_bytes()[:-9]),
      "eval.csv': it does not match its SHA-256"),  # the curve resume carries forward is checked first
-    (lambda run: ((run / "eval.csv").write_bytes((run / "eval.csv").read_bytes()[:-9]), (run / "manifest.json").unlink()),
+    (lambda run: ((run / "eval.csv").write_bytes((run / "eval.csv").read_bytes()[:-9]),
+                  (run / "manifest.json").unlink()),
      "is truncated or malformed"),
     (lambda run: (run / "checkpoints" / "last.pt").write_bytes((run / "checkpoints" / "last.pt").read_bytes()[:5000]),
      "does not match its SHA-256"),  # checked against the manifest before a byte is unpickled

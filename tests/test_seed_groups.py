@@ -84,7 +84,8 @@ def test_the_groups_soft_update_moves_every_seeds_targets_toward_its_own_paramet
     before = {k: group.params.get(k).clone() for k in keys}
     with torch.no_grad():
         for k in keys:
-            group.params.get((k[0][len("target_"):], *k[1:])).add_(torch.arange(2.0).reshape(2, *[1] * (before[k].dim() - 1)))
+            shift = torch.arange(2.0).reshape(2, *[1] * (before[k].dim() - 1))
+            group.params.get((k[0][len("target_"):], *k[1:])).add_(shift)
     group.step.agent.target_updater.step()
     tau = 1 - agents[0].target_updater.eps
     for k in keys:

@@ -300,5 +300,6 @@ def headline(report: Mapping, metric: str = "mean_return_gain") -> str:
     if m.get(metric) is None:
         return f"Headline ({where}): {label} is not available."
     seq = st.get("sequential")
-    said = sequential_verdict(report) if seq is not None and metric == "mean_return_gain" else verdict_of(report, metric)
+    sequential = seq is not None and metric == "mean_return_gain"
+    said = sequential_verdict(report) if sequential else verdict_of(report, metric)
     return f"Headline ({where}): {label} {said}."

@@ -1,7 +1,8 @@
 """Tables of transfer metrics as aligned text, Markdown or CSV.
 
 The one formatter of ``drltg report`` (its table and ``transfer_metrics.csv``), ``drltg sweep`` (``summary.{csv,md}``,
-``runs.csv``): each builds rows of cells and picks a style; a cell holding an estimate is written ``value [low, high]`` by :func:`estimate`.
+``runs.csv``): each builds rows of cells and picks a style; a cell holding an estimate is written
+``value [low, high]`` by :func:`estimate`.
 """
 from __future__ import annotations
 

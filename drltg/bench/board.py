@@ -62,7 +62,8 @@ def pair_score(report: dict) -> dict:
     seeds = sorted(set(b) & set(t))
     mean_b = float(np.mean([b[s] for s in seeds]))
     m = report["metrics"]
-    out = {"value_range": report["settings"]["value_range"], "seeds": seeds, "transfer": [t[s] for s in seeds], "baseline": [b[s] for s in seeds],
+    out = {"value_range": report["settings"]["value_range"], "seeds": seeds,
+           "transfer": [t[s] for s in seeds], "baseline": [b[s] for s in seeds],
            "verdict": m.get("mean_return_gain_verdict", "undecided"), "p": m.get("mean_return_gain_verdict_p"),
            "test": m.get("mean_return_gain_verdict_test")}
     if mean_b >= 1:

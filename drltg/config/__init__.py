@@ -10,11 +10,11 @@ range in its section's model (``describe()`` lists them); a typo or a value out 
 anything is built or written.
 
 Four parts are open-ended: ``algo`` names a registered learner, each registered learner's options are
-the section of its name (``sac``, ``td3``, ``soc``: :data:`LEARNER_OPTIONS`), the ``transfer`` section holds, besides
-``method``, ``source``, ``allow_incomplete`` and ``source_checkpoint``, the options of every registered
-transfer method (each method's options are a model of its own, ``TransferMethod.model``), both found in
-the registries of :mod:`drltg.config.registry` (:data:`LEARNERS`, :data:`LEARNER_OPTIONS`, :data:`METHODS`), which load drltg's
-own and the installed plugins' on first lookup; and ``env`` is a mapping of the task's keyword arguments,
+the section of its name (``sac``, ``td3``, ``soc``: :data:`LEARNER_OPTIONS`), the ``transfer`` section holds,
+besides ``method``, ``source``, ``allow_incomplete`` and ``source_checkpoint``, the options of every registered
+transfer method (each method's options are a model of its own, ``TransferMethod.model``), all found in the
+registries of :mod:`drltg.config.registry` (:data:`LEARNERS`, :data:`LEARNER_OPTIONS`, :data:`METHODS`), which
+load drltg's own and the installed plugins' on first lookup; and ``env`` is a mapping of the task's keyword arguments,
 checked against the keywords its factory declares (:func:`validate`).
 """
 from drltg.config import sections

@@ -88,7 +88,8 @@ class RunConfig(Section):
     algo: Str = Field("sac", description="learner; sac is discrete SAC on discrete tasks",
                       json_schema_extra={"noun": "algorithm", "choices": "learners"})
     seed: Int = Field(0, ge=0, le=2**31 - 1, description="seed of envs, networks and sampling")
-    frames: Int = Field(50_000, ge=1, le=MAX_FRAMES, description="environment frames, rounded up to whole collector batches")
+    frames: Int = Field(50_000, ge=1, le=MAX_FRAMES,
+                        description="environment frames, rounded up to whole collector batches")
     device: Str = Field("cpu", description="torch device",
                         json_schema_extra=_what("a torch device such as cpu, cuda or cuda:0"))
     threads: Int = Field(1, ge=1, le=MAX_THREADS, description="CPU threads per run")  # small nets are overhead-bound
@@ -183,7 +184,8 @@ def _model() -> type[RunConfig]:
 
 @functools.lru_cache(maxsize=4)
 def _model_at(methods_version: int, learners_version: int) -> type[RunConfig]:
-    fields: dict[str, Any] = {name: (model, Field(default_factory=model)) for name, model in _learner_sections().items()}
+    fields: dict[str, Any] = {name: (model, Field(default_factory=model))
+                              for name, model in _learner_sections().items()}
     options: dict[str, Any] = {}
     owners: dict[str, str] = {}
     for method in METHODS.values():

@@ -27,7 +27,8 @@ __all__ = [
 
 class CollectorConfig(Section):
     num_envs: Int = Field(8, ge=1, le=MAX_BATCH, description="training envs stepped as one batch")
-    frames_per_batch: Int = Field(32, ge=1, le=MAX_BATCH, description="frames per collector batch, a multiple of num_envs")
+    frames_per_batch: Int = Field(32, ge=1, le=MAX_BATCH,
+                                  description="frames per collector batch, a multiple of num_envs")
     init_random_frames: Int = Field(1024, ge=0, le=MAX_FRAMES, description="random-action warm-up frames")
 
     @property

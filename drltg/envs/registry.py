@@ -301,7 +301,8 @@ def register_task(
     both = sorted(set(defaults) & set(fixed or {}))
     if both:
         raise UsageError(f"task {name!r}: {both[0]!r} is given both as an option and as a registration field.")
-    spec = TaskSpec(name, factory, description, dict(defaults), dict(train or {}), potential, returns, dict(fixed or {}))
+    spec = TaskSpec(name, factory, description, dict(defaults), dict(train or {}), potential, returns,
+                    dict(fixed or {}))
     TASKS[name] = spec
     for hook in ON_REGISTER:
         hook(spec)

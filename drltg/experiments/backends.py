@@ -41,7 +41,8 @@ def _die_with_parent(parent: int) -> None:
 def _worker_init(parent: int | None = None, registered: tuple = ((), ())) -> None:
     """One torch thread per run; SIGTERM unwinds the run as in ``drltg train`` (lock released, its
     checkpoint kept), so an interrupted experiment resumes where it stopped; the worker gets SIGTERM when
-    its parent dies, and ignores Ctrl-C's SIGINT, which the parent answers by stopping its workers. ``registered``: the parent's own tasks and methods (:func:`registrations`)."""
+    its parent dies, and ignores Ctrl-C's SIGINT, which the parent answers by stopping its workers.
+    ``registered``: the parent's own tasks and methods (:func:`registrations`)."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     os.environ.setdefault("MKL_NUM_THREADS", "1")
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))

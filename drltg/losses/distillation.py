@@ -12,7 +12,8 @@ with :math:`D` chosen by what the two policies are:
 - both tanh-Gaussian (SAC): :math:`\mathrm{KL}(\pi_T \| \pi_S)`, computed exactly as the KL of their
   Gaussians before the tanh, which it equals because both share the same invertible squashing onto the
   action box (KL is invariant under a bijection);
-- both categorical (discrete SAC): :math:`\mathrm{KL}(\pi_T \| \pi_S) = \sum_a \pi_T(a|s)\log\frac{\pi_T(a|s)}{\pi_S(a|s)}`,
+- both categorical (discrete SAC):
+  :math:`\mathrm{KL}(\pi_T \| \pi_S) = \sum_a \pi_T(a|s)\log\frac{\pi_T(a|s)}{\pi_S(a|s)}`,
   the cross-entropy of the kickstarting paper less the teacher's entropy (a constant for the student);
 - a deterministic student (TD3): :math:`\|\mu_S(s) - \mu_T(s)\|^2`, the teacher's mean (greedy) action;
 - a stochastic student and a deterministic teacher: :math:`-\log\pi_S(\mu_T(s)|s)`.

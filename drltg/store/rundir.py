@@ -15,8 +15,8 @@
     .drltg.lock          pid, host and start time of the process writing the directory, while it runs
 
 Every file is written through a temporary file in the same folder and a rename (:mod:`drltg.store.atomic`),
-so a reader never sees half a file and a failed write leaves the previous version. Experiment and sweep folders are owned
-through the same lock.
+so a reader never sees half a file and a failed write leaves the previous version. Experiment and sweep folders
+are owned through the same lock.
 """
 from __future__ import annotations
 

@@ -129,7 +129,8 @@ def magnitudes(name: str, b: np.ndarray, t: np.ndarray, paired: bool, w: Window,
     order-statistic interval at the coverage ``<name>_median_interval_level`` it holds, at least ``confidence``:
     paired, of the median of the :math:`d_i` (:func:`order_stats.median_interval`), assuming independent pairs only;
     unpaired, of the Hodges-Lehmann shift, the median of every :math:`T_j - B_i` (:func:`order_stats.shift_interval`),
-    assuming independent runs whose sides differ by a shift. Each is left out where it does not exist (no spread; too few pairs for the order statistics)."""
+    assuming independent runs whose sides differ by a shift. Each is left out where it does not exist (no spread;
+    too few pairs for the order statistics)."""
     out: dict = {}
     lo, hi = (float(x) for x in stats.t_interval(b, t, paired=paired, confidence=float(s.confidence)))
     if math.isfinite(lo) and math.isfinite(hi):

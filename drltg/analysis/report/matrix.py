@@ -105,7 +105,8 @@ def cell_aggregates(results: dict, seed: int = 0, confidence: float = 0.95) -> d
 
     if len(results) < 2:
         return None
-    rows = [{"pair": f"{source} -> {target}", "algo": "", "variant": "", "method": "transfer", "per_seed": r["per_seed"],
+    rows = [{"pair": f"{source} -> {target}", "algo": "", "variant": "", "method": "transfer",
+             "per_seed": r["per_seed"],
              "value_range": r["settings"].get("value_range")} for (source, target), r in results.items()]
     entries = sweep_aggregates(rows, seed=seed, confidence=confidence)
     return entries[0] if entries else None
