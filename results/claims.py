@@ -4,7 +4,8 @@
                                          # (--check: change nothing, name the files that differ and exit 1)
 A region pastes drltg's outputs, computing nothing: the headline ``drltg report`` prints for every report under
 the folders named (:func:`drltg.analysis.claims.headline`, each read alone), a table ``drltg sweep`` wrote
-(``summary.md``, ``aggregates.md``), or a table of drltg's registries.
+(``summary.md``, ``aggregates.md``), a table of drltg's registries, or how many of the reports matching a
+pattern give each verdict (:func:`verdicts`), for a sentence that sums them up.
 """
 from __future__ import annotations
 
@@ -27,6 +28,13 @@ def headlines(*folders: str) -> str:
     """One line per report under ``folders`` (their own included): where it is and its headline."""
     paths = [p for f in folders for p in sorted((ROOT / f).glob("**/transfer_metrics.json"))]
     return "".join(f"- `{p.parent.relative_to(ROOT)}`: {headline(json.loads(p.read_text()))}\n" for p in paths)
+
+
+def verdicts(*patterns: str) -> str:
+    """How the reports matching ``patterns`` decide the mean return gain: ``higher in 3 of 3 reports``."""
+    said = [json.loads(p.read_text())["metrics"]["mean_return_gain_verdict"]
+            for pattern in patterns for p in sorted(ROOT.glob(f"{pattern}/transfer_metrics.json"))]
+    return ", ".join(f"{v} in {said.count(v)} of {len(said)} reports" for v in sorted(set(said)))
 
 
 def table(path: str) -> str:
@@ -62,7 +70,11 @@ REGIONS = {
         "grid-table": lambda: table("results/sweep-gridrooms/summary.md"),
         "grid-verdicts": lambda: headlines("results/sweep-gridrooms"),
         "options-table": lambda: table(f"{OPTIONS}/summary.md"),
-        "options-verdicts": lambda: headlines(OPTIONS),
+        "options-k2-table": lambda: table(f"{OPTIONS}-k2/summary.md"),
+        "options-verdicts": lambda: headlines(OPTIONS, f"{OPTIONS}-k2"),
+        "options-head-to-head": lambda: verdicts(f"{OPTIONS}*/head-to-head/*"),
+        "options-near": lambda: verdicts(f"{OPTIONS}*/fourrooms-near/*/model-reuse/report"),
+        "options-far": lambda: verdicts(f"{OPTIONS}*/fourrooms-far/*/model-reuse/report"),
         "lift-variants": lambda: headlines("results/lift-demonstrations-variants"),
         "lift-dense-verdicts": lambda: headlines("results/lift-dense/vs-seed"),
         "lift-demonstrations-table": lambda: table("results/sweep-lift-demonstrations/summary.md"),
@@ -80,7 +92,8 @@ REGIONS = {
     "docs/methods.md": {"methods": methods},
     "docs/results.md": {"results-table": lambda: table(f"{GRADED}/aggregates.md"),
                         "results-verdicts": lambda: headlines(GRADED),
-                        "results-others": lambda: headlines("results/sweep-gridrooms", f"{OPTIONS}/head-to-head"),
+                        "results-others": lambda: headlines("results/sweep-gridrooms", f"{OPTIONS}/head-to-head",
+                                                             f"{OPTIONS}-k2/head-to-head"),
                         "seed-rows": lambda: headlines("results/seed-tasks")},
     "results/seed-tasks/README.md": {"seed-rows": lambda: headlines("results/seed-tasks")},
     "results/manipulation/README.md": {

@@ -103,16 +103,18 @@ def main() -> None:
     parser.add_argument("--threshold", default="0.5")
     args = parser.parse_args()
     folders = [f.resolve() for f in args.folders or [ROOT / "results"]]
+    sweep = args.sweep.resolve() if args.sweep is not None else None
     results = {}
+    os.chdir(ROOT)  # the reports name their runs relative to the repository
+    folders = [f.relative_to(ROOT) if f.is_relative_to(ROOT) else f for f in folders]
     if args.again:
-        os.chdir(ROOT)  # the reports name their runs relative to the repository
         for path in sorted({p for f in folders for p in f.glob("**/transfer_metrics.json")}):
             results[path.parent] = report_again(path)
-            print(f"[{len(results)}] {path.relative_to(ROOT)}", flush=True)
+            print(f"[{len(results)}] {path}", flush=True)
     else:
         root = folders[0]
-        if args.sweep is not None:
-            print(f"kept {keep_curves(args.sweep.resolve(), root, args.only)} runs from {args.sweep}")
+        if sweep is not None:
+            print(f"kept {keep_curves(sweep, root, args.only)} runs from {sweep}")
         threshold = args.threshold if args.threshold.endswith("%") else float(args.threshold)
         for transfer in sorted(root.glob("**/transfer")):
             if (transfer.parent.parent / "baseline").is_dir():
@@ -126,7 +128,7 @@ def main() -> None:
     for md in sorted({m for f in folders for m in f.glob("**/summary.md")}):
         if (md.parent / "summary.csv").exists():
             summarise(md.parent, results)
-            print(f"summary: {md.relative_to(ROOT)}")
+            print(f"summary: {md}")
 
 
 if __name__ == "__main__":
