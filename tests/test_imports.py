@@ -8,7 +8,9 @@ layer import nothing from each other)::
     yaml         drltg.safe_yaml (bounded YAML from files and command lines)
     base         drltg.plugins | drltg.store (a run directory on disk: files, manifest, checkpoints, lock)
     envs         drltg.envs
-    parts        drltg.transforms | drltg.collectors | drltg.losses | drltg.modules
+    modules      drltg.modules (networks, and min_k Q_k of a critic ensemble: what the parts run, as
+                 torchrl.modules sits below torchrl.objectives)
+    parts        drltg.transforms | drltg.collectors | drltg.losses
     config       drltg.config
     learners     drltg.learners
     transfer     drltg.transfer (methods compose parts; a source is rebuilt with a learner)
@@ -38,7 +40,8 @@ LAYERS = [
     ["drltg.plugins", "drltg.store"],
     ["drltg.envs"],
     ["drltg.gymnasium_ids"],
-    ["drltg.transforms", "drltg.collectors", "drltg.losses", "drltg.modules"],
+    ["drltg.modules"],
+    ["drltg.transforms", "drltg.collectors", "drltg.losses"],
     ["drltg.config"],
     ["drltg.learners"],
     ["drltg.transfer"],

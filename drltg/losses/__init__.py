@@ -8,13 +8,11 @@
     distillation           kickstarting: w_f * mean D(pi_T(.|s), pi_S(.|s)) towards a teacher  (distillation)
     KickstartingWeight     w_f, falling linearly or exponentially to 0 over a number of frames
     SuccessorFeatureLoss   psi(s, a) <- phi + gamma (1 - terminated) psi_target(s', pi(s'))  (successor_features)
-    min_over_critics       min_k Q_k of a loss's critic ensemble, without gradients      (critics)
 """
 from drltg.losses.behaviour_cloning import behaviour_cloning, option_labels
-from drltg.losses.critics import min_over_critics
 from drltg.losses.distillation import KickstartingWeight, distillation
 from drltg.losses.soc import SoftOptionCriticLoss
 from drltg.losses.successor_features import SuccessorFeatureLoss
 
 __all__ = ["SoftOptionCriticLoss", "SuccessorFeatureLoss", "behaviour_cloning", "option_labels", "distillation",
-           "KickstartingWeight", "min_over_critics"]
+           "KickstartingWeight"]

@@ -27,8 +27,8 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.envs import ExplorationType, set_exploration_type
 
-from drltg.losses.critics import min_over_critics
 from drltg.losses.terms import LossTerm
+from drltg.modules.critics import min_over_critics
 
 __all__ = ["behaviour_cloning", "BehaviourCloning", "option_labels", "OPTION_PROBS"]
 

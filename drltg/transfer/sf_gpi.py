@@ -116,7 +116,7 @@ def _learner_values(loss):
     """``observation -> min_k Q_k(s, .)``, the live twin critics of a discrete-SAC learner: GPI's own values."""
     from tensordict import TensorDict
 
-    from drltg.losses.critics import min_over_critics
+    from drltg.modules.critics import min_over_critics
 
     def values(observation):
         td = TensorDict({"observation": observation}, batch_size=observation.shape[:-1])

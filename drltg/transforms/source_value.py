@@ -20,7 +20,7 @@ from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.objectives import DiscreteSACLoss, SACLoss, TD3Loss
 
 from drltg.errors import UsageError
-from drltg.losses.critics import min_over_critics
+from drltg.modules.critics import min_over_critics
 
 __all__ = ["SourceValue"]
 
