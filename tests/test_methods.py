@@ -3,6 +3,7 @@ import pytest
 import torch
 import yaml
 from tensordict import TensorDict
+from tensordict.nn import TensorDictModule
 from torchrl.envs import ExplorationType, set_exploration_type
 
 from drltg import config as config_lib
@@ -10,6 +11,7 @@ from drltg.collectors import JumpStart, PolicyReuse
 from drltg.envs import make_env
 from drltg.errors import UsageError
 from drltg.learners import make_agent
+from drltg.modules import min_over_critics
 from drltg.transfer import METHODS, Transfer, get_method
 from drltg.transforms import PotentialShaping, SourceValue
 
@@ -51,6 +53,18 @@ def test_every_method_builds_a_transfer_for_a_run(name, tmp_path):
         "kickstarting": {"loss_terms", "on_frames", "summary"}, "sf-gpi": {"mixer", "summary"},
     }
     assert changed == expected[name]
+
+
+def test_min_over_critics_is_the_elementwise_minimum_without_gradients():
+    """Two linear critics, Q_1(x) = x_0 and Q_2(x) = x_1 + 1: their minimum by hand, and no graph kept."""
+    critic = TensorDictModule(torch.nn.Linear(2, 1), in_keys=["observation"], out_keys=["state_action_value"])
+    params = TensorDict.from_module(critic).expand(2).clone()
+    params["module", "weight"] = torch.tensor([[[1.0, 0.0]], [[0.0, 1.0]]]).requires_grad_()
+    params["module", "bias"] = torch.tensor([[0.0], [1.0]])
+    td = TensorDict({"observation": torch.tensor([[3.0, 5.0], [4.0, -3.0]])}, batch_size=[2])
+    value = min_over_critics(critic, params, td)
+    assert value.tolist() == [[3.0], [-2.0]] and not value.requires_grad
+    assert "state_action_value" not in td.keys()
 
 
 def test_source_value_is_the_smaller_critic_at_the_source_action(tmp_path):
