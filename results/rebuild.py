@@ -102,11 +102,10 @@ def main() -> None:
     parser.add_argument("--only", action="append", default=[])
     parser.add_argument("--threshold", default="0.5")
     args = parser.parse_args()
-    folders = [f.resolve() for f in args.folders or [ROOT / "results"]]
+    folders = [Path(os.path.relpath(f.resolve(), ROOT)) for f in args.folders or [ROOT / "results"]]
     sweep = args.sweep.resolve() if args.sweep is not None else None
-    results = {}
     os.chdir(ROOT)  # the reports name their runs relative to the repository
-    folders = [f.relative_to(ROOT) if f.is_relative_to(ROOT) else f for f in folders]
+    results = {}
     if args.again:
         for path in sorted({p for f in folders for p in f.glob("**/transfer_metrics.json")}):
             results[path.parent] = report_again(path)

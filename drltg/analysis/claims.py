@@ -299,7 +299,6 @@ def headline(report: Mapping, metric: str = "mean_return_gain") -> str:
     where = f"{st['transfer_label']} vs {st['baseline_label']}, {design}, {frames(st['budget'])} frames"
     if m.get(metric) is None:
         return f"Headline ({where}): {label} is not available."
-    seq = st.get("sequential")
-    sequential = seq is not None and metric == "mean_return_gain"
+    sequential = st.get("sequential") is not None and metric == "mean_return_gain"
     said = sequential_verdict(report) if sequential else verdict_of(report, metric)
     return f"Headline ({where}): {label} {said}."
