@@ -69,6 +69,6 @@ def __dir__():
     return sorted([*globals(), *_WHERE])
 
 
-from drltg import gymnasium_ids  # noqa: E402  (registers drltg/<task>-v0 with Gymnasium, once it is imported)
+from drltg import gymnasium_ids  # noqa: E402
 
-gymnasium_ids.install()
+gymnasium_ids.register_ids()  # drltg/<task>-v0 for every task, as a Gymnasium 1.x package registers its ids

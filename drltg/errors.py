@@ -15,6 +15,16 @@ class UsageError(ValueError):
         super().__init__(_CONTROL.sub(lambda m: repr(m.group())[1:-1], str(message)), *args)
 
 
+class ArgumentError(UsageError):
+    """A part's argument that breaks the part's rule, as ``"<argument> <rule>"``: a caller that sets the
+    argument under another name (a config key) says the sentence in its own words from ``argument`` and
+    ``rule``, so the rule is checked once, by the part."""
+
+    def __init__(self, argument: str, rule: str):
+        super().__init__(f"{argument} {rule}")
+        self.argument, self.rule = argument, rule
+
+
 class RunFailed(RuntimeError):
     """A run that ended without a usable result (its losses diverged): one sentence, exit code 1."""
 

@@ -2,10 +2,11 @@
 
 Task ``fourrooms/northeast`` is ``drltg/fourrooms-northeast-v0`` (``/`` becomes ``-``, namespace
 ``drltg``, version 0); its entry points are strings (:mod:`drltg.envs.gymnasium_env`), so registering
-imports neither torch nor the env. Gymnasium 1.x loads no plugins itself, so ``import drltg`` registers
-the ids: at once when Gymnasium is already imported (``gymnasium.make("drltg:drltg/...")`` imports
-``drltg`` after it), else when Gymnasium is imported later, so ``import drltg`` alone stays cheap.
-A task registered afterwards (a plugin) gets its id when it is registered.
+imports neither torch nor the env. Gymnasium 1.x loads no plugins itself (its entry-point plugins were
+removed in 1.0): a package registers its ids when it is imported, as ``ale_py`` does, and so does drltg,
+whose ``__init__`` calls :func:`register_ids` (``gymnasium.make("drltg:drltg/...")`` imports ``drltg``;
+``gymnasium.register_envs(drltg)`` states the import). Nothing waits for a later import: no import hook
+is installed. A task registered afterwards (a plugin) gets its id when it is registered.
 
 Examples:
     >>> import gymnasium, drltg
@@ -15,10 +16,7 @@ Examples:
 """
 from __future__ import annotations
 
-import importlib.abc
-import importlib.util
 import re
-import sys
 import warnings
 from typing import Iterable
 
@@ -73,7 +71,8 @@ def register_ids(tasks: Iterable[str] | None = None) -> list[str]:
 
 def _load_plugins() -> None:
     """The user's plugins (``DRLTG_IMPORT``, entry points), as every drltg command loads them: their tasks
-    get ids too. A plugin that fails is a warning here, not an error inside ``import gymnasium``."""
+    get ids too. A plugin that fails is a warning here, not an error inside ``import drltg`` (a command
+    that loads it says its error)."""
     from drltg import plugins
     from drltg.errors import UsageError
 
@@ -85,40 +84,3 @@ def _load_plugins() -> None:
 
 def _on_register(spec) -> None:
     register_ids([spec.name])
-
-
-class _AfterGymnasiumImport(importlib.abc.MetaPathFinder):
-    """Runs :func:`register_ids` right after ``gymnasium`` finishes importing (once)."""
-
-    searching = False
-
-    def find_spec(self, fullname, path, target=None):
-        # A finder that only looks (torchrl's find_spec("gymnasium")) imports nothing: stay in place
-        # until the module is executed.
-        if fullname != "gymnasium" or self.searching:
-            return None
-        self.searching = True
-        try:
-            spec = importlib.util.find_spec(fullname)
-        finally:
-            self.searching = False
-        if spec is None or spec.loader is None:
-            return spec
-        exec_module = spec.loader.exec_module
-
-        def exec_then_register(module):
-            exec_module(module)
-            if self in sys.meta_path:
-                sys.meta_path.remove(self)
-            register_ids()
-
-        spec.loader.exec_module = exec_then_register
-        return spec
-
-
-def install() -> None:
-    """Registers the ids now if Gymnasium is imported, else when it is (``import drltg`` calls this)."""
-    if "gymnasium" in sys.modules:
-        register_ids()
-    elif not any(isinstance(f, _AfterGymnasiumImport) for f in sys.meta_path):
-        sys.meta_path.insert(0, _AfterGymnasiumImport())

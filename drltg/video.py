@@ -62,10 +62,11 @@ def _policy_and_env(args):
 
     from drltg import config as config_lib
     from drltg.learners import make_agent
+    from drltg.store import networks
     from drltg.training.loop import build_env
     from drltg.transfer.source import check_same_spaces
 
-    cfg = config_lib.updated(config_lib.build(config_lib.load_yaml(config)), {"device": "cpu"})
+    cfg = config_lib.updated(config_lib.build(config_lib.load_yaml(config), saved=True), {"device": "cpu"})
     task = args.task or cfg.task
     env_settings = cfg.env if task == cfg.task else {}  # another task: its own settings
     base = build_env(config_lib.updated(cfg, {"task": task, "env": env_settings}), seed=args.seed)
@@ -73,6 +74,10 @@ def _policy_and_env(args):
         check_same_spaces(build_env(cfg), base, f"run '{run.name}' ({cfg.task})",
                           f"task '{task}'")
     agent = make_agent(base, cfg)
+    reason = networks.mismatch(agent.loss.state_dict(), weights)
+    if reason:
+        raise UsageError(f"the networks of '{run}' do not fit the {cfg.algo} learner its {rundir.CONFIG} describes "
+                         f"({reason}).")
     agent.loss.load_state_dict(weights)
     env = TransformedEnv(base)
     for transform in agent.env_transforms:

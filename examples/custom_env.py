@@ -61,7 +61,9 @@ class OpenRoom(EnvBase):
         self.rng.manual_seed(seed if seed is not None else torch.seed())
 
 
-# 1. Register two tasks (same env, two goals) and a pair. `train=` holds per-task config defaults.
+# 1. Register two tasks (same env, two goals) and a pair. `train=` holds per-task config defaults: small nets,
+# and an entropy temperature of 0.01, since at SAC's default 1.0 the entropy bonus outweighs the goal's sparse
+# reward of 1 and nothing is learned (docs/extending.md, "Which defaults matter").
 small = {"network": {"hidden": [64, 64]}, "sac": {"alpha_init": 0.01}}
 register_task("openroom/ne", OpenRoom, "open room, goal (0.8, 0.8)", goal=(0.8, 0.8), train=small)
 register_task("openroom/nw", OpenRoom, "open room, goal (0.2, 0.8)", goal=(0.2, 0.8), train=small)

@@ -52,7 +52,7 @@ agent = make_agent(env, cfg)
 demo_buffer = demonstration_buffer(demos, agent.loss.in_keys)
 buffer = ReplayBuffer(storage=LazyTensorStorage(cfg.frames), batch_size=cfg.buffer.batch_size)
 k = round(ratio * buffer.batch_size)
-update = UpdateStep(agent, loss_terms=behaviour_cloning(agent.loss, k, weight=10.0))
+update = UpdateStep(agent, loss_terms=behaviour_cloning(agent.loss, k, weight=1.0, q_filter=True, alpha=2.5))
 fpb = cfg.collector.frames_per_batch
 warmup = min(cfg.collector.init_random_frames, cfg.frames // 4 // fpb * fpb)
 collector = Collector(env, agent.policy, frames_per_batch=fpb, total_frames=cfg.frames, init_random_frames=warmup,

@@ -4,8 +4,8 @@
                                          # (--check: change nothing, name the files that differ and exit 1)
 A region pastes drltg's outputs, computing nothing: the headline ``drltg report`` prints for every report under
 the folders named (:func:`drltg.analysis.claims.headline`, each read alone), a table ``drltg sweep`` wrote
-(``summary.md``, ``aggregates.md``), a table of drltg's registries, or how many of the reports matching a
-pattern give each verdict (:func:`verdicts`), for a sentence that sums them up.
+(``summary.md``, ``aggregates.md``), a benchmark's result, a table of drltg's registries, or how many of the reports
+matching a pattern give each verdict (:func:`verdicts`), for a sentence that sums them up.
 """
 from __future__ import annotations
 
@@ -54,16 +54,47 @@ def tasks(kind: str) -> str:
             + "\n" + render([("pair", "source → target", "description")] + pairs, "markdown"))
 
 
+def demo_plan() -> str:
+    """What ``drltg demo`` trains, from its own settings (:data:`drltg.cli.demo.DEMO`) and the runs it plans."""
+    from drltg.cli.demo import DEMO, plan
+
+    (_, source, _), (_, target, _), *_ = plan(Path("runs/demo"))
+
+    def k(frames: int) -> str:
+        return f"{frames / 1000:g}k"
+
+    return (f"`drltg demo`: {DEMO['algo'].upper()} learns `{source.task}` once (one source run, {k(source.frames)} "
+            f"frames, evaluated every {k(source.eval.interval(source.frames))}); then `{target.task}` is learnt for "
+            f"{k(target.frames)} frames from scratch and from that source's weights ({DEMO['method'].replace('-', ' ')})"
+            f" on {DEMO['seeds']} paired seeds, evaluated every {k(target.eval.interval(target.frames))} frames on "
+            f"{target.eval.episodes} episodes.")
+
+
 def methods() -> str:
     kinds = {None: "—", "run": "a run", "policy": "a run or `demonstrator:TASK`"}
     return render([("`transfer.method`", "source", "what it is")] + [
         (f"`{n}`", kinds[m.source], m.help) for n, m in config.METHODS.items()], "markdown")
 
 
+def sf_psi() -> str:
+    """``benchmarks/sf_psi_result.json`` as a table: per source, psi's agreement with the Monte Carlo return
+    (correlation) after 2,000 TD steps, 20,000 and the last, and where the opt-in plateau rule stops."""
+    result = json.loads((ROOT / "benchmarks" / "sf_psi_result.json").read_text())
+    last = result["steps"]
+    rows = [("source", "2,000 steps", "20,000 steps", f"{last:,} steps", "plateau rule stops at (correlation there)")]
+    for run in result["runs"]:
+        stop = run["at_stop"]
+        rows.append((f"`{Path(run['source']).name}`", f"{run['at_2000']['corr']:.2f}", f"{run['at_20000']['corr']:.2f}",
+                     f"{run['at_last']['corr']:.2f}",
+                     f"{run['rule_stops_at']:,} ({stop['corr']:.2f})" if stop else f"not within {last:,}"))
+    return render(rows, "markdown")
+
+
 BOARD = {f"bench-{f}": lambda f=f: table(f"{BENCH}/board/{f}.md") for f in ("ranking", "pairs")}
 REGIONS = {
     "README.md": {"demo": lambda: headlines("results/demo/report")},
     "results/README.md": {
+        "demo-plan": demo_plan,
         "demo": lambda: headlines("results/demo/report"),
         "graded-table": lambda: table(f"{GRADED}/summary.md"),
         "graded-verdicts": lambda: headlines(GRADED),
@@ -89,7 +120,7 @@ REGIONS = {
                       "lift-summary": lambda: headlines("results/sweep-lift-demonstrations/lift/sac/demonstrations",
                                                         "results/sweep-lift-to-place", "results/lift-dense/vs-seed")},
     "docs/training.md": {"config": config.describe},
-    "docs/methods.md": {"methods": methods},
+    "docs/methods.md": {"methods": methods, "sf-psi": sf_psi},
     "docs/results.md": {"results-table": lambda: table(f"{GRADED}/aggregates.md"),
                         "results-verdicts": lambda: headlines(GRADED),
                         "results-others": lambda: headlines("results/sweep-gridrooms", f"{OPTIONS}/head-to-head",

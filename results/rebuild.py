@@ -91,7 +91,7 @@ def summarise(folder: Path, results: dict[Path, dict]) -> None:
                      "per_seed": result["per_seed"], "value_range": result["settings"].get("value_range")})
     csv_text, md_text = summary_tables(rows)
     rundir.write_files(folder, {"summary.csv": csv_text.encode(), "summary.md": md_text.encode(),
-                                "transfer_matrix.png": plot_transfer_matrix(rows), **summary_aggregates(rows)})
+                                **plot_transfer_matrix(rows), **summary_aggregates(rows)})
 
 
 def main() -> None:

@@ -1,4 +1,5 @@
-"""checkpoint.keep_best (checkpoints/best.pt), `drltg evaluate` and transfer.source_checkpoint.
+"""The best networks (checkpoints/best.safetensors; with checkpoint.keep_best also best.pt), `drltg evaluate` and
+transfer.source_checkpoint.
 
 The evaluations are scripted (``AgentLearner.evaluate`` returns chosen scores by frame), so the frame
 best.pt must come from is known; the weights at each evaluation are recorded to compare with it.
@@ -117,16 +118,66 @@ def test_best_pt_is_the_checkpoint_of_the_first_highest_evaluation(tmp_path, mon
     assert not same(saved["loss"], load(run, "last")["loss"])  # trained on after it
     assert set(saved) == set(load(run, "last"))  # the same content as last.pt
     summary = json.loads((run / "summary.json").read_text())
-    assert summary["best"] == {"checkpoint": "checkpoints/best.pt", "frames": best[-1], "metric": metric,
-                               "score": results[best[-1]][metric]}
+    assert summary["best"] == {"networks": "checkpoints/best.safetensors", "checkpoint": "checkpoints/best.pt",
+                               "frames": best[-1], "metric": metric, "score": results[best[-1]][metric]}
     rundir.manifest.verify(run, "checkpoints/best.pt")
 
 
-def test_without_keep_best_there_is_no_best_pt(tmp_path, monkeypatch):
-    script(monkeypatch, rows({0: 0.0, 256: 0.5, 512: 0.25}))
-    run = train(keep_best_cfg("checkpoint.keep_best=false", frames=512), tmp_path / "run", progress=False)
+def test_by_default_the_best_is_kept_as_its_networks_alone(tmp_path, monkeypatch, capsys):
+    """checkpoint.keep_best's default (false) keeps no best.pt, but the networks of the best evaluation, which
+    ``drltg evaluate --checkpoint best`` reads: the run saves the same checkpoints as with keep_best."""
+    weights = script(monkeypatch, rows({0: 0.0, 256: 0.5, 512: 0.25}))
+    saves = record_saves(monkeypatch)
+    cfg = config_lib.resolve({}, TINY, task="fourrooms/northeast", frames=512, seed=3)
+    assert cfg.checkpoint.keep_best is False
+    run = train(cfg, tmp_path / "run", progress=False)
     assert not (run / "checkpoints" / "best.pt").exists()
-    assert "best" not in json.loads((run / "summary.json").read_text())
+    assert saves == [("last.pt", 256), ("last.pt", 512), ("last.pt", 512)]  # at the new best, then as always
+    saved, info = rundir.load_networks(run, "best")
+    assert info["frames"] == 256 and same(saved, weights[256])
+    assert json.loads((run / "summary.json").read_text())["best"] == {
+        "networks": "checkpoints/best.safetensors", "frames": 256, "metric": "success_rate", "score": 0.5}
+    rundir.manifest.verify(run, "checkpoints/best.safetensors")
+    monkeypatch.undo()
+    out = tmp_path / "e.json"
+    assert main(["evaluate", str(run), "--checkpoint", "best", "--episodes", "2", "--out", str(out)]) == 0
+    result = json.loads(out.read_text())
+    assert (result["checkpoint"], result["frames"]) == ("best", 256)
+
+
+def test_a_stop_between_last_pt_and_the_best_networks_is_repaired_on_resume(tmp_path, monkeypatch):
+    weights = script(monkeypatch, rows({0: 0.0, 256: 0.25, 512: 0.5, 768: 0.5, 1024: 0.0}))
+    real = rundir.write_tracked
+    cfg = config_lib.resolve({}, TINY, task="fourrooms/northeast", frames=1024, seed=3)
+
+    def stop_before_best(run_dir, name, data):
+        if name == "checkpoints/best.safetensors" and networks.header(data, Path(name))["frames"] == 512:
+            raise KeyboardInterrupt
+        return real(run_dir, name, data)
+
+    monkeypatch.setattr(rundir, "write_tracked", stop_before_best)
+    with pytest.raises(KeyboardInterrupt):
+        train(cfg, tmp_path / "run", progress=False)
+    assert networks.read_header(tmp_path / "run", "best")["frames"] == 256
+    assert load(tmp_path / "run", "last")["frames"] == 512
+    monkeypatch.setattr(rundir, "write_tracked", real)
+    run = train(cfg, tmp_path / "run", resume=True, progress=False)
+    saved, info = rundir.load_networks(run, "best")
+    assert info["frames"] == 512 and same(saved, weights[512])
+    assert json.loads((run / "summary.json").read_text())["best"]["frames"] == 512
+
+
+def test_a_resume_without_the_best_networks_is_refused_in_one_sentence(tmp_path, monkeypatch, capsys):
+    script(monkeypatch, rows(SUCCESS), stop_at=768)
+    cfg = config_lib.resolve({}, TINY, task="fourrooms/northeast", frames=1024, seed=3)
+    with pytest.raises(KeyboardInterrupt):
+        train(cfg, tmp_path / "run", progress=False)
+    (tmp_path / "run" / "checkpoints" / "best.safetensors").unlink()
+    assert main(["train", "--resume", "--run-dir", str(tmp_path / "run"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert ("checkpoints/best.safetensors is missing, not those of its best evaluation (frame 256, success_rate "
+            "0.5)") in err
 
 
 def test_a_resumed_run_knows_the_best_score_so_far(tmp_path, monkeypatch):
@@ -290,7 +341,8 @@ def test_the_rate_interval_is_clopper_pearson(k, n, expected):
 
 @pytest.mark.parametrize("args, message", [
     (["evaluate", "{tmp}/missing"], "run directory '{tmp}/missing' does not exist."),
-    (["evaluate", "{tmp}", "--checkpoint", "best"], "holds no checkpoints/best.pt: only a run trained with"),
+    (["evaluate", "{tmp}", "--checkpoint", "best"], "holds no best networks (checkpoints/best.safetensors, nor "
+                                                    "checkpoints/best.pt): a run keeps them from its first evaluation"),
     (["evaluate", "{run}", "--episodes", "0"], "--episodes must be between 1 and 10000, got 0."),
     (["evaluate", "{run}", "--seed", "-1"], "--seed must be an integer in [0, 2147483647], got -1."),
     (["evaluate", "{run}/eval.csv"], "eval.csv' is a file, not a directory"),
@@ -366,7 +418,7 @@ def test_a_source_without_best_pt_is_one_sentence(trained, tmp_path, capsys):
                  "-o", f"transfer.source={src}", "-o", "transfer.source_checkpoint=best"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1, err
-    assert f"transfer.source_checkpoint=best: '{src}' holds no checkpoints/best.pt" in err
+    assert f"transfer.source_checkpoint=best: '{src}' holds no best networks (checkpoints/best.safetensors" in err
     assert not (tmp_path / "t").exists()
     cfg = config_lib.resolve({}, ["transfer.method=policy-reuse", "transfer.source=demonstrator:lift",
                                   "transfer.source_checkpoint=best"], task="fourrooms/northeast")
@@ -414,8 +466,9 @@ def test_a_run_says_how_it_went_and_names_a_collapse():
     final, warning = outcome(cfg, rows)
     assert final == "final evaluation: success rate 0.06 at frame 20,000; best: 0.81 at frame 10,000"
     assert warning == ("warning: the run collapsed: its success rate fell from 0.81 at frame 10,000 to 0.06 (frame "
-                       "20,000 average 0.06); the last checkpoint holds the collapsed policy, train with -o "
-                       "checkpoint.keep_best=true to keep the best policy as checkpoints/best.pt.")
+                       "20,000 average 0.06); the last checkpoint holds the collapsed policy, "
+                       "checkpoints/best.safetensors keeps the best policy's networks (drltg evaluate RUN "
+                       "--checkpoint best).")
     rows[-1]["success_rate"] = 0.7  # a dip, not a collapse: 0.11 below the best of a 0.81 range
     assert len(outcome(cfg, rows)) == 1
     rising = [{"frames": f, "return_mean": float(f)} for f in range(0, 5)]

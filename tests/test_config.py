@@ -220,6 +220,15 @@ def test_valid_edge_values_pass():
     assert cfg.transfer.partial is True and cfg.transfer.allow_incomplete is True
 
 
+@pytest.mark.parametrize("frames, every", [(20_000, 1000), (30_000, 1000), (40_000, 2000), (99_000, 2000),
+                                           (100_000, 5000), (1_000_000, 50_000), (2_500_000, 100_000), (19, 1)])
+def test_eval_every_auto_gives_at_least_20_evaluations_at_round_frames(frames, every):
+    cfg = config_lib.resolve(None, [], task="fourrooms/northeast")
+    assert cfg.eval.every == "auto" and cfg.eval.interval(frames) == every
+    assert 20 <= frames // every <= 50 or every == 1
+    assert _resolve("eval.every=3000").eval.interval(frames) == 3000  # a number is kept as given
+
+
 def test_override_parsing_is_unchanged_for_valid_values():
     cfg = _resolve("optim.lr=1e-3", "frames=1e4", "env.horizon=1e3", "env.goal=[8, 7]", "eval.every=2000.0")
     assert cfg.optim.lr == 0.001
@@ -443,6 +452,59 @@ def test_each_builtin_method_owns_its_options_model_and_the_config_holds_them_al
     assert owners["psi"] == "policy-reuse" and defaults["psi"] == 1.0 and defaults["freeze"] == []
 
 
+def test_the_run_config_is_one_static_model_whose_open_parts_their_owners_check():
+    """No model is assembled at run time: every config is a RunConfig, pickled as its values and read back
+    without the registries; a method's option is checked by its method's model, on build and on assignment,
+    and a refused assignment leaves the config as it was."""
+    import pickle
+
+    from drltg.config import run as config_run
+
+    cfg = config_lib.resolve(overrides=["transfer.method=policy-reuse", "transfer.psi=0.5"])
+    assert type(cfg) is config_lib.RunConfig and type(cfg.transfer) is config_lib.TransferConfig
+    assert not hasattr(config_lib, "_model") and not hasattr(config_run, "_model_at")
+    assert pickle.loads(pickle.dumps(cfg)) == cfg
+    cfg.transfer.psi = 0.25
+    with pytest.raises(UsageError, match=r"^config key 'transfer.psi' must be a number in \[0, 1\], got 3\.$"):
+        cfg.transfer.psi = 3
+    with pytest.raises(UsageError, match=r"^unknown config key 'transfer.psy'; did you mean 'transfer.psi'\?$"):
+        cfg.transfer.psy = 0.1
+    assert cfg.transfer.psi == 0.25 and "psy" not in cfg.model_dump()["transfer"]
+    assert config_lib.updated(cfg, {"transfer.upsilon": 0.5}).transfer.upsilon == 0.5
+
+
+def test_pi_reuse_s_annealing_rule_is_the_schedule_s_said_as_config_keys():
+    """The rule lives in PiReuse (the part); the method says the part's sentence in config keys."""
+    from drltg.collectors import PiReuse
+    from drltg.errors import ArgumentError
+
+    with pytest.raises(ArgumentError, match=r"^psi_end needs annealing_frames > 0") as raised:
+        PiReuse(1.0, 0.9, psi_end=0.1)
+    assert raised.value.argument == "psi_end"
+    with pytest.raises(UsageError, match=r"^config key 'transfer.psi_end' needs annealing_frames > 0, the frames over "
+                                         r"which psi decays\.$"):
+        config_lib.resolve(overrides=["transfer.method=policy-reuse", "transfer.psi_end=0.1"])
+    assert config_lib.resolve(overrides=["transfer.method=policy-reuse", "transfer.psi_end=0.1",
+                                         "transfer.annealing_frames=100"]).transfer.psi_end == 0.1
+
+
+def test_a_key_that_came_with_a_new_default_reads_as_the_old_behaviour_where_a_saved_config_lacks_it():
+    """jumpstart's guide_curriculum came with JSRL's return-driven curriculum as its default; a run saved before
+    the key existed ran on the clock: its config reads back as ``frames``, and comparing it with today's
+    default says the key differs (a resume is refused, a report's pairing names it) instead of passing it."""
+    from drltg.config import config_changes
+
+    new = config_lib.resolve(overrides=["transfer.method=jumpstart"]).model_dump()
+    old = {**new, "transfer": {k: v for k, v in new["transfer"].items()
+                               if k not in ("guide_curriculum", "bc_alpha", "sf_epsilon")}}
+    assert config_lib.build(old, saved=True).transfer.guide_curriculum == "frames"
+    assert config_lib.build(old).transfer.guide_curriculum == "return"  # a file a user writes: today's default
+    assert config_lib.build(old, saved=True).transfer.bc_alpha is None
+    assert config_changes(old, new) == ["transfer.guide_curriculum"]  # bc_alpha, sf_epsilon: methods not used
+    clock = config_lib.resolve(overrides=["transfer.method=jumpstart", "transfer.guide_curriculum=frames"])
+    assert config_changes(old, clock) == []
+
+
 def test_config_changes_without_the_task_registry():
     """env_defaults=False (the analysis): an env key only one config sets is not compared, one both set is;
     a built-in method's option an older config lacks stands for its default."""
@@ -455,10 +517,10 @@ def test_config_changes_without_the_task_registry():
     assert env_keys_set_once(old, full) == sorted(f"env.{k}" for k in full["env"])
     assert config_changes({k: v for k, v in full.items() if k != "env"}, full, env_defaults=False) == []
     changed = {**full, "env": {**full["env"], "horizon": 60},
-               "transfer": {**full["transfer"], "bc_weight": 1.0}}
+               "transfer": {**full["transfer"], "bc_weight": 3.0}}
     assert config_changes(full, changed, env_defaults=False) == ["env.horizon", "transfer.bc_weight"]
     assert config_changes({**old, "transfer": {**old["transfer"]}}, {**old, "transfer": {
-        **old["transfer"], "bc_weight": 1.0}}, env_defaults=False) == ["transfer.bc_weight"]
+        **old["transfer"], "bc_weight": 3.0}}, env_defaults=False) == ["transfer.bc_weight"]
 
 
 ORDERS = [("optim.lr=0.5", "optim={lr: 0.1}", "optim.lr"), ("env.horizon=50", "env={horizon: 60}", "env.horizon")]
@@ -508,23 +570,18 @@ def test_cli_refuses_the_same_override_twice_with_exit_2(tmp_path, capsys):
     assert not run_dir.exists()
 
 
-def test_env_options_read_from_source_are_those_of_the_imported_signature():
-    import inspect
-
+def test_declared_env_options_are_those_of_the_imported_signature():
+    """A task that declares its options at register_task (so a config is checked without importing the env)
+    declares the keywords and defaults of its factory's signature, and no others."""
     from drltg.envs import registry
 
-    read = {}
-    for spec in list(TASKS.values()):
-        if isinstance(spec.entry, str) and spec.entry not in read:
-            read[spec.entry] = registry._read_keywords(spec.entry)
-            if read[spec.entry] is not None:
-                factory = spec.factory
-                params = inspect.signature(factory.__init__ if inspect.isclass(factory) else factory).parameters
-                declared = {n: p.default for n, p in params.items()
-                            if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY) and n != "self"}
-                assert read[spec.entry] == declared
-    assert read["drltg.envs.fourrooms:FourRoomsEnv"] is not None and read["drltg.envs.gridrooms:GridFourRoomsEnv"]
-    assert read["drltg.envs.robosuite.env:robosuite_task"] is None  # its __signature__ is built: imported instead
+    declared = [spec for spec in TASKS.values() if spec.options is not None]
+    assert {spec.entry for spec in declared} >= {"drltg.envs.fourrooms:FourRoomsEnv",
+                                                 "drltg.envs.gridrooms:GridFourRoomsEnv"}
+    for spec in declared:
+        signature = {k: v for k, v in registry._signature_keywords(spec.factory).items()
+                     if k not in registry.BUILD_KEYWORDS}
+        assert spec.options == signature, spec.name
 
 
 def test_the_entry_points_take_a_mapping_resolved_as_a_config_file():
@@ -547,7 +604,7 @@ def test_every_committed_run_config_loads_as_it_was_written():
     assert len(paths) > 100
     for path in paths:
         saved = config_lib.load_yaml(path)
-        assert config_lib.config_changes(saved, config_lib.build(saved), env_defaults=False) == [], path
+        assert config_lib.config_changes(saved, config_lib.build(saved, saved=True), env_defaults=False) == [], path
 
 
 def test_a_methods_plain_types_read_values_as_the_builtin_keys(registries):

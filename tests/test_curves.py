@@ -133,6 +133,22 @@ def test_sb3_monitor_files_merge_by_wall_time(tmp_path):
     np.testing.assert_array_equal(one.frames, [50])
 
 
+def test_monitor_files_of_several_runs_in_one_folder_are_refused_or_read_as_runs(tmp_path):
+    """Three seeds' monitor files in one folder were merged into one run, silently: now the folder is one
+    sentence, and its files given as a pattern are three runs."""
+    side = tmp_path / "baseline"
+    side.mkdir()
+    head = '#{"t_start": 1.0, "env_id": "Lift"}\nr,l,t\n'
+    for seed in range(3):
+        (side / f"seed{seed}.monitor.csv").write_text(head + f"{seed}.0,100,0.5\n")
+    with pytest.raises(UsageError) as err:
+        read_curves(side)
+    assert str(err.value).startswith(f"'{side}' holds 3 monitor files (seed0.monitor.csv, seed1.monitor.csv, "
+                                     "seed2.monitor.csv) not named as one run's environments")
+    curves = read_curves(str(side / "*monitor.csv"))
+    assert [c.values.tolist() for c in curves] == [[0.0], [1.0], [2.0]]
+
+
 # ------------------------------------------------------------------------------------- bad inputs
 def _bad(tmp_path, text: str, name: str = "eval.csv") -> Path:
     run = tmp_path / "bad"

@@ -36,3 +36,16 @@ def test_the_demo_trains_its_baselines_and_its_transfer_runs_as_two_seed_groups(
     units = seed_groups(as_runs(demo.plan(tmp_path), tmp_path))
     assert [[r.role for r in unit] for unit in units] == [["source"], ["baseline"] * demo.DEMO["seeds"],
                                                           ["transfer"] * demo.DEMO["seeds"]]
+
+
+def test_the_committed_demo_is_the_one_this_code_runs_and_its_readme_says_so():
+    """results/demo/ holds the runs of drltg demo's settings, and results/README.md describes them from those
+    settings (results/claims.py's demo-plan region): 40k source frames evaluated every 5k, 20k target frames."""
+    import yaml
+
+    root = Path(__file__).resolve().parents[1]
+    assert yaml.safe_load((root / "results" / "demo" / "demo.yaml").read_text()) == demo.DEMO
+    readme = (root / "results" / "README.md").read_text()
+    assert ("`drltg demo`: SAC learns `fourrooms/northeast` once (one source run, 40k frames, evaluated every 5k); "
+            "then `fourrooms/northeast-shifted` is learnt for 20k frames from scratch and from that source's weights "
+            "(model reuse) on 10 paired seeds, evaluated every 1k frames on 16 episodes.") in readme

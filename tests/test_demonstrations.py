@@ -431,3 +431,69 @@ def test_each_batch_credits_its_demonstrations_with_the_networks_of_its_own_upda
     prefer(0)
     second = next(batches)
     assert first["option"][:k].eq(1).all() and second["option"][:k].eq(0).all()
+
+
+def _one_option_loss(u, v, b):
+    """K = 1 (SAC's terms exactly), one linear layer per network: mu = tanh(0) = (0, 0) at every state, and
+    Q(s, a) = u . s + v . a + b."""
+    obs = len(u)
+    actor = make_option_actor(SPEC2, 1, (), in_features=obs)
+    with torch.no_grad():
+        linear = actor.module[0].module.net[0]
+        linear.weight.zero_()
+        linear.bias.zero_()
+    loss = SoftOptionCriticLoss(actor, make_option_qvalue(1, (), in_features=obs + 2),
+                                make_termination(1, (), in_features=obs), num_options=1, alpha_init=1e-9,
+                                fixed_alpha=True)
+    for params in (loss.qvalue_network_params, loss.target_qvalue_network_params):
+        weight, bias = params.values(True, True)
+        weight.data.copy_(torch.tensor([*u, *v]).expand_as(weight))
+        bias.data.fill_(b)
+    return loss
+
+
+def _demos(observations, actions):
+    n = len(actions)
+    return TensorDict({"observation": torch.tensor(observations), "action": torch.tensor(actions),
+                       "option": torch.zeros(n, 1, dtype=torch.int64)}, [n])
+
+
+def test_the_q_filter_keeps_exactly_the_demonstrations_the_critic_rates_above_the_actor():
+    """Q(s, a) = a_0 - a_1 + 0.5 and mu = (0, 0), so Q(s, mu) = 0.5: the demonstrated actions' values are
+    0.8, 0.0, 1.2 and 0.5, the mask (strictly above) 1, 0, 1, 0; the squared errors ||a||^2 are 0.17, 0.13, 0.29,
+    0.02, so the filtered term is w (0.17 + 0.29) / 4 and the plain one w (0.17 + 0.13 + 0.29 + 0.02) / 4."""
+    loss = _one_option_loss(u=[0.0, 0.0, 0.0], v=[1.0, -1.0], b=0.5)
+    batch = _demos([[0.0, 0.0, 0.0]] * 4, [[0.4, 0.1], [-0.3, 0.2], [0.2, -0.5], [0.1, 0.1]])
+    filtered = behaviour_cloning(loss, 4, 2.0, q_filter=True)(batch)
+    assert filtered["loss_actor_bc"].item() == pytest.approx(2.0 * (0.17 + 0.29) / 4, rel=1e-6)
+    assert filtered["bc_accepted"].item() == 0.5
+    plain = behaviour_cloning(loss, 4, 2.0, q_filter=False)(batch)
+    assert plain["loss_actor_bc"].item() == pytest.approx(2.0 * (0.17 + 0.13 + 0.29 + 0.02) / 4, rel=1e-6)
+    assert plain["bc_accepted"].item() == 1.0
+
+
+def test_the_cloning_weight_is_scaled_by_one_over_td3_bc_lambda():
+    """Q(s, a) = s_0 - 1 at the actor's action mu = (0, 0): at s_0 = 2, -2, 1.5, 3.5 it is 1, -3, 0.5, 2.5, so
+    mean|Q| = 1.75 and, with alpha = 3.5, lambda = alpha / mean|Q| = 2: the term is w / 2 times the squared error."""
+    loss = _one_option_loss(u=[1.0, 0.0, 0.0], v=[0.0, 0.0], b=-1.0)
+    actions = [[0.4, 0.1], [-0.3, 0.2], [0.2, -0.5], [0.1, 0.1]]
+    batch = _demos([[2.0, 0, 0], [-2.0, 0, 0], [1.5, 0, 0], [3.5, 0, 0]], actions)
+    out = behaviour_cloning(loss, 4, 3.0, alpha=3.5)(batch)
+    assert out["bc_scale"].item() == pytest.approx(1 / 2, rel=1e-6)
+    assert out["loss_actor_bc"].item() == pytest.approx(3.0 / 2 * (0.17 + 0.13 + 0.29 + 0.02) / 4, rel=1e-6)
+    doubled = batch.clone()
+    doubled["observation"] = 2 * doubled["observation"]  # Q(s, mu) = 3, -5, 2, 6: mean|Q| = 4, lambda = 0.875
+    assert behaviour_cloning(loss, 4, 3.0, alpha=3.5)(doubled)["bc_scale"].item() == pytest.approx(4 / 3.5, rel=1e-6)
+    with pytest.raises(ValueError, match="alpha must be > 0"):
+        behaviour_cloning(loss, 4, 3.0, alpha=0.0)
+
+
+def test_the_method_clones_q_filtered_at_td3_bc_scale_by_default(source_run):
+    from drltg.transfer import get_method
+
+    cfg = config_lib.resolve({}, TINY + [f"transfer.source={source_run}", "transfer.method=demonstrations",
+                                         "transfer.demo_episodes=1"], task="fourrooms/northeast-shifted")
+    assert (cfg.transfer.bc_q_filter, cfg.transfer.bc_alpha, cfg.transfer.bc_weight) == (True, 2.5, 1.0)
+    env = make_env("fourrooms/northeast-shifted", batch_size=(4,), horizon=20)
+    term = get_method("demonstrations").build(cfg, make_agent(env, cfg), env, resuming=False).loss_terms
+    assert (term.q_filter, term.alpha) == (True, 2.5)

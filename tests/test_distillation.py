@@ -88,6 +88,14 @@ def test_weight_schedule(decay, frames, expected):
     assert KickstartingWeight(2.0, 100, decay)(frames) == pytest.approx(expected, rel=1e-12)
 
 
+def test_an_exponential_weight_reaches_its_floor_at_frames():
+    """floor 0.25 over F = 100: lambda_0 0.25^(f/100), so 2 * 0.5 at f = 50 and 2 * 0.25^0.75 at f = 75."""
+    weight = KickstartingWeight(2.0, 100, "exponential", floor=0.25)
+    assert [weight(f) for f in (0, 50, 75, 100)] == pytest.approx([2.0, 1.0, 2.0 * 0.25 ** 0.75, 0.0], rel=1e-12)
+    with pytest.raises(ValueError, match="floor must lie in"):
+        KickstartingWeight(1.0, 10, "exponential", floor=0.0)
+
+
 def test_a_weight_without_frames_is_constant_and_bad_schedules_are_refused():
     assert KickstartingWeight(0.5, 0)(10**9) == 0.5
     with pytest.raises(ValueError, match="decay"):

@@ -48,3 +48,26 @@ def test_the_readme_is_short_and_its_example_is_the_methods_page_one():
 def test_the_readme_links_to_every_page():
     readme = (ROOT / "README.md").read_text()
     assert [p for p in NAV if f"(docs/{p})" not in readme] == []
+
+
+def test_the_custom_task_docs_state_the_settings_the_built_in_tasks_carry():
+    """docs/extending.md's table of the defaults that matter quotes drltg/envs/tasks.py; the plugin example sets
+    the entropy temperature the docs tell a sparse task to set."""
+    import ast
+
+    from drltg.envs import tasks
+
+    source = ast.parse((ROOT / "examples" / "plugin" / "drltg_example_plugin" / "__init__.py").read_text())
+    plugin_train = next(ast.literal_eval(node.value) for node in source.body  # read, not imported: it registers
+                        if isinstance(node, ast.Assign) and [t.id for t in node.targets] == ["TRAIN"])
+    row = {line.split("|")[1].strip(" `"): line for line in (ROOT / "docs" / "extending.md").read_text().splitlines()
+           if line.startswith("| `")}
+    assert f"0.01 (`ROOMS_TRAIN`)" in row["sac.alpha_init"] and tasks.ROOMS_TRAIN["sac"]["alpha_init"] == 0.01
+    assert tasks.GRID_TRAIN["sac"]["fixed_alpha"] is True and "`sac.fixed_alpha=true`" in row["sac.alpha_init"]
+    assert plugin_train["sac"]["alpha_init"] == 0.01
+    assert tasks.ROOMS_TRAIN["network"]["hidden"] == tasks.PENDULUM_TRAIN["network"]["hidden"] == [64, 64]
+    robosuite, pendulum = tasks.ROBOSUITE_TRAIN, tasks.PENDULUM_TRAIN
+    assert f"robosuite {robosuite['collector']['init_random_frames']:,}, Pendulum " \
+           f"{pendulum['collector']['init_random_frames']:,}" in row["collector.init_random_frames"]
+    assert f"robosuite {robosuite['buffer']['size']:,}" in row["buffer.size"]
+    assert f"robosuite {robosuite['eval']['every']:,}, Pendulum {pendulum['eval']['every']:,}" in row["eval.every"]

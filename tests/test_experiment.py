@@ -1,4 +1,5 @@
 """`drltg experiment`: source, baseline and transfer runs over seeds, then the report."""
+import argparse
 import json
 import os
 import shutil
@@ -8,6 +9,7 @@ import pytest
 import yaml
 
 from drltg.cli import main
+from drltg.errors import UsageError
 
 TINY = ["-o", "network.hidden=[16,16]", "-o", "collector.num_envs=4", "-o", "collector.frames_per_batch=16",
         "-o", "collector.init_random_frames=128", "-o", "optim.updates_per_batch=1",
@@ -50,7 +52,10 @@ def test_the_experiment_prints_the_warnings_its_report_prints(experiment, tmp_pa
     said = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning:")]
     assert main(["report", "--baseline", str(out / "baseline"), "--transfer", str(out / "transfer"),
                  "--threshold", "0", "--out", str(tmp_path / "rep")]) == 0
-    assert said and said == [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning:")]
+    reported = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning:")]
+    sources = [line for line in said if "source run(s) never succeeded" in line]  # the experiment knows its sources
+    assert said and [line for line in said if line not in sources] == reported
+    assert all(line.startswith("warning: 1 source run(s) never succeeded in any evaluation (") for line in sources)
 
 
 def test_the_python_function_is_the_command(experiment, capsys):
@@ -86,6 +91,18 @@ def test_a_moved_experiment_finds_its_sources_and_reuses_its_runs(experiment, tm
     assert rundir.read_config(moved / "transfer" / "seed-100")["transfer"]["source"] == str(
         moved / "source" / "seed-150"
     )
+
+
+def test_the_report_of_an_experiment_is_drawn_for_a_page(experiment, tmp_path, page_size):
+    """``--figure one-column`` redraws a finished experiment's report as a one-column PDF; how it is drawn is
+    no setting of the experiment (its experiment.yaml is the same)."""
+    out, args = experiment
+    mine = tmp_path / "paper"
+    shutil.copytree(out, mine)
+    saved = (mine / "experiment.yaml").read_text()
+    assert main([a if a != str(out) else str(mine) for a in args] + ["--figure", "one-column"]) == 0
+    assert page_size(mine / "report" / "transfer_plot.pdf")[0] == pytest.approx(3.3 * 72)
+    assert (mine / "experiment.yaml").read_text() == saved
 
 
 def test_other_settings_in_same_dir_refused_naming_each(experiment, capsys):
@@ -177,8 +194,9 @@ def test_tasks_registered_inside_a_script_s_function_reach_the_workers(tmp_path,
 
 
 # ----------------------------------------------------------------------------- seeds until decided
-def test_seeds_auto_runs_the_plan_s_looks_and_records_why_it_stopped(tmp_path, capsys):
-    """A real (tiny) experiment capped at 2 pairs: one look, at the whole level, that 2 pairs cannot pass."""
+def test_seeds_auto_runs_the_plan_s_looks_and_continues_only_under_it(tmp_path, capsys):
+    """A real (tiny) experiment capped at 2 pairs: one look, at the whole level, that 2 pairs cannot pass.
+    Grown with a fixed count it reported an uncorrected p and dropped its plan's record; now it is refused."""
     out = tmp_path / "auto"
     args = ["experiment", "fourrooms-near", "--method", "model-reuse", "--seeds", "auto", "--max-seeds", "2",
             "--frames", "256", "--out", str(out)] + TINY
@@ -192,6 +210,38 @@ def test_seeds_auto_runs_the_plan_s_looks_and_records_why_it_stopped(tmp_path, c
     assert "undecided at the cap of 2 pairs (exact sign-flip test at look 1 of 1, 2 pairs" in printed.out
     assert "look 1 of 1: 2 pairs" in printed.err
     assert yaml.safe_load((out / "experiment.yaml").read_text())["seeds"] == "auto"
+    # the folder continues only under its plan: a fixed count or another cap is refused, the same plan runs
+    settings = (out / "experiment.yaml").read_bytes()
+    fixed = [a if a != "auto" else "3" for a in args[:args.index("--max-seeds")]] + args[args.index("--frames"):]
+    assert main(fixed) == 2
+    assert (f"'{out}' holds a --seeds auto experiment, whose looks already spent its level; continue it with "
+            "--seeds auto --max-seeds 2, or train --seeds 3 into another --out.") in capsys.readouterr().err
+    assert main([a if a != "2" else "3" for a in args]) == 2
+    assert "planned for --max-seeds 2, and another cap would change the share" in capsys.readouterr().err
+    assert (out / "experiment.yaml").read_bytes() == settings and not (out / "baseline" / "seed-200").exists()
+    assert main(args) == 0
+    again = json.loads((out / "report" / "transfer_metrics.json").read_text())
+    assert again["settings"]["sequential"] == seq and again["metrics"] == report["metrics"]
+
+
+def test_an_option_given_twice_is_refused(tmp_path, capsys):
+    """argparse keeps the last: `--seeds auto ... --seeds 14` trained 14 fixed seeds."""
+    code = main(["experiment", "fourrooms-near", "--method", "model-reuse", "--seeds", "auto", "--frames", "256",
+                 "--seeds", "14", "--out", str(tmp_path / "x")])
+    assert code == 2
+    assert capsys.readouterr().err.strip() == ("drltg experiment: error: argument --seeds is given twice ('auto', "
+                                               "then 14); give it once")
+    assert not (tmp_path / "x").exists()
+
+
+def test_a_fixed_count_folder_is_not_continued_as_a_sequential_plan(tmp_path, capsys):
+    from drltg.experiments.experiment import _check_settings
+
+    saved = tmp_path / "experiment.yaml"
+    saved.write_text(yaml.safe_dump({"pair": "fourrooms-near", "seeds": 5}))
+    _check_settings(saved, {"pair": "fourrooms-near", "seeds": 8})  # more fixed seeds: allowed
+    with pytest.raises(UsageError, match=r"holds an experiment of --seeds 5 already reported, and a sequential"):
+        _check_settings(saved, {"pair": "fourrooms-near", "seeds": "auto", "max_seeds": 20})
 
 
 @pytest.mark.parametrize("p_values, stopped, pairs, verdict", [
@@ -203,7 +253,7 @@ def test_seeds_auto_stops_at_the_first_look_below_its_share(monkeypatch, tmp_pat
 
     trained = []
 
-    def fake_run(pair, method, frames, out, seeds, *rest, value_range=None, source_success=None):
+    def fake_run(pair, method, frames, out, seeds, *rest, value_range=None, source_success=None, figure=None):
         trained.append(seeds)
         folder = tmp_path / "report"
         folder.mkdir(exist_ok=True)
@@ -229,6 +279,19 @@ def test_seeds_is_a_count_or_auto(tmp_path, capsys):
     code = main(["experiment", "fourrooms-near", "--method", "model-reuse", "--seeds", "auto", "--max-seeds", "0",
                  "--frames", "256", "--out", str(tmp_path / "x")])
     assert code == 2 and "--max-seeds must be a whole number from 1" in capsys.readouterr().err
+    code = main(["experiment", "fourrooms-near", "--method", "model-reuse", "--seeds", "3", "--max-seeds", "0",
+                 "--frames", "256", "--out", str(tmp_path / "x")])
+    assert code == 2 and "--max-seeds caps --seeds auto; with --seeds 3 it would do nothing, so leave it out." in \
+        capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
+
+
+def test_a_value_range_wider_than_a_float_is_refused_before_training(tmp_path, capsys):
+    """-1e308,1e308 passed as finite, then its width overflowed to inf and the report's JSON writer failed."""
+    code = main(["experiment", "fourrooms-near", "--method", "model-reuse", "--seeds", "2", "--frames", "256",
+                 "--value-range=-1e308,1e308", "--out", str(tmp_path / "x")])
+    assert code == 2 and "HIGH - LOW overflows" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
 
 
 def test_a_source_path_with_yaml_characters_is_the_path_itself(tmp_path):
@@ -290,3 +353,49 @@ def test_a_source_written_with_seed_serves_each_transfer_run_from_its_own_seed(t
                      overrides=["transfer.source=kept/one"])
     assert {(role, cfg.transfer.source) for role, cfg, _ in runs} == {("baseline", None),
                                                                              ("transfer", "kept/one")}
+
+
+def test_an_experiment_yaml_runs_again_with_config_and_a_dry_run_lists_it(experiment, tmp_path, capsys):
+    """`--config E/experiment.yaml` is the experiment's settings (the command line's win); `--dry-run` lists the
+    runs and what each folder holds, and trains nothing."""
+    out, args = experiment
+    capsys.readouterr()
+    assert main(["experiment", "--config", str(out / "experiment.yaml"), "--out", str(out), "--dry-run"]) == 0
+    listed = capsys.readouterr().out.splitlines()
+    assert sum(line.endswith("finished") for line in listed) == 6
+    assert listed[-2] == "6 runs, 1 report; 0 units of work to train: 0 seed groups of 0 runs, 0 runs alone"
+    assert listed[-1].startswith("left to train: about 0 of ")
+    again = tmp_path / "again"
+    assert main(["experiment", "--config", str(out / "experiment.yaml"), "--out", str(again), "--dry-run"]) == 0
+    listed = capsys.readouterr().out.splitlines()
+    assert sum(line.endswith("not started") for line in listed) == 6
+    assert listed[-2] == "6 runs, 1 report; 3 units of work to train: 3 seed groups of 6 runs (2 runs each), 0 runs alone"
+    assert not again.exists()
+    assert main(["experiment", "--config", str(out / "experiment.yaml"), "--out", str(again), "--threshold", "0",
+                 "--no-progress"]) == 0
+    for config in out.glob("*/seed-*/config.yaml"):
+        mine, theirs = (yaml.safe_load(c.read_text()) for c in (config, again / config.relative_to(out)))
+        mine["transfer"].pop("source"), theirs["transfer"].pop("source")
+        assert mine == theirs
+    assert yaml.safe_load((again / "experiment.yaml").read_text()) == yaml.safe_load((out / "experiment.yaml")
+                                                                                      .read_text())
+
+
+def test_config_settings_are_checked_and_the_command_line_wins(tmp_path, capsys):
+    from drltg.experiments.experiment import settings_of
+
+    path = tmp_path / "e.yaml"
+    path.write_text(yaml.safe_dump({"pair": "fourrooms-near", "method": "model-reuse", "frames": 512, "seeds": 3,
+                                    "overrides": ["optim.lr=0.01", "eval.every=64"]}))
+    args = argparse.Namespace(config=path, pair=None, method="policy-reuse", algo=None, seeds=None, max_seeds=None,
+                              seed=None, frames=None, source_frames=None, source_success=None,
+                              overrides=["optim.lr=0.1"])
+    settings = settings_of(args)
+    assert (settings["pair"], settings["method"], settings["seeds"], settings["algo"]) == (
+        "fourrooms-near", "policy-reuse", 3, "sac")
+    assert settings["overrides"] == ["eval.every=64", "optim.lr=0.1"]
+    path.write_text(yaml.safe_dump({"pair": "fourrooms-near", "budget": 5}))
+    with pytest.raises(UsageError, match=r"holds 'budget', no experiment setting"):
+        settings_of(args)
+    assert main(["experiment", "--out", str(tmp_path / "x")]) == 2
+    assert "name a pair, --method, --frames on the command line or in --config FILE." in capsys.readouterr().err

@@ -30,7 +30,7 @@ def test_the_experiment_reports_and_the_weight_falls_linearly_to_zero_at_kick_fr
     assert report["metrics"]["n_seeds_transfer"] == 1
     run = experiment / "transfer" / "seed-0"
     summary = json.loads((run / "summary.json").read_text())
-    assert summary["kickstarting"] == {"weight": 1.0, "frames": 256, "decay": "linear"}
+    assert summary["kickstarting"] == {"weight": 1.0, "frames": 256, "decay": "linear", "floor": 0.01}
     weights = _logged(run, "distill_weight")
     # one batch of 16 frames per log row: the weight of its updates is 1 - f / 256 at the frames f collected
     assert [s for s, _ in weights] == list(range(128, 513, 16))  # updates start after 128 random frames
@@ -86,6 +86,32 @@ def test_a_decay_other_than_linear_or_exponential_is_refused_naming_the_key():
         kick_decay == "exponential"
     with pytest.raises(UsageError, match="transfer.kick_decay"):
         config_lib.resolve({}, ["transfer.method=kickstarting", "transfer.kick_decay=cosine"])
+
+
+def test_every_knob_of_the_schedule_is_an_option_with_its_default(tmp_path):
+    """kick_weight, kick_frames, kick_decay and kick_floor reach the weight the term reads: the defaults give
+    1 - f / 10,000; exponential with floor 0.25 over 400 frames gives 2 * 0.25^(f / 400)."""
+    from drltg import config as config_lib
+    from drltg.envs import make_env
+    from drltg.learners import make_agent
+    from drltg.transfer import get_method
+    from tests.test_methods import _source_run
+
+    run, _ = _source_run(tmp_path / "src")
+    env = make_env("fourrooms/northeast")
+    weights = []
+    for options in ([], ["transfer.kick_weight=2", "transfer.kick_frames=400", "transfer.kick_decay=exponential",
+                         "transfer.kick_floor=0.25"]):
+        cfg = config_lib.resolve({}, ["network.hidden=[8,8]", "transfer.method=kickstarting",
+                                      f"transfer.source={run}", *options], task="fourrooms/northeast")
+        transfer = get_method("kickstarting").build(cfg, make_agent(env, cfg), env, resuming=False)
+        row = []
+        for frames in (0, 200, 5_000):
+            transfer.on_frames(frames)
+            row.append(transfer.loss_terms.weights().item())
+        weights.append(row)
+    assert weights[0] == pytest.approx([1.0, 0.98, 0.5])
+    assert weights[1] == pytest.approx([2.0, 1.0, 0.0])
 
 
 def test_kickstarted_seeds_train_as_one_seed_group(tmp_path):

@@ -48,7 +48,7 @@ def test_every_method_builds_a_transfer_for_a_run(name, tmp_path):
     expected = {
         "none": set(), "reward-shaping": {"train_transforms"}, "value-shaping": {"train_transforms"},
         "policy-reuse": {"train_transforms", "mixer", "on_frames"},
-        "jumpstart": {"train_transforms", "mixer", "on_frames"},
+        "jumpstart": {"train_transforms", "mixer", "on_frames", "on_eval", "state"},
         "model-reuse": {"files"}, "demonstrations": {"batches", "loss_terms", "summary"},
         "kickstarting": {"loss_terms", "on_frames", "summary"}, "sf-gpi": {"mixer", "summary"},
     }
@@ -106,19 +106,37 @@ def test_value_shaping_refuses_an_options_source(tmp_path):
         SourceValue(agent.loss, discrete=False)
 
 
-def test_jumpstart_guides_for_the_configured_steps(tmp_path):
+def test_jumpstart_on_a_frame_clock_guides_for_the_configured_steps(tmp_path):
     run, _ = _source_run(tmp_path / "src")
     cfg = _cfg("fourrooms/northeast", "transfer.method=jumpstart", f"transfer.source={run}",
-               "transfer.guide_steps=40", "transfer.guide_stages=4", "transfer.guide_frames=1000")
+               "transfer.guide_steps=40", "transfer.guide_stages=4", "transfer.guide_curriculum=frames",
+               "transfer.guide_frames=1000")
     env = make_env("fourrooms/northeast")
     transfer = get_method("jumpstart").build(cfg, make_agent(env, cfg), env, resuming=False)
     mixer = transfer.mixer
     assert isinstance(mixer, PolicyReuse) and isinstance(mixer.schedule, JumpStart)
+    assert transfer.on_eval is None  # the clock needs no evaluation of the combined policy
     horizons = []
     for frames in (0, 249, 250, 500, 999, 1000, 5000):
         transfer.on_frames(frames)
         horizons.append(mixer.schedule.horizon)
     assert horizons == [40, 40, 30, 20, 10, 0, 0]  # H_k = 40 (4 - k) // 4, one stage per 250 frames
+
+
+def test_jumpstart_advances_on_the_evaluated_return_by_default(tmp_path):
+    """guide_tolerance 0.05: returns 0.8 (best 0.8), 0.78 (>= 0.8 - 0.04: stage 1), 0.5 (below 0.76: stays),
+    0.79 (stage 2, best still 0.8), 0.9 (stage 3, best 0.9); the frames never move it."""
+    run, _ = _source_run(tmp_path / "src")
+    cfg = _cfg("fourrooms/northeast", "transfer.method=jumpstart", f"transfer.source={run}",
+               "transfer.guide_steps=40", "transfer.guide_stages=4")
+    assert (cfg.transfer.guide_curriculum, cfg.transfer.guide_tolerance, cfg.transfer.guide_window) == \
+        ("return", 0.05, 1)
+    env = make_env("fourrooms/northeast")
+    transfer = get_method("jumpstart").build(cfg, make_agent(env, cfg), env, resuming=False)
+    assert transfer.mixer.mix_deterministic and transfer.state is transfer.mixer.schedule
+    transfer.on_frames(10**6)
+    logged = [transfer.on_eval(value) for value in (0.8, 0.78, 0.5, 0.79, 0.9)]
+    assert logged == [{"jumpstart/horizon": h} for h in (40, 30, 30, 20, 10)]
 
 
 def test_resumed_model_reuse_keeps_its_frozen_parameters_frozen(tmp_path):

@@ -4,6 +4,7 @@ Every way of reusing a run (the methods, ``load_actor``, ``load_critic``, ``load
 reads the networks file and never the training checkpoint; the file holds exactly the checkpoint's
 networks, is data only, and is refused when it does not match the manifest.
 """
+import hashlib
 import json
 import shutil
 import struct
@@ -104,11 +105,78 @@ def test_the_loaders_read_the_networks_without_the_checkpoint(source, no_checkpo
 
 
 @pytest.mark.parametrize("method", METHODS)
-def test_every_method_reuses_a_source_without_its_checkpoint(no_checkpoint, tmp_path, method):
+def test_every_method_reuses_a_source_without_its_checkpoint_and_records_its_digests(no_checkpoint, tmp_path, method):
     cfg = config_lib.resolve({}, [*TINY, *METHODS[method], f"transfer.method={method}",
                                   f"transfer.source={no_checkpoint}", "transfer.source_checkpoint=best"],
                              task="fourrooms/northeast-shifted", frames=32, seed=4)
-    assert rundir.is_complete(train(cfg, tmp_path / "target", progress=False))
+    run = train(cfg, tmp_path / "target", progress=False)
+    assert rundir.is_complete(run)
+    recorded = json.loads((run / rundir.SUMMARY).read_text())["source"]
+    loaded = no_checkpoint / networks.NETWORKS["best"]
+    assert recorded == {"checkpoint": "best", "networks": "checkpoints/best.safetensors",
+                        "networks_sha256": hashlib.sha256(loaded.read_bytes()).hexdigest(),
+                        "config_sha256": hashlib.sha256((no_checkpoint / rundir.CONFIG).read_bytes()).hexdigest()}
+
+
+def _other_networks(run):
+    """Rewrite ``run``'s last networks file with other weights (each float entry + 1), as training it again would."""
+    weights, info = rundir.load_networks(run)
+    weights = {k: v + 1 if v.is_floating_point() else v for k, v in weights.items()}
+    rundir.write_tracked(run, networks.NETWORKS["last"].as_posix(),
+                         networks.encode(weights, info["frames"], info["updates"]))
+    rundir.finalize_manifest(run)
+
+
+def test_a_resumed_run_refuses_a_source_changed_since_it_started(source, tmp_path, monkeypatch, capsys):
+    from drltg.training import loop
+
+    src = shutil.copytree(source, tmp_path / "src")
+    cfg = config_lib.resolve({}, [*TINY, "checkpoint.every=128", "eval.every=128", "transfer.method=policy-reuse",
+                                  f"transfer.source={src}"], task="fourrooms/northeast-shifted", frames=256, seed=4)
+    real, target = loop._episode_stats, tmp_path / "target"
+
+    def crash_after_first_checkpoint(data, stats):
+        if (target / "checkpoints" / "last.pt").exists():
+            raise KeyboardInterrupt
+        return real(data, stats)
+
+    monkeypatch.setattr(loop, "_episode_stats", crash_after_first_checkpoint)
+    with pytest.raises(KeyboardInterrupt):
+        train(cfg, target, progress=False)
+    monkeypatch.setattr(loop, "_episode_stats", real)
+    started = json.loads((target / "source.json").read_text())["source"]
+    kept = (src / networks.NETWORKS["last"]).read_bytes()
+    assert started["networks_sha256"] == hashlib.sha256(kept).hexdigest()
+    _other_networks(src)
+    with pytest.raises(UsageError, match=r"changed since this run started: .*source.json records another SHA-256 "
+                                         r"of its networks, so the run would go on from another teacher"):
+        train(cfg, target, resume=True, progress=False)
+    rundir.write_tracked(src, networks.NETWORKS["last"].as_posix(), kept)  # the source restored
+    rundir.finalize_manifest(src)
+    run = train(cfg, target, resume=True, progress=False)
+    assert json.loads((run / rundir.SUMMARY).read_text())["source"] == started
+
+
+def test_a_run_without_a_source_records_none(source):
+    assert "source" not in json.loads((source / rundir.SUMMARY).read_text())
+    assert not (source / "source.json").exists()
+
+
+def test_a_seed_group_records_each_seed_s_own_source(source, tmp_path):
+    """Two seeds trained as one group, each reusing another source run: each summary names its own."""
+    other = shutil.copytree(source, tmp_path / "other")
+    path = other / networks.NETWORKS["last"]
+    _other_networks(other)
+    from drltg.training.seeds import train_group
+
+    cfgs = [config_lib.resolve({}, [*TINY, "transfer.method=model-reuse", f"transfer.source={src}"],
+                               task="fourrooms/northeast-shifted", frames=32, seed=seed)
+            for seed, src in ((4, source), (5, other))]
+    dirs = train_group(cfgs, [tmp_path / "t" / "seed-4", tmp_path / "t" / "seed-5"], progress=False)
+    digests = [json.loads((d / rundir.SUMMARY).read_text())["source"]["networks_sha256"] for d in dirs]
+    assert digests == [hashlib.sha256(p.read_bytes()).hexdigest()
+                       for p in (source / networks.NETWORKS["last"], path)]
+    assert digests[0] != digests[1]
 
 
 def test_an_unfinished_source_is_read_once_from_its_networks_file(source, tmp_path, monkeypatch, capsys):

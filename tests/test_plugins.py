@@ -90,3 +90,59 @@ def test_plugins_are_loaded_on_the_gymnasium_path(tmp_path):
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, env=env)
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.split()[0] == "line/right"
+
+
+MY_TASKS = '''
+from drltg.envs import register_pair, register_task
+from drltg.envs.fourrooms import FourRoomsEnv
+from neighbour import GOAL  # a module beside this file, imported as a script would
+
+
+def rooms(**options):
+    return FourRoomsEnv(**options)
+
+
+register_task("mine/a", rooms, "a source beside the script", goal=GOAL, horizon=40)
+register_task("mine/b", rooms, "a target beside the script", goal=(8.0, 7.0), horizon=40)
+register_pair("mine-near", "mine/a", "mine/b", "a pair in a file, not an installed module")
+'''
+
+
+def _console(*args, cwd):
+    """The installed ``drltg`` script, as a user runs it: the working directory is not on its path."""
+    env = {k: v for k, v in os.environ.items() if k not in ("DRLTG_IMPORT", "PYTHONPATH")}
+    return subprocess.run([str(Path(sys.executable).with_name("drltg")), *args], capture_output=True, text=True,
+                          env=env, cwd=cwd, timeout=300)
+
+
+@pytest.fixture
+def my_tasks(tmp_path):
+    folder = tmp_path / "mine"
+    folder.mkdir()
+    (folder / "my_tasks.py").write_text(MY_TASKS)
+    (folder / "neighbour.py").write_text("GOAL = (8.0, 8.0)\n")
+    return folder
+
+
+def test_import_takes_a_file_path_and_a_module_of_the_working_directory(my_tasks, tmp_path):
+    by_path = _console("tasks", "--import", "mine/my_tasks.py", cwd=tmp_path)
+    assert by_path.returncode == 0 and "mine-near" in by_path.stdout, by_path.stderr[-2000:]
+    by_name = _console("tasks", "--import", "my_tasks", cwd=my_tasks)
+    assert by_name.returncode == 0 and "mine-near" in by_name.stdout, by_name.stderr[-2000:]
+    missing = _console("tasks", "--import", "mine/nothing.py", cwd=tmp_path)
+    assert missing.returncode == 2
+    assert missing.stderr.strip() == "drltg tasks: error: cannot import plugin 'mine/nothing.py': no such Python file or package folder."
+
+
+def test_a_plugin_file_reaches_the_worker_processes(my_tasks, tmp_path):
+    args = ["experiment", "mine-near", "--method", "model-reuse", "--seeds", "1", "--frames", "256", "--workers", "2",
+            "--out", "exp", "--import", "mine/my_tasks.py", "--no-progress"]
+    done = _console(*args, *(a for o in TINY for a in ("-o", o)), cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    tasks = sorted(yaml.safe_load(p.read_text())["task"] for p in (tmp_path / "exp").glob("*/seed-*/config.yaml"))
+    assert tasks == ["mine/a", "mine/b", "mine/b"]
+
+
+def test_version_names_the_installed_distribution(tmp_path):
+    done = _console("--version", cwd=tmp_path)
+    assert done.returncode == 0 and done.stdout.strip() == f"drltg {importlib.metadata.version('drltg')}"

@@ -228,7 +228,65 @@ def test_prql_chooses_one_policy_per_episode():
     torch.testing.assert_close(batch["action"].squeeze(-1), expected)
 
 
-def test_jump_start_horizon_shrinks_on_the_curriculum():
+def test_jump_start_advances_when_the_combined_return_holds_near_its_best():
+    """JSRL's curriculum, by hand: stages 4, tolerance 0.1, so a return advances when >= B - 0.1 |B|.
+
+    returns   B before   threshold   advance   k   H
+    -1.0      -inf       -           no        0   100   (the first evaluation sets B = -1)
+    -1.05     -1.0       -1.1        yes       1    75   (B stays -1: -1.05 < -1)
+     0.5      -1.0       -1.1        yes       2    50   (B = 0.5)
+     0.4       0.5        0.45       no        2    50
+     0.46      0.5        0.45       yes       3    25
+     0.2       0.5        0.45       no        3    25
+     0.9       0.5        0.45       yes       4     0   (the learner alone)
+     0.9       -          -          no        4     0   (the last stage stays)
+    """
+    schedule = JumpStart(100, stages=4, tolerance=0.1)
+    moved, horizons = [], []
+    for value in (-1.0, -1.05, 0.5, 0.4, 0.46, 0.2, 0.9, 0.9):
+        moved.append(schedule.evaluated(value))
+        horizons.append(schedule.horizon)
+    assert moved == [False, True, True, False, True, False, True, False]
+    assert horizons == [100, 75, 50, 50, 25, 25, 0, 0]
+    schedule.set_progress(10**9)  # frames alone never move it
+    assert schedule.horizon == 0 and float(schedule.best) == 0.9
+
+
+def test_jump_start_compares_the_mean_of_a_stages_last_window_evaluations():
+    """window 2, tolerance 0: a stage needs 2 evaluations; the mean of the last 2 at the stage is compared with the
+    best such mean. Stage 0: 0.2, 0.4 (mean 0.3 sets B), 0.4 (mean 0.4 >= 0.3: stage 1, its window empties);
+    stage 1: 0.1 (one evaluation: no decision), 0.3 (mean 0.2 < 0.4), 0.6 (mean 0.45 >= 0.4: stage 2)."""
+    schedule = JumpStart(10, stages=5, tolerance=0.0, window=2)
+    stages = []
+    for value in (0.2, 0.4, 0.4, 0.1, 0.3, 0.6):
+        schedule.evaluated(value)
+        stages.append(schedule.current_stage)
+    assert stages == [0, 0, 1, 1, 1, 2]
+    assert float(schedule.best) == pytest.approx(0.45)
+
+
+def test_the_curriculum_is_saved_in_the_schedules_state_dict():
+    schedule = JumpStart(100, stages=4, tolerance=0.1, window=2)
+    for value in (0.5, 0.5, 0.5, 0.7):
+        schedule.evaluated(value)
+    restored = JumpStart(100, stages=4, tolerance=0.1, window=2)
+    restored.load_state_dict(schedule.state_dict())
+    assert (restored.horizon, float(restored.best)) == (75, 0.5)
+    assert restored.evaluated(0.5) is True  # the window (0.7, 0.5) carried over: mean 0.6 >= 0.45
+
+
+def test_the_mixer_evaluates_the_combined_policy_only_when_asked():
+    """Under DETERMINISTIC, a mixer built with mix_deterministic acts with the guide for the first H steps, as
+    in training; by default evaluation sees the learner alone."""
+    for mix, expected in ((True, [PAST, PAST, LEARNER, LEARNER]), (False, [LEARNER] * 4)):
+        mixer = PolicyReuse(constant(PAST), schedule=JumpStart(2, stages=2, tolerance=0.0), mix_deterministic=mix)
+        env = with_primer(TransformedEnv(LineEnv([4]), StepCounter()), mixer)
+        with set_exploration_type(ExplorationType.DETERMINISTIC):
+            batch = env.rollout(4, TensorDictSequential(constant(LEARNER), mixer), break_when_any_done=False)
+        assert batch["action"].squeeze(-1).squeeze(0).tolist() == expected
+
+
+def test_jump_start_horizon_shrinks_on_a_frame_clock():
     schedule = JumpStart(100, stages=4, frames_per_stage=1000)
     horizons = []
     for frames in [0, 999, 1000, 2500, 3999, 4000, 10**6]:

@@ -110,21 +110,27 @@ def test_an_experiment_s_progress_moves_with_the_reported_frames(tmp_path, monke
 
 
 def test_an_experiment_says_before_training_that_its_budget_gives_the_report_too_few_evaluations(tmp_path, capsys):
-    """--frames 10k with the default eval.every of 5000: 2 evaluations in the last quarter, where the report's
-    convergence check needs 4; said once for the target runs, before any frame, with the eval.every to use."""
+    """--frames 10k with eval.every 5000: 2 evaluations in the last quarter, where the report's convergence check
+    needs 4; said once for the target runs, before any frame, with the eval.every to use. The default, auto,
+    evaluates every 500 frames there: 6 in the last quarter, nothing to say."""
     from drltg.experiments.checks import plan_warnings
 
-    cfg = config_lib.resolve(None, [], task="fourrooms/southeast", frames=10_000)
-    source = config_lib.resolve(None, [], task="fourrooms/northeast", frames=10_000)
-    runs = [Run("source", source, tmp_path / "s", tmp_path / "s.log"),
-            *(Run(role, cfg, tmp_path / role, tmp_path / f"{role}.log") for role in ("baseline", "transfer"))]
-    assert plan_warnings(runs) == [
+    def runs(*overrides, frames=10_000):
+        cfg = config_lib.resolve(None, list(overrides), task="fourrooms/southeast", frames=frames)
+        source = config_lib.resolve(None, list(overrides), task="fourrooms/northeast", frames=frames)
+        return [Run("source", source, tmp_path / "s", tmp_path / "s.log"),
+                *(Run(role, cfg, tmp_path / role, tmp_path / f"{role}.log") for role in ("baseline", "transfer"))]
+
+    assert plan_warnings(runs("eval.every=5000")) == [
         "baseline and transfer runs: 10,016 frames with eval.every=5,000 give 2 evaluations in the last 25% of the "
         "budget, where the report's convergence check needs 4; use -o eval.every=834 or less."]
-    short = config_lib.updated(cfg, {"frames": 6_016})
+    short = config_lib.updated(runs("eval.every=5000")[1].cfg, {"frames": 6_016})
     assert plan_warnings([Run("baseline", short, tmp_path / "b", tmp_path / "b.log")]) == [
         "baseline runs: 6,016 frames with eval.every=5,000 give evaluations at frame 0 and 6,016 only: no learning "
         "curve to speak of; lower eval.every."]
+    default = runs()
+    assert default[1].cfg.eval.every == "auto" and default[1].cfg.eval.interval(default[1].cfg.frames) == 500
+    assert plan_warnings(default) == []
 
 
 def test_the_warning_comes_before_the_first_frame(tmp_path, monkeypatch, capsys):

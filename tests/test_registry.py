@@ -158,6 +158,36 @@ def test_a_factory_named_module_attr_is_imported_when_the_task_is_built(scratch_
         scratch_registry.make_env("lost")
 
 
+def test_options_declared_at_registration_are_the_task_s_and_nothing_is_read_from_source(scratch_registry):
+    """``options=`` declares a factory's keywords, as Gymnasium's EnvSpec holds its kwargs: a config is checked
+    against them without importing the factory; without them the imported factory's signature says them
+    (its defaults as objects, not read from its module's source)."""
+    import sys
+
+    spec = scratch_registry.register_task("mine/far", "drltg_test_no_such_module:Env", "never built",
+                                          options={"horizon": 100, "goal": (1.0, 2.0)}, goal=(3.0, 4.0))
+    assert spec.keywords() == {"horizon": 100, "goal": (3.0, 4.0)}  # the registered default over the declared
+    assert spec.check({"horizon": 1e2}) == {"horizon": 100}
+    with pytest.raises(UsageError, match=r"^keyword 'slip' is not an option of task 'mine/far'; its options are: "
+                                         r"goal, horizon\.$"):
+        spec.check({"slip": 0.1})
+    assert "drltg_test_no_such_module" not in sys.modules
+    with pytest.raises(UsageError, match=r"^task 'mine/far': its factory .* cannot be imported"):
+        scratch_registry.make_env("mine/far")
+    sentinel = object()  # a default no source text could hold
+
+    def factory(batch_size=(), device=None, seed=None, *, level=sentinel, **kwargs):
+        return FourRoomsEnv(batch_size=batch_size, device=device)
+
+    assert scratch_registry.register_task("mine/signature", factory, "read").keywords() == {"level": sentinel}
+    with pytest.raises(UsageError, match=r"^task 'mine/x': 'horizon' is declared as an option, but it is a "
+                                         r"registration field\.$"):
+        scratch_registry.register_task("mine/x", factory, "x", options={"horizon": 1}, fixed={"horizon": 2})
+    with pytest.raises(UsageError, match=r"^task 'mine/x': 'seed' is declared as an option, but it is make_env's"):
+        scratch_registry.register_task("mine/x", factory, "x", options={"seed": 0})
+    assert not hasattr(registry, "_read_keywords") and "ast" not in vars(registry)
+
+
 def test_options_are_checked_once_by_the_task_for_make_env_and_the_config():
     """One rule reads an option as the type of its declared default (an int from an integral number, a float
     from any finite number, a list from a sequence of numbers); make_env and a config say the same sentence,

@@ -752,6 +752,16 @@ def test_each_magnitude_says_what_it_assumes():
     table = report.format_table(res)
     assert "worst case over the declared range [-20, 20]" in table and "assumes normal differences" in table
     assert "assumes independent pairs, any shape" in table and "3 [-1, 9]" in table
+    # the table leads with the verdict; the metric table after it says its intervals are each metric's own
+    assert table.index("verdict: each mean difference's exact test") < table.index("every metric with its own")
+    from drltg.analysis.plot import summary_lines
+
+    shown = summary_lines(m, res["settings"], {})
+    assert shown[:4] == ["verdict: mean return gain +3.29, higher with transfer",
+                         "  exact sign-flip test, 7 pairs: p = 0.0469",
+                         f"  mean [{23 / 7 - half:+.3g}, {23 / 7 + half:+.3g}] (paired t, 95%)",
+                         f"  median +3 [-1, +9] (order statistics, {100 * (1 - 2 / 128):.1f}%)"]
+    assert "transfer - baseline [worst case over the declared range, 95%], paired" in shown
     unpaired = report.compute(flat(base, prefix="b"), flat(gains, prefix="t"), value_range=(-20.0, 20.0))["metrics"]
     assert unpaired["mean_return_gain_t_interval_assumes"] == "normal scores on each side"
     # unpaired, the Hodges-Lehmann shift of the flat curves' values and its Mann-Whitney interval
@@ -795,8 +805,12 @@ NO_TORCH = ("torch", "drltg.envs", "drltg.transfer")
 
 
 def test_the_analysis_package_imports_no_torch():
-    code = ("import sys, drltg.analysis, drltg.analysis.report, drltg.analysis.plot\n"
-            f"leaked = [m for m in {NO_TORCH!r} if m in sys.modules]\nassert not leaked, leaked")
+    """Nor the methods or the task registry; ``import drltg`` itself reads the task registry (no torch) to
+    register the tasks' Gymnasium ids, so the registry counts only if the analysis is what brought it."""
+    code = ("import sys, drltg\nbefore = set(sys.modules)\n"
+            "import drltg.analysis, drltg.analysis.report, drltg.analysis.plot\n"
+            f"leaked = [m for m in {NO_TORCH!r} if m in sys.modules and (m == 'torch' or m not in before)]\n"
+            "assert not leaked, leaked")
     subprocess.run([sys.executable, "-c", code], check=True)
 
 
@@ -1060,3 +1074,47 @@ def test_report_from_curves_is_the_report_of_the_same_curves(tmp_path):
         report_from_curves(frames, b, [[0.0, 1.0]])
     with pytest.raises(UsageError, match="paired curves need as many baseline as transfer seeds, got 3 and 2"):
         report_from_curves(frames, b, t[:2])
+
+
+def test_table_rows_follow_the_tag_the_curves_are():
+    """With --tag success_rate the headline said "mean success rate gain" and the table mean_return_gain."""
+    b, t = flat([0.0, 0.2, 0.1], seeds=[0, 1, 2], prefix="b"), flat([0.5, 0.6, 0.9], seeds=[0, 1, 2], prefix="t")
+    res = report.compute(b, t, value_range=(0.0, 1.0))
+    res["settings"]["tag"] = "success_rate"
+    table = report.format_table(res)
+    assert "\nmean_success_rate_gain " in table and "mean_return_gain" not in table
+    assert outputs.row_label("mean_return_gain", {"tag": "eval/mean_reward"}) == "mean_return_gain"
+    assert outputs.row_label("jumpstart", {"tag": "success_rate"}) == "jumpstart"
+
+
+def test_a_comparison_where_no_run_reached_the_threshold_says_it_measures_nothing():
+    """A sparse task under the defaults: every run of both sides fails; the report said "+0.00: undecided" and
+    planned more pairs, never that nothing learned."""
+    from drltg.analysis.claims import headline
+
+    b = flat([-1.0, -0.9, -1.0], seeds=[0, 1, 2], prefix="b")
+    t = flat([-1.0, -0.8, -0.95], seeds=[0, 1, 2], prefix="t")
+    res = report.compute(b, t, threshold=0.5, value_range=(-1.0, 1.0))
+    said = [w for w in res["settings"]["warnings"] if w.startswith("no run of either side")]
+    assert said == ["no run of either side ever reached the threshold 0.5 (the best evaluation of all 6 runs is "
+                    "-0.8): neither learned the task within the budget, so this comparison measures nothing about "
+                    "transfer; train longer, or check the task's reward and the learner's settings (a sparse reward "
+                    "may need a lower sac.alpha_init, docs/gymnasium.md)."]
+    assert res["settings"]["learned_nothing"] is True
+    assert headline(res).endswith("; but no run of either side reached the threshold, so neither learned the task "
+                                  "and this measures nothing.")
+    learned = report.compute(b, flat([-1.0, 0.5, -0.95], seeds=[0, 1, 2], prefix="t"), threshold=0.5,
+                             value_range=(-1.0, 1.0))
+    assert learned["settings"]["learned_nothing"] is False and "measures nothing" not in headline(learned)
+
+
+def test_sources_that_never_succeeded_are_named(tmp_path):
+    from drltg.experiments.experiment import never_succeeded
+
+    for name, rates in (("seed-50", [0.0, 0.0]), ("seed-150", [0.0, 0.25]), ("seed-250", None)):
+        run = tmp_path / name
+        run.mkdir()
+        head = "frames,return_mean" + (",success_rate" if rates else "")
+        lines = [f"{i * 10},-1.0" + (f",{r}" if rates else "") for i, r in enumerate(rates or [0, 0])]
+        (run / "eval.csv").write_text("\n".join([head, *lines]) + "\n")
+    assert never_succeeded([tmp_path / n for n in ("seed-50", "seed-150", "seed-250")]) == [str(tmp_path / "seed-50")]

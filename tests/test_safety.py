@@ -70,7 +70,7 @@ def test_atomic_writes_refuse_special_files(tmp_path):
     (["-o", f"collector.frames_per_batch={2**70}"], "'collector.frames_per_batch' must be an integer in [1, 1048576]"),
     (["-o", f"collector.num_envs={2**70}"], "'collector.num_envs' must be an integer in [1, 1048576]"),
     (["-o", f"optim.updates_per_batch={2**70}"], "'optim.updates_per_batch' must be an integer in [1, 100000]"),
-    (["-o", f"eval.every={2**70}"], "'eval.every' must be an integer in [1, 1000000000000]"),
+    (["-o", f"eval.every={2**70}"], "'eval.every' must be 'auto' or an integer in [1, 1000000000000]"),
     (["--frames", "1e400"], "'1e400' is not a whole number of frames"),
 ])
 def test_counts_in_the_config_are_bounded(args, message, tmp_path, capsys):

@@ -361,12 +361,36 @@ def test_runs_that_differ_only_in_their_seed_form_one_unit(tmp_path):
 
 def test_an_experiment_leaves_worker_process_groups_to_train_seeds(tmp_path):
     from drltg.experiments.executor import Run, seed_groups
-    from drltg.training.seeds import group_support
+    from drltg.training.grouping import group_support
 
     lift = [Run("baseline", tiny_cfg(seed=s, task="lift"), tmp_path / f"l{s}", tmp_path / f"l{s}.log")
             for s in (0, 100)]
     assert group_support(lift[0].cfg) is None  # `drltg train lift --seeds 2` groups them
     assert [[r.path.name for r in unit] for unit in seed_groups(lift)] == [["l0"], ["l100"]]
+
+
+def test_gymnasium_runs_group_in_this_process_each_seed_s_envs_seeded_as_alone(tmp_path):
+    """A Gymnasium task's batch is a SerialEnv of single envs in this process: a group steps one such batch per
+    seed side by side (no worker processes), each reset as its run alone resets, so a sweep groups them."""
+    from torchrl.envs import SerialEnv
+
+    from drltg.experiments.executor import Run, seed_groups
+    from drltg.training import loop
+    from drltg.training.grouping import in_process
+    from drltg.training.seeds import _group_env
+
+    cfgs = [config_lib.resolve({}, ["collector.num_envs=2"], task="pendulum/g10", seed=s) for s in (0, 100)]
+    assert in_process(cfgs[0])
+    runs = [Run("baseline", c, tmp_path / f"b{c.seed}", tmp_path / f"b{c.seed}.log") for c in cfgs]
+    assert [[r.path.name for r in unit] for unit in seed_groups(runs)] == [["b0", "b100"]]
+    together = _group_env(cfgs[0], [0, 100], 2, 0)
+    assert isinstance(together.base_env.base_env, SerialEnv)
+    first = together.reset()["observation"]
+    for k, c in enumerate(cfgs):
+        alone = loop.build_env(c, batch_size=(2,), seed=c.seed)
+        torch.testing.assert_close(first[2 * k:2 * k + 2], alone.reset()["observation"])
+        alone.close()
+    together.close()
 
 
 def test_run_group_trains_an_experiments_seeds_together(tmp_path):
@@ -424,7 +448,7 @@ def test_cli_resumes_a_finished_group_from_its_folder_alone(group_run, capsys):
 
 def test_seeds_with_cuda_graphs_train_one_after_another(monkeypatch):
     """A group's vmapped update is not captured: ``optim.cudagraphs`` seeds are not grouped, not silently eager."""
-    from drltg.training.seeds import group_support
+    from drltg.training.grouping import group_support
 
     monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
     monkeypatch.setattr(torch.cuda, "device_count", lambda: 1)

@@ -5,8 +5,9 @@ import torch
 from drltg import config as config_lib
 from drltg.experiments.executor import Run, execute, seed_groups
 from drltg.store.rundir import MODEL_REUSE, load_checkpoint
-from drltg.training import loop, seeds
-from drltg.transfer import get_method
+from drltg.training import grouping, loop, seeds
+from drltg.errors import UsageError
+from drltg.transfer import TransferMethod, get_method
 from tests.test_seed_groups import TINY, tiny_cfg
 
 
@@ -156,6 +157,32 @@ def test_value_shaping_shapes_each_block_with_its_own_sources_value(sources):
     assert not torch.equal(td[:per_seed]["potential"], other)  # seed 3's block is not shaped by seed 4's source
 
 
+def test_a_group_s_members_may_differ_in_their_method_s_member_options(sources, tmp_path):
+    """Runs that differ in options each seed's own parts read (a tuning grid's settings) are one seed group:
+    seed 3 never reuses (psi 0) while seed 4, in the same group, always does (psi 1, upsilon 1); value shaping's
+    block k is shaped by its own scale."""
+    cfgs = transfer_cfgs("policy-reuse", sources)
+    cfgs = [config_lib.updated(c, {"log.every": 16, "transfer.psi": psi, "transfer.upsilon": 1.0})
+            for c, psi in zip(cfgs, (0.0, 1.0))]
+    assert grouping.same_but_seed(*cfgs) and not grouping.same_but_seed(
+        cfgs[0], config_lib.updated(cfgs[1], {"optim.lr": 1e-3}))
+    dirs = seeds.train_group(cfgs, [tmp_path / f"seed-{c.seed}" for c in cfgs], progress=False)
+    fractions = [[float(line.split(",")[-1]) for line in sorted(d.rglob("reused_fraction.csv"))[0].read_text()
+                  .splitlines()[128 // 16:]] for d in dirs]
+    assert set(fractions[0]) == {0.0} and set(fractions[1]) == {1.0}
+    scaled = [config_lib.updated(c, {"transfer.value_scale": v})
+              for c, v in zip(transfer_cfgs("value-shaping", sources), (1.0, 4.0))]
+    assert grouping.same_but_seed(*scaled)
+    transfers = [_transfer(c) for c in scaled]
+    td = seeds.group_train_env(scaled, (), transfers).reset()
+    per_seed = scaled[0].collector.num_envs
+    for k, t in enumerate(transfers):
+        block = td[k * per_seed:(k + 1) * per_seed]
+        assert torch.equal(block["potential"], t.train_transforms[0].potential(block["observation"]))
+    with pytest.raises(UsageError, match="member_options names 'lr', which is not one of its options"):
+        TransferMethod("x", "x", lambda *a, **k: None, member_options=("lr",))
+
+
 @pytest.mark.parametrize("method, grouped", [("none", True), ("reward-shaping", True), ("value-shaping", True),
                                              ("model-reuse", True), ("policy-reuse", True), ("jumpstart", True),
                                              ("demonstrations", True), ("model-reuse+reward-shaping", True),
@@ -163,7 +190,7 @@ def test_value_shaping_shapes_each_block_with_its_own_sources_value(sources):
                                              ("model-reuse+demonstrations", True)])
 def test_a_method_groups_only_if_it_and_every_part_declare_it(method, grouped):
     assert get_method(method).grouped is grouped
-    reason = seeds.group_support(tiny_cfg(**{"transfer.method": method}))
+    reason = grouping.group_support(tiny_cfg(**{"transfer.method": method}))
     assert reason == (None if grouped else f"transfer method {method} has no grouped form")
 
 
@@ -174,7 +201,7 @@ def test_a_user_method_trains_alone_unless_it_declares_a_grouped_form():
     try:
         plain = register_method(TransferMethod("test-plain", "nothing", lambda *a, **k: Transfer()))
         assert not plain.grouped
-        assert seeds.group_support(tiny_cfg(**{"transfer.method": "test-plain"})) is not None
+        assert grouping.group_support(tiny_cfg(**{"transfer.method": "test-plain"})) is not None
     finally:
         METHODS.pop("test-plain", None)
 

@@ -22,11 +22,11 @@ SF = ["-o", "transfer.sf_frames=512", "-o", "transfer.sf_updates=20"]
 REFUSAL = "sf-gpi needs source and target tasks that differ only in reward"
 
 
-def _build(tmp_path, source_task, target_task, **source_env):
+def _build(tmp_path, source_task, target_task, *options):
     run, _ = _source_run(tmp_path / "src", task=source_task)
     cfg = config_lib.resolve({}, ["network.hidden=[8,8]", "collector.num_envs=2", "collector.frames_per_batch=8",
                                   "transfer.method=sf-gpi", f"transfer.source={run}", "transfer.sf_frames=64",
-                                  "transfer.sf_updates=2"], task=target_task)
+                                  "transfer.sf_updates=2", "transfer.sf_epsilon=0", *options], task=target_task)
     env = make_env(target_task, batch_size=(2,), seed=0)
     agent = make_agent(env, cfg)
     return cfg, agent, env, get_method("sf-gpi").build(cfg, agent, env, resuming=False)
@@ -52,18 +52,79 @@ def test_grid_targets_weights_are_the_exact_ones_of_its_goal_and_gpi_is_the_coll
 
 
 def test_continuous_gpi_acts_with_the_source_action_or_the_learners_own(tmp_path):
+    """GPI over the library {source, learner}: each candidate action valued by the larger of psi_S . w and the
+    learner's own min_k Q_k, the better candidate taken."""
+    from drltg.modules.critics import min_over_critics
+
     cfg, agent, env, transfer = _build(tmp_path, "fourrooms/northeast", "fourrooms/northeast-shifted")
     # phi(s') = [in disc (8, 8), in disc (8, 7), 1]
-    assert _gpi(transfer).weights.tolist() == pytest.approx([0.0, 1.01, -0.01])
+    gpi = _gpi(transfer)
+    assert gpi.weights.tolist() == pytest.approx([0.0, 1.01, -0.01])
     torch.manual_seed(0)
     td = env.reset()
     learner_action = agent.policy(td.clone())["action"]
     with set_exploration_type(ExplorationType.DETERMINISTIC):
-        source_action = _gpi(transfer).policies[0](td.clone())["action"]
+        source_action = gpi.policies[0](td.clone())["action"]
     torch.manual_seed(0)
     out = AgentLearner(agent, None, None, transfer).policy(td.clone())
-    chosen = torch.where(out["reused"], source_action, learner_action)
-    assert torch.equal(out["action"], chosen)
+    values = []
+    for action in (source_action, learner_action):
+        pair = TensorDict({"observation": td["observation"], "action": action}, batch_size=[2])
+        psi = gpi.critics[0](pair.clone())["successor_features"] @ gpi.weights
+        own = min_over_critics(agent.loss.qvalue_network, agent.loss.qvalue_network_params, pair).squeeze(-1)
+        values.append(torch.maximum(psi, own))
+    source_wins = (values[0] >= values[1]).unsqueeze(-1)
+    assert torch.equal(out["reused"], source_wins)
+    assert torch.equal(out["action"], torch.where(source_wins, source_action, learner_action))
+
+
+@pytest.mark.parametrize("source_task, target_task", [("fourrooms/northeast", "fourrooms/northeast-shifted"),
+                                                      ("gridrooms/northeast", "gridrooms/northeast-shifted")])
+def test_gpi_explores_epsilon_greedily_and_a_random_action_is_not_the_sources(tmp_path, source_task, target_task):
+    """sf_epsilon = 1: every action is drawn from the action space in place of GPI's, and counts as reused only
+    where it is the source's action GPI chose; sf_epsilon = 0: GPI's action is kept."""
+    for epsilon, replaced in ((1.0, True), (0.0, False)):
+        cfg, agent, env, transfer = _build(tmp_path / str(epsilon), source_task, target_task,
+                                           f"transfer.sf_epsilon={epsilon}")
+        td = AgentLearner(agent, None, None, transfer).policy(make_env(target_task, batch_size=(64,), seed=1).reset())
+        same = (td["action"] == td["gpi_action"]).all(-1)
+        if source_task.startswith("fourrooms"):
+            assert td["action"].abs().max() <= 1  # in the action box
+        else:
+            assert td["action"].sum(-1).eq(1).all()  # one-hot
+        # reused: the source's action won GPI and was not replaced by another
+        assert torch.equal(td["reused"].squeeze(-1), (td["gpi_index"].squeeze(-1) == 0) & same)
+        if replaced and source_task.startswith("fourrooms"):
+            assert not same.any()  # a uniform draw in the box is never GPI's action
+        elif replaced:
+            assert 0 < same.float().mean() < 0.6  # one of 4 actions: GPI's again about a quarter of the time
+        else:
+            assert same.all()
+
+
+def test_psi_learns_sf_updates_steps_or_until_its_opt_in_plateau(tmp_path):
+    """By default (sf_patience 0) TD takes sf_updates steps; with a plateau rule of one-step blocks that must fall
+    99% below the best and patience 1, it stops at its second step."""
+    assert config_lib.resolve({}, ["transfer.method=sf-gpi"]).transfer.sf_updates == 20_000
+    plateau = ["transfer.sf_updates=50", "transfer.sf_block=1", "transfer.sf_tolerance=0.99"]
+    for patience, expected in ((0, (50, "sf_updates")), (1, (2, "plateau"))):
+        *_, transfer = _build(tmp_path / str(patience), "gridrooms/northeast", "gridrooms/northeast-shifted",
+                              *plateau, f"transfer.sf_patience={patience}")
+        td = transfer.summary["successor_feature_td"]
+        assert (td["updates"], td["stopped"]) == expected and len(td["block_means"]) == expected[0]
+
+
+def test_the_plateau_rule_stops_on_a_hand_made_td_sequence():
+    """Blocks of 2 steps, tolerance 0.1, patience 2: means 9, 6 (< 0.9 * 9: falls), 5.7 (not < 0.9 * 6 = 5.4),
+    5.1 (falls: the count restarts), 4.9 and 4.7 (neither < 0.9 * 5.1 = 4.59): TD stops after 12 steps."""
+    from drltg.transfer.sf_gpi import Plateau
+
+    losses = [10, 8, 6, 6, 5.8, 5.6, 5.0, 5.2, 5.0, 4.8, 4.8, 4.6, 1, 1]
+    plateau = Plateau(block=2, patience=2, tolerance=0.1)
+    stops = [plateau.push(x) for x in losses[:12]]
+    assert stops == [False] * 11 + [True]
+    assert plateau.means == pytest.approx([9, 6, 5.7, 5.1, 4.9, 4.7])
+    assert plateau.best == pytest.approx(5.1)
 
 
 def test_the_experiment_on_grid_rooms_runs_reports_and_logs_how_often_the_source_won(tmp_path):

@@ -139,21 +139,31 @@ def hand_batch(rows):
 HAND_PSI = torch.tensor([[[1.0, 0.0], [0.0, 2.0]], [[3.0, 1.0], [1.0, 1.0]]])  # psi[s, a]
 
 
-def hand_loss(rows):
+def hand_outputs(rows):
     # greedy on w = (1, -1): at s' = 1, Q = (3 - 1, 1 - 1) = (2, 0), so a' = 0 and psi(s', a') = (3, 1)
     loss = SuccessorFeatureLoss(table_critic(HAND_PSI), weights=torch.tensor([1.0, -1.0]))
     loss.make_value_estimator(gamma=0.5)
     batch = hand_batch(rows)
-    return loss(batch)["loss_sf"].item(), batch["td_error"].squeeze(-1).tolist()
+    return loss(batch), batch
+
+
+def hand_loss(rows):
+    out, batch = hand_outputs(rows)
+    return out["loss_sf"].item(), batch["td_error"].squeeze(-1).tolist()
+
+
+HAND_ROWS = [
+    (0, 1, 1, [0.5, 1.0], False, False),  # target (0.5, 1) + 0.5 (3, 1) = (2, 1.5); psi (0, 2): 4 + 0.25
+    (1, 0, 0, [1.0, 0.0], True, False),  # terminated: target (1, 0); psi (3, 1): 4 + 1
+]
 
 
 def test_one_td_step_equals_the_hand_computed_loss():
-    value, errors = hand_loss([
-        (0, 1, 1, [0.5, 1.0], False, False),  # target (0.5, 1) + 0.5 (3, 1) = (2, 1.5); psi (0, 2): 4 + 0.25
-        (1, 0, 0, [1.0, 0.0], True, False),  # terminated: target (1, 0); psi (3, 1): 4 + 1
-    ])
+    value, errors = hand_loss(HAND_ROWS)
     assert errors == pytest.approx([4.25, 5.0])
     assert value == pytest.approx(4.625)
+    out, _ = hand_outputs(HAND_ROWS)  # the targets' mean squared norm, (2^2 + 1.5^2 + 1^2) / 2, for the relative error
+    assert out["sf_target_sq"].item() == pytest.approx(3.625)
 
 
 def test_a_truncated_transition_still_bootstraps():
@@ -268,10 +278,19 @@ def test_continuous_gpi_chooses_the_best_candidate_per_element():
     critics = [critic([[0.0, 1.0], [0.0, 0.0]]), critic([[0.0, 0.0], [0.0, -1.0]])]
     gpi = GPIPolicy(critics, torch.tensor([1.0, 1.0]), policies=[constant(0.3), constant(-0.8)], include_action=True)
     td = TensorDict(observation=torch.zeros(2, 1), action=torch.tensor([[0.5], [0.9]]), batch_size=[2])
-    out = gpi(td)
+    out = gpi(td.clone())
     assert out["action"].squeeze(-1).tolist() == pytest.approx([-0.8, 0.9])
     assert out["gpi_index"].squeeze(-1).tolist() == [1, 2]  # pi_2's action; the learner's own
     assert out["gpi_value"].squeeze(-1).tolist() == pytest.approx([0.8, 0.9])
+
+    # the learner's own values join the library: Q_L(s, a) = 2a, so max_i Q_i(a_j) = max(|a_j|, 2 a_j) over the
+    # candidates (0.3, -0.8, 0.5) is (0.6, 0.8, 1.0) and over (0.3, -0.8, 0.9) is (0.6, 0.8, 1.8)
+    with_own = GPIPolicy(critics, torch.tensor([1.0, 1.0]), policies=[constant(0.3), constant(-0.8)],
+                         include_action=True, own_values=lambda td, candidates: 2 * candidates.squeeze(-1))
+    out = with_own(td.clone())
+    assert out["action"].squeeze(-1).tolist() == pytest.approx([0.5, 0.9])
+    assert out["gpi_index"].squeeze(-1).tolist() == [2, 2]
+    assert out["gpi_value"].squeeze(-1).tolist() == pytest.approx([1.0, 1.8])
 
 
 # ---- 4. the FourRooms reward features are exact, and the regression recovers w ----

@@ -108,11 +108,15 @@ def test_swept_axes_name_the_variant_directories(tmp_path):
     ({"grid": {"optim.lr": []}}, "grid key 'optim.lr' must be a non-empty list"),
     ({"overrides": {"seed": 3}}, "may not set 'seed'"),
     ({"overrides": {"optim.lrr": 0.1}}, "unknown config key 'optim.lrr'; did you mean 'optim.lr'?"),
-    ({"overrides": {"eval.every": "often"}}, "'eval.every' must be an integer"),
+    ({"overrides": {"eval.every": "often"}}, "'eval.every' must be 'auto' or an integer"),
     ({"primary_metric": "mean_return_gian"}, "unknown primary_metric 'mean_return_gian'"),
     ({"primary_metric": "n_seeds_baseline"}, "primary_metric 'n_seeds_baseline' is not a comparison"),
     ({"resources": {"gpus": 1}}, "unknown resource 'gpus'; did you mean 'num_gpus'?"),
     ({"name": "mine"}, "unknown key 'name'; choose from: pairs, methods, algos, seeds"),
+    ({"overrides": {"eval.every": 512, "eval": {"every": 256}}},
+     "': 'overrides' ('eval', then 'eval.every'); give it once."),
+    ({"grid": {"optim.lr": [0.1, 0.2], "optim": [{"lr": 0.3}]}},
+     "': 'grid' ('optim', then 'optim.lr'); give it once."),
 ])
 def test_spec_errors_are_one_sentence_and_write_nothing(tmp_path, capsys, change, message):
     data = {k: v for k, v in GRID.items() if k not in ("pairs",) or "pair" not in change}
@@ -156,6 +160,8 @@ def test_local_grid_trains_each_run_once_and_reports(local):
     assert rundir.read_config(far)["transfer"]["source"] == str(out / "fourrooms-near/sac/source/seed-50")
     for run in runs:
         assert "complete" in (out / "logs" / f"{run}.log").read_text()
+        text = (out / "logs" / f"{run}.log").read_bytes()
+        assert b"[torchrl][INFO]" in text and b"\x1b" not in text  # TorchRL's lines there, uncoloured
     with open(out / "summary.csv") as f:
         rows = list(csv.DictReader(f))
     assert [(r["pair"], r["method"]) for r in rows] == [
@@ -188,6 +194,29 @@ def test_the_python_function_is_the_command(local, capsys):
         ("fourrooms-far", "model-reuse"), ("fourrooms-far", "reward-shaping")]
     assert capsys.readouterr().out == ""
     assert yaml.safe_load((out / "sweep.yaml").read_text()) == GRID
+
+
+def test_every_figure_of_a_sweep_takes_the_figure_options(local, tmp_path, page_size):
+    """``--figure one-column`` on a finished sweep: its runs are reused, every report's plot, the summary's
+    heatmap and its performance profiles are redrawn as one-column PDFs (a 3.3 in page) beside their PNGs."""
+    import matplotlib.image as mpimg
+
+    spec, out, curves = local
+    mine = tmp_path / "sweep"
+    shutil.copytree(out, mine)
+    assert main(["sweep", str(spec), "--out", str(mine), "--workers", "1", "--figure", "one-column",
+                 "--no-progress"]) == 0
+    assert _curves(mine) == curves
+    pdfs = sorted(str(p.relative_to(mine)) for p in mine.rglob("*.pdf"))
+    assert pdfs == ["fourrooms-far/sac/model-reuse/report/transfer_plot.pdf",
+                    "fourrooms-far/sac/reward-shaping/report/transfer_plot.pdf",
+                    "fourrooms-near/sac/model-reuse/report/transfer_plot.pdf",
+                    "fourrooms-near/sac/reward-shaping/report/transfer_plot.pdf", "performance_profiles.pdf",
+                    "transfer_matrix.pdf"]
+    for pdf in pdfs:
+        assert page_size(mine / pdf)[0] == pytest.approx(3.3 * 72)
+        assert mpimg.imread((mine / pdf).with_suffix(".png")).shape[1] == 990  # 3.3 in at 300 dpi
+    assert main(["sweep", str(spec), "--out", str(mine), "--figure-dpi", "1"]) == 2  # checked before anything runs
 
 
 @pytest.fixture(scope="module")

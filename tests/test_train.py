@@ -80,6 +80,18 @@ def test_the_summary_splits_the_wall_time_by_phase(tmp_path, monkeypatch):
     assert summary["timed_frames"] == summary["frames"]  # one start: the wall time covers every frame
 
 
+def test_a_run_of_the_default_evaluation_schedule_gives_the_report_20_evaluations(tmp_path):
+    """eval.every's default, auto, evaluates a 2,000-frame run every 100 frames (at the first batch of 16 at or
+    past each multiple): 21 evaluations with frame 0, 6 of them in the budget's last quarter."""
+    cfg = config_lib.resolve({}, [o for o in TINY if not o.startswith("eval.every")], task="fourrooms/northeast",
+                             frames=2000, seed=3)
+    run = train(cfg, tmp_path / "run", progress=False)
+    frames = [r["frames"] for r in read_eval_csv(run / "eval.csv")]
+    assert frames == [0, *(-(-f // 16) * 16 for f in range(100, 2000, 100)), 2000]
+    assert len(frames) == 21 and sum(f >= 1500 for f in frames) == 6
+    assert yaml.safe_load((run / "config.yaml").read_text())["eval"]["every"] == "auto"
+
+
 def test_same_seed_same_curve(tiny_run, tmp_path):
     again = train(tiny_cfg(), tmp_path / "b", progress=False)
     assert (again / "eval.csv").read_text() == (tiny_run / "eval.csv").read_text()
@@ -211,9 +223,10 @@ def test_a_run_started_with_sigint_ignored_keeps_ignoring_it(tmp_path, monkeypat
     calls = _sigint_at_frame(640, monkeypatch)
     saves, real_checkpoint = [], RunWriter.checkpoint
 
-    def checkpoint(self, state, frames, *args, **kwargs):
-        saves.append(frames)
-        return real_checkpoint(self, state, frames, *args, **kwargs)
+    def checkpoint(self, state, frames, *args, last=True, **kwargs):
+        if last:  # frame 0's call writes the first best networks alone
+            saves.append(frames)
+        return real_checkpoint(self, state, frames, *args, last=last, **kwargs)
 
     monkeypatch.setattr(RunWriter, "checkpoint", checkpoint)
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -268,7 +281,9 @@ def test_cli_unknown_subcommand_option(capsys):
 
 @pytest.mark.parametrize("argv, err", [
     (["train", "fourrooms/northeast", "--frames", "-5"], "drltg train: error: argument --frames: '-5' is not a whole"),
-    (["experiment", "fourrooms-near"], "drltg experiment: error: the following arguments are required: --method"),
+    (["experiment", "fourrooms-near"], "drltg experiment: error: the following arguments are required: --out"),
+    (["experiment", "fourrooms-near", "--out", "never-written"],  # --method may come from --config FILE
+     "drltg experiment: error: name --method, --frames on the command line or in --config FILE."),
 ])
 def test_cli_a_refused_option_names_the_command_that_refused_it(capsys, argv, err):
     assert main(argv) == 2

@@ -301,4 +301,7 @@ def headline(report: Mapping, metric: str = "mean_return_gain") -> str:
         return f"Headline ({where}): {label} is not available."
     sequential = st.get("sequential") is not None and metric == "mean_return_gain"
     said = sequential_verdict(report) if sequential else verdict_of(report, metric)
+    if st.get("learned_nothing"):
+        said += ("; but no run of either side reached the threshold, so neither learned the task and this measures "
+                 "nothing")
     return f"Headline ({where}): {label} {said}."

@@ -10,7 +10,8 @@ A curve is one run's evaluation return against environment frames. Readers (``FO
     (or ``--tag``); rows whose y cell is empty (training rows) are skipped. The same reader takes the
     three-column ``Wall time,time/total_timesteps,eval/mean_reward`` logs.
 ``sb3-monitor``
-    Stable-Baselines3 ``*monitor.csv`` files (one per environment, merged by wall time): x = cumulative
+    Stable-Baselines3 ``*monitor.csv`` files (one per environment, ``0.monitor.csv`` ... as
+    ``make_vec_env`` names them, merged by wall time; a folder of other names is refused): x = cumulative
     episode length ``l``, y = episode return ``r``. These are *training* episodes, so they are noisier
     than evaluation curves.
 ``tensorboard``
@@ -164,12 +165,26 @@ def read_run(directory: str | Path, *, format: str = "auto", tag: str | None = N
     owner = _owner(d)
     config = _config_of(owner)
     label = owner.resolve().name
-    log = {"drltg": d / "eval.csv", "sb3": d / "progress.csv", "sb3-monitor": sorted(d.glob("*monitor.csv")),
+    log = {"drltg": d / "eval.csv", "sb3": d / "progress.csv", "sb3-monitor": _one_runs_monitors(d),
            "tensorboard": d, "csvlogger": d / "scalars"}[fmt]
     curve = _read(fmt, log, tag)
     curve.label, curve.config = label, config
     curve.task = _task_in(config)
     return curve
+
+
+def _one_runs_monitors(directory: Path) -> list[Path]:
+    """The ``*monitor.csv`` files of a run directory, which are one run's environments only as SB3's
+    ``make_vec_env(monitor_dir=...)`` names them, ``0.monitor.csv`` to ``<n-1>.monitor.csv`` (or a single
+    file): other names may be several runs' files in one folder, which merged would be one run, silently."""
+    files = sorted(directory.glob("*monitor.csv"))
+    ranks = sorted(f.name.removesuffix(".monitor.csv") for f in files)
+    if len(files) > 1 and ranks != sorted(map(str, range(len(files)))):
+        names = ", ".join(f.name for f in files[:3]) + (f" and {len(files) - 3} more" if len(files) > 3 else "")
+        raise UsageError(f"'{directory}' holds {len(files)} monitor files ({names}) not named as one run's "
+                         "environments (0.monitor.csv, 1.monitor.csv, ...); put each run's in its own folder, or pass "
+                         f"the files ('{directory}/*monitor.csv') to read each as a run.")
+    return files
 
 
 def _read_file(path: Path, format: str, tag: str | None) -> Curve:

@@ -23,33 +23,52 @@ from drltg.bench.suite import LATEST, Group, get_tier
 from drltg.errors import RunFailed, UsageError
 from drltg.store import rundir
 
-__all__ = ["bench_run", "tier_root", "read_record", "REFERENCE_FILES"]
+__all__ = ["bench_run", "tier_root", "read_record", "read_tuning", "tuning_root", "REFERENCE_FILES"]
 
 REFERENCE_FILES = ("config.yaml", "eval.csv", "summary.json", "manifest.json", "checkpoints/last.safetensors")
 """What a reference run holds and a bench run copies: the curve a report reads, and the networks a source
 is reused from."""
 RECORD = "bench.json"
+TUNING = "tuning.json"
 
 
 def tier_root(out: str | Path, version: str, tier: str, smoke: bool = False) -> Path:
     return Path(out) / version / (f"{tier}-smoke" if smoke else tier)
 
 
-def read_record(root: Path) -> dict:
-    """``bench.json`` of a tier folder (``{"methods": {}}`` where there is none)."""
-    from drltg.regular import read_bytes
+def tuning_root(out: str | Path, version: str, tier: str, method: str, smoke: bool = False) -> Path:
+    return tier_root(out, version, tier, smoke) / "tuning" / method
+
+
+def read_tuning(out: str | Path, version: str, tier: str, method: str, smoke: bool = False) -> dict | None:
+    """The method's ``tuning.json`` in a bench folder, checked to be a choice among its declared settings, or
+    ``None`` where it was not tuned."""
+    from drltg.bench.checks import read_json
+    from drltg.transfer import get_method
+
+    root = tuning_root(out, version, tier, method, smoke)
+    path = root / TUNING
+    if not path.exists() and not path.is_symlink():
+        return None
+    record = read_json(path, root, 2**22, "a tuning record")
+    settings = get_method(method).settings
+    if not isinstance(record, dict) or record.get("method") != method or record.get("choice") not in settings:
+        raise UsageError(f"'{path}' is not a tuning record of {method} choosing one of its declared settings; "
+                         "run drltg bench tune again.")
+    return record
+
+
+def read_record(root: Path, version: str | None = None, tier: str | None = None) -> dict:
+    """``bench.json`` of a tier folder (``{"methods": {}}`` where there is none), checked to be a bench record
+    of that folder's suite ``version`` and ``tier`` (``root``'s own names where not given)."""
+    from drltg.bench.checks import check_record, read_json
 
     path = root / RECORD
-    if not path.exists():
+    if not path.exists() and not path.is_symlink():
         return {"methods": {}}
-    try:
-        record = json.loads(read_bytes(path, 2**22, "a bench record"))
-        if not isinstance(record.get("methods"), dict):
-            raise ValueError
-        return record
-    except (ValueError, AttributeError):
-        raise UsageError(f"'{path}' is not a bench record (JSON with a 'methods' mapping); remove it and run "
-                         "drltg bench run again.") from None
+    version = version or root.parent.name
+    tier = tier or root.name.removesuffix("-smoke")
+    return check_record(read_json(path, root, 2**22, "a bench record"), path, version, tier)
 
 
 def versions() -> dict:
@@ -81,28 +100,56 @@ def applicable_pairs(group: Group, method: str, smoke: bool, out: Path) -> tuple
     return kept, left_out
 
 
-def copy_reference(runs, out: Path, reference: Path) -> int:
-    """Copy the finished source and baseline runs the reference holds at each planned run's relative path;
-    the number copied."""
-    copied = 0
+def in_reference(runs, out: Path, reference: Path) -> dict[Path, Path]:
+    """The planned source and baseline runs not finished here whose reference run, at the same relative path,
+    is finished (a source with its networks file): run directory -> the reference's."""
+    held = {}
     for run in runs:
         if run.role not in ("source", "baseline") or (run.path / "summary.json").exists():
             continue
         kept = reference / run.path.relative_to(out)
-        if not rundir.is_complete(kept) or (run.role == "source" and not (kept / REFERENCE_FILES[-1]).is_file()):
-            continue
+        if rundir.is_complete(kept) and (run.role != "source" or (kept / REFERENCE_FILES[-1]).is_file()):
+            held[run.path] = kept
+    return held
+
+
+def copy_reference(runs, out: Path, reference: Path) -> int:
+    """Copy the finished source and baseline runs the reference holds at each planned run's relative path;
+    the number copied."""
+    held = in_reference(runs, out, reference)
+    for path, kept in held.items():
         for name in REFERENCE_FILES:
             if (kept / name).is_file():
-                (run.path / name).parent.mkdir(parents=True, exist_ok=True)
-                shutil.copyfile(kept / name, run.path / name)
-        copied += 1
-    return copied
+                (path / name).parent.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(kept / name, path / name)
+    return len(held)
+
+
+def plan_tier(groups: list[tuple[str, dict, Path]], reference_root: Path | None, group_seeds: bool) -> list[str]:
+    """What a tier's command would train, group by group, before anything trains: ``(name, sweep spec, folder)``
+    each, listed as units of work (seed groups and their sizes) and the frames left, the runs the reference
+    holds counted as copied."""
+    from drltg.experiments.executor import plan_of
+    from drltg.experiments.spec import parse_spec
+    from drltg.experiments.sweep import plan
+
+    lines, left, total = [], 0, 0
+    for name, spec, out in groups:
+        runs, cells = plan(parse_spec(spec), out.resolve())
+        held = in_reference(runs, out.resolve(), (reference_root / name).resolve()) if reference_root else {}
+        planned = plan_of(runs, group_seeds, frozenset(held))
+        lines += [f"{name}: {line}" for line in planned.summary(runs, len(cells))]
+        left, total = left + planned.left, total + sum(r.frames for r in runs)
+    lines.append(f"the tier: about {left:,} of {total:,} frames left to train")
+    return lines
 
 
 def bench_run(method: str, *, tier: str = "quick", out: str | Path = "runs/bench", version: str = LATEST,
               reference: str | Path | None = None, smoke: bool = False, workers: int | None = None,
-              backend: str = "local", group_seeds: bool = True, progress: bool = True, imports=()) -> dict:
-    """Train ``method`` on every group of the tier into ``out`` and record it; returns the bench record.
+              backend: str = "local", group_seeds: bool = True, progress: bool = True, imports=(),
+              dry_run: bool = False) -> dict:
+    """Train ``method`` on every group of the tier into ``out`` and record it; returns the bench record
+    (with ``dry_run``, ``{"plan": lines}``: the tier's work, :func:`plan_tier`, and nothing written).
 
         >>> drltg.bench.bench_run("kickstarting", out="runs/bench", reference="results/bench", workers=2)
     """
@@ -118,30 +165,66 @@ def bench_run(method: str, *, tier: str = "quick", out: str | Path = "runs/bench
     reference_root = None
     if reference is not None and not smoke:
         reference_root = tier_root(rundir.check_directory(reference, "--reference"), version, tier)
-    read_record(root)  # a broken record is refused before anything trains
+    read_record(root, version, tier)  # a broken record is refused before anything trains
+    tuning = read_tuning(out, version, tier, method, smoke)
+    choice = tuning["choice"] if tuning else {}
     entry = {"versions": versions(), "smoke": smoke, "imports": list(imports), "groups": {}, "left_out": {},
-             "reference": str(reference_root) if reference_root else None, "copied": 0}
+             "reference": str(reference_root) if reference_root else None, "copied": 0,
+             "tuning": None if tuning is None else {k: tuning[k] for k in ("budget", "choice", "rule", "seeds")}}
     for group in the_tier.groups:
-        group_out = root / group.name
-        pairs, left_out = applicable_pairs(group, method, smoke, group_out)
+        pairs, left_out = applicable_pairs(group, method, smoke, root / group.name)
         entry["left_out"].update(left_out)
-        if not pairs:
-            continue
-        spec = {**group.sweep_spec([method], smoke), "pairs": pairs}
-        entry["groups"][group.name] = spec
+        if pairs:
+            spec = group.sweep_spec([method], smoke)
+            entry["groups"][group.name] = {**spec, "pairs": pairs, "overrides": {**spec.get("overrides", {}), **choice}}
+    if dry_run:
+        return {"plan": plan_tier([(g, spec, root / g) for g, spec in entry["groups"].items()], reference_root,
+                                  group_seeds)}
+    for name, spec in entry["groups"].items():
+        group_out = root / name
         if reference_root is not None:
             runs, _ = plan(parse_spec(spec), group_out.resolve())
-            entry["copied"] += copy_reference(runs, group_out.resolve(), (reference_root / group.name).resolve())
+            entry["copied"] += copy_reference(runs, group_out.resolve(), (reference_root / name).resolve())
         result = sweep(spec, group_out, backend=backend, workers=workers, group_seeds=group_seeds,
                        progress=progress)
         failed = [str(p) for p, (state, _) in result["status"].items() if state in ("failed", "diverged")]
         if failed:
-            raise RunFailed(f"{len(failed)} run(s) of {method} on {group.name} failed or diverged (first: "
+            raise RunFailed(f"{len(failed)} run(s) of {method} on {name} failed or diverged (first: "
                             f"{failed[0]}); see their logs under {group_out / 'logs'}, then run the same command "
                             "again to resume")
-    record = read_record(root)  # another method may have finished meanwhile
+    record = read_record(root, version, tier)  # another method may have finished meanwhile
     record.setdefault("suite", version)
     record.setdefault("tier", tier)
     record["methods"][method] = entry
     rundir.write_files(root, {RECORD: (json.dumps(record, indent=1, sort_keys=True) + "\n").encode()})
+    for group in the_tier.groups:
+        summarise_group(group, record, smoke, root / group.name)
     return record
+
+
+def summarise_group(group: Group, record: dict, smoke: bool, group_out: Path) -> None:
+    """Rewrite a group's summaries, aggregates and Holm families over every method the record holds there:
+    the sweep of one method summarises that method alone, which in a folder shared by several methods would
+    drop the others'. Nothing trains; a run not finished is an incomplete cell, as in the sweep's summary."""
+    from drltg.experiments.spec import parse_spec
+    from drltg.experiments.sweep import plan, write_summary
+
+    methods = {m: e["groups"][group.name] for m, e in sorted(record["methods"].items())
+               if group.name in e.get("groups", {})}
+    if len(methods) < 2:
+        return  # the sweep's own summary holds the one method
+    runs, cells, spec = {}, [], None
+    for method, ran in methods.items():  # as it ran: its pairs, and its tuned setting among the overrides
+        spec = parse_spec({**group.sweep_spec([method], smoke), "pairs": ran["pairs"],
+                           "overrides": ran.get("overrides", group.spec.get("overrides", {}))},
+                          f"suite group {group.name}")
+        planned, planned_cells = plan(spec, group_out.resolve())
+        for r in planned:
+            runs.setdefault(r.path, r)
+        cells += planned_cells
+    status = {}
+    for path in runs:
+        ended = rundir.summary_status(path)
+        status[path] = (("skipped" if ended[0] == "complete" else ended[0]), ended[1]) if ended else ("not started", "")
+    with rundir.lock(group_out, "sweep folder"):
+        write_summary(spec, group_out.resolve(), list(runs.values()), cells, status, "mean_return_gain")

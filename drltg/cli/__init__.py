@@ -8,6 +8,7 @@ import logging
 import re
 import signal
 import sys
+from importlib.metadata import version
 
 from drltg import plugins
 from drltg.errors import RunFailed, UsageError
@@ -33,9 +34,27 @@ class _BadArguments(Exception):
     option): :func:`main` prints it as one sentence and returns 2 (argparse's convention)."""
 
 
+class _Once(argparse.Action):
+    """An option that takes one value, refused when given twice: argparse keeps the last (``--seeds auto ...
+    --seeds 14`` would train 14), which one was meant depends on where each was typed."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        given = namespace.__dict__.setdefault("_given", {})
+        if self.dest in given:
+            parser.error(f"argument {'/'.join(self.option_strings)} is given twice ({given[self.dest]!r}, then "
+                         f"{values!r}); give it once")
+        given[self.dest] = values
+        setattr(namespace, self.dest, values)
+
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str):
         raise _BadArguments(f"{self.prog}: error: {message}")
+
+    def add_argument(self, *names, **kwargs):
+        if names and names[0].startswith("-") and kwargs.get("action", "store") == "store":
+            kwargs["action"] = _Once
+        return super().add_argument(*names, **kwargs)
 
 
 NEGATIVE_VALUED = ("--value-range", "--threshold")
@@ -59,12 +78,14 @@ def _joined_negative_values(argv: list[str]) -> list[str]:
 def main(argv: list[str] | None = None) -> int:
     argv = _joined_negative_values(sys.argv[1:] if argv is None else argv)
     parser = _Parser(prog="drltg", description="DRL Transfer Gym: transfer learning for deep RL on TorchRL.")
+    parser.add_argument("--version", action="version", version=f"drltg {version('drltg')}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
     plugin_options = _Parser(add_help=False)
     plugin_options.add_argument("--import", dest="imports", action="append", default=[], metavar="MODULE",
-                                help="import MODULE first, e.g. one that registers your tasks (repeatable; "
-                                     "also DRLTG_IMPORT=a,b and the drltg.plugins entry points)")
+                                help="import MODULE first, e.g. one that registers your tasks: a module name, "
+                                     "one in the working directory, or a file or package path (./my_tasks.py; "
+                                     "repeatable; also DRLTG_IMPORT=a,b and the drltg.plugins entry points)")
     for name, (module, help_text) in SUBCOMMANDS.items():
         p = sub.add_parser(name, help=help_text, description=help_text, parents=[plugin_options])
         p.set_defaults(_module=module)

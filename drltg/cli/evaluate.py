@@ -12,7 +12,8 @@ from drltg.errors import UsageError
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("run_dir", type=Path, help="a run directory (drltg train's --run-dir)")
     p.add_argument("--checkpoint", choices=("last", "best"), default="last",
-                   help="checkpoints/last.pt (default) or best.pt (kept with -o checkpoint.keep_best=true)")
+                   help="last (default): the networks of checkpoints/last.pt; best: those of the run's best "
+                        "evaluation, checkpoints/best.safetensors")
     p.add_argument("--episodes", type=int, default=100, metavar="N", help="fresh episodes to evaluate (default 100)")
     p.add_argument("--seed", type=int, metavar="S",
                    help=f"seed of the evaluation env (default: the run's seed + {FRESH_SEED_OFFSET}; its training "

@@ -8,7 +8,7 @@ import math
 import sys
 from dataclasses import asdict, fields
 
-from drltg.analysis import tables
+from drltg.analysis import figure_style, tables
 from drltg.analysis.report import ReportSettings, find_matrix_cells, format_table, transfer_matrix, transfer_report
 from drltg.errors import UsageError
 
@@ -26,6 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     io_.add_argument("--metric", default="mean_return_gain", help="metric for the --matrix heatmap "
                      "(default: mean_return_gain)")
     io_.add_argument("--out", metavar="DIR", help="output folder (default: a fresh folder named after the runs)")
+    figure_style.add_arguments(parser)
     for f in fields(ReportSettings):
         meta = f.metadata
         if meta.get("flag"):
@@ -34,11 +35,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args) -> int:
     settings = asdict(ReportSettings.from_args(args))  # every option is checked before any run is read
+    figure = figure_style.from_args(args)
+    drawn = figure.formats("svg")
     if args.matrix:
         if args.baseline or args.transfer:
             raise UsageError("--matrix builds its own baseline/transfer pairs; drop --baseline and --transfer.")
         del settings["baseline_label"], settings["transfer_label"]
-        result = transfer_matrix(find_matrix_cells(args.matrix), args.out, args.metric, **settings)
+        result = transfer_matrix(find_matrix_cells(args.matrix), args.out, args.metric, figure=figure, **settings)
         for cell in result["cells"]:
             for w in cell["settings"]["warnings"]:
                 print(f"warning: {cell['source']} -> {cell['target']}: {w}", file=sys.stderr)
@@ -58,18 +61,19 @@ def run(args) -> int:
             print(f"aggregates over {len(agg['pairs'])} cells x {agg['runs_per_pair']} runs (rliable, 95% stratified "
                   f"bootstrap): IQM difference {iqm:+.4g} [{lo:+.4g}, {hi:+.4g}], P(T > B) {poi:.3g} [{plo:.3g}, "
                   f"{phi:.3g}]; all in transfer_matrix.json")
-        print(f"wrote {result['out_dir']}/transfer_matrix.{{png,svg,csv,json}}")
+        print(f"wrote {result['out_dir']}/transfer_matrix.{{{','.join([*drawn, 'csv', 'json'])}}}")
         return 0
     if not args.baseline or not args.transfer:
         raise UsageError("give both --baseline and --transfer runs (or --matrix DIR).")
-    result = transfer_report(args.baseline, args.transfer, args.out, **settings)
+    result = transfer_report(args.baseline, args.transfer, args.out, figure=figure, **settings)
     for w in result["settings"]["warnings"]:
         print(f"warning: {w}", file=sys.stderr)
     print(format_table(result))
     from drltg.analysis.claims import headline
 
     print("\n" + headline(result))
-    print(f"\nwrote {result['out_dir']}/transfer_metrics.{{json,csv}} and transfer_plot.{{png,svg}}")
+    plots = f"{{{','.join(drawn)}}}" if len(drawn) > 1 else drawn[0]
+    print(f"\nwrote {result['out_dir']}/transfer_metrics.{{json,csv}} and transfer_plot.{plots}")
     return 0
 
 

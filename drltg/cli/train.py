@@ -90,7 +90,7 @@ def _say_how_it_went(run_dir: Path, name: str | None = None) -> None:
     from drltg.store.rundir import read_config, read_eval_csv
     from drltg.training.best import outcome
 
-    cfg = config_lib.build(read_config(run_dir))
+    cfg = config_lib.build(read_config(run_dir), saved=True)
     for line in outcome(cfg, read_eval_csv(run_dir / "eval.csv")):
         warning = line.startswith("warning: ")
         print(f"{name}: {line}" if name and not warning else line, file=sys.stderr if warning else sys.stdout)

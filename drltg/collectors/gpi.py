@@ -16,11 +16,14 @@ every action. With continuous actions it runs over candidate actions, each sourc
 
     \pi_{GPI}(s) = a_{j^*}, \qquad j^* = \arg\max_j \max_i \psi_i(s, a_j)^\top w
 
-(Barreto et al. 2018); the guarantee holds, since the candidates include every :math:`\pi_i(s)`.
+(Barreto et al. 2018); the guarantee holds, since the candidates include every :math:`\pi_i(s)`. The
+learner's own values may join the library as one more :math:`Q_i` (discrete: ``own_value_key``; continuous:
+``own_values`` of the candidates), so GPI acts over every policy it holds, the learner included.
 
 The module is stateless and draws nothing: it writes the greedy GPI action, chosen per batch element
-with ``argmax``/``gather`` (as TorchRL's ``EGreedyModule`` chooses with ``torch.where``). Exploration, if
-any, is composed around it.
+with ``argmax``/``gather`` (as TorchRL's ``EGreedyModule`` chooses with ``torch.where``). Exploration is
+composed around it (the sf-gpi method follows it with TorchRL's ``EGreedyModule``: epsilon-greedy GPI, as
+Barreto et al. 2017's agents explore).
 """
 from __future__ import annotations
 
@@ -54,6 +57,8 @@ class GPIPolicy(TensorDictModuleBase):
             after the learner's policy); its index is ``len(policies)``.
         own_value_key: discrete: an entry ``[*, A]`` of the learner's own action values, taken as one more
             ``Q_i`` (index ``len(critics)``) when it is present.
+        own_values: continuous: ``own_values(tensordict, candidates) -> [*, J]``, the learner's own values of
+            the candidate actions ``[*, J, action_dim]``, taken as one more ``Q_i`` (index ``len(critics)``).
         action_key: where the action is written (one-hot for discrete critics).
         index_key: where the chosen policy's index is written, int64 ``[*, 1]``: discrete, the ``i`` of
             the best ``Q_i`` at the chosen action; continuous, the ``j`` whose action was chosen.
@@ -71,6 +76,7 @@ class GPIPolicy(TensorDictModuleBase):
         policies: Sequence[TensorDictModuleBase] | None = None,
         include_action: bool = False,
         own_value_key: NestedKey | None = None,
+        own_values=None,
         action_key: NestedKey = "action",
         index_key: NestedKey = "gpi_index",
         value_key: NestedKey = "gpi_value",
@@ -86,6 +92,8 @@ class GPIPolicy(TensorDictModuleBase):
         self.discrete = not kinds.pop()
         if self.discrete and (policies is not None or include_action):
             raise UsageError("discrete GPI maximises over every action: it takes no policies or include_action.")
+        if self.discrete and own_values is not None:
+            raise UsageError("discrete GPI reads the learner's own values from own_value_key, not own_values.")
         if not self.discrete and not policies and not include_action:
             raise UsageError("continuous GPI needs candidate actions: the source policies (policies=) "
                              "or include_action=True.")
@@ -93,6 +101,7 @@ class GPIPolicy(TensorDictModuleBase):
         self.policies = nn.ModuleList(copy.deepcopy(p).requires_grad_(False).eval() for p in policies or ())
         self.include_action = include_action
         self.own_value_key = own_value_key
+        self.own_values = own_values
         self.action_key, self.index_key, self.value_key, self.features_key = (
             action_key, index_key, value_key, features_key)
         self.register_buffer("weights", torch.as_tensor(weights, dtype=torch.float32).clone())
@@ -119,8 +128,8 @@ class GPIPolicy(TensorDictModuleBase):
         return torch.stack(acts, -2)
 
     def action_values(self, tensordict: TensorDictBase, candidates: torch.Tensor | None = None) -> torch.Tensor:
-        """``Q_i(s, a) = psi_i(s, a) . w``: discrete ``[*, I, A]`` (every action; the learner's own values
-        last when ``own_value_key`` is present), continuous ``[*, I, J]`` (the candidate actions)."""
+        """``Q_i(s, a) = psi_i(s, a) . w``: discrete ``[*, I, A]`` (every action), continuous ``[*, I, J]`` (the
+        candidate actions); the learner's own values last, where it has them."""
         w = self.weights
         values = []
         with torch.no_grad():
@@ -134,6 +143,8 @@ class GPIPolicy(TensorDictModuleBase):
                 values.append(critic(td).get(self.features_key) @ w.to(tensordict.device or w.device))
             if self.discrete and self.own_value_key is not None and self.own_value_key in tensordict.keys(True):
                 values.append(tensordict.get(self.own_value_key).to(values[0].dtype))
+            if not self.discrete and self.own_values is not None:
+                values.append(self.own_values(tensordict, candidates).to(values[0].dtype))
         return torch.stack(values, -2)
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:

@@ -11,8 +11,8 @@ goes on. The mixer is a schedule-driven ``torch.where`` per environment, like To
 policies, which one an episode reuses:
 
 - :class:`PiReuse`: psi * upsilon^h, with an optional linear decay of psi over training;
-- :class:`JumpStart`: the guide acts for the first H steps, H shrinking on a curriculum (JSRL,
-  Uchendu et al. 2022);
+- :class:`JumpStart`: the guide acts for the first H steps, H shrinking on a curriculum that advances when
+  the combined policy's evaluated return holds near its best (JSRL, Uchendu et al. 2023);
 - :class:`PRQL`: a library of past policies; each episode reuses policy k with probability
   softmax(tau * W)_k, W_k being its average return when reused (Fernandez & Veloso 2006).
 
@@ -25,6 +25,7 @@ transitions in the replay buffer, which is exactly what reuse provides.
 from __future__ import annotations
 
 import copy
+import math
 from collections.abc import Sequence
 
 import torch
@@ -36,7 +37,7 @@ from torchrl.data import Composite, TensorSpec, Unbounded
 from torchrl.envs import TensorDictPrimer
 from torchrl.envs.utils import ExplorationType, exploration_type, set_exploration_type
 
-from drltg.errors import UsageError
+from drltg.errors import ArgumentError, UsageError
 
 __all__ = ["PolicyReuse", "ReuseSchedule", "PiReuse", "JumpStart", "PRQL"]
 
@@ -104,9 +105,9 @@ class PiReuse(ReuseSchedule):
         psi_end = psi if psi_end is None else psi_end
         for name, value in (("psi", psi), ("upsilon", upsilon), ("psi_end", psi_end)):
             if not 0.0 <= value <= 1.0:
-                raise UsageError(f"{name} must lie in [0, 1], got {value}.")
+                raise ArgumentError(name, f"must lie in [0, 1], got {value}.")
         if psi_end != psi and annealing_frames <= 0:
-            raise UsageError("psi_end needs annealing_frames > 0, the frames over which psi decays.")
+            raise ArgumentError("psi_end", "needs annealing_frames > 0, the frames over which psi decays.")
         self.psi_init, self.psi_end, self.upsilon = psi, psi_end, upsilon
         self.annealing_frames = annealing_frames
 
@@ -124,24 +125,66 @@ class PiReuse(ReuseSchedule):
 
 
 class JumpStart(ReuseSchedule):
-    """The guide acts for the first H steps of each episode (JSRL, Uchendu et al. 2022).
+    """The guide acts for the first H steps of each episode, H shrinking on a curriculum (JSRL, Uchendu et al.
+    2023, "Jump-Start Reinforcement Learning", JSRL-Curriculum).
 
-    H shrinks on a curriculum of ``stages`` equal steps, one every ``frames_per_stage`` training
-    frames: H_k = guide_steps * (stages - k) // stages, k = min(frames // frames_per_stage, stages),
-    down to H = 0 (the learner alone).
+    H takes ``stages`` equal steps down to 0, the learner alone: H_k = guide_steps * (stages - k) // stages,
+    k = 0 .. stages. JSRL moves to the next stage when the combined policy (the guide for H steps, then the
+    learner) performs as well as it ever did: after every evaluation of it, with R the mean of its last
+    ``window`` evaluated returns at this stage and B the best such mean before (of any stage),
+
+        k <- k + 1    if  R >= B - tolerance * |B|,          B <- max(B, R)
+
+    (the first evaluation only sets B; a stage's window starts empty, so a stage lasts ``window`` evaluations at
+    least). Tell it each evaluation with :meth:`evaluated`; evaluate the combined policy by chaining the learner's
+    actor and a :class:`PolicyReuse` built with ``mix_deterministic=True``.
+
+    ``frames_per_stage`` instead advances on a fixed clock, one stage every ``frames_per_stage`` training
+    frames (k = min(frames // frames_per_stage, stages)), whatever the returns.
+
+    The stage, B and the window are buffers: a checkpoint of the module's ``state_dict`` resumes the curriculum.
     """
 
-    def __init__(self, guide_steps: int, *, stages: int = 10, frames_per_stage: int) -> None:
+    def __init__(self, guide_steps: int, *, stages: int = 10, tolerance: float = 0.05, window: int = 1,
+                 frames_per_stage: int | None = None) -> None:
         super().__init__()
-        if guide_steps < 0 or stages < 1 or frames_per_stage < 1:
-            raise UsageError("JumpStart needs guide_steps >= 0, stages >= 1 and frames_per_stage >= 1.")
+        if guide_steps < 0 or stages < 1 or window < 1 or tolerance < 0 or (
+                frames_per_stage is not None and frames_per_stage < 1):
+            raise UsageError("JumpStart needs guide_steps >= 0, stages >= 1, window >= 1, tolerance >= 0 and "
+                             "frames_per_stage >= 1 (or None).")
         self.guide_steps, self.stages, self.frames_per_stage = guide_steps, stages, frames_per_stage
+        self.tolerance, self.window = tolerance, window
+        self.register_buffer("stage", torch.zeros((), dtype=torch.long))
+        self.register_buffer("best", torch.tensor(-math.inf, dtype=torch.float64))
+        self.register_buffer("returns", torch.full((window,), math.nan, dtype=torch.float64))
+
+    @property
+    def current_stage(self) -> int:
+        """k, the stage reached (of 0 .. ``stages``)."""
+        if self.frames_per_stage is not None:
+            return min(int(self.frames) // self.frames_per_stage, self.stages)
+        return int(self.stage)
 
     @property
     def horizon(self) -> int:
-        """H, the number of guided steps at the current training progress."""
-        stage = min(int(self.frames) // self.frames_per_stage, self.stages)
-        return self.guide_steps * (self.stages - stage) // self.stages
+        """H, the number of guided steps at the current stage."""
+        return self.guide_steps * (self.stages - self.current_stage) // self.stages
+
+    def evaluated(self, value: float) -> bool:
+        """Take the combined policy's mean evaluated return at the current stage; returns whether the curriculum
+        moved to the next stage. A clock-driven curriculum (``frames_per_stage``) ignores it."""
+        if self.frames_per_stage is not None or int(self.stage) >= self.stages:
+            return False
+        self.returns.copy_(torch.cat([self.returns[1:], self.returns.new_tensor([float(value)])]))
+        if self.returns.isnan().any():  # fewer than ``window`` evaluations at this stage
+            return False
+        mean, best = self.returns.mean(), self.best.clone()
+        advance = bool(torch.isfinite(best)) and bool(mean >= best - self.tolerance * best.abs())
+        self.best.copy_(torch.maximum(best, mean))
+        if advance:
+            self.stage += 1
+            self.returns.fill_(math.nan)
+        return advance
 
     def probability(self, step_count: torch.Tensor) -> torch.Tensor:
         return (step_count < self.horizon).to(torch.get_default_dtype())
@@ -229,7 +272,9 @@ class PolicyReuse(TensorDictModuleBase):
     drawn uniformly from ``spec`` (epsilon-greedy, for a deterministic learner). ``h`` is read from
     ``step_count`` (drltg environments and TorchRL's ``StepCounter`` write it), so psi_h restarts at
     every episode start, per environment. Under any exploration type other than RANDOM (e.g.
-    evaluation under DETERMINISTIC) the learner's action passes through unchanged.
+    evaluation under DETERMINISTIC) the learner's action passes through unchanged, unless
+    ``mix_deterministic``: then the mixer mixes there too, without ``epsilon`` (the combined policy of the
+    learner's and the past policy's deterministic actions, which JSRL evaluates).
 
     The episode's choice of past policy is environment state, not module state: ``reuse_index``
     (int64 [*, 1]) is declared by :meth:`primer`, which sets it to -1 ("not chosen yet") at every
@@ -250,6 +295,7 @@ class PolicyReuse(TensorDictModuleBase):
         epsilon: probability of a uniform random action when the learner acts. Default 0 (the
             learner's stochastic action is its exploration).
         generator: the random generator of the episode choices (default: torch's global one).
+        mix_deterministic: also mix under a DETERMINISTIC exploration type (evaluating the combined policy).
 
     Call :meth:`set_progress` with the frames collected so far after each batch (schedules that decay
     over training), and :meth:`observe` with the batch as collected, before flattening (schedules that
@@ -267,6 +313,7 @@ class PolicyReuse(TensorDictModuleBase):
         schedule: ReuseSchedule | None = None,
         epsilon: float = 0.0,
         generator: torch.Generator | None = None,
+        mix_deterministic: bool = False,
         action_key: NestedKey = "action",
         step_count_key: NestedKey = "step_count",
         reused_key: NestedKey = "reused",
@@ -292,6 +339,7 @@ class PolicyReuse(TensorDictModuleBase):
         self.spec = spec[action_key] if isinstance(spec, Composite) else spec
         self.epsilon = epsilon
         self.generator = generator
+        self.mix_deterministic = mix_deterministic
         self.action_key, self.step_count_key = action_key, step_count_key
         self.reused_key, self.reuse_index_key = reused_key, reuse_index_key
         past_in_keys = [k for p in self.past_policies for k in p.in_keys]
@@ -341,7 +389,8 @@ class PolicyReuse(TensorDictModuleBase):
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
         action = tensordict.get(self.action_key)
         shape = tensordict.batch_size
-        if exploration_type() not in (ExplorationType.RANDOM, None):
+        exploring = exploration_type() in (ExplorationType.RANDOM, None)
+        if not exploring and not self.mix_deterministic:
             return tensordict.set(self.reused_key, torch.zeros(*shape, 1, dtype=torch.bool, device=action.device))
 
         choice = self._episode_choice(tensordict)
@@ -349,7 +398,7 @@ class PolicyReuse(TensorDictModuleBase):
         psi = self.schedule.probability(step_count)
         reused = (torch.rand(shape, device=action.device) < psi) & (choice < len(self.past_policies))
 
-        if self.epsilon > 0:
+        if self.epsilon > 0 and exploring:
             explore = torch.rand(shape, device=action.device) < self.epsilon
             action = torch.where(expand_as_right(explore, action), self._random_action(action), action)
         for k, past in enumerate(self.past_policies):

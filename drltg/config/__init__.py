@@ -9,13 +9,14 @@ range in its section's model (``describe()`` lists them); a typo or a value out 
 :class:`~drltg.errors.UsageError` sentence naming the key (pydantic's errors are translated), before
 anything is built or written.
 
-Four parts are open-ended: ``algo`` names a registered learner, each registered learner's options are
-the section of its name (``sac``, ``td3``, ``soc``: :data:`LEARNER_OPTIONS`), the ``transfer`` section holds,
-besides ``method``, ``source``, ``allow_incomplete`` and ``source_checkpoint``, the options of every registered
-transfer method (each method's options are a model of its own, ``TransferMethod.model``), all found in the
-registries of :mod:`drltg.config.registry` (:data:`LEARNERS`, :data:`LEARNER_OPTIONS`, :data:`METHODS`), which
-load drltg's own and the installed plugins' on first lookup; and ``env`` is a mapping of the task's keyword arguments,
-checked against the keywords its factory declares (:func:`validate`).
+:class:`RunConfig` is one static model. Four parts are open-ended, each checked by what its owner declares:
+``algo`` names a registered learner; each registered learner's options are the section of its name (``sac``,
+``td3``, ``soc``: the model in :data:`LEARNER_OPTIONS`); the ``transfer`` section holds, besides ``method``,
+``source``, ``allow_incomplete`` and ``source_checkpoint``, the options of every registered transfer method,
+each validated by the model its method declares in its own module (``TransferMethod.model``); all are found in
+the registries of :mod:`drltg.config.registry` (:data:`LEARNERS`, :data:`LEARNER_OPTIONS`, :data:`METHODS`),
+which load drltg's own and the installed plugins' on first lookup. ``env`` is a mapping of the task's keyword
+arguments, checked against the options the task declares (:func:`validate`).
 """
 from drltg.config import sections
 from drltg.config.checks import check_device, validate
@@ -37,13 +38,11 @@ from drltg.config.run import (
     TRANSFER_KEYS,
     RunConfig,
     TransferConfig,
-    _model,
     build,
     defaults,
     keys,
     option_owners,
-    options_model,
-    transfer_model,
+    sentence,
     updated,
 )
 from drltg.config.sections import *  # noqa: F403 (the section models, listed in sections.__all__)
@@ -74,5 +73,5 @@ __all__ = [
     "SEED_STRIDE", "run_seeds", "source_seed", "EVAL_SEED_OFFSET", "DEMO_SEED_OFFSET", "FRESH_SEED_OFFSET",
     *sections.__all__, "TransferConfig",
     "METHODS", "LEARNERS", "LEARNER_OPTIONS", "Registry", "TRANSFER_KEYS", "ENV_EXECUTION_KEYS",
-    "method_names", "get_method", "option_owners", "options_model", "transfer_model", "_model",
+    "method_names", "get_method", "option_owners", "sentence",
 ]

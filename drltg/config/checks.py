@@ -1,11 +1,11 @@
 """The checks beyond types: this machine's device, the task's env keywords, the method's own rules."""
 from __future__ import annotations
 
-from drltg.config.env_options import _check_env
+from drltg.config.env_options import check_env
 from drltg.config.registry import get_method
 from drltg.config.run import RunConfig
-from drltg.config.values import _expected, _short
-from drltg.errors import UsageError
+from drltg.config.values import expected
+from drltg.errors import UsageError, short
 
 
 def validate(cfg: RunConfig) -> None:
@@ -17,13 +17,13 @@ def validate(cfg: RunConfig) -> None:
     if cfg.optim.cudagraphs and not cfg.device.startswith("cuda"):
         raise UsageError(f"config key 'optim.cudagraphs' is true but device is '{cfg.device}'; CUDA graphs "
                          "need device=cuda.")
-    cfg.env = _check_env(cfg.task, cfg.env)
+    cfg.env = check_env(cfg.task, cfg.env)
     get_method(cfg.transfer.method).validate(cfg)
     fpb = cfg.collector.frames_per_batch
     cfg.frames = -(-cfg.frames // fpb) * fpb
 
 
-_DEVICE = _expected(RunConfig.model_fields["device"])
+_DEVICE = expected(RunConfig.model_fields["device"])
 
 
 def check_device(key: str, value: str) -> str:
@@ -34,7 +34,7 @@ def check_device(key: str, value: str) -> str:
     try:
         device = torch.device(value)
     except (RuntimeError, TypeError, ValueError):
-        raise UsageError(f"{_named(key)} must be {_DEVICE}, got {_short(value)}.") from None
+        raise UsageError(f"{_named(key)} must be {_DEVICE}, got {short(value)}.") from None
     backend = getattr(torch, device.type, None)
     available = getattr(backend, "is_available", None)
     if available is None:

@@ -4,10 +4,10 @@ from __future__ import annotations
 from pydantic import BaseModel
 
 from drltg.config.env_options import task_env
-from drltg.config.overrides import ENV_EXECUTION_KEYS, _flatten
-from drltg.config.run import RunConfig, _fields, defaults, option_owners
+from drltg.config.overrides import ENV_EXECUTION_KEYS, flatten
+from drltg.config.run import RunConfig, absent_values, defaults, fields, option_owners
 from drltg.config.sections import ALGO_SECTIONS
-from drltg.config.values import _expected, _lookup
+from drltg.config.values import expected, lookup
 from drltg.errors import UsageError
 
 
@@ -33,18 +33,20 @@ def config_changes(saved: dict | RunConfig, cfg: dict | RunConfig, *, env_defaul
             pass
     base = {**defaults(), "env": env}
     owners = option_owners()
-    methods = {part for c in (saved, cfg) if isinstance(m := _lookup(c, "transfer.method"), str)
+    methods = {part for c in (saved, cfg) if isinstance(m := lookup(c, "transfer.method"), str)
                for part in m.split("+")}
     unknown = set() if env_defaults else set(env_keys_set_once(saved, cfg))
-    if not env_defaults and (_lookup(saved, "env") is KeyError) != (_lookup(cfg, "env") is KeyError):
+    if not env_defaults and (lookup(saved, "env") is KeyError) != (lookup(cfg, "env") is KeyError):
         unknown.add("env")
 
-    def missing_as_default(a, b, key):
-        return _lookup(a, key) is KeyError and _lookup(b, key) == _lookup(base, key)
+    absent = absent_values()
 
-    sourceless = all(_lookup(c, "transfer.source") in (None, KeyError) for c in (saved, cfg))
+    def missing_as_default(a, b, key):  # a config saved before the key existed ran with its absent value
+        return lookup(a, key) is KeyError and lookup(b, key) == absent.get(key, lookup(base, key))
+
+    sourceless = all(lookup(c, "transfer.source") in (None, KeyError) for c in (saved, cfg))
     every = {s for sections in ALGO_SECTIONS.values() for s in sections}
-    unread = {s for c in (saved, cfg) for s in every - set(ALGO_SECTIONS.get(_lookup(c, "algo"), every))}
+    unread = {s for c in (saved, cfg) for s in every - set(ALGO_SECTIONS.get(lookup(c, "algo"), every))}
 
     def unused(key):  # an option of a method neither run uses changes nothing they do, nor does the
         if key == "transfer.source_checkpoint":  # checkpoint of a source neither of them reads
@@ -75,11 +77,11 @@ def _diff_keys(a, b, prefix=""):
 
 def describe() -> str:
     """Every config key with its default, accepted values and meaning, as a Markdown table."""
-    flat = _flatten(defaults())
+    flat = flatten(defaults())
     rows = ["| key | default | accepted values | meaning |", "|---|---|---|---|"]
-    for key, info in _fields().items():
+    for key, info in fields().items():
         default = _yaml().safe_dump(flat[key], default_flow_style=True).strip().removesuffix("...").strip()
-        rows.append(f"| `{key}` | {default} | {_expected(info)} | {info.description or ''} |")
+        rows.append(f"| `{key}` | {default} | {expected(info)} | {info.description or ''} |")
     return "\n".join(rows)
 
 

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from drltg.config.run import _task_spec
+from drltg.config.run import task_spec
 from drltg.errors import UsageError
 
 _ENV_RESERVED = {"batch_size": "collector.num_envs and eval.episodes", "device": "device", "seed": "seed"}
@@ -13,7 +13,7 @@ def env_defaults(task: str) -> dict[str, Any]:
     """The options of task ``task``: its factory's declared keywords (its registered defaults win), less
     its registration fields; read without importing the env where the registry can
     (:meth:`drltg.envs.TaskSpec.keywords`)."""
-    return _task_spec(task).keywords()
+    return task_spec(task).keywords()
 
 
 def task_env(task: str) -> dict[str, Any]:
@@ -29,10 +29,10 @@ def _plain(value: Any) -> Any:
     return [_plain(v) for v in value] if isinstance(value, (list, tuple)) else value
 
 
-def _check_env(task: str, env: dict) -> dict:
+def check_env(task: str, env: dict) -> dict:
     """``env`` checked by the task (:meth:`drltg.envs.TaskSpec.check`), its sentences naming config keys;
     a key the run sets itself is refused first."""
     for name in env:
         if name in _ENV_RESERVED:
             raise UsageError(f"config key 'env.{name}' cannot be set: the run sets it from {_ENV_RESERVED[name]}.")
-    return _task_spec(task).check(env, key="config key 'env.{}'".format)
+    return task_spec(task).check(env, key="config key 'env.{}'".format)

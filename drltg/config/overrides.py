@@ -12,9 +12,9 @@ from pydantic import (
 
 from drltg.config.checks import validate
 from drltg.config.env_options import task_env
-from drltg.config.run import RunConfig, _section_models, _task_spec, _unknown, build, keys
-from drltg.config.values import _expected, _short
-from drltg.errors import UsageError
+from drltg.config.run import RunConfig, build, keys, section_models, task_spec, unknown_key
+from drltg.config.values import expected
+from drltg.errors import UsageError, short
 
 
 def as_config(cfg: RunConfig | dict) -> RunConfig:
@@ -28,19 +28,19 @@ def as_config(cfg: RunConfig | dict) -> RunConfig:
 ENV_EXECUTION_KEYS = ("env.parallel", "env.mp_start_method")
 
 
-def _flatten(d: dict, prefix: str = "") -> dict[str, Any]:
+def flatten(d: dict, prefix: str = "") -> dict[str, Any]:
     out = {}
     for k, v in d.items():
         key = f"{prefix}{k}"
         if isinstance(v, dict) and v and key != "env":
-            out.update(_flatten(v, key + "."))
+            out.update(flatten(v, key + "."))
         else:
             out[key] = v
     return out
 
 
 def _env_expected() -> str:
-    return _expected(RunConfig.model_fields["env"])
+    return expected(RunConfig.model_fields["env"])
 
 
 def set_key(cfg: dict, dotted: str, value: Any) -> None:
@@ -57,18 +57,18 @@ def set_key(cfg: dict, dotted: str, value: Any) -> None:
                 cfg["env"] = value
             return
         if not isinstance(cfg.setdefault("env", {}), dict):
-            raise UsageError(f"config key 'env' must be {_env_expected()}, got {_short(cfg.get('env'))}.")
+            raise UsageError(f"config key 'env' must be {_env_expected()}, got {short(cfg.get('env'))}.")
         cfg["env"][parts[1]] = value
         return
-    sections = _section_models()
+    sections = section_models()
     if dotted in sections:
         if not isinstance(value, dict):
             names = ", ".join(f"{dotted}.{k}" for k in sections[dotted].model_fields)
-            raise UsageError(f"config key '{dotted}' must be a mapping of {names}, got {_short(value)}.")
+            raise UsageError(f"config key '{dotted}' must be a mapping of {names}, got {short(value)}.")
         merge(cfg, value, dotted + ".")
         return
     if dotted not in keys():
-        raise UsageError(_unknown(dotted))
+        raise UsageError(unknown_key(dotted))
     node = cfg
     for p in parts[:-1]:
         node = node.setdefault(p, {})
@@ -81,7 +81,7 @@ def merge(cfg: dict, overrides: dict, prefix: str = "") -> None:
         key = f"{prefix}{k}"
         if key == "env":
             if not isinstance(v, dict):
-                raise UsageError(f"config key 'env' must be {_env_expected()}, got {_short(v)}.")
+                raise UsageError(f"config key 'env' must be {_env_expected()}, got {short(v)}.")
             if not isinstance(cfg.get("env"), dict):
                 cfg["env"] = {}
             cfg["env"].update(v)
@@ -161,7 +161,7 @@ def resolve(
     if isinstance(base, BaseModel):
         base = base.model_dump()
     if base is not None and not isinstance(base, dict):
-        raise UsageError(f"a config must be a mapping of config keys, got {_short(base)}.")
+        raise UsageError(f"a config must be a mapping of config keys, got {short(base)}.")
     base = dict(base or {})
     parsed = [parse_override(text) for text in overrides]
     task = RunConfig.model_fields["task"].default
@@ -169,7 +169,7 @@ def resolve(
         if given is not None:
             task = given
     raw: dict[str, Any] = {}
-    merge(raw, copy.deepcopy(_task_spec(task).train))
+    merge(raw, copy.deepcopy(task_spec(task).train))
     merge(raw, base)
     for key, value in explicit.items():
         if value is not None:
@@ -186,19 +186,25 @@ def _override_leaves(key: str, value: Any) -> dict[str, Any]:
     """The single keys an override sets: ``optim={lr: 1}`` sets ``optim.lr``, ``env={horizon: 5}`` ``env.horizon``."""
     if isinstance(value, dict) and key == "env":
         return {f"env.{k}": v for k, v in value.items()}
-    if isinstance(value, dict) and key in _section_models():
-        return _flatten(value, key + ".")
+    if isinstance(value, dict) and key in section_models():
+        return flatten(value, key + ".")
     return {key: value}
 
 
-def refuse_conflicts(overrides: Iterable[str]) -> None:
-    """A user's ``-o`` overrides that set one key twice are refused, in any form (``optim.lr=1`` twice, or
-    ``optim={lr: 1}`` and ``optim.lr=2``): which one was meant would depend on their order."""
+def refuse_conflicts(overrides: Iterable[str], where: str = "-o") -> None:
+    """Overrides that set one key twice are refused, in any form (``optim.lr=1`` twice, or ``optim={lr: 1}``
+    and ``optim.lr=2``): which one was meant would depend on their order. ``overrides`` are a user's ``-o``
+    texts, or ``(key, values)`` of a mapping (a sweep spec's ``overrides`` and ``grid``, ``where`` it is)."""
     seen: dict[str, str] = {}
-    for text in overrides:
-        key, value = parse_override(text)
-        for leaf in _override_leaves(key, value):
+    for item in overrides:
+        if isinstance(item, str):
+            (key, value), shown = parse_override(item), item.strip()
+            leaves = set(_override_leaves(key, value))
+        else:
+            (key, values), shown = item, item[0]
+            leaves = {leaf for value in values for leaf in _override_leaves(key, value)}
+        for leaf in leaves:
             if leaf in seen:
-                raise UsageError(f"config key '{leaf}' is set twice by -o ('{seen[leaf]}', then '{text.strip()}'); "
+                raise UsageError(f"config key '{leaf}' is set twice by {where} ('{seen[leaf]}', then '{shown}'); "
                                  "give it once.")
-            seen[leaf] = text.strip()
+            seen[leaf] = shown

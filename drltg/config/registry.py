@@ -20,25 +20,19 @@ without torch); a method's is loaded with all the others the first time the conf
 """
 from __future__ import annotations
 
-import itertools
 from collections.abc import Iterator, MutableMapping
 from importlib.metadata import EntryPoint, entry_points
 from typing import Any
 
 from drltg.errors import UsageError, closest
 
-_VERSION = itertools.count(1)
-
-
 class Registry(MutableMapping):
-    """``name -> entry`` of one entry-point group, loaded when first looked up; ``version`` changes with
-    every change, so what is built from the entries can be cached against it."""
+    """``name -> entry`` of one entry-point group, loaded when first looked up."""
 
     def __init__(self, group: str, noun: str, builtin: str):
         self.group, self.noun, self.builtin = group, noun, builtin
         self._entries: dict[str, Any] = {}
         self._found = False
-        self.version = 0
 
     def _points(self) -> dict[str, Any]:
         """Every entry, the entry points not loaded yet among them (as :class:`EntryPoint`): the built-in
@@ -51,7 +45,6 @@ class Registry(MutableMapping):
                                  "(pip install -e .).")
             self._entries = {ep.name: ep for ep in found}
             self._found = True
-            self.version = next(_VERSION)
         return self._entries
 
     def __getitem__(self, name: str) -> Any:
@@ -76,11 +69,9 @@ class Registry(MutableMapping):
 
     def __setitem__(self, name: str, entry: Any) -> None:
         self._points()[name] = entry
-        self.version = next(_VERSION)
 
     def __delitem__(self, name: str) -> None:
         del self._points()[name]
-        self.version = next(_VERSION)
 
     def __iter__(self) -> Iterator[str]:
         return iter(list(self._points()))

@@ -1,23 +1,23 @@
-"""The run config: :class:`RunConfig` with the registered learners' and methods' options
-(:mod:`drltg.config.registry`), its keys, and building one from a mapping with every error as one sentence
-naming the key."""
+"""The run config: :class:`RunConfig`, one static model of the keys every run has. The open-ended parts are
+validated by the models their owners declare: each registered learner's options are the section of its name
+(``sac.alpha_init``), each registered method's options sit in ``transfer`` (``transfer.psi``), so a
+parameter is declared, checked and used by its method and the part it configures. Every error is one
+sentence naming the key."""
 from __future__ import annotations
 
-import functools
-import re
 from typing import Annotated, Any, Literal, Optional
 
 from pydantic import (
     BaseModel,
+    ConfigDict,
     Field,
     ValidationError,
-    create_model,
+    ValidationInfo,
     field_validator,
     model_validator,
 )
 from pydantic.fields import FieldInfo
 
-from drltg.config.methods import _strict
 from drltg.config.registry import LEARNER_OPTIONS, LEARNERS, METHODS, method_names
 from drltg.config.sections import (
     ENV_HELP,
@@ -36,27 +36,30 @@ from drltg.config.values import (
     Int,
     Section,
     Str,
-    _choices,
-    _expected,
-    _lookup,
-    _short,
-    _suggest,
-    _what,
+    accepts,
+    expected,
+    literal_choices,
+    lookup,
+    suggestion,
 )
-from drltg.errors import UsageError, closest
+from drltg.errors import UsageError, closest, short
 
 
 class TransferConfig(Section):
-    """How a run transfers knowledge: a registered method (``none``: the baseline). The options of every
-    registered method follow these four keys (the section :func:`transfer_model` builds)."""
+    """How a run transfers knowledge: a registered method (``none``: the baseline), then the options of every
+    registered method (``TransferMethod.model``), each checked by its method's model and held at its default
+    where not given, so a ``config.yaml`` lists them all."""
+
+    model_config = ConfigDict(extra="allow", validate_assignment=True)
 
     method: Str = Field("none", description="transfer method (`drltg tasks` lists them)",
                         json_schema_extra={"noun": "transfer method", "choices": "methods"})
     source: Optional[Str] = Field(None, description="source run directory, or demonstrator:TASK",
-                                  json_schema_extra=_what("a source run directory, demonstrator:TASK"))
+                                  json_schema_extra=accepts("a source run directory, demonstrator:TASK"))
     allow_incomplete: Bool = Field(False, description="reuse a source run that did not finish (no summary.json)")
     source_checkpoint: Literal["last", "best"] = Field(
-        "last", description="the source run's checkpoint reused: last.pt, or best.pt (kept with checkpoint.keep_best)")
+        "last", description="the source run's networks reused: its last, or its best evaluation's (every run keeps "
+                            "them)")
 
     @field_validator("method")
     @classmethod
@@ -68,8 +71,42 @@ class TransferConfig(Section):
                                 f"{', '.join(names)}.")
         return value
 
-    def __reduce__(self):  # a section of methods registered in this process: rebuilt from its values
-        return restore_transfer, (self.model_dump(),)
+    @model_validator(mode="after")
+    def _options(self, info: ValidationInfo) -> TransferConfig:
+        """The methods' options: each given one checked by its method's model, the others at their defaults;
+        in a saved config (``build(..., saved=True)``), an option it lacks at its :func:`absent_value`."""
+        given = dict(self.__pydantic_extra__ or {})
+        owners = option_owners()
+        for key in given:
+            if key not in owners:
+                raise UsageError(unknown_key(f"transfer.{key}"))
+        saved = bool(info.context and info.context.get("saved"))
+        options = {}
+        for method in METHODS.values():
+            if method.model is not None:
+                mine = {k: v for k, v in given.items() if owners[k] == method.name}
+                if saved:
+                    mine = {**{k: absent_value(f) for k, f in method.model.model_fields.items()
+                               if k not in mine and "absent" in _extra(f)}, **mine}
+                try:
+                    options.update(method.model.model_validate(mine).model_dump())
+                except ValidationError as err:
+                    raise UsageError(sentence(err, mine, method.model, "transfer.")) from None
+        object.__setattr__(self, "__pydantic_extra__", options)
+        return self
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        """A method's option is checked by its method's model before it is set, as a declared key is."""
+        if name not in type(self).model_fields and not name.startswith("_"):
+            owner = option_owners().get(name)
+            if owner is None:
+                raise UsageError(unknown_key(f"transfer.{name}"))
+            model = METHODS[owner].model
+            try:
+                value = getattr(model.model_validate({name: value}), name)
+            except ValidationError as err:
+                raise UsageError(sentence(err, {name: value}, model, "transfer.")) from None
+        super().__setattr__(name, value)
 
 
 TRANSFER_KEYS = tuple(TransferConfig.model_fields)
@@ -79,26 +116,28 @@ TRANSFER_KEYS = tuple(TransferConfig.model_fields)
 class RunConfig(Section):
     """One run's configuration. Build it with :func:`resolve` (defaults, task, file, overrides) or
     :func:`build` (a mapping, e.g. a saved ``config.yaml``); :func:`validate` adds the checks that need
-    this machine or the task's env (``device``, ``env``, the transfer method's own rules). The model they
-    build adds a section for each registered learner's options (``sac``, ``td3``, ``soc``: :data:`LEARNER_OPTIONS`)
-    and every registered method's options to ``transfer``."""
+    this machine or the task's env (``device``, ``env``, the transfer method's own rules). After its keys
+    come the registered learners' sections (``sac``, ``td3``, ``soc``: :data:`LEARNER_OPTIONS`), each checked
+    by its learner's model and at its defaults where not given."""
+
+    model_config = ConfigDict(extra="allow", validate_assignment=True)
 
     task: Str = Field("fourrooms/northeast", description="registered task name (`drltg tasks`)",
-                      json_schema_extra=_what("a registered task name"))
+                      json_schema_extra=accepts("a registered task name"))
     algo: Str = Field("sac", description="learner; sac is discrete SAC on discrete tasks",
                       json_schema_extra={"noun": "algorithm", "choices": "learners"})
     seed: Int = Field(0, ge=0, le=2**31 - 1, description="seed of envs, networks and sampling")
     frames: Int = Field(50_000, ge=1, le=MAX_FRAMES,
                         description="environment frames, rounded up to whole collector batches")
     device: Str = Field("cpu", description="torch device",
-                        json_schema_extra=_what("a torch device such as cpu, cuda or cuda:0"))
+                        json_schema_extra=accepts("a torch device such as cpu, cuda or cuda:0"))
     threads: Int = Field(1, ge=1, le=MAX_THREADS, description="CPU threads per run")  # small nets are overhead-bound
     tuned_on: list[Annotated[Int, Field(ge=0)]] = Field(
         [], description="seeds whose results chose this recipe; a report that reads any of them says so",
-        json_schema_extra=_what("a list of seeds (e.g. [0, 100])"))
+        json_schema_extra=accepts("a list of seeds (e.g. [0, 100])"))
     env: dict[Str, Any] = Field(default_factory=dict, description=ENV_HELP,
-                                json_schema_extra=_what("a mapping of the task's keyword arguments (e.g. "
-                                                        "env.horizon=200)"))
+                                json_schema_extra=accepts("a mapping of the task's keyword arguments (e.g. "
+                                                          "env.horizon=200)"))
     collector: CollectorConfig = Field(default_factory=CollectorConfig)
     buffer: BufferConfig = Field(default_factory=BufferConfig)
     optim: OptimConfig = Field(default_factory=OptimConfig)
@@ -111,7 +150,7 @@ class RunConfig(Section):
     @field_validator("task")
     @classmethod
     def _known_task(cls, value: str) -> str:
-        _task_spec(value)
+        task_spec(value)
         return value
 
     @field_validator("algo")
@@ -124,7 +163,25 @@ class RunConfig(Section):
 
     @model_validator(mode="after")
     def _rules(self) -> RunConfig:
-        """The rules that tie keys of two sections together."""
+        """The learners' sections, then the rules that tie keys of two sections together."""
+        given = dict(self.__pydantic_extra__ or {})
+        sections = learner_sections()
+        for key in given:
+            if key not in sections:
+                raise UsageError(unknown_key(key))
+        learners = {}
+        for name, model in sections.items():
+            value = given.get(name, {})
+            if isinstance(value, BaseModel):
+                value = value.model_dump()
+            if not isinstance(value, dict):
+                raise UsageError(f"config key '{name}' must be a mapping of "
+                                 f"{', '.join(f'{name}.{k}' for k in model.model_fields)}, got {short(value)}.")
+            try:
+                learners[name] = model.model_validate(value)
+            except ValidationError as err:
+                raise UsageError(sentence(err, value, model, f"{name}.")) from None
+        object.__setattr__(self, "__pydantic_extra__", learners)
         fpb, n = self.collector.frames_per_batch, self.collector.num_envs
         if fpb % n:
             raise UsageError(f"collector.frames_per_batch ({fpb}) must be a multiple of collector.num_envs ({n}).")
@@ -132,76 +189,39 @@ class RunConfig(Section):
             raise UsageError("network.layer_norm applies to sac and td3; the soft option-critic's networks have none.")
         return self
 
-    def __reduce__(self):  # pickled as its values: the methods' options are those registered where it is read
-        return _restore, (self.model_dump(),)
+
+def _extra(info: FieldInfo) -> dict:
+    return info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
 
 
-def _restore(data: dict) -> RunConfig:
-    """A config from its pickled values, read with the transfer methods of this process: the registered
-    ones and those of the user's plugins (loaded here)."""
-    from drltg import plugins
-
-    plugins.load()
-    return build(data)
-
-
-def restore_transfer(data: dict) -> TransferConfig:
-    """A ``transfer`` section from its pickled values, with the methods registered where it is read."""
-    return transfer_model().model_validate(data)
+def absent_value(info: FieldInfo) -> Any:
+    """The value a saved config that lacks the key ran with: the key's ``json_schema_extra["absent"]`` where a
+    key came with a new behaviour as its default (runs saved before it behaved as ``absent`` says), else its
+    default."""
+    extra = _extra(info)
+    return extra["absent"] if "absent" in extra else info.get_default(call_default_factory=True)
 
 
-def options_model(method: str, options: dict[str, Any]) -> type[Section]:
-    """The model of a method's ``transfer.*`` options, from ``key -> (type, default or Field(...))`` (the
-    form of :func:`pydantic.create_model`; plain ``int``, ``float``, ``bool`` and ``str`` are read as the
-    built-in keys are, :func:`_strict`); its defaults must pass its own checks."""
-    name = "".join(part.capitalize() for part in re.split(r"[^0-9A-Za-z]+", method) if part) + "Options"
-    fields = {k: (_strict(v[0]), v[1]) if isinstance(v, tuple) and len(v) == 2 else v for k, v in options.items()}
-    try:
-        model = create_model(name, __base__=Section, **fields)
-    except (TypeError, ValueError) as err:  # pydantic's schema errors are TypeErrors, its usage errors too
-        raise UsageError(f"transfer method {method!r}: its options cannot be declared ({err}).") from None
-    defaults = {k: f.get_default(call_default_factory=True) for k, f in model.model_fields.items()}
-    try:
-        model.model_validate(defaults)
-    except ValidationError as err:
-        raise UsageError(f"transfer method {method!r} declares a default its option refuses: "
-                         + _sentence(err, defaults, model, "transfer.")) from None
-    return model
+def absent_values() -> dict[str, Any]:
+    """``{dotted key: absent value}`` of the keys that declare one (:func:`absent_value`)."""
+    return {key: absent_value(info) for key, info in fields().items() if "absent" in _extra(info)}
 
 
 def option_owners() -> dict[str, str]:
-    """``transfer.<key>`` -> the registered method whose option it is."""
-    return {key: method.name for method in METHODS.values() if method.model is not None
-            for key in method.model.model_fields}
-
-
-def _model() -> type[RunConfig]:
-    """:class:`RunConfig` with a section of each registered learner's options and, in ``transfer``, the
-    options of every registered method."""
-    METHODS.names(), LEARNER_OPTIONS.names()  # found now: the versions read next are those the model holds
-    return _model_at(METHODS.version, LEARNER_OPTIONS.version)
-
-
-@functools.lru_cache(maxsize=4)
-def _model_at(methods_version: int, learners_version: int) -> type[RunConfig]:
-    fields: dict[str, Any] = {name: (model, Field(default_factory=model))
-                              for name, model in _learner_sections().items()}
-    options: dict[str, Any] = {}
+    """``transfer.<key>`` -> the registered method whose option it is. Two methods declaring one key, or a
+    method declaring a key of every method (:data:`TRANSFER_KEYS`), is refused here, the one place that
+    sees every method."""
     owners: dict[str, str] = {}
     for method in METHODS.values():
-        for key, info in (method.model.model_fields if method.model is not None else {}).items():
+        for key in (method.model.model_fields if method.model is not None else {}):
             if key in owners or key in TRANSFER_KEYS:
                 raise UsageError(f"transfer method {method.name!r}: config key 'transfer.{key}' already belongs to "
                                  f"{owners.get(key, 'every method')}; choose another name.")
             owners[key] = method.name
-            options[key] = (info.annotation, info)
-    if options:
-        transfer = create_model("TransferConfig", __base__=TransferConfig, __module__=__name__, **options)
-        fields["transfer"] = (transfer, Field(default_factory=transfer))
-    return create_model("RunConfig", __base__=RunConfig, __module__=__name__, **fields) if fields else RunConfig
+    return owners
 
 
-def _learner_sections() -> dict[str, type[BaseModel]]:
+def learner_sections() -> dict[str, type[BaseModel]]:
     """The section of each registered learner's options, by the learner's name."""
     sections = {}
     for name in LEARNER_OPTIONS:
@@ -211,7 +231,7 @@ def _learner_sections() -> dict[str, type[BaseModel]]:
                              "learner with options is named as a Python identifier that is not a config key.")
         if not (isinstance(model, type) and issubclass(model, BaseModel)):
             raise UsageError(f"the options of the learner {name!r} must be a pydantic model (a subclass of "
-                             f"drltg.config.Section), got {_short(model)}.")
+                             f"drltg.config.Section), got {short(model)}.")
         try:
             model()
         except ValidationError:
@@ -220,51 +240,55 @@ def _learner_sections() -> dict[str, type[BaseModel]]:
     return sections
 
 
-def transfer_model() -> type[TransferConfig]:
-    """The ``transfer`` section with the options of the methods registered now."""
-    return _model().model_fields["transfer"].annotation
+def section_models() -> dict[str, type[BaseModel]]:
+    """Every config section by name: the static ones, then the learners'."""
+    static = {name: info.annotation for name, info in RunConfig.model_fields.items()
+              if isinstance(info.annotation, type) and issubclass(info.annotation, BaseModel)}
+    return {**static, **learner_sections()}
 
 
-def _section_models(model: type[BaseModel] | None = None) -> dict[str, type[BaseModel]]:
-    model = model or _model()
-    return {name: info.annotation for name, info in model.model_fields.items()
-            if isinstance(info.annotation, type) and issubclass(info.annotation, BaseModel)}
-
-
-def _fields() -> dict[str, FieldInfo]:
-    """Every key (dotted) with its field, in the order of the models."""
-    model = _model()
-    sections = _section_models(model)
+def fields() -> dict[str, FieldInfo]:
+    """Every key (dotted) with its field, in the order of ``config.yaml``: the static keys and sections, the
+    methods' options after ``transfer``'s own keys, the learners' sections last."""
+    sections = section_models()
     out = {}
-    for name, info in model.model_fields.items():
-        if name in sections:
-            out.update({f"{name}.{k}": f for k, f in sections[name].model_fields.items()})
-        else:
+    for name, info in RunConfig.model_fields.items():
+        if name not in sections:
             out[name] = info
+            continue
+        out.update({f"{name}.{k}": f for k, f in sections[name].model_fields.items()})
+        if name == "transfer":
+            out.update({f"transfer.{k}": f for method in METHODS.values() if method.model is not None
+                        for k, f in method.model.model_fields.items()})
+    for name, model in learner_sections().items():
+        out.update({f"{name}.{k}": f for k, f in model.model_fields.items()})
     return out
 
 
 def keys() -> list[str]:
     """Every config key (dotted), in the order ``describe`` and ``dump`` list them."""
-    return list(_fields())
+    return list(fields())
 
 
 def defaults() -> dict[str, Any]:
     """The config of no task at its defaults, as plain data (the layout of ``config.yaml``)."""
-    return _model().model_construct().model_dump()
+    return RunConfig().model_dump()
 
 
-def _unknown(dotted: str) -> str:
-    known = _flat_keys(_model(), _section_models())
-    section = [k for k in known if k.startswith(dotted.split(".")[0] + ".")]
+def unknown_key(dotted: str) -> str:
+    """The sentence for a key no section declares, naming the closest key or the keys of its section."""
+    known = [*section_models(), *keys()]
+    section = [k for k in keys() if k.startswith(dotted.split(".")[0] + ".")]
     if "." in dotted and section and not closest(dotted, known):  # no close key: list them
         return f"unknown config key '{dotted}'; the keys of {dotted.split('.')[0]} are {', '.join(section)}."
-    return f"unknown config key '{dotted}'" + _suggest(dotted, known)
+    return f"unknown config key '{dotted}'" + suggestion(dotted, known)
 
 
-def _sentence(err: ValidationError, data: Any, model: type[BaseModel], prefix: str = "") -> str:
-    """One sentence for the first error pydantic found in ``data`` (validated by ``model``), naming the key."""
-    sections = _section_models(model)
+def sentence(err: ValidationError, data: Any, model: type[BaseModel], prefix: str = "") -> str:
+    """One sentence for the first error pydantic found in ``data`` (validated by ``model``), naming the key
+    (``prefix``: where ``model`` sits in the config, e.g. ``"transfer."``)."""
+    sections = {name: info.annotation for name, info in model.model_fields.items()
+                if isinstance(info.annotation, type) and issubclass(info.annotation, BaseModel)}
     error = err.errors()[0]
     loc = [str(p) for p in error["loc"]]
     if error["type"] == "value_error" and isinstance(error.get("ctx", {}).get("error"), UsageError):
@@ -276,65 +300,53 @@ def _sentence(err: ValidationError, data: Any, model: type[BaseModel], prefix: s
     else:  # a rule of the whole model
         return f"the config {error['msg'][0].lower()}{error['msg'][1:]}."
     dotted = prefix + key
-    if (error["type"] == "extra_forbidden" or info is None) and not prefix:
-        return _unknown(dotted)
     if error["type"] == "extra_forbidden" or info is None:
-        return f"unknown config key '{dotted}'" + _suggest(dotted, [prefix + k for k in _flat_keys(model, sections)])
-    value = _lookup(data, key)
+        return unknown_key(dotted)
+    value = lookup(data, key)
     if isinstance(info.annotation, type) and issubclass(info.annotation, BaseModel):
         names = ", ".join(f"{dotted}.{k}" for k in info.annotation.model_fields)
-        return f"config key '{dotted}' must be a mapping of {names}, got {_short(value)}."
+        return f"config key '{dotted}' must be a mapping of {names}, got {short(value)}."
     extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
-    if _choices(info) and isinstance(value, str):
-        return f"unknown {extra.get('noun', 'value')} {value!r}: config key '{dotted}' must be {_expected(info)}."
-    return f"config key '{dotted}' must be {_expected(info)}, got {_short(value)}."
+    if literal_choices(info) and isinstance(value, str):
+        return f"unknown {extra.get('noun', 'value')} {value!r}: config key '{dotted}' must be {expected(info)}."
+    return f"config key '{dotted}' must be {expected(info)}, got {short(value)}."
 
 
-def _flat_keys(model: type[BaseModel], sections: dict) -> list[str]:
-    """The keys of ``model`` and the names of its sections (what a misspelt key may have meant)."""
-    out = []
-    for name in model.model_fields:
-        out += [name, *(f"{name}.{k}" for k in sections[name].model_fields)] if name in sections else [name]
-    return out
-
-
-def build(data: dict | RunConfig) -> RunConfig:
-    """A :class:`RunConfig` from a mapping of its keys (missing keys at their defaults), its types and
+def build(data: dict | RunConfig, *, saved: bool = False) -> RunConfig:
+    """A :class:`RunConfig` from a mapping of its keys (missing keys at their defaults; with ``saved``, a run's
+    ``config.yaml``, at the values runs saved without them ran with, :func:`absent_value`), its types and
     ranges checked: a wrong one is one :class:`UsageError` sentence naming the key."""
     if isinstance(data, BaseModel):
         data = data.model_dump()
     if not isinstance(data, dict):
-        raise UsageError(f"a config must be a mapping of config keys, got {_short(data)}.")
-    model = _model()
+        raise UsageError(f"a config must be a mapping of config keys, got {short(data)}.")
     try:
-        return model.model_validate(data)
+        return RunConfig.model_validate(data, context={"saved": saved})
     except ValidationError as err:
-        raise UsageError(_sentence(err, data, model)) from None
+        raise UsageError(sentence(err, data, RunConfig)) from None
 
 
 def updated(cfg: RunConfig, changes: dict[str, Any]) -> RunConfig:
     """A copy of ``cfg`` with the dotted keys of ``changes`` set (``{"transfer.source": path}``), each value
     checked like the key's own."""
-    new = cfg.model_copy(deep=True)
+    data = cfg.model_dump()
     for dotted, value in changes.items():
+        if dotted not in keys() and dotted not in section_models():
+            raise UsageError(unknown_key(dotted))
         *path, last = dotted.split(".")
-        if dotted not in keys() and dotted not in _section_models():
-            raise UsageError(_unknown(dotted))
-        node = new
+        node = data
         for part in path:
-            node = getattr(node, part)
-        try:
-            setattr(node, last, value)
-        except ValidationError as err:
-            raise UsageError(_sentence(err, {last: value}, type(node), "".join(p + "." for p in path))) from None
-    return new
+            node = node[part]
+        node[last] = value.model_dump() if isinstance(value, BaseModel) else value
+    return build(data)
 
 
-def _task_spec(task: Any):
+def task_spec(task: Any):
+    """The registered task ``task`` (:class:`~drltg.envs.TaskSpec`), or one sentence naming the closest."""
     from drltg.envs import TASKS  # registry import is cheap
 
     if not isinstance(task, str):
-        raise UsageError(f"config key 'task' must be a registered task name, got {_short(task)}.")
+        raise UsageError(f"config key 'task' must be a registered task name, got {short(task)}.")
     if task not in TASKS:
         hint = closest(task, TASKS)
         raise UsageError(

@@ -16,12 +16,12 @@ from drltg.config.values import (
     Int,
     Probability,
     Section,
-    _what,
+    accepts,
 )
 
 __all__ = [
     "CollectorConfig", "BufferConfig", "OptimConfig", "NetworkConfig", "SACConfig", "TD3Config", "SOCConfig",
-    "EvalConfig", "CheckpointConfig", "LogConfig", "ALGO_SECTIONS", "OPTION_POLICIES",
+    "EvalConfig", "CheckpointConfig", "LogConfig", "ALGO_SECTIONS", "OPTION_POLICIES", "AUTO_EVALUATIONS",
 ]
 
 
@@ -55,7 +55,7 @@ class OptimConfig(Section):
 class NetworkConfig(Section):
     hidden: list[Annotated[Int, Field(ge=1)]] = Field(
         [256, 256], min_length=1, description="MLP widths of actor and critics",
-        json_schema_extra=_what("a non-empty list of positive integers (e.g. [64, 64])"))
+        json_schema_extra=accepts("a non-empty list of positive integers (e.g. [64, 64])"))
     layer_norm: Literal["none", "critics", "all"] = Field(
         "none", description="LayerNorm after every hidden layer of the critics, of every network, or none")
 
@@ -81,7 +81,7 @@ class SOCConfig(Section):
 
     num_options: Int = Field(4, ge=1, le=MAX_OPTIONS, description="options of the soft option-critic (--options)")
     option_policy: Literal[OPTION_POLICIES] = Field(
-        "soft", description="policy over options", json_schema_extra=_what(noun="option policy"))
+        "soft", description="policy over options", json_schema_extra=accepts(noun="option policy"))
     option_alpha_init: Optional[Annotated[Float, Field(gt=0)]] = Field(
         None, description="initial option temperature; null: sac.alpha_init")
     fixed_option_alpha: Bool = Field(False, description="keep the option temperature fixed")
@@ -92,20 +92,40 @@ class SOCConfig(Section):
     option_entropy_bonus: Bool = Field(False, description="the option choice's entropy enters V_Omega")
 
 
+AUTO_EVALUATIONS = 20
+"""The evaluations after frame 0 that ``eval.every=auto`` gives a run at least. The report reads a curve at its
+evaluations: its convergence check fits a line to the last 25% of the budget and needs 4 points there
+(12 intervals), its asymptote is the mean over the last 10% (2 points at 20), and a time to threshold is
+known to within one interval (5% of the budget at 20)."""
+
+
 class EvalConfig(Section):
-    every: Int = Field(5_000, ge=1, le=MAX_FRAMES, description="frames between evaluations")
+    every: Union[Literal["auto"], Annotated[Int, Field(ge=1, le=MAX_FRAMES)]] = Field(
+        "auto", description=f"frames between evaluations; auto: the largest 1, 2 or 5 x 10^k frames that gives at "
+                            f"least {AUTO_EVALUATIONS} after frame 0 (1000 at 20k frames, 5000 at 100k)")
     episodes: Int = Field(16, ge=1, le=MAX_EPISODES, description="evaluation episodes")
     stop_at_success: Optional[Annotated[Float, Field(gt=0, le=1)]] = Field(
         None, description="end the run at the first evaluation whose success rate reaches this (its last "
                           "checkpoint that policy); null: train every frame")
 
+    def interval(self, frames: int) -> int:
+        """The frames between evaluations of a run of ``frames`` frames: ``every``, or for ``auto`` the largest
+        n = m x 10^k (m in 1, 2, 5) with n <= frames / :data:`AUTO_EVALUATIONS`: between 20 and 50 evaluations
+        after frame 0, at round frames."""
+        if self.every != "auto":
+            return self.every
+        most = max(1, int(frames) // AUTO_EVALUATIONS)
+        power = 10 ** (len(str(most)) - 1)
+        return max(m * power for m in (1, 2, 5) if m * power <= most)
+
 
 class CheckpointConfig(Section):
     every: Int = Field(10_000, ge=1, le=MAX_FRAMES, description="frames between checkpoints")
-    keep_best: Bool = Field(False, description="also keep checkpoints/best.pt, the checkpoint of the best evaluation")
+    keep_best: Bool = Field(False, description="also keep checkpoints/best.pt, the whole training checkpoint of the "
+                            "best evaluation (its networks, checkpoints/best.safetensors, are kept in any case)")
     best_metric: Literal["auto", "success_rate", "lifted_rate", "return_mean"] = Field(
-        "auto", description="the evaluation score best.pt maximises; auto: success_rate where the task reports it, "
-                            "else return_mean")
+        "auto", description="the evaluation score the best networks maximise; auto: success_rate where the task "
+                            "reports it, else return_mean")
 
 
 class LogConfig(Section):

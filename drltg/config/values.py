@@ -17,7 +17,6 @@ from pydantic.fields import FieldInfo
 
 from drltg.config.registry import LEARNERS, method_names
 from drltg.errors import closest
-from drltg.errors import short as _short  # noqa: F401 (the config modules quote values with it)
 
 
 def _finite_number(value: Any) -> Any:
@@ -95,7 +94,7 @@ MAX_REPEATS = 100_000
 """Most repeated steps asked for in one go (``optim.updates_per_batch``, ``td3.policy_delay``)."""
 
 
-def _what(text: str = "", noun: str = "") -> dict:
+def accepts(text: str = "", noun: str = "") -> dict:
     """``what`` replaces the generated description of the accepted values; ``noun`` names a choice in
     the error message ("unknown algorithm 'ppo'")."""
     return {k: v for k, v in (("what", text), ("noun", noun)) if v}
@@ -139,7 +138,7 @@ def _bound(metadata: list, name: str) -> float | None:
     return next((getattr(m, name) for m in metadata if getattr(m, name, None) is not None), None)
 
 
-def _expected(info: FieldInfo) -> str:
+def expected(info: FieldInfo) -> str:
     """The accepted values of a field, as the end of "must be ..."."""
     extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
     annotation, metadata, nullable, auto = _unwrap(info.annotation)
@@ -178,12 +177,12 @@ def _expected(info: FieldInfo) -> str:
     return text
 
 
-def _choices(info: FieldInfo) -> tuple | None:
+def literal_choices(info: FieldInfo) -> tuple | None:
     annotation = _unwrap(info.annotation)[0]
     return get_args(annotation) if get_origin(annotation) is Literal else None
 
 
-def _lookup(cfg: Any, dotted: str):
+def lookup(cfg: Any, dotted: str):
     node = cfg
     for part in dotted.split("."):
         if not isinstance(node, dict) or part not in node:
@@ -192,6 +191,6 @@ def _lookup(cfg: Any, dotted: str):
     return node
 
 
-def _suggest(key: str, known: Iterable[str]) -> str:
+def suggestion(key: str, known: Iterable[str]) -> str:
     hint = closest(key, known)
     return f"; did you mean '{hint}'?" if hint else "."

@@ -3,9 +3,10 @@
 A task is a factory of :class:`~torchrl.envs.EnvBase` plus default keyword arguments; a pair names
 a source task and a target task. Factories are called as
 ``factory(batch_size=..., device=..., **defaults, **overrides)``. A factory may be given as a string
-``"module:attr"``, imported when the task is first built or inspected: listing and validating tasks
-then imports neither torch nor the task's simulator. The built-in tasks and pairs are registered by
-:mod:`drltg.envs.tasks`.
+``"module:attr"``, imported when the task is first built; its options (the keywords a config may set)
+are then declared with it (``register_task(..., options=...)``, as Gymnasium's ``EnvSpec`` holds its
+kwargs), so listing tasks and checking a config import neither torch nor the task's simulator. The
+built-in tasks and pairs are registered by :mod:`drltg.envs.tasks`.
 
 Examples:
     >>> from drltg.envs import make_env, register_task, register_pair, FourRoomsEnv
@@ -15,15 +16,11 @@ Examples:
 """
 from __future__ import annotations
 
-import ast
-import functools
 import importlib
-import importlib.util
 import inspect
 import math
 import numbers
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 from drltg.errors import UsageError, closest, short
@@ -52,6 +49,10 @@ class TaskSpec:
     """Registration fields (a Gymnasium id, the info keys read as flags): passed to the factory on every
     build and never options, so a config (a run directory's ``config.yaml``) cannot change what the task
     is made of, nor make :func:`gymnasium.make` import a module it names."""
+    options: dict[str, Any] | None = None
+    """The factory's keywords that a config may set, each with the default the factory gives it
+    (``inspect.Parameter.empty``: none), as declared at :func:`register_task`; ``None``: the factory's
+    signature says them (:func:`inspect.signature`, which imports a factory named ``"module:attr"``)."""
 
     def return_range(self, env_options: dict[str, Any] | None = None) -> tuple[float, float] | None:
         """The range of an episode's return with these env options (the factory's and the task's defaults
@@ -80,19 +81,15 @@ class TaskSpec:
         return {k: v for k, v in given.items() if not (k in self.fixed and plain(v) == plain(self.fixed[k]))}
 
     def keywords(self) -> dict[str, Any]:
-        """The task's options: the keyword arguments its factory declares (name -> default;
-        ``inspect.Parameter.empty``: none) less its registration fields (:attr:`fixed`), and its registered
-        defaults. A factory that also takes ``**kwargs`` (Gymnasium's ``make`` keywords) takes no more
-        options than these: every key a config sets is one the task declares. A factory named
-        ``"module:attr"`` is read from its module's source where that suffices (:func:`_read_keywords`), so
-        that checking a config imports neither the env nor torch."""
-        read = _read_keywords(self.entry) if isinstance(self.entry, str) else None
-        if read is None:
-            factory = self.factory
-            params = inspect.signature(factory.__init__ if inspect.isclass(factory) else factory).parameters
-            read = {name: p.default for name, p in params.items()
-                    if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY) and name != "self"}
-        return {name: default for name, default in {**read, **self.defaults}.items() if name not in self.fixed}
+        """The task's options: the keywords declared with it (:attr:`options`), else those its factory's
+        signature declares (name -> default; ``inspect.Parameter.empty``: none), less ``make_env``'s own
+        (:data:`BUILD_KEYWORDS`) and the registration fields (:attr:`fixed`), and its registered defaults.
+        A factory that also takes ``**kwargs`` (Gymnasium's ``make`` keywords) takes no more options than
+        these: every key a config sets is one the task declares. Nothing is imported where the options are
+        declared, so checking a config imports neither the env nor torch."""
+        declared = self.options if self.options is not None else _signature_keywords(self.factory)
+        return {name: default for name, default in {**declared, **self.defaults}.items()
+                if name not in self.fixed and name not in BUILD_KEYWORDS}
 
     def check(self, given: dict[str, Any], *, key: Callable[[str], str] = "keyword {!r}".format) -> dict[str, Any]:
         """``given`` read as the types of the task's declared defaults (:meth:`keywords`): the one check of
@@ -190,36 +187,11 @@ class _Options(dict):
         return default
 
 
-@functools.lru_cache(maxsize=None)
-def _read_keywords(entry: str) -> dict[str, Any] | None:
-    """What :meth:`TaskSpec.keywords` says of the function or class ``"module:attr"``, read from the
-    module's source: its own ``def`` (a class's ``__init__``), undecorated, every default a literal, no
-    ``__signature__`` assigned; ``None`` when any of that does not hold (the factory is imported instead)."""
-    module, _, attr = entry.partition(":")
-    try:
-        text = Path(importlib.util.find_spec(module).origin).read_text(encoding="utf-8")
-        tree = ast.parse(text)
-    except (ImportError, AttributeError, OSError, SyntaxError, TypeError, ValueError):
-        return None
-    if f"{attr}.__signature__" in text:
-        return None
-    node = next((n for n in tree.body if isinstance(n, (ast.ClassDef, ast.FunctionDef)) and n.name == attr), None)
-    if isinstance(node, ast.ClassDef) and not node.decorator_list:
-        node = next((n for n in node.body if isinstance(n, ast.FunctionDef) and n.name == "__init__"), None)
-    if not isinstance(node, ast.FunctionDef) or node.decorator_list:
-        return None
-    args = node.args
-    positional = args.posonlyargs + args.args
-    defaults = [None] * (len(positional) - len(args.defaults)) + list(args.defaults)
-    declared = {}
-    try:
-        for arg, default in [*zip(positional, defaults), *zip(args.kwonlyargs, args.kw_defaults)]:
-            if arg in args.posonlyargs or arg.arg in ("self", "cls"):
-                continue
-            declared[arg.arg] = inspect.Parameter.empty if default is None else ast.literal_eval(default)
-    except ValueError:  # a default that is not a literal: the imported signature says what it is
-        return None
-    return declared
+def _signature_keywords(factory: Callable) -> dict[str, Any]:
+    """The keywords a function or class ``factory`` takes by name, with their defaults, from its signature."""
+    params = inspect.signature(factory.__init__ if inspect.isclass(factory) else factory).parameters
+    return {name: p.default for name, p in params.items()
+            if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY) and name not in ("self", "cls")}
 
 
 @dataclass(frozen=True)
@@ -285,6 +257,7 @@ def register_task(
     potential: Callable[[dict[str, Any]], Callable] | None = None,
     returns: Callable[[dict[str, Any]], tuple[float, float]] | None = None,
     fixed: dict[str, Any] | None = None,
+    options: dict[str, Any] | None = None,
     replace: bool = False,
     **defaults,
 ) -> TaskSpec:
@@ -293,7 +266,10 @@ def register_task(
     ``fixed`` keyword arguments that make the task what it is and that no config may set
     (:attr:`TaskSpec.fixed`), ``train`` config overrides, ``potential(env_options)`` builds its reward-shaping
     potential, ``returns(options)`` gives the range of an episode's return (:attr:`TaskSpec.returns`).
-    ``replace=True`` redefines a registered task (a notebook cell run twice)."""
+    ``options`` declares the factory's other keywords a config may set, each with the default the factory
+    gives it (:attr:`TaskSpec.options`; without it they are read from the factory's signature, importing
+    a factory named by a string when a config is checked). ``replace=True`` redefines a registered task
+    (a notebook cell run twice)."""
     if dict.__contains__(TASKS, name) and not replace:
         raise UsageError(f"task {name!r} is already registered; pass replace=True to redefine it.")
     if isinstance(factory, str) and not all(factory.partition(":")[::2]):
@@ -301,8 +277,12 @@ def register_task(
     both = sorted(set(defaults) & set(fixed or {}))
     if both:
         raise UsageError(f"task {name!r}: {both[0]!r} is given both as an option and as a registration field.")
+    both = sorted(set(options or {}) & (set(fixed or {}) | set(BUILD_KEYWORDS)))
+    if both:
+        raise UsageError(f"task {name!r}: {both[0]!r} is declared as an option, but it is "
+                         + ("a registration field." if both[0] in (fixed or {}) else "make_env's own keyword."))
     spec = TaskSpec(name, factory, description, dict(defaults), dict(train or {}), potential, returns,
-                    dict(fixed or {}))
+                    dict(fixed or {}), None if options is None else dict(options))
     TASKS[name] = spec
     for hook in ON_REGISTER:
         hook(spec)

@@ -1,7 +1,9 @@
 """The built-in tasks and pairs: continuous and grid FourRooms, the robosuite manipulation tasks and
 Gymnasium's Pendulum, each with the training settings measured to work on it (``train``), its return range
 and, where it has one, its shaping potential. Importing :mod:`drltg.envs` registers them; factories and
-potentials are named ``"module:attr"``, so registering imports neither torch nor a simulator."""
+potentials are named ``"module:attr"`` and the FourRooms tasks declare their options, so registering and
+checking a config import neither torch nor a simulator (a manipulation task's options are read from its
+factory's signature: checking them imports torch, not robosuite)."""
 from __future__ import annotations
 
 import functools
@@ -21,6 +23,14 @@ ROOMS_TRAIN = {"sac": {"alpha_init": 0.01}, "network": {"hidden": [64, 64]}}
 # about 12k frames (measured: return 0.94 at 12k, then -1 from 16k to 40k). A fixed alpha of 0.01 keeps
 # 0.94 to 40k frames.
 GRID_TRAIN = {**ROOMS_TRAIN, "sac": {**ROOMS_TRAIN["sac"], "fixed_alpha": True}}
+
+# The options of the FourRooms tasks: FourRoomsEnv's and GridFourRoomsEnv's keywords with their defaults,
+# declared here (as Gymnasium's EnvSpec holds its kwargs) so that checking a config imports neither the env
+# nor torch; tests/test_config.py holds them equal to the classes' signatures.
+ROOMS_OPTIONS = {"goal": (8.0, 8.0), "goal_radius": 0.5, "max_step": 0.5, "step_cost": 0.01, "horizon": 100,
+                 "start_room": None, "observe_goal": False, "render_size": 200}
+GRID_OPTIONS = {"goal": (3, 9), "slip": 0.0, "step_cost": 0.01, "horizon": 100, "start_room": None,
+                "observation": "onehot", "observe_goal": False, "cell_pixels": 16}
 
 
 def _rooms_returns(o: dict) -> tuple[float, float]:
@@ -46,6 +56,7 @@ register_task(
     train=ROOMS_TRAIN,
     returns=_rooms_returns,
     potential=_rooms_potential,
+    options=ROOMS_OPTIONS,
 )
 register_task(
     "fourrooms/northeast-shifted",
@@ -56,6 +67,7 @@ register_task(
     train=ROOMS_TRAIN,
     returns=_rooms_returns,
     potential=_rooms_potential,
+    options=ROOMS_OPTIONS,
 )
 register_task(
     "fourrooms/southwest",
@@ -66,6 +78,7 @@ register_task(
     train=ROOMS_TRAIN,
     returns=_rooms_returns,
     potential=_rooms_potential,
+    options=ROOMS_OPTIONS,
 )
 # Graded targets for the source goal (8, 8): shortest free path from the source goal through the
 # doorways, 1.0 (northeast-shifted), 2.1 (northeast-inner), 6.1 (southeast, northwest) and 9.9
@@ -79,6 +92,7 @@ register_task(
     train=ROOMS_TRAIN,
     returns=_rooms_returns,
     potential=_rooms_potential,
+    options=ROOMS_OPTIONS,
 )
 register_task(
     "fourrooms/southeast",
@@ -89,6 +103,7 @@ register_task(
     train=ROOMS_TRAIN,
     returns=_rooms_returns,
     potential=_rooms_potential,
+    options=ROOMS_OPTIONS,
 )
 register_task(
     "fourrooms/northwest",
@@ -99,6 +114,7 @@ register_task(
     train=ROOMS_TRAIN,
     returns=_rooms_returns,
     potential=_rooms_potential,
+    options=ROOMS_OPTIONS,
 )
 register_task(
     "gridrooms/northeast",
@@ -109,6 +125,7 @@ register_task(
     train=GRID_TRAIN,
     returns=_rooms_returns,
     potential=_grid_potential,
+    options=GRID_OPTIONS,
 )
 register_task(
     "gridrooms/northeast-shifted",
@@ -119,6 +136,7 @@ register_task(
     train=GRID_TRAIN,
     returns=_rooms_returns,
     potential=_grid_potential,
+    options=GRID_OPTIONS,
 )
 register_task(
     "gridrooms/southwest",
@@ -129,6 +147,7 @@ register_task(
     train=GRID_TRAIN,
     returns=_rooms_returns,
     potential=_grid_potential,
+    options=GRID_OPTIONS,
 )
 register_pair(
     "fourrooms-near",

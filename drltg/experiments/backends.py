@@ -38,11 +38,11 @@ def _die_with_parent(parent: int) -> None:
         os.kill(os.getpid(), signal.SIGTERM)
 
 
-def _worker_init(parent: int | None = None, registered: tuple = ((), ())) -> None:
+def _worker_init(parent: int | None = None, registered: bytes = pickle.dumps(((), ()))) -> None:
     """One torch thread per run; SIGTERM unwinds the run as in ``drltg train`` (lock released, its
     checkpoint kept), so an interrupted experiment resumes where it stopped; the worker gets SIGTERM when
     its parent dies, and ignores Ctrl-C's SIGINT, which the parent answers by stopping its workers.
-    ``registered``: the parent's own tasks and methods (:func:`registrations`)."""
+    ``registered``: the parent's own tasks and methods (:func:`registrations`), pickled."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     os.environ.setdefault("MKL_NUM_THREADS", "1")
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
@@ -50,14 +50,31 @@ def _worker_init(parent: int | None = None, registered: tuple = ((), ())) -> Non
     tqdm.set_lock(threading.RLock())  # no semaphore of tqdm's own left behind when the worker ends
     if parent is not None:
         _die_with_parent(parent)
-    register(registered)
+    global _START_ERROR
+    try:
+        register(registered)
+    except Exception as err:  # kept for each run it is given: a raising initializer only breaks the pool, unsaid
+        _START_ERROR = f"its worker process could not start: {_last_line(err) or type(err).__name__}"
 
 
-def _run_in_pool(train, *args):
-    """``train(*args)`` (:func:`run_one`, :func:`run_group`) in a pool worker. A SIGTERM (from the parent
-    stopping the pool, or from the kernel when the parent died) unwinds the run, releasing its lock and
-    keeping its checkpoint, and then ends the worker: the pool would catch the ``SystemExit`` and wait for
-    work from a parent that may be gone."""
+_START_ERROR: str | None = None
+"""Why this pool worker could not register the parent's tasks and plugins, if it could not."""
+
+
+def _run_in_pool(call: bytes, runs: int | None = None):
+    """``train(*args)`` (:func:`run_one`, or :func:`run_group` of ``runs`` runs; pickled in ``call`` by the
+    parent and unpickled only here, after the plugins: a config names a plugin's task) in a pool worker. A
+    SIGTERM (from the parent stopping the pool, or from the kernel when the parent died) unwinds the run,
+    releasing its lock and keeping its checkpoint, and then ends the worker: the pool would catch the
+    ``SystemExit`` and wait for work from a parent that may be gone."""
+    failed = _START_ERROR
+    if failed is None:
+        try:
+            train, args = pickle.loads(call)  # bytes from the parent's memory, never from a file
+        except Exception as err:
+            failed = f"its worker process could not read the run: {_last_line(err) or type(err).__name__}"
+    if failed is not None:
+        return ("failed", failed) if runs is None else [("failed", failed)] * runs
     try:
         return train(*args)
     except SystemExit as stop:
@@ -74,6 +91,7 @@ class LocalBackend:
         self.workers = workers
         self.pool = None
         self.pool_of = {}  # future -> the pool that runs it
+        self.log_of = {}  # future -> the log its worker writes to
         self.registered: tuple = ((), ())  # the user's own tasks and methods, for the workers (registrations)
 
     @property
@@ -86,20 +104,21 @@ class LocalBackend:
 
         if self.pool is None:
             self.pool = cf.ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"),
-                                               initializer=_worker_init, initargs=(os.getpid(), self.registered))
+                                               initializer=_worker_init,
+                                               initargs=(os.getpid(), pickle.dumps(self.registered)))
         return self.pool
 
     def submit(self, run: Run):
         pool = self._pool()
-        future = pool.submit(_run_in_pool, run_one, run.cfg, str(run.path), str(run.log))
-        self.pool_of[future] = pool
+        future = pool.submit(_run_in_pool, pickle.dumps((run_one, (run.cfg, str(run.path), str(run.log)))))
+        self.pool_of[future], self.log_of[future] = pool, run.log
         return future
 
     def submit_group(self, runs: list[Run]):
         pool = self._pool()
-        future = pool.submit(_run_in_pool, run_group, [r.cfg for r in runs], [str(r.path) for r in runs],
-                             [str(r.log) for r in runs])
-        self.pool_of[future] = pool
+        call = (run_group, ([r.cfg for r in runs], [str(r.path) for r in runs], [str(r.log) for r in runs]))
+        future = pool.submit(_run_in_pool, pickle.dumps(call), len(runs))
+        self.pool_of[future], self.log_of[future] = pool, runs[0].log
         return future
 
     def wait(self, handles: list, timeout: float) -> list[tuple[Any, tuple[str, str]]]:
@@ -109,11 +128,13 @@ class LocalBackend:
         finished, _ = cf.wait(handles, timeout=timeout, return_when=cf.FIRST_COMPLETED)
         results = []
         for f in finished:
-            pool = self.pool_of.pop(f)
+            pool, log = self.pool_of.pop(f), self.log_of.pop(f)
             try:
                 results.append((f, f.result()))
             except BrokenProcessPool:  # a worker died (killed, out of memory): the next run gets a fresh pool
-                results.append((f, ("failed", "its worker process died (killed or out of memory?)")))
+                last = _log_tail(log)
+                results.append((f, ("failed", "its worker process died (killed or out of memory?)"
+                                    + (f"; the last line of its log {str(log)!r}: {last}" if last else ""))))
                 if pool is self.pool:
                     pool.shutdown(wait=False, cancel_futures=True)
                     self.pool = None
@@ -135,7 +156,7 @@ class LocalBackend:
                 process.join(timeout=60)
                 if process.is_alive():
                     process.kill()
-        self.pool, self.pool_of = None, {}
+        self.pool, self.pool_of, self.log_of = None, {}, {}
 
 
 def _loopback_only() -> None:
@@ -179,7 +200,7 @@ def check_answers(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
         channel.close()
 
 
-def _cancellable(registered, call: bytes):
+def _cancellable(registered: bytes, call: bytes):
     """``train(*args)`` (:func:`run_one`, :func:`run_group`, pickled in ``call`` by the driver) as a Ray task,
     after the driver's own tasks and methods are registered: a config names its task, so it is unpickled
     only then. Ray cancels a running task by calling its SIGINT handler, which Ray's workers ignore; with
@@ -236,14 +257,20 @@ class RayBackend:
 
     capacity = math.inf  # Ray queues the tasks and runs as many as the cluster's resources allow
 
+    def ship(self, obj) -> bytes:
+        """``obj`` pickled for a Ray worker: a Ray worker's ``__main__`` is not the driver's script, so a
+        function the script defines travels by value (cloudpickle), where a local pool's spawned worker
+        imports it by name."""
+        return self.ray.cloudpickle.dumps(obj)
+
     def submit(self, run: Run):
-        ref = self.task.remote(self.registered, pickle.dumps((run_one, (run.cfg, str(run.path), str(run.log)))))
+        ref = self.task.remote(self.ship(self.registered), self.ship((run_one, (run.cfg, str(run.path), str(run.log)))))
         self.pending.add(ref)
         return ref
 
     def submit_group(self, runs: list[Run]):
         args = ([r.cfg for r in runs], [str(r.path) for r in runs], [str(r.log) for r in runs])
-        ref = self.task.remote(self.registered, pickle.dumps((run_group, args)))
+        ref = self.task.remote(self.ship(self.registered), self.ship((run_group, args)))
         self.pending.add(ref)
         return ref
 
@@ -283,3 +310,16 @@ def _last_line(err: BaseException) -> str:
     """The last non-empty line of an error's text: the cause, under a remote traceback."""
     lines = [line.strip() for line in str(err).splitlines() if line.strip()]
     return lines[-1] if lines else ""
+
+
+def _log_tail(log) -> str:
+    """The last non-empty line of a run's log (what a worker that died printed last), or ``""``."""
+    from drltg.regular import open_regular
+
+    try:
+        with open_regular(log) as f:
+            f.seek(max(0, os.fstat(f.fileno()).st_size - 4096))
+            lines = [line.strip() for line in f.read().decode(errors="replace").splitlines() if line.strip()]
+    except (OSError, UsageError):
+        return ""
+    return lines[-1][:300] if lines else ""

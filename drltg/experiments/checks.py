@@ -6,7 +6,7 @@ check fits) would be found only then. :func:`plan_warnings` says it before anyth
 from __future__ import annotations
 
 from drltg.analysis.report.settings import MIN_TREND_POINTS, ReportSettings
-from drltg.training.preflight import budget_warnings
+from drltg.training.preflight import budget_warnings, every_text
 
 
 def evaluation_frames(frames: int, every: int) -> list[int]:
@@ -24,10 +24,11 @@ def plan_warnings(runs) -> list[str]:
         cfg = run.cfg
         sentences = budget_warnings(cfg)
         if run.role != "source" and not sentences:
-            last = [f for f in evaluation_frames(cfg.frames, cfg.eval.every) if f >= (1 - window) * cfg.frames]
+            last = [f for f in evaluation_frames(cfg.frames, cfg.eval.interval(cfg.frames))
+                    if f >= (1 - window) * cfg.frames]
             if len(last) < MIN_TREND_POINTS:
                 every = int(window * cfg.frames / (MIN_TREND_POINTS - 1))
-                sentences = [f"{cfg.frames:,} frames with eval.every={cfg.eval.every:,} give {len(last)} evaluations "
+                sentences = [f"{cfg.frames:,} frames with {every_text(cfg)} give {len(last)} evaluations "
                              f"in the last {100 * window:g}% of the budget, where the report's convergence check "
                              f"needs {MIN_TREND_POINTS}; use -o eval.every={max(every, 1):,} or less."]
         for sentence in sentences:

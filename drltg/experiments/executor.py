@@ -23,6 +23,7 @@ from typing import Any
 
 from drltg.config import RunConfig
 from drltg.errors import UsageError
+from drltg.regular import append_regular, read_bytes
 from drltg.store import rundir
 
 __all__ = ["Run", "run_one", "run_group", "execute", "seed_groups", "registrations", "register"]
@@ -79,12 +80,12 @@ def run_group(cfgs: list[RunConfig], run_dirs: list[str], log_paths: list[str]) 
     for log_path in logs:
         log_path.parent.mkdir(parents=True, exist_ok=True)
     for log_path in logs[1:]:
-        with open(log_path, "a") as log:
+        with append_regular(log_path) as log:
             print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] trains in a seed group; output in {logs[0]}", file=log)
     resume = all((d / rundir.CONFIG).is_file() for d in dirs)
     what = str(dirs[0]) if len(dirs) == 1 else f"seed group {', '.join(str(d) for d in dirs)}"
     report = FramesReport(logs)
-    with open(logs[0], "a", buffering=1) as log, _output_to(log):
+    with append_regular(logs[0]) as log, _output_to(log):
         print(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] {'resume' if resume else 'start'} {what} "
               f"(pid {os.getpid()})", flush=True)
         try:
@@ -132,12 +133,12 @@ def frames_file(log: Path) -> Path:
 def seed_groups(runs: list[Run]) -> list[list[Run]]:
     """``runs`` in units of work, in order: runs whose configs differ only in the seed (and in
     ``transfer.source``: a transfer run of seed s reads its own seed's source run), whose learner and
-    transfer method train as a seed group in this process (:func:`~drltg.training.seeds.group_support`,
-    :func:`~drltg.training.seeds.in_process`), and that are all new or all resumable, form one unit, which
+    transfer method train as a seed group in this process (:func:`~drltg.training.grouping.group_support`,
+    :func:`~drltg.training.grouping.in_process`), and that are all new or all resumable, form one unit, which
     starts once every run its runs need is done (runs that need none are not held back by runs that do);
     every other run is a unit of one. A group of worker-process envs (robosuite) holds N runs' envs at
     once, and units run side by side here, so such tasks group only when asked (``drltg train --seeds N``)."""
-    from drltg.training.seeds import group_support, in_process, same_but_seed
+    from drltg.training.grouping import group_support, in_process, same_but_seed
 
     units: list[list[Run]] = []
     for run in runs:
@@ -158,21 +159,26 @@ def seed_groups(runs: list[Run]) -> list[list[Run]]:
 def frames_done(run: Run) -> int:
     """Frames a run has reached so far: what its worker last reported, else its last evaluation (0 before)."""
     try:
-        reported = int(frames_file(run.log).read_text())
-    except (OSError, ValueError):
+        reported = int(read_bytes(frames_file(run.log), 64, "a frames count"))
+    except (OSError, ValueError, UsageError):
         reported = 0
     return min(max(reported, rundir.frames_evaluated(run.path)), run.frames)
 
 
-def register(registered: tuple) -> None:
-    """Register in this worker the tasks and methods the parent shipped (:func:`registrations`)."""
+def register(shipped: bytes) -> None:
+    """Register in this worker the user's plugins (``--import``, ``DRLTG_IMPORT``, entry points), then the
+    tasks and methods the parent shipped (:func:`registrations`, pickled there) over them. The plugins come
+    first: a plugin registers its tasks without ``replace=True``, as a user writes it, and unpickling a
+    plugin's method imports the plugin, so it is unpickled only here, after them."""
+    from drltg import plugins
     from drltg.envs import register_task
     from drltg.transfer import register_method
 
-    tasks, methods = registered
+    plugins.load()
+    tasks, methods = pickle.loads(shipped)
     for spec in tasks:
         register_task(spec.name, spec.entry, spec.description, train=spec.train, potential=spec.potential,
-                      returns=spec.returns, fixed=spec.fixed, replace=True, **spec.defaults)
+                      returns=spec.returns, fixed=spec.fixed, options=spec.options, replace=True, **spec.defaults)
     for method in methods:
         register_method(method, replace=True)
 
@@ -289,3 +295,62 @@ def execute(runs: list[Run], backend, poll: float = 1.0, desc: str = "runs", pro
     finally:
         bar.close()
     return status
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What a set of planned runs holds and would train: each run's state in words and frames left, and the
+    units of work the runs left to train train in (:func:`seed_groups`)."""
+
+    states: dict
+    units: list
+
+    @property
+    def left(self) -> int:
+        return sum(left for _, left in self.states.values())
+
+    def summary(self, runs: list[Run], reports: int) -> list[str]:
+        """Two lines: the units of work, and the frames left with the runs counted by state."""
+        groups = [u for u in self.units if len(u) > 1]
+        sizes = sorted({len(u) for u in groups})
+        kinds = [words.split(":")[0] for words, _ in self.states.values()]
+        counts = ", ".join(f"{kinds.count(k)} {k}" for k in ("finished", "copied from the reference", "started",
+                                                               "not started", "diverged", "unreadable") if k in kinds)
+        return [f"{_count(len(runs), 'run')}, {_count(reports, 'report')}; {_count(len(self.units), 'unit')} of work "
+                f"to train: {_count(len(groups), 'seed group')} of {_count(sum(map(len, groups)), 'run')}"
+                + (f" ({' or '.join(map(str, sizes))} runs each)" if sizes else "")
+                + f", {_count(len(self.units) - len(groups), 'run')} alone",
+                f"left to train: about {self.left:,} of {sum(r.frames for r in runs):,} frames ({counts})"]
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}{'s' * (n != 1)}"
+
+
+def plan_of(runs: list[Run], group_seeds: bool = True, copied: frozenset = frozenset()) -> Plan:
+    """The :class:`Plan` of ``runs``; a run in ``copied`` (paths) is taken from a reference, nothing to train."""
+    states = {r.path: ("copied from the reference", 0) if r.path in copied else _state(r) for r in runs}
+    todo = [r for r in runs if states[r.path][1] > 0]
+    return Plan(states, seed_groups(todo) if group_seeds else [[r] for r in todo])
+
+
+def plan_lines(runs: list[Run], out: Path, reports: int, group_seeds: bool = True) -> list[str]:
+    """A dry run's listing: each run with its frames, folder and what the folder holds already, the units of
+    work they train in and the frames left."""
+    planned = plan_of(runs, group_seeds)
+    width = max(len(str(r.path.relative_to(out))) for r in runs)
+    return [*(f"{r.role:<9} {r.frames:>9} frames  {str(r.path.relative_to(out)):<{width}}  "
+              f"{planned.states[r.path][0]}" for r in runs), *planned.summary(runs, reports)]
+
+
+def _state(run: Run) -> tuple[str, int]:
+    """What a run's folder holds, in words, and about how many frames a sweep would still train in it: none
+    once it ended (``summary.json``: finished, diverged, or unreadable and so failed), else from its last
+    checkpoint, which is at or before its last evaluation (:func:`frames_done`)."""
+    ended = rundir.summary_status(run.path)
+    if ended is not None:
+        return ("finished" if ended[0] == "complete" else ended[0]), 0
+    if not (run.path / rundir.CONFIG).is_file():
+        return "not started", run.frames
+    done = frames_done(run)
+    return f"started: last evaluated at {done:,} frames", run.frames - done

@@ -34,7 +34,8 @@ import yaml
 
 from drltg import config as config_lib
 from drltg import safe_yaml
-from drltg.analysis import sequential
+from drltg.analysis import figure_style, sequential
+from drltg.analysis.figure_style import DEFAULT, FigureStyle
 from drltg.config import RunConfig
 from drltg.errors import RunFailed, UsageError
 from drltg.store import rundir
@@ -43,16 +44,23 @@ SEED = "{seed}"  # in a given transfer.source: the transfer run's seed
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("pair", help="registered task pair (see `drltg tasks`); a task alone for a method without a "
-                   "source, or with -o transfer.source=...")
-    p.add_argument("--method", required=True, help="transfer method (`drltg tasks` lists them)")
-    p.add_argument("--algo", default="sac", help="learner (default sac)")
-    p.add_argument("--seeds", type=seed_count, default=5,
+    p.add_argument("pair", nargs="?", help="registered task pair (see `drltg tasks`); a task alone for a method "
+                   "without a source, or with -o transfer.source=...")
+    p.add_argument("--config", type=Path, metavar="FILE",
+                   help="the settings as YAML, e.g. an experiment's experiment.yaml to run it again (pair, method, "
+                        "algo, seeds, max_seeds, seed, frames, source_frames, source_success, overrides); the "
+                        "command line's own settings win")
+    p.add_argument("--dry-run", action="store_true", help="list the runs, what each run's folder holds already, the "
+                   "units of work and the frames left; train nothing")
+    p.add_argument("--method", help="transfer method (`drltg tasks` lists them)")
+    p.add_argument("--algo", help="learner (default sac)")
+    p.add_argument("--seeds", type=seed_count,
                    help="runs per side (default 5), or 'auto': paired seeds in rounds until the exact sign-flip "
                         "test decides the mean return gain, at most --max-seeds (drltg.analysis.sequential)")
-    p.add_argument("--max-seeds", type=int, default=20, help="the most pairs --seeds auto trains (default 20)")
-    p.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
-    p.add_argument("--frames", type=config_lib.frame_count, required=True,
+    p.add_argument("--max-seeds", type=int, default=None,
+                   help=f"the most pairs --seeds auto trains (default {AUTO_MAX_SEEDS})")
+    p.add_argument("--seed", type=int, help="first seed (default 0)")
+    p.add_argument("--frames", type=config_lib.frame_count,
                    help="frame budget of each target run (50000, 50k, 1e4, 1.5M)")
     p.add_argument("--source-frames", type=config_lib.frame_count,
                    help="frame budget of each source run (default --frames)")
@@ -69,6 +77,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--threshold", help="report threshold: a value, or a fraction of the best baseline like 80%%")
     p.add_argument("--value-range", metavar="LOW,HIGH",
                    help="the range every evaluation return lies in, for a task that declares none (e.g. -50,0)")
+    figure_style.add_arguments(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar (none is drawn when stderr is not "
                    "a terminal)")
 
@@ -251,12 +260,15 @@ def check_existing(runs: list) -> None:
             raise UsageError(f"'{run.path}' exists but holds no config.yaml; move it away or use another --out.")
 
 
-def make_out(runs: list, out: Path) -> None:
-    """The last checks before any work, then ``out`` made: no run directory holds another run
+def make_out(runs: list, out: Path, reports: Sequence[Path]) -> None:
+    """The last checks before any work, then ``out`` made: no link or odd file where a run, a log or a report
+    is written (:func:`~drltg.store.rundir.refuse_links`), no run directory holds another run
     (:func:`check_existing`), what a script registered reaches the workers
     (:func:`~drltg.experiments.executor.registrations`)."""
-    from drltg.experiments.executor import registrations
+    from drltg.experiments.executor import frames_file, registrations
 
+    rundir.refuse_links(out, folders=[*(r.path for r in runs), *reports],
+                        files=[f for r in runs for f in (r.log, frames_file(r.log))])
     check_existing(runs)
     registrations(runs)
     try:
@@ -265,9 +277,13 @@ def make_out(runs: list, out: Path) -> None:
         raise UsageError(f"cannot create --out '{out}' ({err.strerror}).") from None
 
 
-GROWS = ("seeds", "max_seeds")
-"""Settings an experiment folder may be run again with: more (or fewer) seeds train what is new and report
-the planned pairs; the runs already there are reused."""
+AUTO_MAX_SEEDS = 20
+"""The most pairs ``--seeds auto`` trains unless ``--max-seeds`` says otherwise."""
+
+GROWS = ("seeds",)
+"""Settings an experiment folder of a fixed seed count may be run again with: more (or fewer) seeds train what
+is new and report the planned pairs; the runs already there are reused. A ``--seeds auto`` folder continues
+only under its own plan (:func:`_check_plan`)."""
 
 
 def _check_settings(path: Path, settings: dict) -> None:
@@ -280,33 +296,60 @@ def _check_settings(path: Path, settings: dict) -> None:
         raise UsageError(f"'{path}' holds no experiment settings; move it away or use another --out.")
     # "out" and "imports" were kept by earlier versions; neither changes what the runs are
     saved = {k: v for k, v in saved.items() if k not in ("out", "imports")}
+    _check_plan(path.parent, saved, settings)
     differ = [k for k in [*settings, *(k for k in saved if k not in settings)]
-              if k not in GROWS and saved.get(k) != settings.get(k)]
+              if k not in (*GROWS, "max_seeds") and saved.get(k) != settings.get(k)]
     if differ:
         changes = "; ".join(f"{k} is {saved.get(k)!r} there, {settings.get(k)!r} now" for k in differ)
         raise UsageError(f"'{path.parent}' holds an experiment with other settings ({changes}); run it with its "
                          "settings (only --seeds may change: more seeds train the new ones), or choose another --out.")
 
 
+def _check_plan(out: Path, saved: dict, settings: dict) -> None:
+    """Refuse to change how an experiment counts its seeds once it has reported. A ``--seeds auto`` plan
+    splits 0.05 over looks fixed before its first seed: a fixed count after it reports one more test at the
+    full level, uncorrected for the looks already taken, and another cap moves every look's share. A plan
+    started over a fixed-count folder would not be planned before the result it was seen with."""
+    was, now = saved.get("seeds"), settings.get("seeds")
+    if was == "auto" and now != "auto":
+        raise UsageError(f"'{out}' holds a --seeds auto experiment, whose looks already spent its level; continue "
+                         f"it with --seeds auto --max-seeds {saved.get('max_seeds')}, or train --seeds {now} into "
+                         "another --out.")
+    if was == "auto" and saved.get("max_seeds") != settings.get("max_seeds"):
+        raise UsageError(f"'{out}' holds a --seeds auto experiment planned for --max-seeds {saved.get('max_seeds')}, "
+                         "and another cap would change the share of each look already taken; continue it with "
+                         f"--max-seeds {saved.get('max_seeds')}, or start the new plan in another --out.")
+    if was is not None and was != "auto" and now == "auto":
+        raise UsageError(f"'{out}' holds an experiment of --seeds {was} already reported, and a sequential plan "
+                         "must be fixed before its first seed; start --seeds auto in another --out, or grow this "
+                         "one with a --seeds count.")
+
+
 def experiment(pair: str, method: str, *, frames: int | str, out: str | Path, seeds: int | str = 5, seed: int = 0,
                algo: str = "sac", source_frames: int | str | None = None, source_success: float | None = None,
                overrides: Sequence[str] = (),
                threshold: float | str | None = None, workers: int = 1, group_seeds: bool = True,
-               progress: bool = True, max_seeds: int = 20, value_range=None) -> dict:
+               progress: bool = True, max_seeds: int | None = None, value_range=None,
+               dry_run: bool = False, figure: FigureStyle = DEFAULT) -> dict:
     """Train one experiment's source, baseline and transfer runs into ``out`` and report the transfer runs
     against the baselines; what is finished is reused and what was interrupted resumes.
 
     The arguments are ``drltg experiment``'s (frame counts as ``20000``, ``"20k"`` or ``"1e4"``;
     ``overrides`` as ``["transfer.upsilon=0.9"]``; ``value_range`` as ``(-50, 0)``, for a task that declares no
-    return range). Returns the report, :func:`drltg.analysis.report.
+    return range; ``figure`` how the report's plot is drawn, a
+    :class:`~drltg.analysis.figure_style.FigureStyle`). Returns the report, :func:`drltg.analysis.report.
     transfer_report`'s dict, with ``"diverged"``: the runs left out of it because their losses diverged.
     Raises :class:`~drltg.errors.UsageError` for a bad setting, before anything is written, and
     :class:`~drltg.errors.RunFailed` naming every run that failed.
 
+    ``dry_run`` checks everything and returns ``{"plan": lines}``, the runs listed with what their folders
+    hold, training nothing.
+
     ``seeds="auto"`` trains paired seeds in rounds, as :mod:`drltg.analysis.sequential` plans them up to
-    ``max_seeds`` pairs, and stops at the first round whose exact sign-flip test of the mean return gain
-    decides at its share of the level; the report's ``settings.sequential`` records the plan, the looks
-    taken and why it stopped, and ``mean_return_gain_verdict`` is the plan's verdict.
+    ``max_seeds`` pairs (:data:`AUTO_MAX_SEEDS` unless given, and only then), and stops at the first round
+    whose exact sign-flip test of the mean return gain decides at its share of the level; the report's
+    ``settings.sequential`` records the plan, the looks taken and why it stopped, and
+    ``mean_return_gain_verdict`` is the plan's verdict.
 
         >>> report = drltg.experiment("fourrooms-near", "policy-reuse", seeds=3, frames="20k", out="runs/near")
         >>> report["metrics"]["mean_return_gain"], report["out_dir"]
@@ -315,14 +358,22 @@ def experiment(pair: str, method: str, *, frames: int | str, out: str | Path, se
     if workers < 1:
         raise UsageError("--workers must be at least 1.")
     if seeds == "auto":
+        max_seeds = AUTO_MAX_SEEDS if max_seeds is None else max_seeds
         if isinstance(max_seeds, bool) or not isinstance(max_seeds, int) or not 1 <= max_seeds <= MAX_SEEDS:
             raise UsageError(f"--max-seeds must be a whole number from 1 to {MAX_SEEDS}, got {max_seeds!r}.")
         plan = sequential.looks(max_seeds)
+        if dry_run:  # the plan at its cap: what the last look would have trained
+            planned = _run(pair, method, frames, out, plan[-1].pairs, seed, algo, source_frames, overrides, threshold,
+                           workers, group_seeds, progress, {"seeds": "auto", "max_seeds": max_seeds},
+                           value_range=value_range, source_success=source_success, dry_run=True)
+            looks = ", ".join(str(look.pairs) for look in plan)
+            return {"plan": [f"--seeds auto: looks at {looks} pairs, each at {plan[0].alpha:.3g} of 0.05; the runs "
+                             "to its cap:", *planned["plan"]]}
         taken, result = [], {}
         for k, look in enumerate(plan, 1):
             result = _run(pair, method, frames, out, look.pairs, seed, algo, source_frames, overrides, threshold,
                           workers, group_seeds, progress, {"seeds": "auto", "max_seeds": max_seeds},
-                          value_range=value_range, source_success=source_success)
+                          value_range=value_range, source_success=source_success, figure=figure)
             p = result["metrics"].get("mean_return_gain_verdict_p", 1.0)
             taken.append(p)
             if progress:
@@ -334,8 +385,11 @@ def experiment(pair: str, method: str, *, frames: int | str, out: str | Path, se
         return _with_sequential(result, sequential.record(plan, taken))
     if isinstance(seeds, bool) or not isinstance(seeds, int):
         raise UsageError(f"--seeds must be a whole number or 'auto', got {seeds!r}.")
+    if max_seeds is not None:
+        raise UsageError(f"--max-seeds caps --seeds auto; with --seeds {seeds} it would do nothing, so leave it out.")
     return _run(pair, method, frames, out, seeds, seed, algo, source_frames, overrides, threshold, workers,
-                group_seeds, progress, {"seeds": seeds}, value_range=value_range, source_success=source_success)
+                group_seeds, progress, {"seeds": seeds}, value_range=value_range, source_success=source_success,
+                dry_run=dry_run, figure=figure)
 
 
 def _with_sequential(result: dict, record: dict) -> dict:
@@ -358,11 +412,13 @@ def _with_sequential(result: dict, record: dict) -> dict:
 
 
 def _run(pair, method, frames, out, seeds, seed, algo, source_frames, overrides, threshold, workers, group_seeds,
-         progress, counted: dict, value_range=None, source_success=None) -> dict:
-    """One experiment of ``seeds`` pairs (``counted``: how its settings name the seed count)."""
+         progress, counted: dict, value_range=None, source_success=None, dry_run: bool = False,
+         figure: FigureStyle = DEFAULT) -> dict:
+    """One experiment of ``seeds`` pairs (``counted``: how its settings name the seed count); with ``dry_run``,
+    its checks and ``{"plan": lines}`` listing its runs (:func:`~drltg.experiments.executor.plan_lines`)."""
     from drltg.analysis.report import parse_threshold
     from drltg.analysis.report.settings import parse_range
-    from drltg.experiments.executor import check_order
+    from drltg.experiments.executor import check_order, plan_lines
 
     parse_threshold(threshold)
     parse_range(value_range)
@@ -383,19 +439,55 @@ def _run(pair, method, frames, out, seeds, seed, algo, source_frames, overrides,
     _check_settings(saved, settings)
     planned = as_runs(runs, out)
     check_order(planned)
-    make_out(planned, out)
+    if dry_run:
+        return {"plan": plan_lines(planned, out, 1, group_seeds)}
+    make_out(planned, out, [out / "report"])
     return execute_and_report(runs, out, saved, settings, workers=workers, name="experiment", threshold=threshold,
-                              method=method, group_seeds=group_seeds, progress=progress, value_range=value_range)
+                              method=method, group_seeds=group_seeds, progress=progress, value_range=value_range,
+                              figure=figure)
+
+
+SETTINGS = {"pair": None, "method": None, "algo": "sac", "seeds": 5, "max_seeds": None, "seed": 0, "frames": None,
+            "source_frames": None, "source_success": None}
+"""What ``--config`` may hold besides ``overrides`` (an ``experiment.yaml``'s keys), with the defaults of those
+given neither there nor on the command line."""
+
+
+def settings_of(args: argparse.Namespace) -> dict:
+    """The experiment's settings: the command line's, then ``--config``'s, then :data:`SETTINGS`' defaults. The
+    file's overrides come first and the command line's after them; a key both set keeps the command line's."""
+    given = {} if args.config is None else config_lib.load_yaml(args.config, "--config")
+    given = {k: v for k, v in given.items() if k not in ("out", "imports")}  # kept by earlier versions
+    unknown = sorted(set(given) - set(SETTINGS) - {"overrides"})
+    if unknown:
+        raise UsageError(f"--config '{args.config}' holds {', '.join(map(repr, unknown))}, no experiment setting; "
+                         f"it may hold {', '.join([*SETTINGS, 'overrides'])}.")
+    overrides = given.get("overrides") or []
+    if not isinstance(overrides, list) or not all(isinstance(o, str) for o in overrides):
+        raise UsageError(f"--config '{args.config}': overrides must be a list of KEY=VALUE strings.")
+    mine = {config_lib.parse_override(o)[0] for o in args.overrides}
+    settings = {key: next((v for v in (getattr(args, key), given.get(key)) if v is not None), default)
+                for key, default in SETTINGS.items()}
+    settings["overrides"] = [o for o in overrides if config_lib.parse_override(o)[0] not in mine] + args.overrides
+    missing = [f"--{k}" if k != "pair" else "a pair" for k in ("pair", "method", "frames") if settings[k] is None]
+    if missing:
+        raise UsageError(f"name {', '.join(missing)} on the command line or in --config FILE.")
+    return settings
 
 
 def run(args: argparse.Namespace) -> int:
+    settings = settings_of(args)
+    options = dict(frames=settings["frames"], out=args.out, seeds=settings["seeds"], seed=settings["seed"],
+                   algo=settings["algo"], source_frames=settings["source_frames"],
+                   source_success=settings["source_success"], overrides=settings["overrides"],
+                   threshold=args.threshold, workers=args.workers, group_seeds=not args.no_seed_groups,
+                   progress=not args.no_progress, max_seeds=settings["max_seeds"], value_range=args.value_range,
+                   figure=figure_style.from_args(args))
+    if args.dry_run:
+        print("\n".join(experiment(settings["pair"], settings["method"], **options, dry_run=True)["plan"]))
+        return 0
     try:
-        result = experiment(args.pair, args.method, frames=args.frames, out=args.out, seeds=args.seeds,
-                            seed=args.seed, algo=args.algo, source_frames=args.source_frames,
-                            source_success=args.source_success,
-                            overrides=args.overrides, threshold=args.threshold, workers=args.workers,
-                            group_seeds=not args.no_seed_groups, progress=not args.no_progress,
-                            max_seeds=args.max_seeds, value_range=args.value_range)
+        result = experiment(settings["pair"], settings["method"], **options)
     except RunFailed as err:
         print(err)
         return 1
@@ -419,7 +511,8 @@ def print_report(result: dict) -> None:
 
 
 def execute_and_report(runs, out: Path, saved: Path, settings: dict, *, workers: int, name: str, threshold,
-                       method: str, group_seeds: bool = True, progress: bool = True, value_range=None) -> dict:
+                       method: str, group_seeds: bool = True, progress: bool = True, value_range=None,
+                       figure: FigureStyle = DEFAULT) -> dict:
     """Under the folder's lock: save the settings, train every run not finished yet on ``workers``
     processes, then report the transfer runs against the baselines (the report's dict, with ``"diverged"``:
     the runs left out of it). Raises :class:`~drltg.errors.RunFailed` if a run failed: no report then."""
@@ -447,5 +540,25 @@ def execute_and_report(runs, out: Path, saved: Path, settings: dict, *, workers:
             value_range=value_range,
             baseline_label="no transfer",
             transfer_label=method,
+            figure=figure,
         )
+    never = never_succeeded([d for role, _, d in runs if role == "source"])
+    if never:
+        result["settings"]["warnings"].insert(0, f"{len(never)} source run(s) never succeeded in any evaluation "
+                                              f"({', '.join(never)}): the transfer runs reuse what did not solve the "
+                                              "source task, so the comparison says little about transfer.")
     return {**result, "diverged": diverged}
+
+
+def never_succeeded(run_dirs: Sequence[Path]) -> list[str]:
+    """The runs among ``run_dirs`` whose ``eval.csv`` records a success rate that is 0 at every evaluation (a
+    task without one is not judged here; the report checks the threshold)."""
+    never = []
+    for run in run_dirs:
+        try:
+            rates = [row.get("success_rate") for row in rundir.read_eval_csv(run / rundir.EVAL)]
+        except UsageError:
+            continue
+        if rates and all(r not in (None, "") for r in rates) and max(float(r) for r in rates) == 0:
+            never.append(str(run))
+    return never

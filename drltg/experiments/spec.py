@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from drltg.config import refuse_conflicts
 from drltg.errors import UsageError, closest
 from drltg.experiments.summary import SUMMARY_COLUMNS
 
@@ -75,8 +76,9 @@ def _config_keys(mapping, key: str, where: str) -> dict:
         raise UsageError(f"{where}: '{key}' must be a mapping of config keys like {{eval.every: 1000}}.")
     from drltg.experiments.experiment import refuse_plan_overrides
 
-    values = [(k, v) for k, vs in mapping.items() for v in (vs if key == "grid" and isinstance(vs, list) else [vs])]
-    refuse_plan_overrides(values, f"{where}: '{key}'", "sweep", SET_BY_SWEEP)
+    listed = {k: vs if key == "grid" and isinstance(vs, list) else [vs] for k, vs in mapping.items()}
+    refuse_plan_overrides([(k, v) for k, vs in listed.items() for v in vs], f"{where}: '{key}'", "sweep", SET_BY_SWEEP)
+    refuse_conflicts(listed.items(), f"{where}: '{key}'")
     return dict(mapping)
 
 

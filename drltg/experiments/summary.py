@@ -2,6 +2,8 @@
 counts findings in, and the transfer-matrix heatmap. Pure functions of the report rows: they write nothing."""
 from __future__ import annotations
 
+from drltg.analysis.figure_style import DEFAULT, FigureStyle
+
 __all__ = ["SUMMARY_COLUMNS", "LEVEL", "p_of", "sweep_family", "across_targets", "across_targets_table",
            "summary_tables", "summary_aggregates", "plot_transfer_matrix"]
 
@@ -134,11 +136,13 @@ def summary_tables(rows: list[dict], primary_metric: str | None = None) -> tuple
     return tables.render(csv_rows, "csv"), md_text
 
 
-def plot_transfer_matrix(rows: list[dict], metric: str = "mean_return_gain") -> bytes:
-    """Heatmap PNG of ``metric`` over (pair, algo, variant) rows x method columns, mean and CI per cell."""
+def plot_transfer_matrix(rows: list[dict], metric: str = "mean_return_gain",
+                         figure: FigureStyle = DEFAULT) -> dict[str, bytes]:
+    """``transfer_matrix.png`` (and the format ``figure`` asks beside it): a heatmap of ``metric`` over
+    (pair, algo, variant) rows x method columns, mean and CI per cell."""
     import numpy as np
 
-    from drltg.analysis.plot import plot_matrix
+    from drltg.analysis.plot import files, plot_matrix
 
     one_algo = len({r["algo"] for r in rows}) == 1
 
@@ -157,17 +161,18 @@ def plot_transfer_matrix(rows: list[dict], metric: str = "mean_return_gain") -> 
             table[i, j] = value
             text[i, j] = f"{value:+.2f}" + (f"\n[{ci[0]:+.2f}, {ci[1]:+.2f}]" if ci else "")
     title = f"{metric}, transfer - baseline [95% CI; none below 3 seeds a side]"
-    return plot_matrix(table, labels, methods, metric, text=text, axis_labels=("pair", "method"), title=title)[0]
+    return files("transfer_matrix", plot_matrix(table, labels, methods, metric, text=text,
+                                                axis_labels=("pair", "method"), title=title, vector=None, style=figure))
 
 
-def summary_aggregates(rows: list[dict]) -> dict[str, bytes]:
-    """``aggregates.json``, ``aggregates.md`` and ``performance_profiles.png``: each method against no transfer
-    over the sweep's pairs and seeds, as rliable defines the aggregates (:mod:`drltg.analysis.aggregate`);
-    nothing where no row has its runs' scores."""
+def summary_aggregates(rows: list[dict], figure: FigureStyle = DEFAULT) -> dict[str, bytes]:
+    """``aggregates.json``, ``aggregates.md`` and ``performance_profiles.png`` (drawn as ``figure`` says): each
+    method against no transfer over the sweep's pairs and seeds, as rliable defines the aggregates
+    (:mod:`drltg.analysis.aggregate`); nothing where no row has its runs' scores."""
     import json
 
     from drltg.analysis.aggregate import aggregates_table, sweep_aggregates
-    from drltg.analysis.plot import plot_profiles
+    from drltg.analysis.plot import files, plot_profiles
 
     entries = sweep_aggregates(rows)
     if not entries:
@@ -176,4 +181,4 @@ def summary_aggregates(rows: list[dict]) -> dict[str, bytes]:
           "median and mean of normalised per-seed mean returns, optimality gap, P(T > B); 95% stratified-bootstrap "
           "intervals, 2000 resamples, seed 0):\n\n" + aggregates_table(entries))
     return {"aggregates.json": (json.dumps(entries, indent=1) + "\n").encode(), "aggregates.md": md.encode(),
-            "performance_profiles.png": plot_profiles(entries)[0]}
+            **files("performance_profiles", plot_profiles(entries, style=figure))}

@@ -56,10 +56,12 @@ from pathlib import Path
 
 import yaml
 
+from drltg.analysis import figure_style
+from drltg.analysis.figure_style import DEFAULT, FigureStyle
 from drltg.config import RunConfig
 from drltg.errors import UsageError
 from drltg.experiments.backends import LocalBackend, RayBackend
-from drltg.experiments.executor import Run, execute, frames_done, seed_groups
+from drltg.experiments.executor import Run, execute, plan_lines
 from drltg.experiments.spec import Spec, load_spec, parse_spec
 from drltg.experiments.summary import across_targets, plot_transfer_matrix, summary_aggregates, summary_tables
 from drltg.store import rundir
@@ -82,7 +84,7 @@ class Cell:
         return self.transfer[0].parent.parent / "report"
 
 
-def _variants(spec: Spec) -> list[tuple[str, int, int | None, dict]]:
+def variants(spec: Spec) -> list[tuple[str, int, int | None, dict]]:
     """(name, frames, source_frames, grid values) for every point on the swept axes."""
     axes: list[tuple[str, list]] = []
     if len(spec.frames) > 1:
@@ -101,7 +103,17 @@ def _variants(spec: Spec) -> list[tuple[str, int, int | None, dict]]:
 
 
 def _key(cfg: RunConfig) -> str:
-    return json.dumps(cfg.model_dump(), sort_keys=True, default=str)
+    """A run's identity: its resolved config, the options of methods it does not use at their defaults (a
+    baseline is one run whatever a grid sets another method's knobs to), so such a run trains once."""
+    from drltg import config as config_lib
+
+    data = cfg.model_dump()
+    used = set(cfg.transfer.method.split("+"))
+    defaults = config_lib.defaults()["transfer"]
+    owners = config_lib.option_owners()
+    data["transfer"] = {k: defaults[k] if owners.get(k, cfg.transfer.method) not in used else v
+                        for k, v in data["transfer"].items()}
+    return json.dumps(data, sort_keys=True, default=str)
 
 
 def plan(spec: Spec, out: Path) -> tuple[list[Run], list[Cell]]:
@@ -114,7 +126,7 @@ def plan(spec: Spec, out: Path) -> tuple[list[Run], list[Cell]]:
     runs: dict[Path, Run] = {}
     cells = []
     for pair, algo, (variant, frames, source_frames, values) in itertools.product(
-        spec.pairs, spec.algos, _variants(spec)
+        spec.pairs, spec.algos, variants(spec)
     ):
         group = out / pair / algo / variant if variant else out / pair / algo
         for method in spec.methods:
@@ -142,8 +154,10 @@ def plan(spec: Spec, out: Path) -> tuple[list[Run], list[Cell]]:
 
 
 # ---------------------------------------------------------------------------------------- reports
-def write_reports(cells: list[Cell], status: dict, threshold, value_range=None) -> list[dict]:
-    """One ``drltg report`` per cell whose runs are all complete; a row per cell for the summary."""
+def write_reports(cells: list[Cell], status: dict, threshold, value_range=None,
+                  figure: FigureStyle = DEFAULT) -> list[dict]:
+    """One ``drltg report`` per cell whose runs are all complete (its plot drawn as ``figure`` says); a row per
+    cell for the summary."""
     from drltg.analysis.report import transfer_report
 
     rows = []
@@ -159,7 +173,7 @@ def write_reports(cells: list[Cell], status: dict, threshold, value_range=None) 
             try:
                 result = transfer_report(c.baseline, c.transfer, c.report, threshold=threshold,
                                          value_range=value_range, baseline_label="no transfer",
-                                         transfer_label=c.method)
+                                         transfer_label=c.method, figure=figure)
                 row["metrics"] = result["metrics"]
                 row["per_seed"], row["value_range"] = result["per_seed"], result["settings"].get("value_range")
                 if diverged:
@@ -191,14 +205,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "holds already and the frames left; run nothing")
     p.add_argument("--no-progress", action="store_true", help="no progress bar (none is drawn when stderr is not "
                    "a terminal)")
+    figure_style.add_arguments(p)
 
 
 def sweep(spec: str | Path | dict, out: str | Path, *, backend: str = "local", workers: int | None = None,
           address: str | None = None, num_cpus: float | None = None, num_gpus: float | None = None,
-          metric: str = "mean_return_gain", group_seeds: bool = True, progress: bool = True) -> dict:
+          metric: str = "mean_return_gain", group_seeds: bool = True, progress: bool = True,
+          figure: FigureStyle = DEFAULT) -> dict:
     """Train a sweep's runs into ``out`` (what is finished is reused, what was interrupted resumes) and
     write a report per cell and the summary; the arguments are ``drltg sweep``'s, ``spec`` a YAML file or
-    the same mapping (``{"pairs": [...], "methods": [...], "seeds": 5, "frames": 20000}``).
+    the same mapping (``{"pairs": [...], "methods": [...], "seeds": 5, "frames": 20000}``), ``figure`` how
+    every plot is drawn (:class:`~drltg.analysis.figure_style.FigureStyle`).
 
     Returns ``{"rows": one per report (pair, algo, variant, method, report folder, metrics or a note),
     "status": {run directory: (status, detail)}, "summary": the summary table as Markdown, "logs": {run
@@ -221,7 +238,7 @@ def sweep(spec: str | Path | dict, out: str | Path, *, backend: str = "local", w
     rundir.refuse_run_directory(out, "--out")
     runs, cells = plan(parsed, out)
     check_runs([(r.role, r.cfg, r.path) for r in runs])
-    make_out(runs, out)
+    make_out(runs, out, [c.report for c in cells])
     with rundir.lock(out, "sweep folder"):
         check_existing(runs)  # another sweep may have written them meanwhile
         if backend == "ray":
@@ -233,15 +250,16 @@ def sweep(spec: str | Path | dict, out: str | Path, *, backend: str = "local", w
             status = execute(runs, pool, desc="sweep", group_seeds=group_seeds, progress=progress)
         finally:
             pool.close()
-        return _write_summary(parsed, out, runs, cells, status, metric)
+        return write_summary(parsed, out, runs, cells, status, metric, figure)
 
 
 def run(args: argparse.Namespace) -> int:
+    figure = figure_style.from_args(args)
     if args.dry_run:
         return _dry_run(args)
     result = sweep(args.spec, args.out, backend=args.backend, workers=args.workers, address=args.address,
                    num_cpus=args.num_cpus, num_gpus=args.num_gpus, metric=args.metric,
-                   group_seeds=not args.no_seed_groups, progress=not args.no_progress)
+                   group_seeds=not args.no_seed_groups, progress=not args.no_progress, figure=figure)
     out, status = rundir.check_directory(args.out, "--out"), result["status"]
     print(result["summary"])
     counts = [s for s, _ in status.values()]
@@ -269,33 +287,8 @@ def _dry_run(args: argparse.Namespace) -> int:
     out = rundir.check_directory(args.out, "--out")
     rundir.refuse_run_directory(out, "--out")
     runs, cells = plan(spec, out)
-    states = {r.path: _state(r) for r in runs}
-    width = max(len(str(r.path.relative_to(out))) for r in runs)
-    for r in runs:
-        print(f"{r.role:<9} {r.frames:>9} frames  {str(r.path.relative_to(out)):<{width}}  {states[r.path][0]}")
-    units = [[r] for r in runs] if args.no_seed_groups else seed_groups(runs)
-    groups = [u for u in units if len(u) > 1]
-    print(f"{len(runs)} runs, {len(cells)} reports; {len(units)} units of work: {len(groups)} seed groups "
-          f"of {sum(map(len, groups))} runs, {len(units) - len(groups)} runs alone")
-    kinds = [words.split(":")[0] for words, _ in states.values()]
-    counts = ", ".join(f"{kinds.count(k)} {k}" for k in ("finished", "started", "not started", "diverged",
-                                                           "unreadable") if k in kinds)
-    print(f"left to train: about {sum(left for _, left in states.values()):,} of {sum(r.frames for r in runs):,} "
-          f"frames ({counts})")
+    print("\n".join(plan_lines(runs, out, len(cells), group_seeds=not args.no_seed_groups)))
     return 0
-
-
-def _state(run: Run) -> tuple[str, int]:
-    """What a run's folder holds, in words, and about how many frames a sweep would still train in it: none
-    once it ended (``summary.json``: finished, diverged, or unreadable and so failed), else from its last
-    checkpoint, which is at or before its last evaluation (:func:`frames_done`)."""
-    ended = rundir.summary_status(run.path)
-    if ended is not None:
-        return ("finished" if ended[0] == "complete" else ended[0]), 0
-    if not (run.path / rundir.CONFIG).is_file():
-        return "not started", run.frames
-    done = frames_done(run)
-    return f"started: last evaluated at {done:,} frames", run.frames - done
 
 
 def _resources_for(spec: Spec, num_cpus: float | None, num_gpus: float | None, backend: str,
@@ -322,18 +315,20 @@ def _check_resources(resources: dict, backend: str, address: str | None) -> None
                              "--num-gpus 0, or --address of a cluster with GPUs.")
 
 
-def _write_summary(spec: Spec, out: Path, runs: list[Run], cells: list[Cell], status: dict, metric: str) -> dict:
-    """A report per cell whose runs are complete, then summary.{csv,md}, runs.csv and the matrix plot."""
+def write_summary(spec: Spec, out: Path, runs: list[Run], cells: list[Cell], status: dict, metric: str,
+                  figure: FigureStyle = DEFAULT) -> dict:
+    """A report per cell whose runs are complete, then summary.{csv,md}, runs.csv and the matrix plot, every
+    figure drawn as ``figure`` says."""
     from drltg.analysis import tables
 
-    rows = write_reports(cells, status, spec.threshold, spec.value_range)
+    rows = write_reports(cells, status, spec.threshold, spec.value_range, figure)
     csv_text, md_text = summary_tables(rows, spec.primary_metric)
     runs_csv = tables.render([("run", "role", "status", "detail", "log")] + [
         (r.path.relative_to(out), r.role, *status[r.path], r.log.relative_to(out)) for r in runs], "csv")
     files = {"summary.csv": csv_text.encode(), "summary.md": md_text.encode(), "runs.csv": runs_csv.encode()}
     if any(r["metrics"] for r in rows):
-        files["transfer_matrix.png"] = plot_transfer_matrix(rows, metric)
-    files.update(summary_aggregates(rows))
+        files.update(plot_transfer_matrix(rows, metric, figure))
+    files.update(summary_aggregates(rows, figure))
     if across := across_targets(rows):
         files["across_targets.json"] = (json.dumps(across, indent=1) + "\n").encode()
     rundir.write_files(out, files)

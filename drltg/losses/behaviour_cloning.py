@@ -1,5 +1,6 @@
-r"""Behaviour cloning on demonstrations as an extra actor loss (Nair et al. 2018), Q-filtered on request,
-and the option a demonstration is credited to when the learner has options.
+r"""Behaviour cloning on demonstrations as an extra actor loss (Nair et al. 2018), Q-filtered on request and
+scaled to the critic's size as TD3+BC scales it (Fujimoto & Gu 2021), and the option a demonstration is
+credited to when the learner has options.
 
 A demonstrator acts without options, but every loss of the soft option-critic reads the option ``o`` of
 a transition: the critic regresses :math:`Q_U(s,o,a)` on
@@ -77,25 +78,40 @@ def option_labels(loss, count: int) -> Callable[[TensorDictBase], TensorDictBase
     return label
 
 
-def behaviour_cloning(loss, count: int, weight: float | Callable[[], float], *, q_filter: bool = False):
+def behaviour_cloning(loss, count: int, weight: float | Callable[[], float], *, q_filter: bool = False,
+                      alpha: float | None = None):
     r"""Nair et al. (2018)'s behaviour-cloning term on the first ``count`` transitions of each batch (the
     demonstrations, as :func:`drltg.collectors.mixed_batches` lays them out), for a SAC, TD3 or soft
     option-critic loss module:
 
-        loss_actor_bc = w * mean_i sum_o pi_Omega(o|s_i) ||mu_o(s_i) - a_i||^2 * 1[Q(s_i,o,a_i) > Q(s_i,o,mu_o(s_i))]
+        loss_actor_bc = (w / lambda) * mean_i sum_o pi_Omega(o|s_i) ||mu_o(s_i) - a_i||^2
+                                         * 1[Q(s_i,o,a_i) > Q(s_i,o,mu_o(s_i))]
 
     ``w`` the ``weight``, ``mu_o`` the deterministic action of the actor (of option ``o``), ``Q`` the
     smaller of the current critics, ``pi_Omega`` the soft option-critic's policy over options at ``s_i``
     (without gradients): the expected cloning error of the option the learner would choose there, from
     the distribution the demonstrations' labels are drawn from (:func:`option_labels`). Without options
-    (SAC, TD3) the sum has the one term ``pi = 1``: ``w * mean_i ||mu(s_i) - a_i||^2 * 1[...]``, so one
-    option is exactly SAC's term. The Q filter clones a demonstrated action only while the critic rates it
-    above the actor's own, so the term fades where the learner has become better than its demonstrator.
+    (SAC, TD3) the sum has the one term ``pi = 1``: ``(w / lambda) * mean_i ||mu(s_i) - a_i||^2 * 1[...]``, so
+    one option is exactly SAC's term.
+
+    The indicator is the Q filter (``q_filter``; Nair et al. 2018, section 4): a demonstrated action is cloned only
+    while the critic rates it above the actor's own, so the term fades where the learner has become better
+    than its demonstrator, and a demonstration of another task's behaviour stops being copied once the critic
+    knows better. Without it the indicator is 1.
+
+    ``lambda`` scales the cloning term to the critic's size as TD3+BC does (Fujimoto & Gu 2021): TD3+BC
+    maximises ``lambda Q(s, pi(s)) - (pi(s) - a)^2`` with ``lambda = alpha / mean_i |Q(s_i, .)|`` (``alpha`` =
+    2.5 in the paper); divided by ``lambda`` that is the learner's own ``-Q`` plus the cloning error weighted
+    ``1 / lambda = mean|Q| / alpha``, so the two keep their balance whatever the scale of the task's returns.
+    Here the mean runs over the demonstrations' states at the actor's action (as the authors' code takes it),
+    ``mean_i sum_o pi_Omega(o|s_i) |Q(s_i,o,mu_o(s_i))|``, without gradients; ``alpha=None`` is ``lambda = 1``
+    (the weight alone).
+
     ``weight`` may be a function read at every step (an annealed weight); ``pi_Omega`` is read from the
     batch's ``OPTION_PROBS`` where :func:`option_labels` left it. Returns ``loss_terms(batch)`` for
     :class:`~drltg.learners.UpdateStep` (a :class:`~drltg.losses.terms.LossTerm`), with ``bc_accepted``, the
-    (``pi_Omega``-weighted) share of demonstrations kept."""
-    return BehaviourCloning(loss, count, weight, q_filter=q_filter)
+    (``pi_Omega``-weighted) share of demonstrations kept, and, with ``alpha``, ``bc_scale = 1 / lambda``."""
+    return BehaviourCloning(loss, count, weight, q_filter=q_filter, alpha=alpha)
 
 
 class BehaviourCloning(LossTerm):
@@ -103,9 +119,12 @@ class BehaviourCloning(LossTerm):
     evaluated with (:class:`~drltg.losses.terms.LossTerm`), so a seed group evaluates each seed's term with
     that seed's parameters."""
 
-    def __init__(self, loss, count: int, weight: float | Callable[[], float], *, q_filter: bool = False):
+    def __init__(self, loss, count: int, weight: float | Callable[[], float], *, q_filter: bool = False,
+                 alpha: float | None = None):
         super().__init__(loss, weight)
-        self.count, self.q_filter = count, q_filter
+        if alpha is not None and not alpha > 0:
+            raise ValueError(f"TD3+BC's alpha must be > 0 (or None), got {alpha}.")
+        self.count, self.q_filter, self.alpha = count, q_filter, alpha
 
     def evaluate(self, loss, batch: TensorDictBase, weights: torch.Tensor) -> dict[str, torch.Tensor]:
         actor, num_options = loss.actor_network, _num_options(loss)
@@ -122,7 +141,14 @@ class BehaviourCloning(LossTerm):
             action = actor(pair.exclude("action"))["action"]
         error = (action - pair["action"]).pow(2).sum(-1)
         accepted = torch.ones_like(error)
+        out = {}
+        if self.q_filter or self.alpha is not None:
+            own = _min_q(loss, pair.clone(False).set("action", action.detach()))  # Q(s, o, mu_o(s)) [k, K]
         if self.q_filter:
-            accepted = (_min_q(loss, pair) > _min_q(loss, pair.clone(False).set("action", action.detach()))).float()
-        return {"loss_actor_bc": weights[0] * (probs * error * accepted).sum(-1).mean(),
-                "bc_accepted": (probs * accepted).sum(-1).mean()}
+            accepted = (_min_q(loss, pair) > own).float()
+        scale = 1.0
+        if self.alpha is not None:
+            scale = (probs * own.abs()).sum(-1).mean() / self.alpha  # 1 / lambda = mean|Q| / alpha
+            out["bc_scale"] = scale
+        return {"loss_actor_bc": weights[0] * scale * (probs * error * accepted).sum(-1).mean(),
+                "bc_accepted": (probs * accepted).sum(-1).mean(), **out}

@@ -38,18 +38,23 @@ from drltg.losses.terms import LossTerm
 __all__ = ["KickstartingWeight", "distillation", "Distillation"]
 
 EXPONENTIAL_FLOOR = 0.01
-r"""An exponential weight reaches :math:`\lambda_0 \cdot 0.01` at ``frames``, then 0."""
+r"""The default share :math:`\rho` of :math:`\lambda_0` an exponential weight reaches at ``frames``, then 0."""
 
 
 @dataclass(frozen=True)
 class KickstartingWeight:
     r"""The distillation weight after ``f`` frames: :math:`\lambda_0 \max(0, 1 - f/F)` (``linear``) or
-    :math:`\lambda_0 \cdot 0.01^{f/F}` for :math:`f < F` and 0 after (``exponential``); ``frames = 0`` keeps
-    :math:`\lambda_0` throughout."""
+    :math:`\lambda_0 \rho^{f/F}` for :math:`f < F` and 0 after (``exponential``, :math:`\rho` the ``floor``,
+    0.01 by default); ``frames = 0`` keeps :math:`\lambda_0` throughout.
+
+    Schmitt et al. (2018) adapt :math:`\lambda` during training by population-based training; here its
+    schedule is fixed by :math:`\lambda_0`, :math:`F`, the decay and :math:`\rho`, the knobs a tuning search
+    varies (``transfer.kick_weight``, ``kick_frames``, ``kick_decay``, ``kick_floor``)."""
 
     initial: float
     frames: int
     decay: Literal["linear", "exponential"] = "linear"
+    floor: float = EXPONENTIAL_FLOOR
 
     def __post_init__(self):
         if self.initial < 0 or self.frames < 0:
@@ -57,6 +62,8 @@ class KickstartingWeight:
                              f"{self.frames}.")
         if self.decay not in ("linear", "exponential"):
             raise ValueError(f"decay must be 'linear' or 'exponential', got {self.decay!r}.")
+        if not 0 < self.floor <= 1:
+            raise ValueError(f"an exponential weight's floor must lie in (0, 1], got {self.floor}.")
 
     def __call__(self, frames: int) -> float:
         if self.frames == 0:
@@ -66,7 +73,7 @@ class KickstartingWeight:
         share = frames / self.frames
         if self.decay == "linear":
             return self.initial * (1.0 - share)
-        return self.initial * math.pow(EXPONENTIAL_FLOOR, share)
+        return self.initial * math.pow(self.floor, share)
 
 
 def _is_stochastic(module) -> bool:

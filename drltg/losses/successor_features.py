@@ -62,7 +62,9 @@ class SuccessorFeatureLoss(LossModule):
     The discount is set with ``make_value_estimator(gamma=...)`` (TD(0); default 0.99). Reads ``action``,
     the critic's inputs at the root and under ``"next"``, ``("next", "features")`` (see
     :class:`~drltg.modules.GoalFeatures`) and ``("next", "terminated")``; writes ``td_error`` (the squared
-    error summed over features) and returns ``loss_sf``. Use ``SoftUpdate(loss, tau=...)`` for the target.
+    error summed over features) and returns ``loss_sf`` and ``sf_target_sq``, the batch's mean squared norm of
+    the TD target (``loss_sf / sf_target_sq`` is the relative TD error, which does not grow as psi does). Use
+    ``SoftUpdate(loss, tau=...)`` for the target.
     """
 
     @dataclass
@@ -175,6 +177,6 @@ class SuccessorFeatureLoss(LossModule):
         if self.use_prioritized_weights in (True, "auto") and keys.priority_weight in tensordict.keys(True):
             weights = tensordict.get(keys.priority_weight).reshape(loss.shape)
         loss = self._reduce_loss(loss, tensordict=tensordict, weights=weights)
-        out = TensorDict(loss_sf=loss)
+        out = TensorDict(loss_sf=loss, sf_target_sq=target.pow(2).sum(-1).mean())
         self._clear_weakrefs(tensordict, out, "sf_network_params", "target_sf_network_params")
         return out

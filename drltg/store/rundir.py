@@ -5,9 +5,10 @@
                          evaluation; a rate column the earlier rows of a resumed run lack is empty there)
     logs/csv/, logs/tensorboard/   training scalars (TorchRL CSVLogger + TensorboardLogger)
     checkpoints/last.pt  weights, optimizer, replay buffer and RNG state (for --resume)
-    checkpoints/best.pt  with checkpoint.keep_best: the same, saved at the best evaluation (drltg.training.best)
-    checkpoints/last.safetensors, best.safetensors   the networks of last.pt and best.pt alone, saved with
-                         them: what reusing the run as a source reads (drltg.store.networks)
+    checkpoints/last.safetensors   the networks of last.pt alone, saved with it: what reusing the run as a
+                         source reads (drltg.store.networks)
+    checkpoints/best.safetensors   the networks of the best evaluation so far (drltg.training.best)
+    checkpoints/best.pt  with checkpoint.keep_best: the whole checkpoint of that evaluation
     model_reuse.txt      what model reuse loaded (model-reuse runs)
     summary.json         the run is finished when it exists: status complete (or diverged, with the reason)
     manifest.json        SHA-256 of the checkpoints and eval.csv, and when the run ends (written last) of
@@ -51,7 +52,7 @@ EVAL_COLUMNS = ["frames", "return_mean", "return_std", "episodes", *(f"{flag}_ra
 
 __all__ = ["atomic_write", "atomic_torch_save", "atomic_path", "write_files", "write_directory", "read_eval_csv",
            "write_eval_csv", "read_config", "write_config", "absolute_source", "is_complete", "check_directory",
-           "check_contents", "refuse_special", "lock",
+           "check_contents", "refuse_special", "refuse_links", "lock",
            "load_checkpoint", "load_networks", "checkpoint_path", "missing_checkpoint", "truncate_logs", "RunWriter"]
 
 
@@ -263,6 +264,36 @@ def check_directory(path: str | Path, option: str) -> Path:
     return path
 
 
+def refuse_links(root: Path, folders=(), files=()) -> None:
+    """Refuse, in one sentence, a link at or above any of ``folders`` and ``files`` inside ``root`` (an
+    experiment's or a sweep's folder, whose runs, logs and reports are written inside it and never through a
+    link to elsewhere), and anything on the way that is not what drltg keeps there: a file where a folder
+    belongs or the reverse, a FIFO, a device or a socket."""
+    import stat
+
+    seen: set[Path] = set()
+    for path, is_file in [*((Path(f), False) for f in folders), *((Path(f), True) for f in files)]:
+        part = root
+        for name in path.relative_to(root).parts:
+            part = part / name
+            if part in seen:
+                continue
+            seen.add(part)
+            try:
+                mode = os.lstat(part).st_mode
+            except FileNotFoundError:
+                break
+            if stat.S_ISLNK(mode):
+                raise UsageError(f"'{part}' is a link; drltg writes an experiment's runs, logs and reports inside "
+                                 "its folder and never through a link, so move the link away.")
+            wants_file = is_file and part == path
+            if stat.S_ISDIR(mode) == wants_file or not (stat.S_ISDIR(mode) or stat.S_ISREG(mode)):
+                kind = ("a folder" if stat.S_ISDIR(mode) else "a file" if stat.S_ISREG(mode) else "a FIFO"
+                        if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else "a device")
+                raise UsageError(f"'{part}' is {kind} where drltg keeps {'a file' if wants_file else 'a folder'}; "
+                                 "move it away.")
+
+
 def refuse_run_directory(path: Path, option: str) -> None:
     """Refuse a folder of many runs (``--out`` of an experiment or a sweep) that is itself one run."""
     if (path / CONFIG).is_file() or (path / SUMMARY).is_file():
@@ -320,8 +351,9 @@ def checkpoint_path(name: str) -> Path:
 def missing_checkpoint(run_dir: str | Path, name: str = "last") -> str:
     """The sentence for a run that lacks checkpoint ``name`` (what to do depends on which one)."""
     if name == "best":
-        return (f"'{run_dir}' holds no {BEST.as_posix()}: only a run trained with -o checkpoint.keep_best=true "
-                "keeps its best evaluated checkpoint; use its last checkpoint or train it with keep_best.")
+        return (f"'{run_dir}' holds no best networks ({networks.NETWORKS['best'].as_posix()}, nor {BEST.as_posix()}): "
+                "a run keeps them from its first evaluation on, which runs of earlier drltg versions did only with "
+                "-o checkpoint.keep_best=true; use its last checkpoint.")
     return f"'{run_dir}' holds no {CHECKPOINT.as_posix()}; train the run first or fix the path."
 
 
@@ -379,7 +411,7 @@ def load_networks(run_dir: str | Path, checkpoint: str = "last", map_location="c
     ckpt_name = checkpoint_path(checkpoint)  # refuses a name other than last or best
     name = networks.NETWORKS[checkpoint]
     if (run / name).is_file():
-        return networks.load(run, checkpoint, map_location)
+        return networks.load(run, checkpoint, map_location, _frame_budget(run))
     if networks.listed(run, checkpoint):
         raise UsageError(f"'{run_dir}' holds no {name.as_posix()} though its manifest lists it; restore the file, "
                          "or train the run again.")
@@ -387,6 +419,16 @@ def load_networks(run_dir: str | Path, checkpoint: str = "last", map_location="c
         raise UsageError(missing_checkpoint(run_dir, checkpoint))
     ckpt = load_checkpoint(run, map_location=map_location, mmap=True, checkpoint=checkpoint)
     return ckpt["loss"], {"frames": ckpt.get("frames"), "updates": ckpt.get("updates")}
+
+
+def _frame_budget(run: Path) -> int | None:
+    """The run's ``frames`` from its ``config.yaml``, which no checkpoint of it passes; ``None`` where the
+    config gives none (rebuilding the run refuses such a config, in its own words)."""
+    try:
+        frames = read_config(run).get("frames")
+    except (OSError, UsageError, AttributeError):
+        return None
+    return frames if type(frames) is int else None
 
 
 def sync_networks(run_dir: str | Path, checkpoint: str, ckpt: dict | None = None) -> None:
@@ -503,13 +545,15 @@ class RunWriter:
 
     def checkpoint(self, state: dict, frames: int, updates: int, *, last: bool = True, best: bool = False) -> None:
         """Save ``state`` (weights, optimiser, buffer, RNG) with the counters a resume needs, as ``last.pt``
-        and, for the best evaluation so far (:mod:`drltg.training.best`), the same content as ``best.pt``
-        after it; each checkpoint's networks alone after it (``last.safetensors``, ``best.safetensors``)."""
+        and its networks alone after it (``last.safetensors``); for the best evaluation so far
+        (:mod:`drltg.training.best`), its networks as ``best.safetensors`` after those, and with
+        ``checkpoint.keep_best`` the same content as ``last.pt`` as ``best.pt`` before them."""
         evaluations = [r["frames"] for r in self.rows]
         weights = networks.encode(state["loss"], frames, updates)
         for name in ["last"] * last + ["best"] * best:
-            atomic_torch_save({**state, "frames": frames, "updates": updates, "evaluations": evaluations},
-                              self.run_dir / CHECKPOINTS[name])
+            if name == "last" or self.cfg.checkpoint.keep_best:
+                atomic_torch_save({**state, "frames": frames, "updates": updates, "evaluations": evaluations},
+                                  self.run_dir / CHECKPOINTS[name])
             write_tracked(self.run_dir, networks.NETWORKS[name].as_posix(), weights)
 
     def finish(self, frames: int, updates: int, wall: float, timed_frames: int, extra: dict | None = None) -> None:

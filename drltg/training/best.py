@@ -1,21 +1,25 @@
-"""The best evaluated checkpoint of a run, ``checkpoints/best.pt`` (``checkpoint.keep_best``).
+"""The networks of a run's best evaluation, ``checkpoints/best.safetensors`` (with ``checkpoint.keep_best``
+also its whole checkpoint, ``checkpoints/best.pt``).
 
 A run's last checkpoint is not always its best policy: a policy that reached success 1.0 can dip
-later. With ``checkpoint.keep_best=true``, after every evaluation whose score is higher than that of
-every earlier evaluation, the run saves its checkpoint as ``last.pt`` and the same content as
-``best.pt`` (at frame 0, before anything is trained, ``best.pt`` only). The score is the evaluation's
+later. After every evaluation whose score is higher than that of every earlier evaluation, the run saves
+its checkpoint as ``last.pt`` and its networks alone as ``best.safetensors`` too (at frame 0, before
+anything is trained, the networks only): they are what ``drltg evaluate --checkpoint best`` and
+``transfer.source_checkpoint=best`` read, megabytes where a checkpoint with its replay buffer can be
+gigabytes, so every run keeps them. ``checkpoint.keep_best=true`` also keeps the same content as
+``last.pt`` as ``best.pt``. The score is the evaluation's
 ``checkpoint.best_metric``; ``auto`` is ``success_rate`` where the task reports success, else
 ``return_mean``. A tie keeps the earlier checkpoint: an equal score over the same episodes count is no
 evidence that the later policy is better, so ``best.pt`` names the first frame at which the run
 reached its best score and is not rewritten at every evaluation of a plateau.
 
 The best of many noisy evaluations overstates the policy it picks (E[max_i X_i] >= max_i E[X_i]), so
-the figure to report for ``best.pt`` is a fresh evaluation on other episodes:
+the figure to report for the best networks is a fresh evaluation on other episodes:
 ``drltg evaluate RUN_DIR --checkpoint best`` (:mod:`drltg.training.reevaluate`).
 
-Writing ``last.pt`` with ``best.pt`` means ``best.pt`` is never from a later frame than ``last.pt``:
-a resumed run continues from a checkpoint whose evaluations (eval.csv) include ``best.pt``'s, and
-knows the best score so far from them (:func:`check_resume`).
+Writing ``last.pt`` with the best means the best is never from a later frame than ``last.pt``: a resumed
+run continues from a checkpoint whose evaluations (eval.csv) include the best's, and knows the best score
+so far from them (:func:`check_resume`).
 """
 from __future__ import annotations
 
@@ -24,6 +28,7 @@ from pathlib import Path
 
 from drltg.config import RunConfig
 from drltg.errors import UsageError
+from drltg.store import networks
 from drltg.store.rundir import BEST, CHECKPOINT, EPISODE_FLAGS, load_checkpoint, write_tracked
 
 __all__ = ["metric", "score", "best_row", "improves", "summary", "check_metric", "check_resume", "outcome"]
@@ -60,19 +65,21 @@ def improves(cfg: RunConfig, rows: list[dict]) -> bool:
     return best_row(cfg, rows) is rows[-1]
 
 
-def summary(cfg: RunConfig, rows: list[dict]) -> dict:
-    """``{"best": {checkpoint, frames, metric, score}}`` for summary.json (``{}`` without keep_best)."""
-    if not cfg.checkpoint.keep_best or not rows:
+def summary(cfg: RunConfig, rows: list[dict], run_dir: Path) -> dict:
+    """``{"best": {networks, [checkpoint,] frames, metric, score}}`` for summary.json; ``{}`` where the run holds
+    no best networks (one resumed from a run of an earlier drltg that kept none and improved on nothing since)."""
+    if not rows or not (Path(run_dir) / networks.NETWORKS["best"]).is_file():
         return {}
     row, name = best_row(cfg, rows), metric(cfg, rows[-1])
-    return {"best": {"checkpoint": BEST.as_posix(), "frames": row["frames"], "metric": name,
-                     "score": score(cfg, row, name)}}
+    kept = {"checkpoint": BEST.as_posix()} if cfg.checkpoint.keep_best else {}
+    return {"best": {"networks": networks.NETWORKS["best"].as_posix(), **kept, "frames": row["frames"],
+                     "metric": name, "score": score(cfg, row, name)}}
 
 
 def check_metric(cfg: RunConfig, eval_env) -> None:
     """Refuse a ``checkpoint.best_metric`` rate the task does not report, before the run starts."""
     chosen = cfg.checkpoint.best_metric
-    if not cfg.checkpoint.keep_best or chosen in ("auto", "return_mean"):
+    if chosen in ("auto", "return_mean"):
         return
     flag = chosen.removesuffix("_rate")
     if flag in EPISODE_FLAGS and flag not in eval_env.full_observation_spec.keys():
@@ -81,11 +88,15 @@ def check_metric(cfg: RunConfig, eval_env) -> None:
 
 
 def check_resume(cfg: RunConfig, run_dir: Path, ckpt: dict | None, rows: list[dict]) -> None:
-    """Before a resumed run continues from ``ckpt`` with the evaluations ``rows``: make sure ``best.pt`` is
-    the checkpoint of the best of them. A kill between the writes of ``last.pt`` and ``best.pt`` leaves
-    ``best.pt`` older than the best evaluation, which is then ``last.pt``'s: it is copied. Any other
-    mismatch (``best.pt`` deleted or replaced) is one :class:`UsageError` sentence."""
-    if not cfg.checkpoint.keep_best or ckpt is None or not rows:
+    """Before a resumed run continues from ``ckpt`` with the evaluations ``rows``: make sure the best
+    networks (with ``keep_best``, ``best.pt``) are those of the best of them. A kill between the writes of
+    ``last.pt`` and the best leaves the best older than the best evaluation, which is then ``last.pt``'s: it
+    is written from it. Any other mismatch (the best deleted or replaced) is one :class:`UsageError` sentence,
+    but for a run of an earlier drltg that kept no best networks: it keeps them from its next best on."""
+    if ckpt is None or not rows:
+        return
+    if not cfg.checkpoint.keep_best:
+        _check_best_networks(cfg, run_dir, ckpt, rows)
         return
     best = best_row(cfg, rows)
     path = run_dir / BEST
@@ -101,6 +112,27 @@ def check_resume(cfg: RunConfig, run_dir: Path, ckpt: dict | None, rows: list[di
         f"cannot resume '{run_dir}': its {BEST.as_posix()} {held}, not that of its best evaluation (frame "
         f"{best['frames']}, {name} {score(cfg, best, name):g}); restore it, or start the run again in another "
         "--run-dir."
+    )
+
+
+def _check_best_networks(cfg: RunConfig, run_dir: Path, ckpt: dict, rows: list[dict]) -> None:
+    """:func:`check_resume` for a run that keeps its best as networks alone."""
+    best = best_row(cfg, rows)
+    saved = networks.read_header(run_dir, "best")
+    if saved is not None and saved["frames"] == best["frames"]:
+        return
+    if best["frames"] == ckpt["frames"]:
+        write_tracked(run_dir, networks.NETWORKS["best"].as_posix(),
+                      networks.encode(ckpt["loss"], ckpt["frames"], ckpt["updates"]))
+        return
+    if saved is None and not networks.listed(run_dir, "best"):
+        return
+    held = "is missing" if saved is None else f"holds the networks of frame {saved['frames']}"
+    name = metric(cfg, rows[-1])
+    raise UsageError(
+        f"cannot resume '{run_dir}': its {networks.NETWORKS['best'].as_posix()} {held}, not those of its best "
+        f"evaluation (frame {best['frames']}, {name} {score(cfg, best, name):g}); restore it, or start the run "
+        "again in another --run-dir."
     )
 
 
@@ -121,9 +153,8 @@ def outcome(cfg: RunConfig, rows: list[dict]) -> list[str]:
     drop = score(cfg, best, name) - sum(score(cfg, r, name) for r in tail) / len(tail)
     if best not in tail and spread > 0 and drop > COLLAPSE * spread:
         span = f"frame {tail[0]['frames']:,}" if len(tail) == 1 else f"frames {tail[0]['frames']:,}-{last['frames']:,}"
-        keep = ("checkpoints/best.pt keeps the best policy (drltg evaluate RUN --checkpoint best)"
-                if cfg.checkpoint.keep_best else
-                "train with -o checkpoint.keep_best=true to keep the best policy as checkpoints/best.pt")
+        keep = (f"{networks.NETWORKS['best'].as_posix()} keeps the best policy's networks (drltg evaluate RUN "
+                "--checkpoint best)")
         lines.append(f"warning: the run collapsed: its {label} fell from {score(cfg, best, name):.3g} at frame "
                      f"{best['frames']:,} to {score(cfg, last, name):.3g} ({span} average "
                      f"{score(cfg, best, name) - drop:.3g}); the last checkpoint holds the collapsed policy, {keep}.")

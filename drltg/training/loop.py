@@ -1,9 +1,14 @@
 """The training loop: env -> transforms -> Collector -> ReplayBuffer -> loss -> optimizer -> SoftUpdate.
 
-Evaluation runs at frame 0 (before any update) and every ``eval.every`` frames, with the deterministic
+Evaluation runs at frame 0 (before any update) and every ``eval.every`` frames (``auto``: at least 20 times a
+run, :meth:`~drltg.config.sections.EvalConfig.interval`), with the deterministic
 actor on a separate evaluation env that measures the task's own reward (never a shaped one) and
-success. :func:`run_loop` is the loop over parts (a collector, a learner, one
-:class:`~drltg.store.rundir.RunWriter` per seed) and writes no file itself; what a run directory holds
+success. A transfer that asks for it (``Transfer.on_eval``: jumpstart's curriculum) is told, after each, the
+return of the collector's own policy evaluated deterministically on an env of its own
+(:data:`GUIDED_EVAL_SEED_OFFSET`), logged as ``eval/guided_return_mean``.
+
+:func:`run_loop` is the loop over parts (a collector, a learner, one :class:`~drltg.store.rundir.RunWriter` per
+seed) and writes no file itself; what a run directory holds
 and how it is written is :mod:`drltg.store.rundir`. :func:`train` builds the parts of one run; its
 directory's lifecycle (checks, lock, resume, cleanup of a failed start) is
 :class:`~drltg.training.session.RunSession`'s, as for a seed group's runs (:mod:`drltg.training.seeds`).
@@ -26,7 +31,7 @@ from tensordict import TensorDictBase
 from tensordict.nn import TensorDictSequential
 from torchrl.collectors import Collector
 from torchrl.data import ReplayBuffer
-from torchrl.envs import EnvBase, ExplorationType, RewardSum, TransformedEnv, set_exploration_type
+from torchrl.envs import EnvBase, ExplorationType, RewardSum, TensorDictPrimer, TransformedEnv, set_exploration_type
 
 from drltg import config
 from drltg.config import EVAL_SEED_OFFSET, RunConfig
@@ -37,16 +42,23 @@ from drltg.learners import Agent, UpdateStep, make_agent, sample_batches
 from drltg.store import rundir
 from drltg.store.rundir import EPISODE_FLAGS, RunWriter, is_complete, read_eval_csv
 from drltg.training import best, health, preflight
+from drltg.training import console
 from drltg.training.progress import Progress
 from drltg.training.replay import buffer_state, replay_buffer
 from drltg.training.session import RunSession
 from drltg.transfer import Transfer, get_method
 from drltg.transfer.source import check as check_source
+from drltg.transfer.source import start_record
 
 __all__ = ["train", "run_loop", "AgentLearner", "make_collector", "evaluate", "evaluate_seeds", "make_envs",
-           "make_eval_env", "build_env", "check_config", "is_complete", "read_eval_csv"]
+           "make_eval_env", "build_env", "check_config", "is_complete", "read_eval_csv", "primers", "transfer_state",
+           "GUIDED_EVAL_SEED_OFFSET"]
 
 log = logging.getLogger(__name__)
+
+GUIDED_EVAL_SEED_OFFSET = 40_000
+"""The env on which a transfer's combined policy is evaluated (``Transfer.on_eval``) is seeded ``seed +
+GUIDED_EVAL_SEED_OFFSET``, apart from the learner's evaluation env, whose episodes stay those of a run without it."""
 
 
 # ----------------------------------------------------------------------------- envs
@@ -181,27 +193,42 @@ def train(
     with RunSession([cfg], [run_dir], resume=resume) as session:
         if session.finished:
             return run_dir
+        console.plain_unless_terminal()  # TorchRL's colour codes reach a terminal, never a log file
         torch.set_num_threads(cfg.threads)
         torch.manual_seed(cfg.seed)
         # Build everything before writing anything: a bad config fails with nothing on disk.
         check_source(cfg)
         probe, agent = check_config(cfg)
         train_env, eval_env = make_envs(cfg, agent.env_transforms)
-        transfer = get_method(cfg.transfer.method).build(cfg, agent, probe, resuming=session.checkpoints[0] is not None)
+        resuming = session.checkpoints[0] is not None
+        transfer = get_method(cfg.transfer.method).build(cfg, agent, probe, resuming=resuming)
+        source = start_record(cfg, run_dir, resuming, transfer.files)  # the source by content, as it was loaded
+        summary = {**transfer.summary, **source}
         for t in transfer.train_transforms:  # after RewardSum: train/episode_return stays the task's return
             train_env.append_transform(t)
+        guided_env = None
+        if transfer.on_eval is not None:
+            guided_env = make_eval_env(cfg, cfg.eval.episodes, cfg.seed + GUIDED_EVAL_SEED_OFFSET,
+                                       [*agent.env_transforms, *primers(transfer)])
         buffer = replay_buffer(cfg)
-        session.restore([agent], [buffer])
+        session.restore([agent], [buffer], [transfer])
         session.claim()
         preflight.warn_budget(cfg)  # every check passed and the directory is ours: training starts now
         writers = session.writers([transfer])
         frames, updates = session.position()
-        learner = AgentLearner(agent, buffer, eval_env, transfer, cudagraphs=cfg.optim.cudagraphs)
+        learner = AgentLearner(agent, buffer, eval_env, transfer, cudagraphs=cfg.optim.cudagraphs,
+                               guided_env=guided_env)
         collector = make_collector(cfg, train_env, learner.policy, frames)
         with deferred_signals() as stop_if_signalled, health.on_divergence(run_dir, cfg):
             run_loop(cfg, collector, learner, writers, frames=frames, updates=updates, progress=progress,
-                     stop_if_signalled=stop_if_signalled, extra_summary=transfer.summary, on_frames=on_frames)
+                     stop_if_signalled=stop_if_signalled, extra_summary=summary, on_frames=on_frames)
     return run_dir
+
+
+def primers(transfer: Transfer) -> list:
+    """The transfer's training transforms that declare per-env state its policy reads (policy reuse's episode
+    choice): what an env on which the collector's policy is evaluated needs, without the transfer's shaping."""
+    return [t for t in transfer.train_transforms if isinstance(t, TensorDictPrimer)]
 
 
 def make_collector(cfg: RunConfig, env: EnvBase, policy, frames: int = 0, seeds: int = 1) -> Collector:
@@ -264,14 +291,16 @@ class AgentLearner:
 
     The loop speaks to a learner in lists with one entry per seed (here, one): ``split`` the
     collected frames, ``store`` them, draw ``batches``, ``update`` (losses with a leading seed
-    dimension), ``evaluate`` and ``state`` (what a checkpoint holds).
+    dimension), ``evaluate``, ``evaluate_guided`` (the transfer's ``on_eval``, on ``guided_env``) and
+    ``state`` (what a checkpoint holds).
     """
 
     seeds = 1
 
     def __init__(self, agent: Agent, buffer: ReplayBuffer, eval_env: EnvBase, transfer: Transfer, *,
-                 cudagraphs: bool = False):
+                 cudagraphs: bool = False, guided_env: EnvBase | None = None):
         self.agent, self.buffer, self.eval_env, self.transfer = agent, buffer, eval_env, transfer
+        self.guided_env = guided_env
         self.actor_delay = agent.actor_delay
         self.policy = agent.policy if transfer.policy is None else transfer.policy
         if transfer.mixer is not None:
@@ -296,13 +325,27 @@ class AgentLearner:
     def evaluate(self, check: Callable[[], None] = lambda: None) -> list[dict]:
         return [evaluate(self.eval_env, self.agent.actor, check=check)]
 
+    def evaluate_guided(self, check: Callable[[], None] = lambda: None) -> list[dict]:
+        """The collector's policy evaluated deterministically on ``guided_env`` and its mean return told to the
+        transfer's ``on_eval``: the scalars to log for the seed (none without ``on_eval``)."""
+        if self.transfer.on_eval is None:
+            return []
+        value = evaluate(self.guided_env, self.policy, check=check)["return_mean"]
+        return [{"eval/guided_return_mean": value, **self.transfer.on_eval(value)}]
+
     def state(self) -> list[dict]:
         return [{
             "loss": self.agent.loss.state_dict(),
             "optimizer": self.agent.optimizer.state_dict(),
             "buffer": buffer_state(self.buffer),
             "rng": torch.get_rng_state(),
+            **transfer_state(self.transfer),
         }]
+
+
+def transfer_state(transfer: Transfer) -> dict:
+    """A checkpoint's ``transfer`` entry: the ``state_dict`` of the transfer's ``state`` (none without one)."""
+    return {} if transfer.state is None else {"transfer": transfer.state.state_dict()}
 
 
 class _Session:
@@ -328,12 +371,15 @@ class _Session:
             rows = self.learner.evaluate(lambda: self.stop_if_signalled(before=self.save_on_stop))
             for k in self.active():
                 self.writers[k].evaluation({"frames": self.frames, **rows[k]})
+            # a signal waits for the next batch here: a resumed run does not evaluate this frame again, so a stop
+            # inside would lose the combined policy's return at it
+            guided = self.learner.evaluate_guided()
+            for k in self.active() if guided else ():
+                self.writers[k].log(guided[k], self.frames)
             self.bar.set_note(f"eval return {self.writers[self.active()[0]].rows[-1]['return_mean']:.3f}")
-            if self.cfg.checkpoint.keep_best:
-                improved = [k not in self.stopped and best.improves(self.cfg, w.rows)
-                            for k, w in enumerate(self.writers)]
-                if any(improved):  # last.pt too, so that best.pt is never later than the checkpoint a resume reads
-                    self.checkpoint(improved, last=self.frames > 0)
+            improved = [k not in self.stopped and best.improves(self.cfg, w.rows) for k, w in enumerate(self.writers)]
+            if any(improved):  # last.pt too, so that the best is never later than the checkpoint a resume reads
+                self.checkpoint(improved, last=self.frames > 0)
             self.stop_reached()
 
     def checkpoint(self, improved=(), last: bool = True, only: list[int] | None = None) -> None:
@@ -388,7 +434,8 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
             s.evaluate()
         else:
             s.stop_reached()  # a resumed run stopped by its last evaluation but killed before its summary.json
-        next_eval, next_ckpt = _next(s.frames, cfg.eval.every), _next(s.frames, cfg.checkpoint.every)
+        every = cfg.eval.interval(cfg.frames)
+        next_eval, next_ckpt = _next(s.frames, every), _next(s.frames, cfg.checkpoint.every)
         next_log = s.frames + cfg.log.every
         stats: list[dict[str, list[float]]] = [defaultdict(list) for _ in range(learner.seeds)]
         s.restart()
@@ -411,9 +458,9 @@ def run_loop(cfg: RunConfig, collector, learner, writers: list[RunWriter], *, fr
                 next_log = s.frames + cfg.log.every
             if s.frames >= next_eval or s.frames >= cfg.frames:
                 s.evaluate()
-                next_eval = _next(s.frames, cfg.eval.every)
+                next_eval = _next(s.frames, every)
             if s.frames >= next_ckpt or s.frames >= cfg.frames:
-                if s.saved != s.frames:  # not saved already with best.pt at this frame
+                if s.saved != s.frames:  # not saved already with the best at this frame
                     s.checkpoint()
                 next_ckpt = _next(s.frames, cfg.checkpoint.every)
     finally:
@@ -434,8 +481,8 @@ def _evaluation_due(cfg: RunConfig, rows: list[dict], frames: int) -> bool:
     multiple of ``eval.every`` the checkpoint reached, or before the final frame)."""
     if not rows:
         return True
-    last = rows[-1]["frames"]
-    return last < frames and (frames >= cfg.frames or last < frames // cfg.eval.every * cfg.eval.every)
+    last, every = rows[-1]["frames"], cfg.eval.interval(cfg.frames)
+    return last < frames and (frames >= cfg.frames or last < frames // every * every)
 
 
 def stop_met(cfg: RunConfig, rows: list[dict], frames: int) -> bool:
@@ -471,7 +518,8 @@ def _finish(cfg: RunConfig, writers: list[RunWriter], extra_summary, frames: int
     for k in which:
         writer = writers[k]
         writer.finish(frames, updates, wall, trained,
-                      {**(extras[k] or {}), **best.summary(cfg, writer.rows), **stop_summary(cfg, writer.rows, frames),
+                      {**(extras[k] or {}), **best.summary(cfg, writer.rows, writer.run_dir),
+                       **stop_summary(cfg, writer.rows, frames),
                        "wall_time_split_s": clock.split(wall)})
 
 

@@ -44,10 +44,16 @@ def budget_warnings(cfg: RunConfig) -> list[str]:
     if cfg.frames < warm_up:
         return [f"{cfg.frames:,} frames lie within the {warm_up:,} random warm-up frames "
                 "(collector.init_random_frames): the run will make no update, so it learns nothing."]
-    if cfg.frames < 2 * cfg.eval.every:
-        return [f"{cfg.frames:,} frames with eval.every={cfg.eval.every:,} give evaluations at frame 0 and "
+    if cfg.frames < 2 * cfg.eval.interval(cfg.frames):
+        return [f"{cfg.frames:,} frames with {every_text(cfg)} give evaluations at frame 0 and "
                 f"{cfg.frames:,} only: no learning curve to speak of; lower eval.every."]
     return []
+
+
+def every_text(cfg: RunConfig) -> str:
+    """``eval.every=5,000``, or ``eval.every=auto (1,000 frames)``: the interval as set and as it is."""
+    every = cfg.eval.every
+    return f"eval.every={every:,}" if every != "auto" else f"eval.every=auto ({cfg.eval.interval(cfg.frames):,} frames)"
 
 
 def warn_budget(cfg: RunConfig) -> None:

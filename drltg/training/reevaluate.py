@@ -1,6 +1,6 @@
 """A run's saved policy evaluated afresh: ``drltg evaluate RUN_DIR [--checkpoint best]``.
 
-The training evaluations that chose ``best.pt`` cannot also measure it: the best of many noisy
+The training evaluations that chose the best networks cannot also measure them: the best of many noisy
 evaluations overstates the policy it picks. :func:`evaluate_run` runs the checkpoint's deterministic
 actor through the training loop's own :func:`~drltg.training.loop.evaluate` on ``episodes`` new
 episodes, from an env seeded apart from every env of training: the training env is seeded ``seed``,

@@ -2,7 +2,7 @@
 
 Seeds S, S+100, … (:func:`drltg.config.run_seeds`) are written to ``DIR/seed-<s>/``, each an ordinary run
 directory (``report`` reads it alone, ``--resume`` continues it, alone or with its group). Where the learner
-supports it (:func:`group_support`) the seeds train as one :class:`SeedGroup`:
+supports it (:func:`~drltg.training.grouping.group_support`) the seeds train as one :class:`SeedGroup`:
 
 * the seeds' loss parameters and buffers (target networks included) are stacked along a leading seed
   dimension with ``TensorDict.from_modules``, as TorchRL stacks its critic ensembles; one update is drltg's
@@ -20,7 +20,9 @@ supports it (:func:`group_support`) the seeds train as one :class:`SeedGroup`:
   it, in worker processes (:func:`_worker_env`);
 * a replay buffer per seed, and a transfer per seed composed onto its block: each seed's shaping potential
   on its own envs (:func:`seed_block_transforms`), each seed's policy-reuse mixer over its own source
-  (:class:`SeedBlocks`), model reuse loading each seed's own source before the seeds are stacked.
+  (:class:`SeedBlocks`), model reuse loading each seed's own source before the seeds are stacked, and each
+  seed's ``on_eval`` (jumpstart's curriculum) told its own seed's evaluated return of the group's policy, its
+  ``state`` kept in its own checkpoint.
 
 * a transfer's loss terms (behaviour cloning, distillation) inside the vmapped loss: seed k's
   :class:`~drltg.losses.terms.LossTerm` with seed k's parameters, its stacked state (seed k's teacher) and
@@ -55,39 +57,50 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModuleBase, TensorDictParams, TensorDictSequential
 from torchrl.data import LazyTensorStorage, ReplayBuffer
-from torchrl.envs import BatchSizeTransform, EnvBase, ParallelEnv, RewardSum, TensorDictPrimer, TransformedEnv
+from torchrl.envs import (
+    BatchSizeTransform,
+    EnvBase,
+    ParallelEnv,
+    RewardSum,
+    SerialEnv,
+    TensorDictPrimer,
+    TransformedEnv,
+)
 from torchrl.objectives import LossModule, SoftUpdate
 
 from drltg import config
 from drltg.config import RunConfig
-from drltg.envs.goal_env import GoalEnv
 from drltg.errors import UsageError
 from drltg.learners import Agent, UpdateStep, sample_batches
 from drltg.losses import SoftOptionCriticLoss
 from drltg.losses.terms import LossTerm
 from drltg.modules import make_option_policy
 from drltg.store import rundir
-from drltg.training import best, health, preflight
+from drltg.training import best, console, health, preflight
+from drltg.training.grouping import batched, group_support, in_process
 from drltg.training.loop import (
     EVAL_SEED_OFFSET,
+    GUIDED_EVAL_SEED_OFFSET,
     build_env,
     check_config,
     deferred_signals,
     evaluate_seeds,
     make_collector,
+    primers,
     run_loop,
     train,
+    transfer_state,
 )
 from drltg.training.replay import buffer_state
 from drltg.training.session import RunSession
 from drltg.transfer import Transfer, get_method
 from drltg.transfer.source import check as check_source
+from drltg.transfer.source import start_record
 from drltg.transforms import PotentialShaping
 
-__all__ = ["train_seeds", "train_group", "group_train_env", "group_support", "seed_dirs", "same_but_seed",
+__all__ = ["train_seeds", "train_group", "group_train_env", "seed_dirs",
            "SeedGroup", "StackedLoss", "stacked_soft_update", "GroupPolicy", "SeedLoopPolicy", "SeedBlocks"]
 
-GROUPED_ALGOS = ("sac", "td3", "soc")
 """Learners whose seeds train as one group (SAC covers discrete SAC on discrete tasks)."""
 
 
@@ -307,40 +320,6 @@ def seed_dirs(run_dir: Path, first: int, count: int) -> list[Path]:
     return [Path(run_dir) / f"seed-{s}" for s in config.run_seeds(first, count)]
 
 
-def same_but_seed(a: RunConfig, b: RunConfig) -> bool:
-    """Whether two configs differ at most in their seed and their ``transfer.source`` (an experiment's
-    transfer run of seed s reads the source run of its own seed): their runs can share a seed group,
-    each seed transferring from its own source."""
-    def key(cfg: RunConfig) -> dict:
-        dump = cfg.model_dump()
-        return {**dump, "seed": 0, "transfer": {**dump["transfer"], "source": None}}
-
-    return key(a) == key(b)
-
-
-def group_support(cfg: RunConfig) -> str | None:
-    """``None`` if the seeds of ``cfg`` can train as one group, else why not (one clause)."""
-    if cfg.algo not in GROUPED_ALGOS:
-        return f"--algo {cfg.algo} has no grouped update"
-    if not get_method(cfg.transfer.method).grouped:
-        return f"transfer method {cfg.transfer.method} has no grouped form"
-    if cfg.optim.cudagraphs:
-        return "a group's vmapped update is not captured as a CUDA graph (optim.cudagraphs)"
-    from drltg.envs import get_task
-
-    get_task(cfg.task)  # an unknown task is one UsageError sentence
-    return None
-
-
-def in_process(cfg: RunConfig) -> bool:
-    """Whether the task's env steps a whole group's batch in this process (FourRooms, GridRooms); otherwise
-    a group steps one env per seed in worker processes."""
-    from drltg.envs import get_task
-
-    factory = get_task(cfg.task).factory
-    return isinstance(factory, type) and issubclass(factory, GoalEnv)
-
-
 def train_seeds(cfg: RunConfig, run_dir: str | Path, seeds: int, *, resume: bool = False, progress: bool = True,
                 group: bool = True) -> list[Path]:
     """Train seeds ``cfg.seed``, ``cfg.seed + 100``, … (:func:`drltg.config.run_seeds`, the seeds an experiment's
@@ -363,10 +342,13 @@ def train_seeds(cfg: RunConfig, run_dir: str | Path, seeds: int, *, resume: bool
 # ----------------------------------------------------------------------------- the group's learner and envs
 class GroupLearner:
     """A :class:`SeedGroup` as the training loop's learner (see :class:`~drltg.training.loop.AgentLearner`):
-    a replay buffer per seed, stacked batches, per-seed evaluation on a blocked env."""
+    a replay buffer per seed, stacked batches, per-seed evaluation on a blocked env (the collector's policy too,
+    on ``guided_env``, where the seeds' transfers ask for it: each seed's ``on_eval`` told its own seed's)."""
 
-    def __init__(self, group: SeedGroup, buffers: list[ReplayBuffer], eval_env, transfers: list[Transfer]):
+    def __init__(self, group: SeedGroup, buffers: list[ReplayBuffer], eval_env, transfers: list[Transfer],
+                 guided_env=None):
         self.group, self.buffers, self.eval_env = group, buffers, eval_env
+        self.transfers, self.guided_env = transfers, guided_env
         self.seeds, self.actor_delay = group.seeds, group.actor_delay
         first = group.agents[0]
         if isinstance(first.loss, SoftOptionCriticLoss):  # the option choice branches on the data: no vmap
@@ -418,13 +400,20 @@ class GroupLearner:
     def evaluate(self, check: Callable[[], None] = lambda: None) -> list[dict]:
         return evaluate_seeds(self.eval_env, self.actor, self.seeds, check=check)
 
+    def evaluate_guided(self, check: Callable[[], None] = lambda: None) -> list[dict]:
+        if self.transfers[0].on_eval is None:
+            return []
+        rows = evaluate_seeds(self.guided_env, self.policy, self.seeds, check=check)
+        return [{"eval/guided_return_mean": row["return_mean"], **transfer.on_eval(row["return_mean"])}
+                for row, transfer in zip(rows, self.transfers)]
+
     def state(self) -> list[dict]:
         self.group.sync()
         rng = torch.get_rng_state()  # the group's one generator: every seed's checkpoint holds it
         return [
             {"loss": agent.loss.state_dict(), "optimizer": self.group.optimizer_state(k),
-             "buffer": buffer_state(buffer), "rng": rng.clone()}
-            for k, (agent, buffer) in enumerate(zip(self.group.agents, self.buffers))
+             "buffer": buffer_state(buffer), "rng": rng.clone(), **transfer_state(transfer)}
+            for k, (agent, buffer, transfer) in enumerate(zip(self.group.agents, self.buffers, self.transfers))
         ]
 
 
@@ -447,9 +436,10 @@ def _flatten(data):
 
 
 def _worker_env(cfg: RunConfig, seeds: list[int], per_seed: int, seed_offset: int) -> EnvBase:
-    """One worker process per seed, each building the env its run alone builds (same factory, settings
-    and seed), flattened seed-major; the workers start as ``env.mp_start_method`` says (TorchRL's default
-    if unset). Transforms go on an env around this one: the flattening must come first on both ways.
+    """One env per seed, each the env its run alone builds (same factory, settings and seed), flattened
+    seed-major: side by side in this process for a task whose envs step here (:func:`in_process`), else one
+    worker process each, started as ``env.mp_start_method`` says (TorchRL's default if unset). Transforms go
+    on an env around this one: the flattening must come first on both ways.
 
     A seed's worker steps its ``per_seed`` envs itself (``parallel=False``, for a task that takes it) unless
     ``env.parallel`` says otherwise or there are cores for every env of the group: processes of its own
@@ -461,16 +451,18 @@ def _worker_env(cfg: RunConfig, seeds: list[int], per_seed: int, seed_offset: in
     serial = ("parallel" in get_task(cfg.task).keywords() and cfg.env.get("parallel") is None
               and len(seeds) * per_seed > usable_cpus())
     build = functools.partial(build_env, cfg, batch_size=(per_seed,), **({"parallel": False} if serial else {}))
-    workers = ParallelEnv(len(seeds), build,
-                          create_env_kwargs=[{"seed": s + seed_offset} for s in seeds],
-                          mp_start_method=cfg.env.get("mp_start_method"))
+    each = [{"seed": s + seed_offset} for s in seeds]
+    if in_process(cfg):
+        return TransformedEnv(SerialEnv(len(seeds), build, create_env_kwargs=each), SeedMajor())
+    workers = ParallelEnv(len(seeds), build, create_env_kwargs=each, mp_start_method=cfg.env.get("mp_start_method"))
     return TransformedEnv(workers, SeedMajor())
 
 
 def _group_env(cfg: RunConfig, seeds: list[int], per_seed: int, seed_offset: int, transforms=()) -> TransformedEnv:
     """``per_seed`` envs per seed, seed-major: one batched env seeded with the group's first seed where the
-    task steps its batch in process, else one env per seed, seeded as its run alone, in worker processes."""
-    if in_process(cfg):
+    task steps its batch as one (:func:`batched`), else one env per seed, seeded as its run alone
+    (:func:`_worker_env`)."""
+    if batched(cfg):
         base = build_env(cfg, batch_size=(len(seeds) * per_seed,), seed=seeds[0] + seed_offset)
     else:
         base = _worker_env(cfg, seeds, per_seed, seed_offset)
@@ -524,7 +516,7 @@ def group_train_env(cfgs: list[RunConfig], transforms, transfers: list[Transfer]
 
 def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False, progress: bool = True,
                 on_frames: Callable[[int], None] | None = None) -> list[Path]:
-    """Train ``cfgs`` (configs equal but for their seeds and sources, :func:`same_but_seed`;
+    """Train ``cfgs`` (configs equal but for their seeds and sources, :func:`~drltg.training.grouping.same_but_seed`;
     :func:`group_support` true) as one seed group into ``dirs``, one run directory each; ``resume``
     continues them from their checkpoints."""
     cfg, count = cfgs[0], len(cfgs)
@@ -537,21 +529,23 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
                   file=sys.stderr)
             return [train(c, d, resume=True, progress=progress, on_frames=on_frames) for c, d in zip(cfgs, dirs)]
 
+        console.plain_unless_terminal()  # TorchRL's colour codes reach a terminal, never a log file
         torch.set_num_threads(cfg.threads)
         method = get_method(cfg.transfer.method)
-        agents, transfers = [], []
-        for c, ckpt in zip(cfgs, session.checkpoints):
+        agents, transfers, sources = [], [], []
+        for c, ckpt, d in zip(cfgs, session.checkpoints, dirs):
             # each seed's networks and transfer as its run alone builds them (model reuse loads the seed's
             # own source into them, before they are stacked)
             torch.manual_seed(c.seed)
             check_source(c)
             probe, agent = check_config(c)
             transfers.append(method.build(c, agent, probe, resuming=ckpt is not None))
+            sources.append(start_record(c, d, ckpt is not None, transfers[-1].files))  # the seed's source, as loaded
             agents.append(agent)
         torch.manual_seed(cfg.seed)
         buffers = [ReplayBuffer(storage=LazyTensorStorage(cfg.buffer.size, device=cfg.device),
                                 batch_size=cfg.buffer.batch_size) for _ in cfgs]
-        session.restore(agents, buffers)
+        session.restore(agents, buffers, transfers)
         seeds = [c.seed for c in cfgs]
         transforms = agents[0].env_transforms  # what the policy needs the env to carry (SOC's option)
         train_env = group_train_env(cfgs, transforms, transfers)  # which refuses a transfer a group cannot give
@@ -560,14 +554,20 @@ def train_group(cfgs: list[RunConfig], dirs: list[Path], *, resume: bool = False
         eval_env = _group_env(cfg, seeds, cfg.eval.episodes, EVAL_SEED_OFFSET, transforms)
         best.check_metric(cfg, eval_env)
         session.callback(eval_env.close, raise_if_closed=False)
-        learner = GroupLearner(group, buffers, eval_env, transfers)
+        guided_env = None
+        if transfers[0].on_eval is not None:  # each seed's combined policy, on envs apart from its evaluation's
+            guided_env = _group_env(cfg, seeds, cfg.eval.episodes, GUIDED_EVAL_SEED_OFFSET,
+                                    [*transforms, *primers(transfers[0])])
+            session.callback(guided_env.close, raise_if_closed=False)
+        learner = GroupLearner(group, buffers, eval_env, transfers, guided_env)
 
         session.claim()
         preflight.warn_budget(cfg)  # every check passed and the directories are ours: training starts now
         writers = session.writers(transfers)
         frames, updates = session.position()
         collector = make_collector(cfg, train_env, learner.policy, frames, seeds=count)
-        summaries = [{**transfer.summary, "seed_group": {"seeds": seeds}} for transfer in transfers]
+        summaries = [{**transfer.summary, **source, "seed_group": {"seeds": seeds}}
+                     for transfer, source in zip(transfers, sources)]
         with deferred_signals() as stop_if_signalled:
             try:
                 run_loop(cfg, collector, learner, writers, frames=frames, updates=updates, progress=progress,

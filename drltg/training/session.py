@@ -92,16 +92,20 @@ class RunSession(contextlib.ExitStack):
     def checkpoints(self) -> list[dict | None]:
         return [ckpt for ckpt, _ in self.states]
 
-    def restore(self, agents, buffers) -> None:
-        """Load each run's checkpoint (if resuming from one) into its agent's loss and optimizer and its
-        replay buffer; a checkpoint of another config is one sentence."""
-        for agent, buffer, ckpt, d in zip(agents, buffers, self.checkpoints, self.dirs):
+    def restore(self, agents, buffers, transfers=None) -> None:
+        """Load each run's checkpoint (if resuming from one) into its agent's loss and optimizer, its
+        replay buffer and its transfer's ``state`` (a curriculum's stage); a checkpoint of another config is
+        one sentence."""
+        transfers = transfers if transfers is not None else [None] * len(agents)
+        for agent, buffer, transfer, ckpt, d in zip(agents, buffers, transfers, self.checkpoints, self.dirs):
             if ckpt is None:
                 continue
             try:
                 agent.loss.load_state_dict(ckpt["loss"])
                 agent.optimizer.load_state_dict(ckpt["optimizer"])
                 load_buffer_state(buffer, ckpt["buffer"])
+                if transfer is not None and transfer.state is not None and "transfer" in ckpt:
+                    transfer.state.load_state_dict(ckpt["transfer"])
             except (KeyError, IndexError, RuntimeError, ValueError) as err:
                 raise UsageError(
                     f"checkpoint '{d / CHECKPOINT}' does not fit the run's config ({type(err).__name__})."

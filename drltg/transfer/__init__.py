@@ -37,11 +37,19 @@ from drltg.transfer import (  # noqa: I001
     value_shaping,
 )
 from drltg.transfer.model_reuse import load_from_run
-from drltg.transfer.registry import METHODS, Transfer, TransferMethod, combine, get_method, register_method
+from drltg.transfer.registry import (
+    METHODS,
+    TUNING_BUDGET,
+    Transfer,
+    TransferMethod,
+    combine,
+    get_method,
+    register_method,
+)
 from drltg.transfer.source import load_actor, load_agent, load_critic
 
 __all__ = [
-    "METHODS", "Transfer", "TransferMethod", "combine", "get_method", "register_method",
+    "METHODS", "TUNING_BUDGET", "Transfer", "TransferMethod", "combine", "get_method", "register_method",
     "load_actor", "load_critic", "load_agent", "load_from_run",
     "reward_shaping", "value_shaping", "policy_reuse", "model_reuse", "demonstrations", "kickstarting", "sf_gpi",
 ]

@@ -1,5 +1,15 @@
-"""The demonstrations method: source episodes in their own buffer, a share of every batch, behaviour cloning."""
+"""The demonstrations method: source episodes in their own buffer, a share of every batch, behaviour cloning.
+
+The buffer and the share are DDPGfD's (Vecerik et al. 2017); the cloning term is Nair et al. (2018)'s, with
+its Q filter on by default (``bc_q_filter``: clone a demonstrated action only where the critic rates it above
+the actor's own, which is what keeps demonstrations of a source task's behaviour from being copied where the
+target task pays for something else), and its weight scaled to the critic's size as TD3+BC scales it
+(Fujimoto & Gu 2021): ``bc_weight * mean|Q| / bc_alpha``, ``bc_alpha`` = 2.5 as in TD3+BC
+(:func:`drltg.losses.behaviour_cloning`).
+"""
 from __future__ import annotations
+
+from typing import Annotated, Optional
 
 from pydantic import Field
 
@@ -48,7 +58,7 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     def anneal(frames: int) -> None:  # w_f = w * max(0, 1 - f / bc_anneal_frames)
         weight[0] = t.bc_weight * max(0.0, 1.0 - frames / t.bc_anneal_frames)
 
-    bc = behaviour_cloning(agent.loss, count, lambda: weight[0], q_filter=t.bc_q_filter)
+    bc = behaviour_cloning(agent.loss, count, lambda: weight[0], q_filter=t.bc_q_filter, alpha=t.bc_alpha)
     label = option_labels(agent.loss, count) if isinstance(agent.loss, SoftOptionCriticLoss) and count else None
 
     def batches(own, n):  # a generator: each batch's options are drawn just before its update
@@ -73,12 +83,18 @@ DEMONSTRATIONS = TransferMethod(
     options={
         "demo_episodes": (Int, Field(50, ge=1, description="demonstrations: episodes of the source policy collected")),
         "demo_ratio": (Probability, Field(0.25, description="demonstrations: share of every batch drawn from them")),
-        "bc_weight": (Float, Field(10.0, ge=0, description="demonstrations: weight of the behaviour-cloning term (0: "
-                                                           "none)")),
-        "bc_q_filter": (Bool, Field(False, description="demonstrations: clone only where Q(s, a_demo) > Q(s, mu(s))")),
+        "bc_weight": (Float, Field(1.0, ge=0, description="demonstrations: weight of the behaviour-cloning term, "
+                                                          "times mean(abs(Q)) / bc_alpha (0: none)")),
+        "bc_alpha": (Optional[Annotated[Float, Field(gt=0)]],
+                     Field(2.5, description="demonstrations: TD3+BC's alpha, the cloning weight bc_weight * "
+                                            "mean(abs(Q)) / bc_alpha; null: bc_weight alone",
+                           json_schema_extra={"absent": None})),  # runs saved before it cloned at bc_weight alone
+        "bc_q_filter": (Bool, Field(True, description="demonstrations: clone only where Q(s, a_demo) > Q(s, mu(s)) "
+                                                      "(Nair et al.'s Q filter)")),
         "bc_anneal_frames": (Int, Field(0, ge=0, description="demonstrations: frames over which bc_weight falls "
                                                              "linearly to 0 (0: constant)")),
         "demo_noise": (Float, Field(0.0, ge=0, description="demonstrations: std of the Gaussian noise added to every "
                                                            "demonstrated action, clipped (0: none)")),
     },
+    search={"bc_alpha": (2.5, 1.0, 5.0, 10.0)},  # TD3+BC's alpha and its neighbours
 )

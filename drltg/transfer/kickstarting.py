@@ -1,8 +1,11 @@
-r"""The kickstarting method: the learner's own loss plus a decaying distillation term towards the source's actor.
+r"""The kickstarting method (Schmitt et al. 2018, "Kickstarting deep reinforcement learning"): the learner's own
+loss plus a decaying distillation term towards the source's actor.
 
 :math:`L = L_{RL} + \lambda_f \cdot \mathrm{mean}_i\, D(\pi_T(\cdot|s_i), \pi_S(\cdot|s_i))` on replayed states
 (:func:`drltg.losses.distillation`), :math:`\lambda_f` the :class:`~drltg.losses.KickstartingWeight` of the
-frames collected so far.
+frames collected so far. The paper tunes :math:`\lambda` (by population-based training); here every knob of its
+schedule is an option, with these defaults: :math:`\lambda_0` = ``kick_weight`` = 1, :math:`F` = ``kick_frames``
+= 10,000, ``kick_decay`` = linear and, for an exponential decay, the share left at :math:`F`, ``kick_floor`` = 0.01.
 """
 from __future__ import annotations
 
@@ -32,7 +35,7 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
         raise UsageError(f"kickstarting distils a SAC or TD3 source's actor; transfer.source '{t.source}' is a soft "
                          "option-critic run, whose policy acts through its options.")
     teacher = source.actor.requires_grad_(False)
-    schedule = KickstartingWeight(t.kick_weight, t.kick_frames, t.kick_decay)
+    schedule = KickstartingWeight(t.kick_weight, t.kick_frames, t.kick_decay, t.kick_floor)
     frames = [0]
 
     def weight() -> float:
@@ -42,7 +45,8 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
         frames[0] = f
 
     return Transfer(loss_terms=distillation(agent.loss, teacher, weight), on_frames=tell,
-                    summary={"kickstarting": {"weight": t.kick_weight, "frames": t.kick_frames, "decay": t.kick_decay}})
+                    summary={"kickstarting": {"weight": t.kick_weight, "frames": t.kick_frames, "decay": t.kick_decay,
+                                             "floor": t.kick_floor}})
 
 
 KICKSTARTING = TransferMethod(
@@ -58,7 +62,10 @@ KICKSTARTING = TransferMethod(
         "kick_frames": (Int, Field(10_000, ge=0, description="kickstarting: frames over which the weight falls to 0 "
                                                              "(0: constant)")),
         "kick_decay": (Literal["linear", "exponential"],
-                       Field("linear", description="kickstarting: how the weight falls (exponential: to 1% at "
-                                                   "kick_frames, then 0)")),
+                       Field("linear", description="kickstarting: how the weight falls (exponential: to "
+                                                   "kick_floor of it at kick_frames, then 0)")),
+        "kick_floor": (Float, Field(0.01, gt=0, le=1, description="kickstarting: the share of kick_weight an "
+                                                                   "exponential decay reaches at kick_frames")),
     },
+    search={"kick_weight": (1.0, 0.3), "kick_decay": ("linear", "exponential")},  # as Schmitt et al. tune it
 )

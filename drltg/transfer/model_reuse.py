@@ -20,7 +20,8 @@ if TYPE_CHECKING:
 
 def load_from_run(loss_module: nn.Module, run_dir: str | Path, *, checkpoint: str = "last", **kwargs) -> LoadReport:
     """Initialise ``loss_module`` from the networks of ``<run_dir>/checkpoints/last.pt`` (``checkpoint="best"``:
-    of ``best.pt``), read from their networks file ``last.safetensors`` without opening the training checkpoint.
+    of the best evaluation), read from their networks file ``last.safetensors`` (``best.safetensors``) without
+    opening the training checkpoint.
 
     Keyword arguments go to :func:`load_weights`. The file is data only and checked against the run's
     manifest (:func:`drltg.store.rundir.load_networks`): a run from anyone can be loaded.

@@ -5,6 +5,7 @@ weights itself (model reuse, on a new run), and returns a :class:`Transfer` nami
 pipeline it changes::
 
     env -> [train_transforms] -> Collector([policy], on_frames) -> buffer -> [batches] -> loss [+ loss_terms]
+    every evaluation: the collector's policy evaluated too -> [on_eval];  checkpoints: [state]
     run directory: [files], summary.json: [summary]
 
 ``drltg train``, ``experiment`` and ``sweep`` read everything else from the :class:`TransferMethod`:
@@ -28,14 +29,19 @@ its entry points (``pyproject.toml``), so importing their modules registers noth
 """
 from __future__ import annotations
 
+import itertools
+import re
+import types
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, Iterable
+from typing import Annotated, Any, Callable, Iterable, Union, get_args, get_origin
+
+from pydantic import BeforeValidator, Strict, ValidationError, create_model
 
 from drltg import config
-from drltg.config import METHODS, RunConfig, Section, get_method
+from drltg.config import METHODS, Bool, Float, Int, RunConfig, Section, Str, get_method
 from drltg.errors import UsageError
 
-__all__ = ["Transfer", "TransferMethod", "METHODS", "register_method", "get_method", "combine"]
+__all__ = ["Transfer", "TransferMethod", "METHODS", "register_method", "get_method", "combine", "TUNING_BUDGET"]
 
 
 @dataclass
@@ -51,6 +57,13 @@ class Transfer:
             ``TensorDictSequential(learner's policy, mixer)``; in a seed group, seed k's mixer acts on
             seed k's envs.
         on_frames: told the frames collected so far after every batch (schedules over training).
+        on_eval: told, after every evaluation of the learner, the mean return of the collector's own policy
+            evaluated as well, deterministically, on an evaluation env of its own (with the transfer's primers):
+            the learner's actor followed by the ``mixer``, which for jumpstart is JSRL's combined policy
+            (schedules that advance on evaluated returns); returns the scalars to log at that frame. In a seed
+            group, seed k's is told seed k's return.
+        state: a module whose ``state_dict`` every checkpoint keeps and a resumed run loads back (what a
+            transfer learns as it trains that the frames alone cannot give back: a curriculum's stage).
         batches: ``batches(buffer, n)`` gives the ``n`` minibatches of one round of updates instead of
             ``n`` samples of the replay buffer.
         loss_terms: ``loss_terms(batch) -> {"loss_<name>": scalar}``, added to the learner's losses at
@@ -65,6 +78,8 @@ class Transfer:
     policy: Any = None
     mixer: Any = None
     on_frames: Callable[[int], None] | None = None
+    on_eval: Callable[[float], dict] | None = None
+    state: Any = None
     batches: Callable[[Any, int], Iterable] | None = None
     loss_terms: Callable[[Any], dict] | None = None
     files: dict[str, str] = field(default_factory=dict)
@@ -102,6 +117,11 @@ class TransferMethod:
             envs, seed k's ``batches`` of seed k's buffer, seed k's ``loss_terms`` (a
             :class:`~drltg.losses.terms.LossTerm`) with seed k's parameters, and every seed's
             ``on_frames``; a method whose ``Transfer`` sets the policy has no grouped form.
+        member_options: the options seed k's own parts read alone (built from seed k's config), so runs that
+            differ in them still train as one seed group: a tuning grid's settings with their seeds.
+        search: the method's tuning space, ``option -> values`` over its own options, each list starting
+            at the option's default; its grid holds at most :data:`TUNING_BUDGET` settings, the budget
+            every row of the leaderboard gets (:mod:`drltg.bench.tune`).
     """
 
     name: str
@@ -114,10 +134,25 @@ class TransferMethod:
     algos: tuple[str, ...] | None = None
     takes: tuple[str, ...] = ()
     grouped: bool = False
+    search: dict[str, tuple] = field(default_factory=dict)
+    member_options: tuple[str, ...] = ()
     model: type[Section] | None = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
-        object.__setattr__(self, "model", config.options_model(self.name, self.options) if self.options else None)
+        object.__setattr__(self, "model", options_model(self.name, self.options) if self.options else None)
+        check_search(self)
+        strays = [k for k in self.member_options if self.model is None or k not in self.model.model_fields]
+        if strays:
+            raise UsageError(f"transfer method {self.name!r}: member_options names {strays[0]!r}, which is not one of "
+                             "its options.")
+
+    @property
+    def settings(self) -> list[dict[str, Any]]:
+        """The settings ``drltg bench tune`` tries: every point of :attr:`search` (``transfer.<key>`` -> value),
+        the defaults first; ``[{}]`` for a method without a search."""
+        keys = list(self.search)
+        return [{f"transfer.{k}": v for k, v in zip(keys, point)}
+                for point in itertools.product(*(self.search[k] for k in keys))]
 
     def combine(self, *others: TransferMethod) -> TransferMethod:
         """This method followed by ``others`` (:func:`combine`)."""
@@ -131,6 +166,33 @@ class TransferMethod:
             )
         if self.check is not None:
             self.check(cfg)
+
+
+TUNING_BUDGET = 4
+"""The most settings a method's search space holds: every leaderboard row is tuned on the same budget."""
+
+
+def check_search(method: TransferMethod) -> None:
+    """A search space is a grid of the method's own options, each axis a list of distinct values its option
+    accepts that starts at the option's default, with at most :data:`TUNING_BUDGET` points."""
+    where = f"transfer method {method.name!r}: its search"
+    size = 1
+    for key, values in method.search.items():
+        if method.model is None or key not in method.model.model_fields:
+            raise UsageError(f"{where} names {key!r}, which is not one of its options.")
+        if not isinstance(values, (list, tuple)) or not values:
+            raise UsageError(f"{where} over {key!r} must be a non-empty list of values.")
+        default = method.model.model_fields[key].get_default(call_default_factory=True)
+        if values[0] != default or len({repr(v) for v in values}) < len(values):
+            raise UsageError(f"{where} over {key!r} must list distinct values, the default {default!r} first.")
+        for value in values:
+            try:
+                method.model.model_validate({key: value})
+            except ValidationError as err:
+                raise UsageError(f"{where}: " + config.sentence(err, {key: value}, method.model, "transfer.")) from None
+        size *= len(values)
+    if size > TUNING_BUDGET:
+        raise UsageError(f"{where} holds {size} settings; the budget every row gets is {TUNING_BUDGET}.")
 
 
 NONE = TransferMethod("none", "plain learning on the task: the baseline", lambda *a, **k: Transfer(), grouped=True)
@@ -150,14 +212,16 @@ def register_method(method: TransferMethod, *, replace: bool = False) -> Transfe
     if "+" in method.name:
         raise UsageError(f"transfer method {method.name!r}: '+' joins the methods of a combination; choose another "
                          "name.")
-    owners = {key: m.name for m in METHODS.values() if m.name != method.name for key in m.options}
-    for key in method.options:
-        if key in owners or key in config.TRANSFER_KEYS:
-            raise UsageError(
-                f"transfer method {method.name!r}: config key 'transfer.{key}' already belongs to "
-                f"{owners.get(key, 'every method')}; choose another name."
-            )
+    previous = METHODS.get(method.name)
     METHODS[method.name] = method
+    try:
+        config.option_owners()  # its keys are its own
+    except UsageError:
+        if previous is None:
+            del METHODS[method.name]
+        else:
+            METHODS[method.name] = previous
+        raise
     return method
 
 
@@ -217,7 +281,47 @@ def combine(*methods: TransferMethod) -> TransferMethod:
     options = {k: v for m in methods for k, v in m.options.items()}
     return TransferMethod(name, " + ".join(m.help for m in methods), build, source=source, options=options,
                           check=check, check_env=check_env, algos=algos, takes=tuple(owners),
-                          grouped=all(m.grouped for m in methods))
+                          grouped=all(m.grouped for m in methods),
+                          member_options=tuple(k for m in methods for k in m.member_options))
+
+
+_STRICT = {int: Int, float: Float, bool: Bool, str: Str}
+
+
+def _strict(annotation: Any) -> Any:
+    """``annotation`` with plain ``int``, ``float``, ``bool`` and ``str`` (also inside ``Optional``, ``list``,
+    ``Annotated``) read as the built-in keys read them: :data:`~drltg.config.Int`, ``Float``, ``Bool``, ``Str``."""
+    if isinstance(annotation, type) and annotation in _STRICT:
+        return _STRICT[annotation]
+    origin, args = get_origin(annotation), get_args(annotation)
+    if origin is Annotated:  # one of the types above, or a plain type with constraints
+        if any(isinstance(m, (BeforeValidator, Strict)) for m in args[1:]):
+            return annotation
+        return Annotated[(_strict(args[0]), *args[1:])]
+    if origin in (Union, types.UnionType):
+        return Union[tuple(_strict(a) for a in args)]
+    if origin is list and len(args) == 1:
+        return list[_strict(args[0])]
+    return annotation
+
+
+def options_model(method: str, options: dict[str, Any]) -> type[Section]:
+    """The model of a method's ``transfer.*`` options, from ``key -> (type, default or Field(...))`` (the
+    form of :func:`pydantic.create_model`; plain ``int``, ``float``, ``bool`` and ``str`` are read as the
+    built-in keys are), built once when the method is declared; its defaults must pass its own checks."""
+    name = "".join(part.capitalize() for part in re.split(r"[^0-9A-Za-z]+", method) if part) + "Options"
+    fields = {k: (_strict(v[0]), v[1]) if isinstance(v, tuple) and len(v) == 2 else v for k, v in options.items()}
+    try:
+        model = create_model(name, __base__=Section, **fields)
+    except (TypeError, ValueError) as err:  # pydantic's schema errors are TypeErrors, its usage errors too
+        raise UsageError(f"transfer method {method!r}: its options cannot be declared ({err}).") from None
+    defaults = {k: f.get_default(call_default_factory=True) for k, f in model.model_fields.items()}
+    try:
+        model.model_validate(defaults)
+    except ValidationError as err:
+        raise UsageError(f"transfer method {method!r} declares a default its option refuses: "
+                         + config.sentence(err, defaults, model, "transfer.")) from None
+    return model
 
 
 _PLACES = {"policy": "collector's policy", "batches": "minibatches", "weights": "learner's initial weights"}
@@ -228,6 +332,8 @@ def _join(parts: list[Transfer]) -> Transfer:
     mixers = [t.mixer for t in parts if t.mixer is not None]
     batches = [t.batches for t in parts if t.batches is not None]
     on_frames = [t.on_frames for t in parts if t.on_frames is not None]
+    on_eval = [t.on_eval for t in parts if t.on_eval is not None]
+    states = [t.state for t in parts if t.state is not None]
     terms = [t.loss_terms for t in parts if t.loss_terms is not None]
     assert len(policies) + len(mixers) <= 1 and len(batches) <= 1, "combine() admits one owner per place"
 
@@ -235,8 +341,13 @@ def _join(parts: list[Transfer]) -> Transfer:
         for f in on_frames:
             f(frames)
 
+    def evaluated(value: float) -> dict:
+        return {k: v for f in on_eval for k, v in f(value).items()}
+
     def loss_terms(batch) -> dict:
         return {k: v for f in terms for k, v in f(batch).items()}
+
+    import torch
 
     from drltg.losses.terms import LossTerm, LossTerms
 
@@ -248,6 +359,8 @@ def _join(parts: list[Transfer]) -> Transfer:
         policy=policies[0] if policies else None,
         mixer=mixers[0] if mixers else None,
         on_frames=tell if on_frames else None,
+        on_eval=evaluated if on_eval else None,
+        state=states[0] if len(states) == 1 else (torch.nn.ModuleList(states) if states else None),
         batches=batches[0] if batches else None,
         loss_terms=loss_terms if terms else None,
         files={k: v for t in parts for k, v in t.files.items()},

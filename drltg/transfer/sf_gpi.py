@@ -1,5 +1,6 @@
 r"""The sf-gpi method: the source policy's successor features, the target's reward weights, and GPI as the
-behaviour policy of an ordinary learner.
+behaviour policy of an ordinary learner (Barreto et al. 2017, "Successor features for transfer in reinforcement
+learning"; 2018).
 
 For goal-reaching tasks that share their dynamics (FourRooms, grid FourRooms: only the goal moves),
 :math:`\phi(s') = [\text{in source goal}, \text{in target goal}, 1]` (:class:`~drltg.modules.GoalFeatures`)
@@ -7,21 +8,34 @@ writes both rewards exactly, :math:`r = \phi^\top w`, with the target's :math:`w
 (:meth:`~drltg.modules.GoalFeatures.task_weights`). At build time the source policy acts for ``sf_frames``
 frames in the source task (its exploration policy, from an env seeded apart) and
 :math:`\psi^{\pi_S}` is learnt by TD on them (:class:`~drltg.losses.SuccessorFeatureLoss`, the next action
-the source's deterministic one). The collector then acts by GPI (:class:`~drltg.collectors.GPIPolicy`):
+the source's deterministic one) for ``sf_updates`` = 20,000 steps, a measured count (``benchmarks/sf_psi.py``:
+on FourRooms bench sources psi's value at start states agrees far better with the source's Monte Carlo return
+there than after the 2,000 steps this method took before). A plateau rule is opt-in (``sf_patience`` > 0,
+:class:`Plateau`): TD stops once the mean relative TD error ``loss_sf / sf_target_sq`` of each block of
+``sf_block`` steps has failed to fall ``sf_tolerance`` below the lowest so far for ``sf_patience`` blocks in a
+row. The error is taken relative to the target's size because the plain TD loss grows as psi does (psi starts at
+0 and its constant feature's part climbs towards ``1 / (1 - gamma)``); the relative one is no reliable stop
+either (on some sources it plateaus while psi still improves), which is why the rule is not the default.
 
-- continuous actions: :math:`a = \arg\max_{a_j \in \{\pi_S(s), a_L\}} \psi^{\pi_S}(s, a_j)^\top w`, the source's
-  action or the learner's own sampled one :math:`a_L`;
-- discrete actions: :math:`a = \arg\max_a \max(\psi^{\pi_S}(s, a)^\top w, \min_k Q^L_k(s, a))`, with the
-  learner's own twin-critic values as one more policy (Barreto et al. 2018).
+The collector then acts by GPI over the library :math:`\{\pi_S, \pi_L\}`, the source and the learner, each
+valued by its own :math:`Q` (:class:`~drltg.collectors.GPIPolicy`, Barreto et al. 2017, theorem 1):
 
-The learner trains on what GPI collects with its own loss, and is evaluated alone; ``reused`` marks the steps
-where the source's value won (``train/reused_fraction``).
+- continuous actions: :math:`a = \arg\max_{a_j \in \{\pi_S(s), a_L\}} \max(\psi^{\pi_S}(s, a_j)^\top w,
+  \min_k Q^L_k(s, a_j))`, the source's action or the learner's own sampled one :math:`a_L`;
+- discrete actions: :math:`a = \arg\max_a \max(\psi^{\pi_S}(s, a)^\top w, \min_k Q^L_k(s, a))`;
+
+then epsilon-greedy, as Barreto et al.'s agents explore: with probability ``sf_epsilon`` a uniform random action
+(TorchRL's ``EGreedyModule``). The learner trains on what GPI collects with its own loss, and is evaluated
+alone; ``reused`` marks the steps whose action is the source's (GPI chose it and no random action replaced
+it: ``train/reused_fraction``).
 """
 from __future__ import annotations
 
+import math
+
 from pydantic import Field
 
-from drltg.config import Int, RunConfig
+from drltg.config import Float, Int, Probability, RunConfig
 from drltg.errors import UsageError
 from drltg.transfer.registry import Transfer, TransferMethod
 
@@ -71,9 +85,37 @@ def _check(cfg: RunConfig) -> None:
             _check_shared(data["task"], data.get("env") or {}, cfg.task, cfg.env)
 
 
+class Plateau:
+    """When TD learning of psi stops: its relative TD error averaged over each block of ``block`` steps, ``L_j``; a
+    block falls if ``L_j < (1 - tolerance) * min_{i<j} L_i`` (the first always does), and TD stops after
+    ``patience`` blocks in a row that do not fall. :meth:`push` takes one step's value and says whether to stop;
+    ``means`` keeps the blocks' means. "Falls" is torch's ``ReduceLROnPlateau`` comparison (mode ``min``,
+    threshold mode ``rel``)."""
+
+    def __init__(self, block: int, patience: int, tolerance: float) -> None:
+        self.block, self.patience, self.tolerance = block, patience, tolerance
+        self.best, self.flat, self.means = math.inf, 0, []
+        self._sum, self._count = 0.0, 0
+
+    def push(self, loss) -> bool:
+        self._sum, self._count = self._sum + loss, self._count + 1
+        if self._count < self.block:
+            return False
+        mean = float(self._sum) / self._count
+        self._sum, self._count = 0.0, 0
+        self.means.append(mean)
+        if mean < (1.0 - self.tolerance) * self.best:
+            self.best, self.flat = mean, 0
+        else:
+            self.flat += 1
+        return self.flat >= self.patience
+
+
 def _learnt_successor_features(cfg: RunConfig, source, features, discrete: bool):
     """psi of the source's deterministic policy, by TD on ``sf_frames`` frames its exploration policy collects
-    in the source task (Adam at ``optim.lr``, ``optim.gamma``, a soft target at ``optim.tau``)."""
+    in the source task (Adam at ``optim.lr``, ``optim.gamma``, a soft target at ``optim.tau``) for ``sf_updates``
+    steps, or until its relative TD error stops falling (:class:`Plateau`, with ``sf_patience`` > 0). Returns the
+    critic, the frames and what TD did (its steps, why it stopped, the blocks' mean relative TD errors)."""
     import torch
     from torchrl.data import LazyTensorStorage, ReplayBuffer
     from torchrl.envs import TransformedEnv
@@ -104,12 +146,36 @@ def _learnt_successor_features(cfg: RunConfig, source, features, discrete: bool)
                           batch_size=cfg.buffer.batch_size)
     buffer.extend(data.select(*loss.in_keys))
     target, optimizer = SoftUpdate(loss, tau=cfg.optim.tau), torch.optim.Adam(loss.parameters(), lr=cfg.optim.lr)
-    for _ in range(t.sf_updates):
+    plateau, steps, stopped = Plateau(t.sf_block, max(t.sf_patience, 1), t.sf_tolerance), 0, False
+    while steps < t.sf_updates and not stopped:
         optimizer.zero_grad(set_to_none=True)
-        loss(buffer.sample())["loss_sf"].backward()
+        out = loss(buffer.sample())
+        out["loss_sf"].backward()
         optimizer.step()
         target.step()
-    return critic, data.numel()
+        steps += 1
+        relative = out["loss_sf"].detach() / out["sf_target_sq"].clamp_min(1e-12)
+        stopped = plateau.push(relative) and t.sf_patience > 0
+    block_means = [float(f"{m:.4g}") for m in plateau.means]
+    return critic, data.numel(), {"updates": steps, "stopped": "plateau" if stopped else "sf_updates",
+                                  "block_means": block_means}
+
+
+def _learner_candidate_values(loss):
+    """``(td, candidates [*, J, A]) -> min_k Q_k(s, a_j)`` ``[*, J]``, the live twin critics of a SAC learner at
+    each candidate action: GPI's own values of the continuous candidates."""
+    from tensordict import TensorDict
+
+    from drltg.modules.critics import min_over_critics
+
+    def values(td, candidates):
+        obs = td.get("observation")
+        n = candidates.shape[-2]
+        pairs = TensorDict({"observation": obs.unsqueeze(-2).expand(*obs.shape[:-1], n, obs.shape[-1]),
+                            "action": candidates}, batch_size=candidates.shape[:-1])
+        return min_over_critics(loss.qvalue_network, loss.qvalue_network_params, pairs).squeeze(-1)
+
+    return values
 
 
 def _learner_values(loss):
@@ -125,9 +191,10 @@ def _learner_values(loss):
     return values
 
 
-def _chose_source(index):
-    """``reused``: the source's value (discrete) or action (continuous) won, index 0; the learner's is the last."""
-    return index == 0
+def _chose_source(index, action, gpi_action):
+    """``reused``: the source's value (discrete) or action (continuous) won, index 0 (the learner's is the last),
+    and the epsilon-greedy step kept GPI's action."""
+    return (index == 0) & (action == gpi_action).all(-1, keepdim=True)
 
 
 def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
@@ -136,6 +203,7 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     import torch
     from tensordict.nn import TensorDictModule, TensorDictSequential
     from torchrl.data import OneHot
+    from torchrl.modules import EGreedyModule
 
     from drltg.collectors import GPIPolicy
     from drltg.losses import SoftOptionCriticLoss
@@ -154,16 +222,22 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
         source_goal, goal = source.env.goal.tolist(), target_env.goal.tolist()
         features = GoalFeatures.for_env(target_env, [source_goal] + ([goal] if goal != source_goal else []))
         discrete = isinstance(env.full_action_spec_unbatched["action"], OneHot)
-        critic, frames = _learnt_successor_features(cfg, source, features, discrete)
+        critic, frames, td = _learnt_successor_features(cfg, source, features, discrete)
     w = features.task_weights(goal, target_env.step_cost)
     if discrete:
         own = [TensorDictModule(_learner_values(agent.loss), in_keys=["observation"], out_keys=[OWN_VALUES])]
         gpi = GPIPolicy([critic], w, own_value_key=OWN_VALUES)
     else:
-        own, gpi = [], GPIPolicy([critic], w, policies=[source.agent.actor], include_action=True)
-    mixer = TensorDictSequential(*own, gpi, TensorDictModule(_chose_source, in_keys=["gpi_index"],
-                                                              out_keys=["reused"]))
-    return Transfer(mixer=mixer, summary={"successor_feature_frames": frames,
+        own = []
+        gpi = GPIPolicy([critic], w, policies=[source.agent.actor], include_action=True,
+                        own_values=_learner_candidate_values(agent.loss))
+    explore = EGreedyModule(env.full_action_spec_unbatched["action"], eps_init=float(t.sf_epsilon),
+                            eps_end=float(t.sf_epsilon), device=cfg.device)
+    keep = TensorDictModule(lambda action: action.clone(), in_keys=["action"], out_keys=["gpi_action"])
+    mixer = TensorDictSequential(*own, gpi, keep, explore,
+                                 TensorDictModule(_chose_source, in_keys=["gpi_index", "action", "gpi_action"],
+                                                  out_keys=["reused"]))
+    return Transfer(mixer=mixer, summary={"successor_feature_frames": frames, "successor_feature_td": td,
                                           "gpi_weights": [round(x, 6) for x in w.tolist()]})
 
 
@@ -178,6 +252,17 @@ SF_GPI = TransferMethod(
     options={
         "sf_frames": (Int, Field(10_000, ge=1, description="sf-gpi: frames the source policy acts in the source "
                                                            "task to learn its successor features")),
-        "sf_updates": (Int, Field(2_000, ge=1, description="sf-gpi: TD steps on them")),
+        "sf_updates": (Int, Field(20_000, ge=1, description="sf-gpi: TD steps on them (fewer if sf_patience stops "
+                                                            "TD first)")),
+        "sf_block": (Int, Field(500, ge=1, description="sf-gpi: TD steps over which the relative TD error is "
+                                                       "averaged for the plateau rule")),
+        "sf_patience": (Int, Field(0, ge=0, description="sf-gpi: blocks in a row whose relative TD error does not "
+                                                        "fall that stop TD (0: no plateau rule)")),
+        "sf_tolerance": (Float, Field(0.01, ge=0, lt=1, description="sf-gpi: the share below the lowest block "
+                                                                    "mean so far a block must fall to")),
+        "sf_epsilon": (Probability, Field(0.1, description="sf-gpi: probability of a uniform random action in "
+                                                           "place of GPI's (epsilon-greedy)",
+                                json_schema_extra={"absent": 0.0})),  # runs saved before it acted greedily
     },
+    search={"sf_epsilon": (0.1, 0.05, 0.2)},
 )

@@ -1,16 +1,19 @@
 """Where transferred knowledge comes from: ``transfer.source``, a source run or a scripted demonstrator.
 
 ``transfer.source`` is a drltg run directory (its ``config.yaml`` and the networks of ``checkpoints/last.pt``,
-or of ``checkpoints/best.pt`` with ``transfer.source_checkpoint=best``, read from the networks file saved
-beside each, :mod:`drltg.store.networks`), or for methods that reuse a policy on
+or of its best evaluation with ``transfer.source_checkpoint=best``, read from the networks file of each,
+:mod:`drltg.store.networks`), or for methods that reuse a policy on
 the manipulation tasks ``demonstrator:TASK``, the scripted policy of ``TASK``
 (:func:`drltg.envs.robosuite.demonstrator_for`) acting as the past policy. :func:`check` runs before
 anything is trained or written; :func:`source_actor` rebuilds the past policy. In user code,
 :func:`load_actor`, :func:`load_critic` and :func:`load_agent` rebuild a run's actor, value or whole
 learner from its run directory in one call (``checkpoint="best"``: from its best evaluated checkpoint).
+:func:`record` names the source a run loaded by content, for its ``summary.json``; :func:`start_record` keeps
+it from the run's first start and refuses a resume from a source changed since.
 """
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -19,7 +22,7 @@ from drltg.config import RunConfig, TransferConfig
 from drltg.envs import make_env
 from drltg.envs.robosuite.layout import TASKS as MANIPULATION
 from drltg.errors import UsageError
-from drltg.store import networks
+from drltg.store import manifest, networks
 from drltg.store.networks import NETWORKS
 from drltg.store.rundir import (
     CONFIG,
@@ -80,6 +83,61 @@ def _check_source_run(run: Path, t: TransferConfig) -> None:
         )
 
 
+RECORD = "source.json"
+"""The file of a run directory that holds :func:`record` from the run's first start."""
+
+
+def record(cfg: RunConfig) -> dict:
+    """summary.json's ``source`` entry of a run that loads a source run: the SHA-256 of the networks file it
+    reads (``checkpoints/<checkpoint>.safetensors``; the checkpoint itself for a run written before networks
+    files) and of the source's ``config.yaml``; the path in the run's ``config.yaml`` is a hint only (a folder
+    can be trained again). ``{}`` for a method without a source or a scripted demonstrator. Runs paired by seed
+    share a source exactly when these digests are equal (:mod:`drltg.bench.board`)."""
+    t = cfg.transfer
+    if get_method(t.method).source is None or not t.source or demonstrator_task(t.source) is not None:
+        return {}
+    run = Path(t.source).expanduser()
+    loaded = NETWORKS[t.source_checkpoint]
+    loaded = loaded if (run / loaded).is_file() else checkpoint_path(t.source_checkpoint)
+    return {"source": {"checkpoint": t.source_checkpoint, "networks": loaded.as_posix(),
+                       "networks_sha256": _listed_digest(run, loaded.as_posix()),
+                       "config_sha256": manifest.digest(run / CONFIG)}}
+
+
+def start_record(cfg: RunConfig, run_dir: str | Path, resuming: bool, files: dict[str, str]) -> dict:
+    """:func:`record` of a run starting in ``run_dir``, also kept there as :data:`RECORD` (added to ``files``, the
+    run's ``Transfer.files``);
+    a resumed run whose source now holds other networks or another config than at its first start is refused
+    in one sentence, since its training would go on from another teacher than the one it began with."""
+    entry = record(cfg)
+    path = Path(run_dir) / RECORD
+    if entry and resuming and path.is_file():
+        from drltg.regular import MAX_META_BYTES, read_bytes
+
+        try:
+            earlier = json.loads(read_bytes(path, MAX_META_BYTES, "a source record")).get("source")
+        except (OSError, ValueError, AttributeError):
+            raise UsageError(f"'{path}' is not the source record drltg wrote (JSON with a 'source' mapping); "
+                             "restore it, or train the run again.") from None
+        changed = [k for k in ("networks_sha256", "config_sha256")
+                   if not isinstance(earlier, dict) or earlier.get(k) != entry["source"][k]]
+        if changed:
+            what = " and ".join("networks" if k == "networks_sha256" else "config.yaml" for k in changed)
+            raise UsageError(f"transfer.source '{cfg.transfer.source}' changed since this run started: {path} "
+                             f"records another SHA-256 of its {what}, so the run would go on from another teacher; "
+                             "restore the source, or train the run again.")
+    if entry:
+        files[RECORD] = json.dumps(entry, indent=1) + "\n"
+    return entry
+
+
+def _listed_digest(run: Path, name: str) -> str:
+    """The SHA-256 of ``run/name``: the manifest's where it lists one alone (the networks are read only when
+    their bytes match it, :func:`drltg.store.networks.load`), else the file's own."""
+    listed = manifest.read(run).get(name, [])
+    return listed[0] if len(listed) == 1 else manifest.digest(run / name)
+
+
 def demonstrator_task(source) -> str | None:
     """``TASK`` for a source written ``demonstrator:TASK``, else ``None``."""
     if isinstance(source, str) and source.startswith(DEMONSTRATOR):
@@ -135,37 +193,25 @@ def rebuild(run_dir, device: str = "cpu", checkpoint: str = "last") -> Rebuilt:
     if not isinstance(data, dict) or not {"task", "algo", "env"} <= set(data):
         raise UsageError(f"'{run / CONFIG}' is not a drltg run config (it lacks task, algo or env).")
     try:
-        cfg = config.build(data)
+        cfg = config.build(data, saved=True)
         env = make_env(cfg.task, device=device, **cfg.env)
     except UsageError as err:
         raise UsageError(f"run '{run_dir}' cannot be rebuilt: {err}") from None
     agent = make_agent(env, cfg)
     saved, info = load_networks(run, checkpoint, map_location=device)
-    mismatch = _first_mismatch(agent.loss.state_dict(), saved)
-    if mismatch:
-        raise UsageError(
-            f"the checkpoint of run '{run_dir}' does not fit the {cfg.algo} learner its {CONFIG} describes "
-            f"({mismatch})."
-        )
+    path = run / (NETWORKS[checkpoint] if (run / NETWORKS[checkpoint]).is_file() else checkpoint_path(checkpoint))
+    reason = networks.mismatch(agent.loss.state_dict(), saved)
+    if reason:
+        raise UsageError(f"'{path}' does not fit the {cfg.algo} learner its {CONFIG} describes ({reason}).")
     agent.loss.load_state_dict(saved)
     return Rebuilt(agent, env, cfg, info.get("frames"))
-
-
-def _first_mismatch(expected: dict, saved: dict) -> str | None:
-    """The first entry a saved state dict lacks or holds in another shape, in words."""
-    for key, value in expected.items():
-        if key not in saved:
-            return f"it has no {key}"
-        if hasattr(value, "shape") and tuple(getattr(saved[key], "shape", ())) != tuple(value.shape):
-            return f"{key} is {list(saved[key].shape)} there, {list(value.shape)} here"
-    return None
 
 
 def load_agent(run_dir, *, device: str = "cpu", checkpoint: str = "last"):
     """A trained run's learner (:class:`drltg.learners.Agent`: actor, loss with critics, temperature),
     rebuilt from the run directory's ``config.yaml`` and the networks of ``checkpoints/last.pt``
-    (``checkpoint="best"``: of ``best.pt``, kept with ``checkpoint.keep_best``), read from their networks file
-    ``last.safetensors`` without opening the training checkpoint. Prints nothing. The file is data only (no
+    (``checkpoint="best"``: of the best evaluation), read from their networks file ``last.safetensors``
+    (``best.safetensors``) without opening the training checkpoint. Prints nothing. The file is data only (no
     code in it runs) and checked against the run's manifest, so a run from anyone can be loaded."""
     return rebuild(run_dir, device, checkpoint).agent
 

@@ -27,4 +27,6 @@ VALUE_SHAPING = TransferMethod(
     source="run",
     algos=("sac", "td3"),
     options={"value_scale": (Float, Field(1.0, ge=0, description="value shaping: Phi = value_scale * V_source(s)"))},
+    search={"value_scale": (1.0, 0.5, 2.0, 4.0)},
+    member_options=("value_scale",),  # each seed's potential on its own block
 )

@@ -20,8 +20,8 @@ ROWS=${ROWS:-"lift-shaping pi-reuse-place pi-reuse-barrier model-reuse-place soc
 OUT=results/manipulation
 EVAL="-o eval.every=5000 -o eval.episodes=10 -o checkpoint.every=5000 -o checkpoint.keep_best=true"
 declare -A SOURCE=(
-  [lift-sac-ln-half]="--frames 60000 -o transfer.method=demonstrations -o transfer.source=demonstrator:lift -o network.layer_norm=critics -o transfer.demo_ratio=0.5"
-  [lift-soc4]="--algo soc --options 4 --frames 60000 -o transfer.method=demonstrations -o transfer.source=demonstrator:lift"
+  [lift-sac-ln-half]="--frames 60000 -o transfer.method=demonstrations -o transfer.source=demonstrator:lift -o network.layer_norm=critics -o transfer.demo_ratio=0.5 -o transfer.bc_weight=10 -o transfer.bc_alpha=null -o transfer.bc_q_filter=false"
+  [lift-soc4]="--algo soc --options 4 --frames 60000 -o transfer.method=demonstrations -o transfer.source=demonstrator:lift -o transfer.bc_weight=10 -o transfer.bc_alpha=null -o transfer.bc_q_filter=false"
 )
 export OMP_NUM_THREADS=1 MKL_NUM_THREADS=1
 report() {  # BASELINE TRANSFER OUT LABELS... [drltg report flags]

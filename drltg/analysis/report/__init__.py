@@ -66,8 +66,9 @@ and why. A side must hold one configuration (``--allow-mixed`` to override) and 
 Outputs (written through temporary files and ``os.replace``, and only once every input is read and
 checked): ``transfer_metrics.json`` (``metrics``, ``settings`` with every choice and warning,
 ``per_seed``), ``transfer_metrics.csv`` (``metric,value,ci_low,ci_high,p_value,p_adjusted``),
-``transfer_plot.png`` and ``.svg``; ``--matrix`` writes ``transfer_matrix.{png,svg,csv,json}``. All options:
-:class:`ReportSettings`.
+``transfer_plot.png`` and ``.svg`` (or the format ``--figure-format`` names; ``--figure one-column``: a PDF one
+column wide, :mod:`drltg.analysis.figure_style`); ``--matrix`` writes ``transfer_matrix.{png,svg,csv,json}``. All
+options: :class:`ReportSettings`.
 """
 from drltg.analysis.report.catalogue import COMPARISONS, METRICS, TABLE_ROWS, Metric, table_rows
 from drltg.analysis.report.describe import BETTING_CLAIM, COVERAGE_CLAIM, COVERAGE_EXCEPTIONS

@@ -7,6 +7,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
+import numpy as np
+
 from drltg.analysis.curves import Curve
 from drltg.analysis.report.settings import CONFIG_KEYS_PER_RUN, ReportSettings
 from drltg.analysis.run_state import partition
@@ -58,6 +60,22 @@ def check_runs(baseline: Sequence[Curve], transfer: Sequence[Curve], s: ReportSe
                             f"{', '.join(map(str, seeds))} (their config's tuned_on), which this report reads: a "
                             "result tuned on the seeds it reports, not a fresh-seed one.")
     return Sides(baseline, transfer, task, paired, pairing)
+
+
+def nothing_learned(sides, threshold: float | None, budget: float) -> str | None:
+    """Why the comparison measures nothing, where no run of either side ever reached ``threshold`` within
+    ``budget`` frames (the best evaluation of any run below it: the crossing rule aside, none got there):
+    a difference between two sides that both failed says nothing about transfer. ``None`` otherwise."""
+    runs = [*sides.baseline, *sides.transfer]
+    if threshold is None or not runs:
+        return None
+    best = max(float(np.max(c.values[c.frames <= budget], initial=-np.inf)) for c in runs)
+    if best >= threshold:
+        return None
+    return (f"no run of either side ever reached the threshold {threshold:.4g} (the best evaluation of all "
+            f"{len(runs)} runs is {best:.4g}): neither learned the task within the budget, so this comparison "
+            "measures nothing about transfer; train longer, or check the task's reward and the learner's "
+            "settings (a sparse reward may need a lower sac.alpha_init, docs/gymnasium.md).")
 
 
 def tuned_on(runs: Sequence[Curve]) -> list[int]:

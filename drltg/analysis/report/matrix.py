@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from drltg.analysis import tables
+from drltg.analysis.figure_style import DEFAULT, FigureStyle
 from drltg.analysis.report.catalogue import table_rows
 from drltg.analysis.report.outputs import check_out_dir, fresh_dir, json_text
 from drltg.analysis.report.pipeline import compute, read_runs
@@ -45,9 +46,12 @@ def transfer_matrix(
     cells: dict[tuple[str, str], tuple],
     out_dir: str | Path | None = None,
     metric: str = "mean_return_gain",
+    *,
+    figure: FigureStyle = DEFAULT,
     **settings,
 ) -> dict:
-    """One report per (source, target) cell, summarised as a heatmap of ``metric`` plus CSV and JSON."""
+    """One report per (source, target) cell, summarised as a heatmap of ``metric`` (drawn as ``figure`` says)
+    plus CSV and JSON."""
     check_metric(metric)
     s = settings_of(settings)
     if out_dir is not None:
@@ -59,9 +63,9 @@ def transfer_matrix(
     for (source, target), r in results.items():
         v = r["metrics"][metric]
         table[sources.index(source), targets.index(target)] = np.nan if v is None else v
-    from drltg.analysis.plot import plot_matrix
+    from drltg.analysis.plot import files, plot_matrix
 
-    png, svg = plot_matrix(table, sources, targets, metric)
+    drawn = files("transfer_matrix", plot_matrix(table, sources, targets, metric, style=figure))
     grid_csv = tables.render([("source", *targets)] + [
         (source, *(None if np.isnan(v) else float(v) for v in row)) for source, row in zip(sources, table)
     ], "csv")
@@ -76,8 +80,7 @@ def transfer_matrix(
     rundir.write_files(out, {
         "transfer_matrix.csv": grid_csv.encode(),
         "transfer_matrix.json": json_text(obj).encode(),
-        "transfer_matrix.png": png,
-        "transfer_matrix.svg": svg,
+        **drawn,
     })
     return {**obj, "out_dir": str(out), "table": table.tolist(), "sources": sources, "targets": targets}
 

@@ -7,6 +7,7 @@ import re
 from pathlib import Path
 
 from drltg.analysis import tables
+from drltg.analysis.figure_style import DEFAULT, FigureStyle
 from drltg.analysis.report.catalogue import of_kind, table_rows
 from drltg.analysis.report.inference import ASSUMES
 from drltg.analysis.tables import number
@@ -54,12 +55,25 @@ def format_table(result: dict) -> str:
         + _family_line(st) + "\n\n"
     )
     rows = [("metric", "value", f"{round(100 * st['confidence'])}% CI", "CI assumes", "p", "p (Holm)", "note")]
-    rows += [(name, _shown(name, value, st["threshold"]), tables.interval((lo, hi)),
+    rows += [(row_label(name, st), _shown(name, value, st["threshold"]), tables.interval((lo, hi)),
               m.get(f"{name}_ci_assumes", "") if tables.interval((lo, hi)) else "", _p(p), _p(adjusted),
               _note(name, st)) for name, value, lo, hi, p, adjusted in metrics_rows(m)]
-    table = head + tables.render(rows, "text", align="lrllrrl").rstrip("\n")
+    table = tables.render(rows, "text", align="lrllrrl").rstrip("\n")
     block = magnitudes_table(result)
-    return table if not block else f"{table}\n\n{block}"
+    if not block:
+        return head + table
+    return (f"{head}{block}\n\nevery metric with its own interval and the p-value of that interval's test (the "
+            "CI assumes column names it; a worst-case interval can hold 0 where the exact test above decides)\n"
+            f"{table}")
+
+
+def row_label(name: str, st: dict) -> str:
+    """A metric's name as a table shows it: ``mean_success_rate_gain`` for ``mean_return_gain`` when the curves
+    are ``--tag success_rate``, as the headline names it (the JSON keeps the metric's own key)."""
+    tag = st.get("tag")
+    if not tag or "return" in tag or "reward" in tag or "return" not in name:
+        return name
+    return name.replace("return", re.sub(r"\W+", "_", tag).strip("_"))
 
 
 def magnitudes_table(result: dict, style: str = "text") -> str:
@@ -89,8 +103,8 @@ def magnitudes_table(result: dict, style: str = "text") -> str:
         verdict += ")"
         cells = [tables.estimate(m[n] if point is None else m.get(f"{n}{point}"), m.get(f"{n}{key}"))
                  if m.get(f"{n}{key}") else "" for key, _, point in columns]
-        rows.append((n, verdict, *cells))
-    title = "mean differences: the verdict, and magnitudes beside it, each with what it assumes\n"
+        rows.append((row_label(n, st), verdict, *cells))
+    title = "verdict: each mean difference's exact test, and its magnitudes beside it, each with what it assumes\n"
     return title + tables.render(rows, style).rstrip("\n")
 
 
@@ -106,19 +120,17 @@ def _family_line(st: dict) -> str:
             f"{family['size']}")
 
 
-def render(result: dict) -> dict[str, bytes]:
-    """The report's files as bytes (nothing is written here)."""
-    from drltg.analysis.plot import plot_transfer
+def render(result: dict, figure: FigureStyle = DEFAULT) -> dict[str, bytes]:
+    """The report's files as bytes (nothing is written here), the plot drawn as ``figure`` says."""
+    from drltg.analysis.plot import files, plot_transfer
 
     m, st = result["metrics"], result["settings"]
     public = {"metrics": m, "settings": st, "per_seed": result["per_seed"]}
-    png, svg = plot_transfer(result)
     return {
         "transfer_metrics.json": json_text(public).encode(),
         "transfer_metrics.csv": tables.render(
             [("metric", "value", "ci_low", "ci_high", "p_value", "p_adjusted"), *metrics_rows(m)], "csv").encode(),
-        "transfer_plot.png": png,
-        "transfer_plot.svg": svg,
+        **files("transfer_plot", plot_transfer(result, style=figure)),
     }
 
 

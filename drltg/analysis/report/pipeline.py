@@ -5,8 +5,9 @@ from pathlib import Path
 from typing import Sequence
 
 from drltg.analysis.curves import Curve, read_curves
+from drltg.analysis.figure_style import DEFAULT, FigureStyle
 from drltg.analysis.report.align import align
-from drltg.analysis.report.checks import check_runs
+from drltg.analysis.report.checks import check_runs, nothing_learned
 from drltg.analysis.report.describe import describe, plot_curves
 from drltg.analysis.report.inference import metric_values, records_of, trend
 from drltg.analysis.report.outputs import check_out_dir, fresh_dir, render
@@ -19,6 +20,8 @@ def transfer_report(
     baseline: str | Path | Sequence[str | Path] | Sequence[Curve],
     transfer: str | Path | Sequence[str | Path] | Sequence[Curve],
     out_dir: str | Path | None = None,
+    *,
+    figure: FigureStyle = DEFAULT,
     **settings,
 ) -> dict:
     """Read both run sets, compute the metrics, write the four report files; return the JSON object.
@@ -26,7 +29,8 @@ def transfer_report(
     ``baseline`` and ``transfer`` are paths (runs, directories of runs, globs) or lists of
     :class:`~drltg.analysis.curves.Curve`. ``out_dir`` defaults to a fresh folder named after the runs in the
     working directory. Keyword settings are those of ``drltg report`` (``threshold=150`` or ``"80%"``,
-    ``budget``, ``crossing``, ``paired``, ``source_frames``, ...: the fields of :class:`ReportSettings`).
+    ``budget``, ``crossing``, ``paired``, ``source_frames``, ...: the fields of :class:`ReportSettings`);
+    ``figure`` how the plot is drawn (size, style, DPI, format: :class:`~drltg.analysis.figure_style.FigureStyle`).
     The returned dict also holds ``"scores"`` (the per-seed DataFrame) and ``"out_dir"``.
     """
     s = settings_of(settings)
@@ -34,7 +38,7 @@ def transfer_report(
         check_out_dir(Path(out_dir))
     runs = read_runs(baseline, s), read_runs(transfer, s)
     result = compute(*runs, **settings)
-    files = render(result)
+    files = render(result, figure)
     st = result["settings"]
     out = Path(out_dir) if out_dir is not None else fresh_dir(
         f"report-{st['transfer_label']}-vs-{st['baseline_label']}", _beside([*runs[0], *runs[1]]))
@@ -57,7 +61,10 @@ def compute(baseline: Sequence[Curve], transfer: Sequence[Curve], **settings) ->
     scores = stack(by_side, sides.paired)
     trends = {side: trend(runs, window, s) for side, runs in sides.items()}
     metrics = metric_values(scores, trends, sides.paired, window, s, warnings)
-    described = describe(s, sides, window, trends, warnings, metrics)
+    learned_nothing = nothing_learned(sides, window.threshold, window.budget)
+    if learned_nothing:
+        warnings.append(learned_nothing)
+    described = {**describe(s, sides, window, trends, warnings, metrics), "learned_nothing": bool(learned_nothing)}
     per_seed = {side: records_of(df) for side, df in by_side.items()}
     return {"metrics": metrics, "settings": described, "per_seed": per_seed,
             "scores": scores, "curves": plot_curves(sides, window, scores, described)}

@@ -207,6 +207,9 @@ def parse_range(value) -> tuple[float, float] | None:
         raise UsageError(f"--value-range '{value}' is not LOW,HIGH (e.g. 0,500).") from None
     if not (math.isfinite(low) and math.isfinite(high) and low < high):
         raise UsageError(f"--value-range needs finite LOW < HIGH, got {low:g},{high:g}.")
+    if not math.isfinite(high - low):
+        raise UsageError(f"--value-range {low:g},{high:g} is wider than a float holds (HIGH - LOW overflows); "
+                         "give the returns' real range.")
     return low, high
 
 
