@@ -178,7 +178,7 @@ def test_a_row_off_protocol_is_on_the_profile_figure(tmp_path, monkeypatch):
     from drltg.bench.report import bench_report
 
     drawn = []
-    monkeypatch.setattr(plot, "plot_profiles", lambda entries, over, **_: (drawn.extend(entries), b"png")[::-1])
+    monkeypatch.setattr(plot, "plot_profiles", lambda entries, over, **_: drawn.extend(entries) or {"png": b"png"})
     monkeypatch.setitem(suite.SUITES, "v9", {"tiny": TIER})
     _write(tmp_path / "ref" / "v9" / "tiny", {"good": ({}, {"p1": GOOD, "p2": GOOD})})
     _write(tmp_path / "mine" / "v9" / "tiny-smoke", {"quick-look": ({"smoke": True}, {"p1": FAIR, "p2": FAIR})})
