@@ -19,6 +19,7 @@ import platform
 import shutil
 from pathlib import Path
 
+from drltg.bench.sources import use_sources
 from drltg.bench.suite import LATEST, Group, get_tier
 from drltg.errors import RunFailed, UsageError
 from drltg.store import rundir
@@ -51,7 +52,12 @@ def read_tuning(out: str | Path, version: str, tier: str, method: str, smoke: bo
     if not path.exists() and not path.is_symlink():
         return None
     record = read_json(path, root, 2**22, "a tuning record")
-    settings = get_method(method).settings
+    if method == "none":
+        from drltg.bench.tune import baseline_settings
+
+        settings = baseline_settings(get_tier(version, tier))
+    else:
+        settings = get_method(method).settings
     if not isinstance(record, dict) or record.get("method") != method or record.get("choice") not in settings:
         raise UsageError(f"'{path}' is not a tuning record of {method} choosing one of its declared settings; "
                          "run drltg bench tune again.")
@@ -81,17 +87,48 @@ def versions() -> dict:
             "python": platform.python_version()}
 
 
-def applicable_pairs(group: Group, method: str, smoke: bool, out: Path) -> tuple[list[str], dict[str, str]]:
-    """The group's pairs the method runs on, and for each other pair the method's sentence why not."""
+def group_spec(group: Group, method: str, smoke: bool, given: dict[str, str], choice: dict) -> dict:
+    """The sweep spec of ``method`` on ``group``: the suite's, its runs reading the suite's sources where it
+    declares them (``given``: group -> ``.../seed-{seed}``), at the tuned ``choice`` (the baseline's and the
+    method's)."""
+    spec = group.sweep_spec([method], smoke)
+    source = {"transfer.source": given[group.name]} if group.name in given else {}
+    return {**spec, "overrides": {**spec.get("overrides", {}), **source, **choice}}
+
+
+def baseline_tuning(tier, out, reference, version: str, smoke: bool) -> dict | None:
+    """The tuning record of the tier's baseline (``drltg bench tune --method none``): ``out``'s, else the
+    reference's; ``None`` where the tier tunes no baseline. A tier that does and has none is one sentence,
+    since a row against an untuned baseline flatters the method (a smoke row runs at the defaults)."""
+    if not tier.baseline_search:
+        return None
+    for folder in (out, reference):
+        if folder is not None and (found := read_tuning(folder, version, tier.name, "none", smoke)) is not None:
+            return found
+    if smoke:
+        return None
+    raise UsageError(f"suite {version}'s tier {tier.name} tunes its baseline before any row: run `drltg bench tune "
+                     f"--method none --suite {version} --tier {tier.name}` first, or pass a --reference that holds "
+                     "its tuning.")
+
+
+def _tuning_entry(tuning: dict | None) -> dict | None:
+    return None if tuning is None else {k: tuning[k] for k in ("budget", "choice", "rule", "seeds")}
+
+
+def applicable_pairs(group: Group, method: str, smoke: bool, out: Path,
+                     spec: dict | None = None) -> tuple[list[str], dict[str, str]]:
+    """The group's pairs the method runs on (with ``spec``, default the suite's), and for each other pair the
+    method's sentence why not."""
     from drltg.experiments.experiment import check_runs
     from drltg.experiments.spec import parse_spec
     from drltg.experiments.sweep import plan
 
     kept, left_out = [], {}
     for pair in group.pairs:
-        spec = {**group.sweep_spec([method], smoke), "pairs": [pair]}
+        one = {**(spec or group.sweep_spec([method], smoke)), "pairs": [pair]}
         try:
-            runs, _ = plan(parse_spec(spec, f"suite group {group.name}"), out)
+            runs, _ = plan(parse_spec(one, f"suite group {group.name}"), out)
             check_runs([(r.role, r.cfg, r.path) for r in runs])
         except UsageError as err:
             left_out[pair] = str(err).removeprefix(f"suite group {group.name}: ")
@@ -167,16 +204,19 @@ def bench_run(method: str, *, tier: str = "quick", out: str | Path = "runs/bench
         reference_root = tier_root(rundir.check_directory(reference, "--reference"), version, tier)
     read_record(root, version, tier)  # a broken record is refused before anything trains
     tuning = read_tuning(out, version, tier, method, smoke)
-    choice = tuning["choice"] if tuning else {}
+    baseline = baseline_tuning(the_tier, out, reference, version, smoke)
+    given, declared = use_sources(the_tier, root, reference_root, smoke, dry_run)
+    choice = {**(baseline["choice"] if baseline else {}), **(tuning["choice"] if tuning else {})}
     entry = {"versions": versions(), "smoke": smoke, "imports": list(imports), "groups": {}, "left_out": {},
              "reference": str(reference_root) if reference_root else None, "copied": 0,
-             "tuning": None if tuning is None else {k: tuning[k] for k in ("budget", "choice", "rule", "seeds")}}
+             "tuning": _tuning_entry(tuning), "baseline_tuning": _tuning_entry(baseline),
+             "sources": None if not given else {"declared": declared}}
     for group in the_tier.groups:
-        pairs, left_out = applicable_pairs(group, method, smoke, root / group.name)
+        spec = group_spec(group, method, smoke, given, choice)
+        pairs, left_out = applicable_pairs(group, method, smoke, root / group.name, spec)
         entry["left_out"].update(left_out)
         if pairs:
-            spec = group.sweep_spec([method], smoke)
-            entry["groups"][group.name] = {**spec, "pairs": pairs, "overrides": {**spec.get("overrides", {}), **choice}}
+            entry["groups"][group.name] = {**spec, "pairs": pairs}
     if dry_run:
         return {"plan": plan_tier([(g, spec, root / g) for g, spec in entry["groups"].items()], reference_root,
                                   group_seeds)}

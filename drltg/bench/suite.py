@@ -16,11 +16,24 @@ seeds' and every verdict on it is the report's exact sign-flip test of the paire
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import json
+from dataclasses import dataclass, field
+from importlib import resources
 
 from drltg.errors import UsageError, closest
 
-__all__ = ["Group", "Tier", "SUITES", "LATEST", "get_tier", "SMOKE"]
+__all__ = ["Group", "Sources", "Tier", "SUITES", "LATEST", "get_tier", "SMOKE"]
+
+
+@dataclass(frozen=True)
+class Sources:
+    """A group's sources as part of the suite: trained once on the pairs' shared source task, each to the
+    first evaluation whose success rate reaches ``success`` (``eval.stop_at_success``; ``None``: no success
+    criterion, the whole budget), within ``frames``; kept as networks files and named by their SHA-256 in the
+    suite's sources file, so every row of the board learns from the same teachers."""
+
+    frames: int
+    success: float | None = None
 
 
 @dataclass(frozen=True)
@@ -29,6 +42,7 @@ class Group:
 
     name: str
     spec: dict
+    sources: Sources | None = None
 
     @property
     def pairs(self) -> list[str]:
@@ -48,6 +62,13 @@ class Tier:
     summary: str
     groups: tuple[Group, ...]
     hours: str = ""
+    baseline_search: dict[str, tuple] = field(default_factory=dict)
+    """The learner's tuning space, ``config key -> values`` (each list starting at the default): ``drltg bench
+    tune --method none`` tries it on the tuning seeds, and every run of the tier (baseline and transfer, not the
+    sources) trains at its choice; within the same budget as a method's."""
+    digests: str | None = None
+    """The package file (under ``drltg/bench/sources/``) naming each source of the tier by its SHA-256:
+    ``{"<group>/seed-<target seed>": {"networks_sha256", "config_sha256"}}``."""
 
     @property
     def pairs(self) -> list[str]:
@@ -87,8 +108,29 @@ V1 = {
                         "threshold": 1, "overrides": {"eval.every": 10_000, "eval.episodes": 10}}),),
         hours="about 30 on 2 cores a method"),
 }
-SUITES = {"v1": V1}
+_FOURROOMS_V2 = {k: v for k, v in _FOURROOMS.items() if k != "source_frames"}
+V2 = {
+    "quick": Tier(
+        "quick", "FourRooms' graded goals, grid FourRooms and a heavier Pendulum: 8 pairs, 10 paired seeds, "
+        "the suite's own sources and a tuned baseline",
+        (Group("fourrooms", {"pairs": V1["quick"].groups[0].pairs, **_FOURROOMS_V2}, Sources(80_000, 0.9)),
+         Group("gridrooms", {"pairs": V1["quick"].groups[1].pairs, **_FOURROOMS_V2}, Sources(80_000, 0.9)),
+         Group("pendulum", {k: v for k, v in V1["quick"].groups[2].spec.items() if k != "source_frames"},
+               Sources(6_000))),
+        hours="about 1 on 2 cores a method, tuning included (seed groups)",
+        baseline_search={"sac.alpha_init": (1.0, 0.1), "optim.lr": (3.0e-4, 1.0e-3)},
+        digests="v2-quick.json"),
+}
+SUITES = {"v1": V1, "v2": V2}
 LATEST = "v1"
+
+
+def declared_sources(tier: Tier) -> dict[str, dict]:
+    """The tier's sources by SHA-256 as its suite declares them (``{}``: none declared yet)."""
+    if tier.digests is None:
+        return {}
+    found = resources.files("drltg.bench").joinpath("sources", tier.digests)
+    return json.loads(found.read_text()) if found.is_file() else {}
 
 
 def get_tier(version: str, tier: str) -> Tier:

@@ -27,15 +27,19 @@ def _common(p: argparse.ArgumentParser, reference: bool = True) -> None:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    sub = p.add_subparsers(dest="bench_command", metavar="{tune,run,report}", parser_class=type(p))
+    sub = p.add_subparsers(dest="bench_command", metavar="{sources,tune,run,report}", parser_class=type(p))
     sub.required = True
-    tune_p = sub.add_parser("tune", help="try a method's declared settings on tuning seeds; bench run applies the "
-                                         "choice")
+    sources_p = sub.add_parser("sources", help="train the tier's sources, the teachers every row shares (suites "
+                                               "that declare them)")
+    tune_p = sub.add_parser("tune", help="try a method's declared settings on tuning seeds (--method none: the "
+                                         "baseline's); bench run applies the choice")
     run_p = sub.add_parser("run", help="train one method on a tier, reusing the reference's sources and baselines "
                                        "(and its tuned setting, where bench tune chose one)")
-    for q in (tune_p, run_p):
-        q.add_argument("--method", required=True, help="a transfer method (built-in or registered by --import)")
-        _common(q, reference=q is run_p)  # tuning seeds are no reference's: tune trains its own sources
+    for q in (sources_p, tune_p, run_p):
+        if q is not sources_p:
+            q.add_argument("--method", required=True, help="a transfer method (built-in or registered by --import); "
+                           "with tune, 'none' for the baseline")
+        _common(q, reference=q is not sources_p)
         q.add_argument("--smoke", action="store_true", help="2 seeds, budgets / 50: checks the path, never ranked")
         q.add_argument("--workers", type=int, default=os.cpu_count(), help="runs in parallel (default: CPU count)")
         q.add_argument("--backend", choices=("local", "ray"), default="local")
@@ -69,24 +73,40 @@ def copied_sentence(n: int, reference: str | None) -> str:
 def run(args: argparse.Namespace) -> int:
     from drltg.bench import bench_report, bench_run
     from drltg.bench.board import board_table, pair_table
+    from drltg.bench.run import tier_root
 
+    if args.bench_command == "sources":
+        from drltg.bench.sources import bench_sources
+
+        entries = bench_sources(tier=args.tier, out=args.out, version=args.suite, smoke=args.smoke,
+                                workers=args.workers, group_seeds=not args.no_seed_groups,
+                                progress=not args.no_progress, dry_run=args.dry_run)
+        if args.dry_run:
+            print("\n".join(entries["plan"]))
+            return 0
+        met = [e for e in entries.values() if e["met"] is not False]
+        print(f"{len(met)} of {len(entries)} sources met their criterion; their digests are in "
+              f"{tier_root(args.out, args.suite, args.tier, args.smoke) / 'sources' / 'sources.json'}. "
+              f"Next: drltg bench tune --method none --suite {args.suite} --out {args.out}")
+        return 0
+    reference = _reference(args.reference)
     if args.bench_command == "tune":
         from drltg.bench.tune import bench_tune
 
-        record = bench_tune(args.method, tier=args.tier, out=args.out, version=args.suite, smoke=args.smoke,
-                            workers=args.workers, backend=args.backend, group_seeds=not args.no_seed_groups,
-                            progress=not args.no_progress, dry_run=args.dry_run)
+        record = bench_tune(args.method, tier=args.tier, out=args.out, version=args.suite, reference=reference,
+                            smoke=args.smoke, workers=args.workers, backend=args.backend,
+                            group_seeds=not args.no_seed_groups, progress=not args.no_progress, dry_run=args.dry_run)
         if args.dry_run:
             print("\n".join(record["plan"]))
             return 0
+        score = "mean AUC" if args.method == "none" else "mean FT"
         for tried in record["settings"]:
             shown = ", ".join(f"{k}={v}" for k, v in tried["setting"].items()) or "the defaults"
-            print(f"{shown}: mean FT {tried['score']:+.3f} over {len(tried['per_pair'])} pairs")
+            print(f"{shown}: {score} {tried['score']:+.3f} over {len(tried['per_pair'])} pairs")
         chosen = ", ".join(f"{k}={v}" for k, v in record["choice"].items()) or "the defaults (no search declared)"
         print(f"{args.method}: chose {chosen} of {record['budget']} setting{'s' * (record['budget'] != 1)} on seeds "
               f"{', '.join(map(str, record['seeds']))}. Next: drltg bench run --method {args.method} --out {args.out}")
         return 0
-    reference = _reference(args.reference)
     if args.bench_command == "run":
         record = bench_run(args.method, tier=args.tier, out=args.out, version=args.suite, reference=reference,
                            smoke=args.smoke, workers=args.workers, backend=args.backend,
