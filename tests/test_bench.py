@@ -97,7 +97,7 @@ def test_the_board_ranks_rows_on_protocol_and_marks_the_others(tmp_path):
     assert "The top row is good: IQM of FT" in text and "It is the best reference row" in text
     # 12 paired seeds in all: every sign pattern counted, so the p-value is exact and said to be
     assert "over 2 pairs, higher than no transfer (p = 0.00049, stratified sign-flip over pairs, exact)" in text
-    assert "| not compared | smoke budgets |" in text
+    assert "| not compared | untuned (defaults) | smoke budgets |" in text
     iqm, (low, high) = rows[("good", "reference")]["aggregate"]["ft_iqm"]
     assert low <= iqm <= high
 

@@ -42,7 +42,8 @@ from drltg.bench.run import read_record, tier_root
 from drltg.bench.suite import Group, Tier
 from drltg.errors import UsageError
 
-__all__ = ["leaderboard", "board_table", "pair_table", "label", "p_text", "test_name", "check_sources", "ALPHA"]
+__all__ = ["leaderboard", "board_table", "pair_table", "label", "p_text", "test_name", "check_sources", "tuned_text",
+           "baseline_sentence", "ALPHA"]
 
 ALPHA = 0.05
 PAIR_DRAWS = 9999
@@ -208,18 +209,31 @@ def _rows(tier: Tier, version: str, root: Path, kind: str) -> list[dict]:
     return rows
 
 
-def _marks(row: dict, tier: Tier, versions: dict | None) -> list[str]:
-    """What makes a row not the protocol's, one phrase each."""
+def _choice(tuning: dict | None) -> dict:
+    return (tuning or {}).get("choice") or {}
+
+
+def _marks(row: dict, tier: Tier, versions: dict | None, baseline: dict | None) -> list[str]:
+    """What makes a row not the protocol's, one phrase each (``baseline``: the reference's baseline tuning)."""
     entry, marks = row["entry"], []
     if entry.get("smoke"):
         marks.append("smoke budgets")
+    if (entry.get("sources") or {}).get("declared") is False:
+        marks.append("sources not the suite's (their digests differ from those it declares)")
+    if tier.baseline_search and not entry.get("smoke"):
+        mine = entry.get("baseline_tuning")
+        if mine is None:
+            marks.append("untuned baseline")
+        elif baseline is not None and _choice(mine) != _choice(baseline):
+            marks.append(f"baseline at {_setting(_choice(mine))} (reference {_setting(_choice(baseline))})")
+    tuned = {**_choice(entry.get("baseline_tuning")), **_choice(entry.get("tuning"))}
     for group in tier.groups:
         ran = entry.get("groups", {}).get(group.name)
         if ran is None:
             continue
-        tuned = (entry.get("tuning") or {}).get("choice") or {}
+        kept = {"transfer.source"} if group.sources else set()  # the suite's sources, wherever a folder keeps them
         ran = {**ran, "overrides": {k: v for k, v in (ran.get("overrides") or {}).items()
-                                    if not (k in tuned and tuned[k] == v)}}  # the row's tuned setting is its own
+                                    if k not in kept and not (k in tuned and tuned[k] == v)}}  # tuned: its own
         for key in ("frames", "source_frames", "overrides", "algos", "seed"):
             if ran.get(key) != group.spec.get(key) and not entry.get("smoke"):
                 marks.append(f"{group.name} {key} {ran.get(key)} (suite {group.spec.get(key)})")
@@ -305,8 +319,10 @@ def leaderboard(tier: Tier, version: str, *, out: str | Path | None = None, refe
                          f"{' or '.join(str(r) for r, _ in roots) or 'nothing'}; run drltg bench run first.")
     check_sources(rows)
     ref_versions = next((r["entry"].get("versions") for r in rows if r["kind"] == "reference"), None)
+    ref_baseline = next((r["entry"].get("baseline_tuning") for r in rows
+                         if r["kind"] == "reference" and r["entry"].get("baseline_tuning")), None)
     for r in rows:
-        r["marks"] = _marks(r, tier, ref_versions)
+        r["marks"] = _marks(r, tier, ref_versions, ref_baseline)
         r["aggregate"] = _aggregate(r, reps, seed)
         _holm(r["pairs"], lambda t: t["ft"] if t["ft"] is not None else 0.0)
     ranked = [r for r in rows if not r["marks"] and r["aggregate"]]
@@ -318,6 +334,8 @@ def leaderboard(tier: Tier, version: str, *, out: str | Path | None = None, refe
             r["against_best"] = _against(r, best, seed)
     rows.sort(key=lambda r: (r["rank"] is None, r["rank"] or 0, r["method"]))
     return {"suite": version, "tier": tier.name, "pairs": tier.pairs, "best_reference": best and best["method"],
+            "baseline_tuning": ref_baseline or next((r["entry"].get("baseline_tuning") for r in rows
+                                                     if r["entry"].get("baseline_tuning")), None),
             "alpha": ALPHA, "rows": rows}
 
 
@@ -334,11 +352,12 @@ def board_table(board: dict) -> str:
     from drltg.analysis import tables
 
     rows = [("rank", "method", "pairs", "IQM of FT", "mean FT", "P(T > B)", "vs no transfer",
-             f"vs {board['best_reference'] or 'best reference'}", "off protocol")]
+             f"vs {board['best_reference'] or 'best reference'}", "tuned", "off protocol")]
     for r in board["rows"]:
         a = r["aggregate"]
         if not a:
-            rows.append((r["rank"] or "-", label(r), "0", "n/a", "n/a", "n/a", "", "", "; ".join(r["marks"])))
+            rows.append((r["rank"] or "-", label(r), "0", "n/a", "n/a", "n/a", "", "", tuned_text(r["entry"]),
+                         "; ".join(r["marks"])))
             continue
         vs, none = r.get("against_best", {}), a["against_none"]
         shared = len(vs.get("pairs", ()))
@@ -353,8 +372,28 @@ def board_table(board: dict) -> str:
                      tables.estimate(*a["ft_iqm"], fmt="+.2f"), f"{a['ft_mean']:+.2f}",
                      tables.estimate(*a["probability_of_improvement"], fmt=".2f"),
                      f"{none['verdict']} ({p_text(none['p'], none['draws'], none['p_floor'])})", best,
-                     "; ".join(r["marks"])))
+                     tuned_text(r["entry"]), "; ".join(r["marks"])))
     return tables.render(rows, "markdown")
+
+
+def _setting(choice: dict) -> str:
+    return ", ".join(f"{k}={v}" for k, v in choice.items()) or "the defaults"
+
+
+def tuned_text(entry: dict) -> str:
+    """A row's tuning in a cell: its choice among how many settings, or that it ran at its defaults."""
+    tuning = entry.get("tuning")
+    if not tuning:
+        return "untuned (defaults)"
+    return f"{_setting(tuning['choice'])} (of {tuning['budget']})"
+
+
+def baseline_sentence(tuning: dict | None) -> str:
+    """What the board's baseline ran at, as a sentence."""
+    if not tuning:
+        return "No transfer ran at the learner's defaults (this tier tunes no baseline)."
+    return (f"No transfer ran at {_setting(tuning['choice'])}, chosen among {tuning['budget']} settings of the "
+            f"learner on seeds {', '.join(map(str, tuning['seeds']))} by {tuning['rule']}; every row trained at it.")
 
 
 def pair_table(board: dict) -> str:

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from drltg.analysis.figure_style import DEFAULT, FigureStyle
-from drltg.bench.board import ALPHA, board_table, label, leaderboard, p_text, pair_table
+from drltg.bench.board import ALPHA, baseline_sentence, board_table, label, leaderboard, p_text, pair_table
 from drltg.bench.run import tier_root
 from drltg.bench.suite import LATEST, Tier, get_tier
 
@@ -87,7 +87,8 @@ def board_markdown(board: dict, tier: Tier) -> str:
         "over its seeds). Aggregates over the pairs: the IQM of every seed's FT and P(T > B) (rliable), with 95% "
         f"stratified-bootstrap intervals. Verdicts at {ALPHA}: sign-flip tests over paired seeds (stratified over "
         f"pairs for the aggregates); higher, lower or undecided. {_tests(board)}.", "",
-        "## Ranking", "", _best_sentence(board), "", board_table(board),
+        "## Ranking", "", _best_sentence(board), "", baseline_sentence(board.get("baseline_tuning")), "",
+        board_table(board),
         "Rows on protocol are ranked by the IQM of FT alone, each over the pairs it covers: a row that covers fewer "
         "('ranked on these') is ranked on those. The best reference row is the top-ranked reference row; the "
         "column against it compares each row on the pairs both cover. A row that is not the protocol's (column "
