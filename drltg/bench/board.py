@@ -220,17 +220,17 @@ def _marks(row: dict, tier: Tier, versions: dict | None, baseline: dict | None) 
         marks.append("smoke budgets")
     if (entry.get("sources") or {}).get("declared") is False:
         marks.append("sources not the suite's (their digests differ from those it declares)")
-    if tier.baseline_search and not entry.get("smoke"):
+    if tier.tunes_baseline and not entry.get("smoke"):
         mine = entry.get("baseline_tuning")
         if mine is None:
             marks.append("untuned baseline")
         elif baseline is not None and _choice(mine) != _choice(baseline):
-            marks.append(f"baseline at {_setting(_choice(mine))} (reference {_setting(_choice(baseline))})")
-    tuned = {**_choice(entry.get("baseline_tuning")), **_choice(entry.get("tuning"))}
+            marks.append("baseline tuned to other settings than the reference's")
     for group in tier.groups:
         ran = entry.get("groups", {}).get(group.name)
         if ran is None:
             continue
+        tuned = {**_choice(entry.get("baseline_tuning")).get(group.name, {}), **_choice(entry.get("tuning"))}
         kept = {"transfer.source"} if group.sources else set()  # the suite's sources, wherever a folder keeps them
         ran = {**ran, "overrides": {k: v for k, v in (ran.get("overrides") or {}).items()
                                     if k not in kept and not (k in tuned and tuned[k] == v)}}  # tuned: its own
@@ -392,8 +392,9 @@ def baseline_sentence(tuning: dict | None) -> str:
     """What the board's baseline ran at, as a sentence."""
     if not tuning:
         return "No transfer ran at the learner's defaults (this tier tunes no baseline)."
-    return (f"No transfer ran at {_setting(tuning['choice'])}, chosen among {tuning['budget']} settings of the "
-            f"learner on seeds {', '.join(map(str, tuning['seeds']))} by {tuning['rule']}; every row trained at it.")
+    at = "; ".join(f"{group}: {_setting(choice)}" for group, choice in tuning["choice"].items())
+    return (f"No transfer ran at the learner's settings chosen among at most {tuning['budget']} per group on seeds "
+            f"{', '.join(map(str, tuning['seeds']))} ({tuning['rule']}): {at}. Every row trained at them.")
 
 
 def pair_table(board: dict) -> str:

@@ -20,9 +20,15 @@ def _protocol(tier: Tier) -> list[str]:
     for g in tier.groups:
         s = g.spec
         every, episodes = s["overrides"].get("eval.every", "the task's"), s["overrides"].get("eval.episodes", 16)
+        if g.sources is None:
+            sources = f"sources {s['source_frames']:,} frames"
+        else:
+            until = f" until a success rate of {g.sources.success:g}" if g.sources.success is not None else ""
+            sources = f"the suite's sources (each trained{until}, at most {g.sources.frames:,} frames)"
+        search = (f", the baseline tuned over {', '.join(g.baseline_search)}" if g.baseline_search else "")
         lines.append(f"- `{g.name}`: {', '.join(g.pairs)}; {s['algos'][0]}, {s['seeds']} paired seeds from seed "
-                     f"{s['seed']}, sources {s['source_frames']:,} frames, targets {s['frames']:,} frames, evaluated "
-                     f"every {every} frames on {episodes} episodes")
+                     f"{s['seed']}, {sources}, targets {s['frames']:,} frames, evaluated every {every} frames on "
+                     f"{episodes} episodes{search}")
     return lines
 
 

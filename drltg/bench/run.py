@@ -52,13 +52,16 @@ def read_tuning(out: str | Path, version: str, tier: str, method: str, smoke: bo
     if not path.exists() and not path.is_symlink():
         return None
     record = read_json(path, root, 2**22, "a tuning record")
-    if method == "none":
+    if method == "none":  # a choice per group, each among the group's own settings
         from drltg.bench.tune import baseline_settings
 
-        settings = baseline_settings(get_tier(version, tier))
+        groups = get_tier(version, tier).groups
+        chosen = record.get("choice") if isinstance(record, dict) else None
+        good = isinstance(chosen, dict) and sorted(chosen) == sorted(g.name for g in groups) and all(
+            chosen[g.name] in baseline_settings(g) for g in groups)
     else:
-        settings = get_method(method).settings
-    if not isinstance(record, dict) or record.get("method") != method or record.get("choice") not in settings:
+        good = isinstance(record, dict) and record.get("choice") in get_method(method).settings
+    if not good or record.get("method") != method:
         raise UsageError(f"'{path}' is not a tuning record of {method} choosing one of its declared settings; "
                          "run drltg bench tune again.")
     return record
@@ -100,7 +103,7 @@ def baseline_tuning(tier, out, reference, version: str, smoke: bool) -> dict | N
     """The tuning record of the tier's baseline (``drltg bench tune --method none``): ``out``'s, else the
     reference's; ``None`` where the tier tunes no baseline. A tier that does and has none is one sentence,
     since a row against an untuned baseline flatters the method (a smoke row runs at the defaults)."""
-    if not tier.baseline_search:
+    if not tier.tunes_baseline:
         return None
     for folder in (out, reference):
         if folder is not None and (found := read_tuning(folder, version, tier.name, "none", smoke)) is not None:
@@ -204,15 +207,16 @@ def bench_run(method: str, *, tier: str = "quick", out: str | Path = "runs/bench
         reference_root = tier_root(rundir.check_directory(reference, "--reference"), version, tier)
     read_record(root, version, tier)  # a broken record is refused before anything trains
     tuning = read_tuning(out, version, tier, method, smoke)
+    given, declared = use_sources(the_tier, root, reference_root, smoke, dry_run)  # the first step, first
     baseline = baseline_tuning(the_tier, out, reference, version, smoke)
-    given, declared = use_sources(the_tier, root, reference_root, smoke, dry_run)
-    choice = {**(baseline["choice"] if baseline else {}), **(tuning["choice"] if tuning else {})}
+    learner = baseline["choice"] if baseline else {}
+    choice = tuning["choice"] if tuning else {}
     entry = {"versions": versions(), "smoke": smoke, "imports": list(imports), "groups": {}, "left_out": {},
              "reference": str(reference_root) if reference_root else None, "copied": 0,
              "tuning": _tuning_entry(tuning), "baseline_tuning": _tuning_entry(baseline),
              "sources": None if not given else {"declared": declared}}
     for group in the_tier.groups:
-        spec = group_spec(group, method, smoke, given, choice)
+        spec = group_spec(group, method, smoke, given, {**learner.get(group.name, {}), **choice})
         pairs, left_out = applicable_pairs(group, method, smoke, root / group.name, spec)
         entry["left_out"].update(left_out)
         if pairs:

@@ -43,6 +43,11 @@ class Group:
     name: str
     spec: dict
     sources: Sources | None = None
+    baseline_search: dict[str, tuple] = field(default_factory=dict)
+    """The learner's tuning space on these pairs, ``config key -> values``, each list starting at the pairs'
+    own default (a task sets some, e.g. FourRooms' ``sac.alpha_init``): ``drltg bench tune --method none`` tries
+    it on the tuning seeds within a method's budget, and every run of the group (baseline and transfer, not the
+    sources) trains at its choice."""
 
     @property
     def pairs(self) -> list[str]:
@@ -62,10 +67,6 @@ class Tier:
     summary: str
     groups: tuple[Group, ...]
     hours: str = ""
-    baseline_search: dict[str, tuple] = field(default_factory=dict)
-    """The learner's tuning space, ``config key -> values`` (each list starting at the default): ``drltg bench
-    tune --method none`` tries it on the tuning seeds, and every run of the tier (baseline and transfer, not the
-    sources) trains at its choice; within the same budget as a method's."""
     digests: str | None = None
     """The package file (under ``drltg/bench/sources/``) naming each source of the tier by its SHA-256:
     ``{"<group>/seed-<target seed>": {"networks_sha256", "config_sha256"}}``."""
@@ -73,6 +74,10 @@ class Tier:
     @property
     def pairs(self) -> list[str]:
         return [p for g in self.groups for p in g.pairs]
+
+    @property
+    def tunes_baseline(self) -> bool:
+        return any(g.baseline_search for g in self.groups)
 
 
 SMOKE = {"seeds": 2, "divisor": 50, "episodes": 2}
@@ -113,12 +118,13 @@ V2 = {
     "quick": Tier(
         "quick", "FourRooms' graded goals, grid FourRooms and a heavier Pendulum: 8 pairs, 10 paired seeds, "
         "the suite's own sources and a tuned baseline",
-        (Group("fourrooms", {"pairs": V1["quick"].groups[0].pairs, **_FOURROOMS_V2}, Sources(80_000, 0.9)),
-         Group("gridrooms", {"pairs": V1["quick"].groups[1].pairs, **_FOURROOMS_V2}, Sources(80_000, 0.9)),
+        (Group("fourrooms", {"pairs": V1["quick"].groups[0].pairs, **_FOURROOMS_V2}, Sources(80_000, 0.9),
+               {"sac.alpha_init": (0.01, 0.1), "optim.lr": (3.0e-4, 1.0e-3)}),
+         Group("gridrooms", {"pairs": V1["quick"].groups[1].pairs, **_FOURROOMS_V2}, Sources(80_000, 0.9),
+               {"sac.alpha_init": (0.01, 0.003), "optim.lr": (3.0e-4, 1.0e-3)}),
          Group("pendulum", {k: v for k, v in V1["quick"].groups[2].spec.items() if k != "source_frames"},
-               Sources(6_000))),
+               Sources(6_000), {"sac.alpha_init": (1.0, 0.1), "optim.lr": (1.0e-3, 3.0e-4)})),
         hours="about 1 on 2 cores a method, tuning included (seed groups)",
-        baseline_search={"sac.alpha_init": (1.0, 0.1), "optim.lr": (3.0e-4, 1.0e-3)},
         digests="v2-quick.json"),
 }
 SUITES = {"v1": V1, "v2": V2}

@@ -12,9 +12,9 @@ the leaderboard's own score); the choice is the setting of the highest score, th
 order on a tie, so the defaults (first) stand unless another setting beats them. ``tuning.json`` records the
 budget, the seeds, the rule, every setting with its score per pair, and the choice.
 
-**The baseline** (``--method none``, on a tier that declares :attr:`~drltg.bench.suite.Tier.baseline_search`)
-gets the same budget over the learner's own settings, scored by its mean normalised area over the pairs
-(:data:`BASELINE_RULE`), and is tuned first: every method's tuning and row then train at its choice, so
+**The baseline** (``--method none``, on a tier whose groups declare :attr:`~drltg.bench.suite.Group.baseline_search`)
+gets the same budget over the learner's own settings, group by group, scored by its mean normalised area over
+the group's pairs (:data:`BASELINE_RULE`), and is tuned first: every method's tuning and row then train at its choice, so
 transfer is measured against a tuned learner, never against defaults nobody tuned. Where the suite declares
 its sources (v2), every tuning run reads them (:mod:`drltg.bench.sources`).
 """
@@ -37,15 +37,15 @@ __all__ = ["bench_tune", "baseline_settings", "TUNE_SEED", "TUNE_SEEDS", "RULE",
 TUNE_SEED = 5_000
 TUNE_SEEDS = 3
 RULE = "the highest mean FT over the tier's pairs on the tuning seeds; the earlier setting on a tie"
-BASELINE_RULE = ("the highest mean normalised area (AUC) over the tier's pairs on the tuning seeds; the earlier "
-                 "setting on a tie")
+BASELINE_RULE = ("in each group, the highest mean normalised area (AUC) over its pairs on the tuning seeds; the "
+                 "earlier setting on a tie")
 def bench_tune(method: str, *, tier: str = "quick", out: str | Path = "runs/bench", version: str = LATEST,
                reference: str | Path | None = None, smoke: bool = False, workers: int | None = None,
                backend: str = "local", group_seeds: bool = True, progress: bool = True, dry_run: bool = False) -> dict:
     """Try each of ``method``'s settings on the tier at the tuning seeds; write and return the tuning record
     (with ``dry_run``, ``{"plan": lines}``: the work, :func:`~drltg.bench.run.plan_tier`, and nothing written).
-    ``method="none"`` tunes the baseline over the tier's :attr:`~drltg.bench.suite.Tier.baseline_search`, scored
-    by its mean normalised area; a method is tuned at the baseline's choice, on the suite's sources where it
+    ``method="none"`` tunes the baseline over each group's :attr:`~drltg.bench.suite.Group.baseline_search`,
+    scored by its mean normalised area; a method is tuned at the baseline's choice, on the suite's sources where it
     declares them (from ``reference`` where it holds them).
 
         >>> drltg.bench.bench_tune("policy-reuse", out="runs/bench", workers=2)["choice"]
@@ -60,21 +60,22 @@ def bench_tune(method: str, *, tier: str = "quick", out: str | Path = "runs/benc
     root = rundir.check_directory(tuning_root(out, version, tier, method, smoke), "--out")
     seeds = SMOKE["seeds"] if smoke else TUNE_SEEDS
     if method == "none":
-        if not the_tier.baseline_search:
+        if not the_tier.tunes_baseline:
             raise UsageError(f"suite {version}'s tier {tier} tunes no baseline ('none' is the baseline every row is "
                              "compared with); name a transfer method.")
         return _tune_baseline(the_tier, version, root, seeds, smoke, workers, group_seeds, progress, dry_run)
     settings = spec_of.settings
     grid = {key: list(spec_of.search[key.removeprefix("transfer.")]) for key in settings[0]}
     reference_root = tier_root(reference, version, tier) if reference is not None else None
-    baseline = baseline_tuning(the_tier, out, reference, version, smoke)
     given, _ = use_sources(the_tier, tier_root(out, version, tier, smoke), reference_root, smoke, dry_run)
-    fixed = baseline["choice"] if baseline else {}
+    baseline = baseline_tuning(the_tier, out, reference, version, smoke)
+    fixed = baseline["choice"] if baseline else {}  # group -> the baseline's setting
     scores: list[dict[str, float]] = [{} for _ in settings]
     left_out: dict[str, str] = {}
     specs = {}
     for group in the_tier.groups:
-        spec = {**group_spec(group, method, smoke, given, fixed), "seed": TUNE_SEED, "seeds": seeds, "grid": grid}
+        spec = {**group_spec(group, method, smoke, given, fixed.get(group.name, {})), "seed": TUNE_SEED,
+                "seeds": seeds, "grid": grid}
         pairs, missed = applicable_pairs(group, method, smoke, root / group.name, spec)
         left_out.update(missed)
         if pairs:
@@ -87,7 +88,7 @@ def bench_tune(method: str, *, tier: str = "quick", out: str | Path = "runs/benc
             if ft is not None:  # no transfer already at the maximum: the pair scores no setting
                 scores[cell][report["pair"]] = ft
     return _write(root, method, version, tier, smoke, seeds, settings, scores, left_out,
-                  {"baseline": baseline["choice"]} if baseline else {})
+                  {"baseline": fixed} if baseline else {})
 
 
 def _swept(spec: dict, group_out: Path, method: str, backend: str, workers, group_seeds: bool, progress: bool):
@@ -113,16 +114,17 @@ def _refuse_failed(status: dict, method: str, folder: Path) -> None:
                         "to resume")
 
 
-def baseline_settings(tier) -> list[dict]:
-    """The settings of a tier's baseline search, the defaults first."""
-    keys = list(tier.baseline_search)
-    return [dict(zip(keys, point)) for point in itertools.product(*(tier.baseline_search[k] for k in keys))]
+def baseline_settings(group) -> list[dict]:
+    """The settings of a group's baseline search, the defaults first (``[{}]`` for a group without one)."""
+    keys = list(group.baseline_search)
+    return [dict(zip(keys, point)) for point in itertools.product(*(group.baseline_search[k] for k in keys))]
 
 
 def _tune_baseline(tier, version: str, root: Path, seeds: int, smoke: bool, workers, group_seeds: bool,
                    progress: bool, dry_run: bool) -> dict:
-    """The baseline's tuning: each setting of the search trained alone (no transfer) on the tuning seeds of every
-    pair, scored by the mean over pairs of its seeds' mean normalised area (the board's AUC_B)."""
+    """The baseline's tuning, group by group (each group's search starts at its own tasks' defaults): each
+    setting trained alone (no transfer) on the tuning seeds of every pair, scored by the mean over the group's
+    pairs of its seeds' mean normalised area (the board's AUC_B); the choice is the highest, the earlier on a tie."""
     from drltg import config as config_lib
     from drltg.bench.suite import smoke_budgets
     from drltg.envs import get_pair
@@ -131,14 +133,13 @@ def _tune_baseline(tier, version: str, root: Path, seeds: int, smoke: bool, work
     from drltg.experiments.experiment import make_out
     from drltg.training.loop import check_config
 
-    settings = baseline_settings(tier)
     root = root.resolve()
     runs, cells = [], []
     for group in tier.groups:
         spec = {**group.spec, **smoke_budgets(group.spec)} if smoke else group.spec
         for pair in group.pairs:
-            for i, setting in enumerate(settings):
-                variant = ",".join(f"{k}={v}" for k, v in setting.items())
+            for i, setting in enumerate(baseline_settings(group)):
+                variant = ",".join(f"{k}={v}" for k, v in setting.items()) or "defaults"
                 folder = root / group.name / pair / spec["algos"][0] / variant / "baseline"
                 runs_here = []
                 for seed in config_lib.run_seeds(TUNE_SEED, seeds):
@@ -148,7 +149,7 @@ def _tune_baseline(tier, version: str, root: Path, seeds: int, smoke: bool, work
                     runs_here.append(Run("baseline", cfg, path,
                                          root / "logs" / path.relative_to(root).with_suffix(".log")))
                 runs += runs_here
-                cells.append((i, pair, runs_here))
+                cells.append((group.name, i, pair, runs_here))
     for cfg in {id(r): r.cfg for r in runs[::seeds]}.values():
         check_config(cfg)
     if dry_run:
@@ -161,11 +162,22 @@ def _tune_baseline(tier, version: str, root: Path, seeds: int, smoke: bool, work
         finally:
             pool.close()
         _refuse_failed(status, "the baseline", root)
-        scores: list[dict[str, float]] = [{} for _ in settings]
-        for i, pair, dirs in cells:
-            scores[i][pair] = float(np.mean([normalised_area(run) for run in dirs]))
-    return _write(root, "none", version, tier.name, smoke, seeds, settings, scores, {}, {},
-                  rule=BASELINE_RULE)
+        scores = {g.name: [{} for _ in baseline_settings(g)] for g in tier.groups}
+        for name, i, pair, dirs in cells:
+            scores[name][i][pair] = float(np.mean([normalised_area(run) for run in dirs]))
+        tried, choice = [], {}
+        for group in tier.groups:
+            settings = baseline_settings(group)
+            means = [float(np.mean(list(s.values()))) for s in scores[group.name]]
+            choice[group.name] = settings[max(range(len(settings)), key=lambda i: (means[i], -i))]
+            tried += [{"group": group.name, "setting": s, "score": m, "per_pair": p}
+                      for s, m, p in zip(settings, means, scores[group.name])]
+        record = {"method": "none", "suite": version, "tier": tier.name, "smoke": smoke, "rule": BASELINE_RULE,
+                  "seeds": config_lib.run_seeds(TUNE_SEED, seeds),
+                  "budget": max(len(baseline_settings(g)) for g in tier.groups), "settings": tried, "choice": choice,
+                  "left_out": {}}
+        rundir.write_files(root, {TUNING: (json.dumps(record, indent=1, sort_keys=True) + "\n").encode()})
+    return record
 
 
 def normalised_area(run) -> float:
@@ -181,10 +193,10 @@ def normalised_area(run) -> float:
 
 
 def _write(root: Path, method: str, version: str, tier: str, smoke: bool, seeds: int, settings: list[dict],
-           scores: list[dict[str, float]], left_out: dict, extra: dict, rule: str = RULE) -> dict:
+           scores: list[dict[str, float]], left_out: dict, extra: dict) -> dict:
     means = [float(np.mean(list(s.values()))) if s else float("nan") for s in scores]
     best = max(range(len(settings)), key=lambda i: (np.nan_to_num(means[i], nan=-np.inf), -i))
-    record = {"method": method, "suite": version, "tier": tier, "smoke": smoke, "rule": rule,
+    record = {"method": method, "suite": version, "tier": tier, "smoke": smoke, "rule": RULE,
               "seeds": [TUNE_SEED + 100 * i for i in range(seeds)], "budget": len(settings),
               "settings": [{"setting": s, "score": m, "per_pair": p} for s, m, p in zip(settings, means, scores)],
               "choice": settings[best], "left_out": left_out, **extra}

@@ -102,10 +102,17 @@ def run(args: argparse.Namespace) -> int:
         score = "mean AUC" if args.method == "none" else "mean FT"
         for tried in record["settings"]:
             shown = ", ".join(f"{k}={v}" for k, v in tried["setting"].items()) or "the defaults"
-            print(f"{shown}: {score} {tried['score']:+.3f} over {len(tried['per_pair'])} pairs")
-        chosen = ", ".join(f"{k}={v}" for k, v in record["choice"].items()) or "the defaults (no search declared)"
+            where = f"{tried['group']}: " if "group" in tried else ""
+            print(f"{where}{shown}: {score} {tried['score']:+.3f} over {len(tried['per_pair'])} pairs")
+        if args.method == "none":
+            chosen = "; ".join(f"{g}: {', '.join(f'{k}={v}' for k, v in c.items()) or 'the defaults'}"
+                               for g, c in record["choice"].items())
+            after = f"drltg bench tune --method METHOD --suite {args.suite} --out {args.out}"
+        else:
+            chosen = ", ".join(f"{k}={v}" for k, v in record["choice"].items()) or "the defaults (no search declared)"
+            after = f"drltg bench run --method {args.method} --suite {args.suite} --out {args.out}"
         print(f"{args.method}: chose {chosen} of {record['budget']} setting{'s' * (record['budget'] != 1)} on seeds "
-              f"{', '.join(map(str, record['seeds']))}. Next: drltg bench run --method {args.method} --out {args.out}")
+              f"{', '.join(map(str, record['seeds']))}. Next: {after}")
         return 0
     if args.bench_command == "run":
         record = bench_run(args.method, tier=args.tier, out=args.out, version=args.suite, reference=reference,
