@@ -41,6 +41,21 @@ def test_v2_declares_one_source_task_per_group_and_a_baseline_search_from_the_de
             assert settings[0] == {k: getattr(getattr(defaults, k.split(".")[0]), k.split(".")[1]) for k in settings[0]}
 
 
+def test_the_committed_v2_sources_are_the_ones_the_suite_declares_and_met_its_criterion():
+    from pathlib import Path
+
+    tier = suite.get_tier("v2", "quick")
+    folder = Path(__file__).parents[1] / "results" / "bench" / "v2" / "quick"
+    declared = suite.declared_sources(tier)
+    assert len(declared) == 3 * 13  # 10 leaderboard and 3 tuning seeds per group
+    assert sources.use_sources(tier, folder, None, smoke=False)[1] is True
+    listed = json.loads((folder / "sources" / "sources.json").read_text())
+    for key, entry in listed.items():
+        group = next(g for g in tier.groups if g.name == key.split("/")[0])
+        assert entry["met"] is (True if group.sources.success is not None else None)
+        assert entry["frames"] <= group.sources.frames + 1024  # a last batch may overshoot by less than a round
+
+
 def test_rows_share_the_suite_s_sources_and_train_at_the_tuned_baseline(tmp_path, monkeypatch, capsys):
     monkeypatch.setitem(suite.SUITES, "test", {"tiny": TINY})
     monkeypatch.setattr(tune, "TUNE_SEEDS", 2)
@@ -59,7 +74,7 @@ def test_rows_share_the_suite_s_sources_and_train_at_the_tuned_baseline(tmp_path
         saved = yaml.safe_load((run_dir / "config.yaml").read_text())
         assert saved["seed"] == int(key.split("-")[-1]) + 50 and saved["task"] == get_pair("fourrooms-near").source
         assert saved["eval"]["stop_at_success"] == 0.9 and entry["met"] is False and entry["declared"] is None
-    assert "0 of 4 sources met their criterion" in capsys.readouterr().out
+    assert "0 of 4 sources met their success criterion; their digests are in" in capsys.readouterr().out
 
     assert main(run) == 2
     assert "tunes its baseline before any row: run `drltg bench tune --method none" in capsys.readouterr().err

@@ -458,22 +458,23 @@ def test_the_help_lists_evaluate(argv, capsys):
 
 def test_a_run_says_how_it_went_and_names_a_collapse():
     """The first week's source: success 0.81 at 10k frames, 0.06 at 20k, unremarked. Now it is said."""
-    from drltg.training.best import outcome
+    from drltg.training.best import Outcome, outcome
 
     cfg = config_lib.resolve(None, [], task="fourrooms/northeast", frames=20_000)
     rows = [{"frames": f, "return_mean": r, "success_rate": s} for f, r, s in
             [(0, -1.0, 0.0), (5_000, -0.5, 0.4), (10_000, 0.5, 0.81), (15_000, -0.2, 0.3), (20_000, -0.9, 0.06)]]
-    final, warning = outcome(cfg, rows)
-    assert final == "final evaluation: success rate 0.06 at frame 20,000; best: 0.81 at frame 10,000"
-    assert warning == ("warning: the run collapsed: its success rate fell from 0.81 at frame 10,000 to 0.06 (frame "
+    went = outcome(cfg, rows)
+    assert went.final == "final evaluation: success rate 0.06 at frame 20,000; best: 0.81 at frame 10,000"
+    assert went.collapse == ("the run collapsed: its success rate fell from 0.81 at frame 10,000 to 0.06 (frame "
                        "20,000 average 0.06); the last checkpoint holds the collapsed policy, "
                        "checkpoints/best.safetensors keeps the best policy's networks (drltg evaluate RUN "
                        "--checkpoint best).")
     rows[-1]["success_rate"] = 0.7  # a dip, not a collapse: 0.11 below the best of a 0.81 range
-    assert len(outcome(cfg, rows)) == 1
+    assert outcome(cfg, rows).collapse is None
     rising = [{"frames": f, "return_mean": float(f)} for f in range(0, 5)]
-    assert outcome(config_lib.resolve(None, [], task="pendulum/g10"), rising) == [
-        "final evaluation: return 4 at frame 4; best: 4 at frame 4"]
+    assert outcome(config_lib.resolve(None, [], task="pendulum/g10"), rising) == Outcome(
+        "final evaluation: return 4 at frame 4; best: 4 at frame 4")
+    assert outcome(cfg, []) is None
 
 
 def test_drltg_train_ends_with_its_final_and_best_evaluation(tmp_path, capsys):

@@ -41,6 +41,7 @@ from drltg.bench.checks import check_report, check_reps, check_source, read_json
 from drltg.bench.run import read_record, tier_root
 from drltg.bench.suite import Group, Tier
 from drltg.errors import UsageError
+from drltg.store import rundir
 
 __all__ = ["leaderboard", "board_table", "pair_table", "label", "p_text", "test_name", "check_sources", "tuned_text",
            "baseline_sentence", "ALPHA"]
@@ -139,7 +140,7 @@ def _sources(root: Path, group: Group, pair: str, method: str, seeds: list[int])
     folder = root / group.name / pair / "sac" / method / "transfer"
     out = {}
     for seed in seeds:
-        path = folder / f"seed-{seed}" / "summary.json"
+        path = folder / f"seed-{seed}" / rundir.SUMMARY
         out[seed] = check_source(read_json(path, root, 2**20, "a run summary"), path) if path.is_file() else None
     return out
 

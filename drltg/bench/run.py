@@ -23,10 +23,11 @@ from drltg.bench.sources import use_sources
 from drltg.bench.suite import LATEST, Group, get_tier
 from drltg.errors import RunFailed, UsageError
 from drltg.store import rundir
+from drltg.store.manifest import MANIFEST
 
 __all__ = ["bench_run", "tier_root", "read_record", "read_tuning", "tuning_root", "REFERENCE_FILES"]
 
-REFERENCE_FILES = ("config.yaml", "eval.csv", "summary.json", "manifest.json", "checkpoints/last.safetensors")
+REFERENCE_FILES = (rundir.CONFIG, rundir.EVAL, rundir.SUMMARY, MANIFEST, "checkpoints/last.safetensors")
 """What a reference run holds and a bench run copies: the curve a report reads, and the networks a source
 is reused from."""
 RECORD = "bench.json"
@@ -145,7 +146,7 @@ def in_reference(runs, out: Path, reference: Path) -> dict[Path, Path]:
     is finished (a source with its networks file): run directory -> the reference's."""
     held = {}
     for run in runs:
-        if run.role not in ("source", "baseline") or (run.path / "summary.json").exists():
+        if run.role not in ("source", "baseline") or (run.path / rundir.SUMMARY).exists():
             continue
         kept = reference / run.path.relative_to(out)
         if rundir.is_complete(kept) and (run.role != "source" or (kept / REFERENCE_FILES[-1]).is_file()):

@@ -24,9 +24,6 @@ from drltg.store import rundir
 __all__ = ["bench_sources", "source_runs", "sources_root", "use_sources", "SOURCES"]
 
 SOURCES = "sources.json"
-FILES = ("config.yaml", "eval.csv", "summary.json", "manifest.json", "checkpoints/last.safetensors")
-"""What a source run holds that a transfer run reads: its config, its curve, its summary, the manifest of
-digests and the networks file."""
 
 
 def sources_root(tier_folder: Path) -> Path:
@@ -77,6 +74,7 @@ def source_runs(tier: Tier, tier_folder: Path, smoke: bool = False) -> list:
 def record(runs: list, declared: dict[str, dict]) -> dict:
     """``sources.json``: each finished source's frames, criterion and digests, and whether it is the one the
     suite declares."""
+    from drltg.bench.run import REFERENCE_FILES as FILES
     from drltg.store import manifest
 
     entries = {}
@@ -139,6 +137,7 @@ def use_sources(tier: Tier, tier_folder: Path, reference_folder: Path | None, sm
     sources first copied from ``reference_folder`` where it holds them and they are not here; and whether they
     are the ones the suite declares (``None`` where it declares none). Missing sources are one sentence; a
     ``dry_run`` copies nothing and reads the reference's where they are."""
+    from drltg.bench.run import REFERENCE_FILES as FILES
     from drltg.experiments.experiment import SEED
 
     runs = source_runs(tier, tier_folder, smoke)

@@ -84,8 +84,11 @@ def run(args: argparse.Namespace) -> int:
         if args.dry_run:
             print("\n".join(entries["plan"]))
             return 0
-        met = [e for e in entries.values() if e["met"] is not False]
-        print(f"{len(met)} of {len(entries)} sources met their criterion; their digests are in "
+        judged = [e for e in entries.values() if e["met"] is not None]
+        whole = len(entries) - len(judged)
+        print(f"{sum(e['met'] for e in judged)} of {len(judged)} sources met their success criterion"
+              + (f" ({whole} more trained their whole budget: their group declares none)" if whole else "")
+              + "; their digests are in "
               f"{tier_root(args.out, args.suite, args.tier, args.smoke) / 'sources' / 'sources.json'}. "
               f"Next: drltg bench tune --method none --suite {args.suite} --out {args.out}")
         return 0

@@ -87,13 +87,15 @@ def run(args: argparse.Namespace) -> int:
 
 def _say_how_it_went(run_dir: Path, name: str | None = None) -> None:
     """The run's final and best evaluation, and a collapse warning (on stderr), from its eval.csv."""
-    from drltg.store.rundir import read_config, read_eval_csv
+    from drltg.store.rundir import EVAL, read_config, read_eval_csv
     from drltg.training.best import outcome
 
     cfg = config_lib.build(read_config(run_dir), saved=True)
-    for line in outcome(cfg, read_eval_csv(run_dir / "eval.csv")):
-        warning = line.startswith("warning: ")
-        print(f"{name}: {line}" if name and not warning else line, file=sys.stderr if warning else sys.stdout)
+    went = outcome(cfg, read_eval_csv(run_dir / EVAL))
+    if went is not None:
+        print(f"{name}: {went.final}" if name else went.final)
+        if went.collapse:
+            print(f"warning: {went.collapse}", file=sys.stderr)
 
 
 def _first_seed(run_dir: Path) -> Path | None:

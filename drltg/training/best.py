@@ -24,6 +24,7 @@ so far from them (:func:`check_resume`).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 from drltg.config import RunConfig
@@ -31,7 +32,7 @@ from drltg.errors import UsageError
 from drltg.store import networks
 from drltg.store.rundir import BEST, CHECKPOINT, EPISODE_FLAGS, load_checkpoint, write_tracked
 
-__all__ = ["metric", "score", "best_row", "improves", "summary", "check_metric", "check_resume", "outcome"]
+__all__ = ["metric", "score", "best_row", "improves", "summary", "check_metric", "check_resume", "outcome", "Outcome"]
 
 COLLAPSE = 0.5
 """A run collapsed when its last evaluations' mean score lies more than this share of its score range below
@@ -136,17 +137,25 @@ def _check_best_networks(cfg: RunConfig, run_dir: Path, ckpt: dict, rows: list[d
     )
 
 
-def outcome(cfg: RunConfig, rows: list[dict]) -> list[str]:
+@dataclass(frozen=True)
+class Outcome:
+    """How a run went: the final and best evaluation, and the collapse warning where there is one."""
+
+    final: str
+    collapse: str | None = None
+
+
+def outcome(cfg: RunConfig, rows: list[dict]) -> Outcome | None:
     """How a run went, for its closing lines: its final and best evaluation, and a warning where the last
     evaluations (the last quarter of them, at least one) fall more than :data:`COLLAPSE` of the run's score
-    range below its best: a collapse, which the last checkpoint carries."""
+    range below its best: a collapse, which the last checkpoint carries. ``None`` for a run never evaluated."""
     if not rows:
-        return []
+        return None
     name = metric(cfg, rows[-1])
     label = name.removesuffix("_mean").replace("_", " ")
     best, last = best_row(cfg, rows), rows[-1]
-    lines = [f"final evaluation: {label} {score(cfg, last, name):.3g} at frame {last['frames']:,}; best: "
-             f"{score(cfg, best, name):.3g} at frame {best['frames']:,}"]
+    final = (f"final evaluation: {label} {score(cfg, last, name):.3g} at frame {last['frames']:,}; best: "
+             f"{score(cfg, best, name):.3g} at frame {best['frames']:,}")
     tail = rows[-max(1, len(rows) // 4):]
     scores = [score(cfg, r, name) for r in rows]
     spread = max(scores) - min(scores)
@@ -155,7 +164,8 @@ def outcome(cfg: RunConfig, rows: list[dict]) -> list[str]:
         span = f"frame {tail[0]['frames']:,}" if len(tail) == 1 else f"frames {tail[0]['frames']:,}-{last['frames']:,}"
         keep = (f"{networks.NETWORKS['best'].as_posix()} keeps the best policy's networks (drltg evaluate RUN "
                 "--checkpoint best)")
-        lines.append(f"warning: the run collapsed: its {label} fell from {score(cfg, best, name):.3g} at frame "
-                     f"{best['frames']:,} to {score(cfg, last, name):.3g} ({span} average "
-                     f"{score(cfg, best, name) - drop:.3g}); the last checkpoint holds the collapsed policy, {keep}.")
-    return lines
+        return Outcome(final, f"the run collapsed: its {label} fell from {score(cfg, best, name):.3g} at frame "
+                              f"{best['frames']:,} to {score(cfg, last, name):.3g} ({span} average "
+                              f"{score(cfg, best, name) - drop:.3g}); the last checkpoint holds the collapsed "
+                              f"policy, {keep}.")
+    return Outcome(final)
