@@ -68,6 +68,13 @@ def test_a_verdict_names_the_exact_test_that_decided_it():
     # 5 + 5 runs: the permutation test's smallest p is 2 / C(10, 5) = 0.0079, below 0.05 / 4
     assert cl.verdict(-0.4, (-0.7, -0.1), cl.Adjusted(0.02, 0.2, 4), design=(5, False)) == (
         "\u22120.40 [\u22120.70, \u22120.10]: undecided at 5 seeds a side (exact permutation test, p = 0.2 after Holm)")
+    # 14 pairs: 2^14 = 16,384 sign patterns outnumber the 9,999 draws, so the p-value is drawn, not counted
+    assert cl.verdict(0.4, (0.1, 0.7), cl.Adjusted(0.01, 0.002), design=(13, True)).endswith(
+        "(exact sign-flip test, p = 0.002)")
+    assert cl.verdict(0.4, (0.1, 0.7), cl.Adjusted(0.01, 0.002), design=(14, True)).endswith(
+        "(sign-flip test (Monte Carlo, 9,999 draws), p = 0.002)")
+    assert cl.test_words(7, False) == "exact permutation test"  # C(14, 7) = 3,432 relabellings
+    assert cl.test_words(8, False) == "permutation test (Monte Carlo, 9,999 draws)"  # C(16, 8) = 12,870
 
 
 def test_the_smallest_exact_p_is_the_two_extreme_arrangements():

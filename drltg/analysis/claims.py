@@ -109,6 +109,17 @@ def smallest_exact_p(n: int, paired: bool, n_other: int | None = None) -> float:
     return min(1.0, 2 / math.comb(n + (n if n_other is None else n_other), n))
 
 
+def test_words(n: int, paired: bool, n_other: int | None = None) -> str:
+    """The randomization test behind a verdict, named as it was made: ``exact sign-flip test`` where every
+    arrangement was counted, ``sign-flip test (Monte Carlo, 9,999 draws)`` where they were drawn."""
+    from drltg.analysis.stats import PERMUTATION_DRAWS, enumerated
+
+    name = "sign-flip" if paired else "permutation"
+    if enumerated(n, paired, n_other):
+        return f"exact {name} test"
+    return f"{name} test (Monte Carlo, {PERMUTATION_DRAWS:,} draws)"
+
+
 def verdict(value: float, ci: Sequence | None, p_adjusted: float | Adjusted | None = None,
             family: int | None = None, higher: str = "higher with transfer", lower: str = "lower with transfer",
             design: tuple[int, bool] | None = None, about: int | None = None, bare: bool = False) -> str:
@@ -125,7 +136,7 @@ def verdict(value: float, ci: Sequence | None, p_adjusted: float | Adjusted | No
     if exact is not None:
         k = max(family or 1, size)
         after = " after Holm" if k > 1 else ""
-        test = "exact test" if design is None else f"exact {'sign-flip' if design[1] else 'permutation'} test"
+        test = "exact test" if design is None else test_words(*design)
         said = f"{test}, p = {p_text(exact)}{after}"
         if sign:
             return f"{text}, {higher if sign > 0 else lower} ({said})"

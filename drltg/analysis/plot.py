@@ -202,6 +202,8 @@ def summary_lines(m: dict, st: dict, moving: dict) -> list[str]:
 def _verdict_lines(m: dict, st: dict) -> list[str]:
     """The mean gain's verdict as the report's headline gives it, with its test and its magnitude intervals;
     none where the report gives no verdict (fewer than 2 seeds a side)."""
+    from drltg.analysis.claims import test_words
+
     name = "mean_return_gain"
     if f"{name}_verdict" not in m:
         return []
@@ -213,7 +215,9 @@ def _verdict_lines(m: dict, st: dict) -> list[str]:
         test = (f"exact sign-flip test, look {len(seq['taken'])} of {len(seq['looks'])}, {last['pairs']} pairs: "
                 f"p = {p:.3g} vs its share {last['alpha']:.3g}")
     else:
-        test = f"exact {m[f'{name}_verdict_test']} test, {pairs}: p = {p:.3g}"
+        test = f"{test_words(n, bool(st.get('paired')), m['n_seeds_baseline'])}, {pairs}: p = {p:.3g}"
+        if m[f"{name}_verdict_test"] not in ("sign-flip", "permutation"):  # TOST, or a test named otherwise
+            test = f"{m[f'{name}_verdict_test']}, {pairs}: p = {p:.3g}"
     lines = [f"verdict: mean {_quantity(st)} gain {_signed(m[name])}, {VERDICT_WORDS[m[f'{name}_verdict']]}",
              f"  {test}"]
     if m.get(f"{name}_t_interval"):

@@ -387,8 +387,20 @@ def sign_test(baseline, transfer) -> float:
     return 1.0 if wins + losses == 0 else float(stats.binomtest(wins, wins + losses, 0.5).pvalue)
 
 
+PERMUTATION_DRAWS = 9999
+"""Draws of :func:`permutation_test` where the arrangements outnumber them."""
+
+
+def enumerated(n: int, paired: bool, n_other: int | None = None, n_resamples: int = PERMUTATION_DRAWS) -> bool:
+    """Whether :func:`permutation_test` counts every arrangement (an exact p-value) of ``n`` pairs (``2^n``
+    sign patterns) or of ``n`` and ``n_other`` runs (``C(n + m, n)`` relabellings), rather than drawing
+    ``n_resamples`` of them (a Monte Carlo p-value)."""
+    arrangements = 2 ** n if paired else math.comb(n + (n if n_other is None else n_other), n)
+    return arrangements <= n_resamples
+
+
 def permutation_test(baseline, transfer, paired: bool = False, statistic: str = "mean", seed: int = 0,
-                     n_resamples: int = 9999) -> float:
+                     n_resamples: int = PERMUTATION_DRAWS) -> float:
     """Two-sided permutation test that transfer changes nothing (``scipy.stats.permutation_test``):
     paired, the two runs of each pair swapped (the differences' signs flipped); unpaired, the runs
     relabelled. ``statistic``: ``"mean"`` (the mean difference) or ``"poi"`` (the Mann-Whitney
