@@ -90,6 +90,17 @@ def test_rows_share_the_suite_s_sources_and_train_at_the_tuned_baseline(tmp_path
         assert tried["score"] == pytest.approx(np.mean([_area(r, 192, value_range) for r in runs]))
     assert record["choice"] == {"rooms": max(record["settings"], key=lambda s: s["score"])["setting"]}
 
+    assert main(["bench", "tune", "--method", "model-reuse", *common]) == 0  # no search: a budget of 1
+    assert "nothing to try (a budget of 1)" in capsys.readouterr().out
+    kept = tmp_path / "test" / "tiny" / "tuning" / "model-reuse"
+    assert json.loads((kept / "tuning.json").read_text())["choice"] == {} and not (kept / "rooms").exists()
+    assert main(["bench", "tune", "--method", "value-shaping", *common]) == 0
+    chosen = base / f"sac.alpha_init={record['choice']['rooms']['sac.alpha_init']}" / "baseline"
+    copies = list((tmp_path / "test" / "tiny" / "tuning" / "value-shaping").rglob("baseline/seed-*/eval.csv"))
+    assert len(copies) == 2  # the baseline's own tuning runs at its choice, copied as data, not trained again
+    assert all(c.read_bytes() == (chosen / c.parent.name / "eval.csv").read_bytes() for c in copies)
+    assert not list((tmp_path / "test" / "tiny" / "tuning" / "value-shaping").rglob("logs/**/baseline/*.log"))
+
     assert main(run) == 0
     tier = tmp_path / "test" / "tiny"
     pair = tier / "rooms" / "fourrooms-near" / "sac"

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -80,15 +81,42 @@ def bench_tune(method: str, *, tier: str = "quick", out: str | Path = "runs/benc
         left_out.update(missed)
         if pairs:
             specs[group.name] = {**spec, "pairs": pairs}
+    extra = {"baseline": fixed} if baseline else {}
+    if len(settings) == 1:  # no search declared: the defaults are the choice, and nothing trains to say so
+        return {"plan": ["nothing to train: the method declares no search, so its budget is 1, its defaults"]} \
+            if dry_run else _write(root, method, version, tier, smoke, seeds, settings, scores, left_out, extra)
     if dry_run:
         return {"plan": plan_tier([(g, spec, root / g) for g, spec in specs.items()], None, group_seeds)}
+    none_root = tuning_root(out, version, tier, "none", smoke)
     for name, spec in specs.items():
+        _copy_baseline_runs(spec, root / name, none_root / name, fixed.get(name, {}))
         for cell, report in _swept(spec, root / name, method, backend, workers, group_seeds, progress):
             ft = pair_score(report)["ft"]
             if ft is not None:  # no transfer already at the maximum: the pair scores no setting
                 scores[cell][report["pair"]] = ft
-    return _write(root, method, version, tier, smoke, seeds, settings, scores, left_out,
-                  {"baseline": fixed} if baseline else {})
+    return _write(root, method, version, tier, smoke, seeds, settings, scores, left_out, extra)
+
+
+def _copy_baseline_runs(spec: dict, group_out: Path, none_group: Path, choice: dict) -> None:
+    """Copy into a method's tuning sweep the baseline runs the baseline's own tuning trained at its choice, on
+    the same seeds with the same config, as data (as ``bench run`` copies a reference's): trained once."""
+    from drltg.bench.run import REFERENCE_FILES
+    from drltg.config import config_changes
+    from drltg.experiments.spec import parse_spec
+    from drltg.experiments.sweep import plan
+
+    variant = ",".join(f"{k}={v}" for k, v in choice.items()) or "defaults"
+    runs, _ = plan(parse_spec(spec), group_out.resolve())
+    for run in runs:
+        if run.role != "baseline" or rundir.is_complete(run.path):
+            continue
+        pair, algo = run.path.relative_to(group_out.resolve()).parts[:2]
+        kept = none_group.resolve() / pair / algo / variant / "baseline" / run.path.name
+        if rundir.is_complete(kept) and not config_changes(rundir.read_config(kept), run.cfg):
+            for name in REFERENCE_FILES:
+                if (kept / name).is_file():
+                    (run.path / name).parent.mkdir(parents=True, exist_ok=True)
+                    shutil.copyfile(kept / name, run.path / name)
 
 
 def _swept(spec: dict, group_out: Path, method: str, backend: str, workers, group_seeds: bool, progress: bool):
@@ -194,8 +222,8 @@ def normalised_area(run) -> float:
 
 def _write(root: Path, method: str, version: str, tier: str, smoke: bool, seeds: int, settings: list[dict],
            scores: list[dict[str, float]], left_out: dict, extra: dict) -> dict:
-    means = [float(np.mean(list(s.values()))) if s else float("nan") for s in scores]
-    best = max(range(len(settings)), key=lambda i: (np.nan_to_num(means[i], nan=-np.inf), -i))
+    means = [float(np.mean(list(s.values()))) if s else None for s in scores]
+    best = max(range(len(settings)), key=lambda i: (-np.inf if means[i] is None else means[i], -i))
     record = {"method": method, "suite": version, "tier": tier, "smoke": smoke, "rule": RULE,
               "seeds": [TUNE_SEED + 100 * i for i in range(seeds)], "budget": len(settings),
               "settings": [{"setting": s, "score": m, "per_pair": p} for s, m, p in zip(settings, means, scores)],

@@ -106,7 +106,10 @@ def run(args: argparse.Namespace) -> int:
         for tried in record["settings"]:
             shown = ", ".join(f"{k}={v}" for k, v in tried["setting"].items()) or "the defaults"
             where = f"{tried['group']}: " if "group" in tried else ""
-            print(f"{where}{shown}: {score} {tried['score']:+.3f} over {len(tried['per_pair'])} pairs")
+            if tried["score"] is None:
+                print(f"{where}{shown}: nothing to try (a budget of 1)")
+            else:
+                print(f"{where}{shown}: {score} {tried['score']:+.3f} over {len(tried['per_pair'])} pairs")
         if args.method == "none":
             chosen = "; ".join(f"{g}: {', '.join(f'{k}={v}' for k, v in c.items()) or 'the defaults'}"
                                for g, c in record["choice"].items())
