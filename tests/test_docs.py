@@ -71,3 +71,23 @@ def test_the_custom_task_docs_state_the_settings_the_built_in_tasks_carry():
            f"{pendulum['collector']['init_random_frames']:,}" in row["collector.init_random_frames"]
     assert f"robosuite {robosuite['buffer']['size']:,}" in row["buffer.size"]
     assert f"robosuite {robosuite['eval']['every']:,}, Pendulum {pendulum['eval']['every']:,}" in row["eval.every"]
+
+
+def test_the_api_page_holds_every_exported_name_and_each_path_it_names_imports():
+    import importlib
+
+    import drltg
+
+    paths = re.findall(r"^::: ([\w.]+)$", (ROOT / "docs" / "api.md").read_text(), re.M)
+    for path in paths:
+        module, _, name = path.rpartition(".")
+        try:
+            importlib.import_module(path)
+        except ModuleNotFoundError:
+            assert hasattr(importlib.import_module(module), name), path
+    documented = {p.rpartition(".")[2] for p in paths}
+    assert sorted(set(drltg.__all__) - documented) == []
+    for name in drltg.__all__:  # the page's promise: an exported name is the documented object itself
+        found = [p for p in paths if p.endswith(f".{name}")]
+        module, _, _ = found[0].rpartition(".")
+        assert getattr(drltg, name) is getattr(importlib.import_module(module), name), name
