@@ -34,7 +34,7 @@ def test_v2_declares_one_source_task_per_group_and_a_baseline_search_from_the_de
     for group in tier.groups:
         assert group.sources is not None and "source_frames" not in group.spec
         assert len({get_pair(p).source for p in group.pairs}) == 1
-        settings = tune.baseline_settings(group)
+        settings = group.baseline_settings
         assert 1 < len(settings) <= TUNING_BUDGET
         for pair in group.pairs:  # the search starts at the defaults of the group's tasks
             defaults = config_lib.resolve({}, [], task=get_pair(pair).target)
@@ -58,7 +58,7 @@ def test_the_committed_v2_sources_are_the_ones_the_suite_declares_and_met_its_cr
 
 def test_rows_share_the_suite_s_sources_and_train_at_the_tuned_baseline(tmp_path, monkeypatch, capsys):
     monkeypatch.setitem(suite.SUITES, "test", {"tiny": TINY})
-    monkeypatch.setattr(tune, "TUNE_SEEDS", 2)
+    monkeypatch.setattr(suite, "TUNE_SEEDS", 2)
     common = ["--suite", "test", "--tier", "tiny", "--no-progress", "--workers", "2", "--out", str(tmp_path)]
     run = ["bench", "run", "--method", "value-shaping", "--reference", "none", *common]
     assert main(run) == 2

@@ -43,7 +43,7 @@ def test_a_search_space_is_a_small_grid_of_the_method_s_own_options_from_their_d
 
 def test_tune_tries_each_setting_on_its_own_seeds_and_bench_run_applies_the_choice(tmp_path, monkeypatch, capsys):
     monkeypatch.setitem(suite.SUITES, "test", {"tiny": TINY})
-    monkeypatch.setattr(tune, "TUNE_SEEDS", 2)
+    monkeypatch.setattr(suite, "TUNE_SEEDS", 2)
     common = ["--method", "value-shaping", "--suite", "test", "--tier", "tiny", "--no-progress", "--workers", "2",
               "--out", str(tmp_path)]
     assert main(["bench", "tune", *common, "--dry-run"]) == 0  # the work, before any of it: nothing written

@@ -28,6 +28,7 @@ from drltg.analysis import stats
 from drltg.analysis.report.inference import ASSUMES
 
 LEVEL = 0.05
+"""The level of every verdict drltg states (reports, sweep summaries, the board): the one home of 0.05."""
 MINUS = "\u2212"
 NO_EVIDENCE = "no evidence of a difference at this budget"
 NO_INTERVAL = "no interval, so no verdict"

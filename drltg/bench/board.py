@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from drltg.analysis.claims import LEVEL
 from drltg.bench.checks import check_report, check_reps, check_source, read_json
 from drltg.bench.run import read_record, tier_root
 from drltg.bench.suite import Group, Tier
@@ -46,7 +47,7 @@ from drltg.store import rundir
 __all__ = ["leaderboard", "board_table", "pair_table", "label", "p_text", "test_name", "check_sources", "tuned_text",
            "baseline_sentence", "ALPHA"]
 
-ALPHA = 0.05
+ALPHA = LEVEL  # the board's verdicts are at drltg's one level
 PAIR_DRAWS = 9999
 """Draws of the per-pair test against the best reference row: exact while the 2^n sign patterns number at most
 this (up to 13 seeds), else Monte Carlo, two-sided floor 2 / (draws + 1)."""

@@ -20,26 +20,14 @@ import shutil
 from pathlib import Path
 
 from drltg.bench.sources import use_sources
-from drltg.bench.suite import LATEST, Group, get_tier
+from drltg.bench.suite import LATEST, REFERENCE_FILES, Group, get_tier, tier_root, tuning_root
 from drltg.errors import RunFailed, UsageError
 from drltg.store import rundir
-from drltg.store.manifest import MANIFEST
 
 __all__ = ["bench_run", "tier_root", "read_record", "read_tuning", "tuning_root", "REFERENCE_FILES"]
 
-REFERENCE_FILES = (rundir.CONFIG, rundir.EVAL, rundir.SUMMARY, MANIFEST, "checkpoints/last.safetensors")
-"""What a reference run holds and a bench run copies: the curve a report reads, and the networks a source
-is reused from."""
 RECORD = "bench.json"
 TUNING = "tuning.json"
-
-
-def tier_root(out: str | Path, version: str, tier: str, smoke: bool = False) -> Path:
-    return Path(out) / version / (f"{tier}-smoke" if smoke else tier)
-
-
-def tuning_root(out: str | Path, version: str, tier: str, method: str, smoke: bool = False) -> Path:
-    return tier_root(out, version, tier, smoke) / "tuning" / method
 
 
 def read_tuning(out: str | Path, version: str, tier: str, method: str, smoke: bool = False) -> dict | None:
@@ -54,12 +42,10 @@ def read_tuning(out: str | Path, version: str, tier: str, method: str, smoke: bo
         return None
     record = read_json(path, root, 2**22, "a tuning record")
     if method == "none":  # a choice per group, each among the group's own settings
-        from drltg.bench.tune import baseline_settings
-
         groups = get_tier(version, tier).groups
         chosen = record.get("choice") if isinstance(record, dict) else None
         good = isinstance(chosen, dict) and sorted(chosen) == sorted(g.name for g in groups) and all(
-            chosen[g.name] in baseline_settings(g) for g in groups)
+            chosen[g.name] in g.baseline_settings for g in groups)
     else:
         good = isinstance(record, dict) and record.get("choice") in get_method(method).settings
     if not good or record.get("method") != method:

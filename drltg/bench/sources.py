@@ -17,7 +17,8 @@ import os
 import shutil
 from pathlib import Path
 
-from drltg.bench.suite import SMOKE, Group, Tier, declared_sources
+from drltg.bench import suite
+from drltg.bench.suite import REFERENCE_FILES as FILES, SMOKE, Group, Tier, declared_sources, tier_root
 from drltg.errors import UsageError
 from drltg.store import rundir
 
@@ -32,12 +33,11 @@ def sources_root(tier_folder: Path) -> Path:
 
 def target_seeds(group: Group, smoke: bool) -> list[int]:
     """The target seeds a group's sources serve: the leaderboard's, then the tuning seeds."""
-    from drltg.bench.tune import TUNE_SEED, TUNE_SEEDS
     from drltg.config import run_seeds
 
     count = SMOKE["seeds"] if smoke else group.spec["seeds"]
-    tuning = SMOKE["seeds"] if smoke else TUNE_SEEDS
-    return run_seeds(group.spec["seed"], count) + run_seeds(TUNE_SEED, tuning)
+    tuning = SMOKE["seeds"] if smoke else suite.TUNE_SEEDS
+    return run_seeds(group.spec["seed"], count) + run_seeds(suite.TUNE_SEED, tuning)
 
 
 def source_runs(tier: Tier, tier_folder: Path, smoke: bool = False) -> list:
@@ -74,7 +74,6 @@ def source_runs(tier: Tier, tier_folder: Path, smoke: bool = False) -> list:
 def record(runs: list, declared: dict[str, dict]) -> dict:
     """``sources.json``: each finished source's frames, criterion and digests, and whether it is the one the
     suite declares."""
-    from drltg.bench.run import REFERENCE_FILES as FILES
     from drltg.store import manifest
 
     entries = {}
@@ -95,7 +94,6 @@ def bench_sources(*, tier: str = "quick", out: str | Path = "runs/bench", versio
                   dry_run: bool = False) -> dict:
     """Train the tier's sources into ``out`` (what is finished is kept, what was interrupted resumes) and write
     ``sources.json``; returns it (with ``dry_run``, ``{"plan": lines}``)."""
-    from drltg.bench.run import tier_root
     from drltg.bench.suite import get_tier
     from drltg.experiments.backends import LocalBackend
     from drltg.experiments.executor import execute, plan_lines
@@ -137,7 +135,6 @@ def use_sources(tier: Tier, tier_folder: Path, reference_folder: Path | None, sm
     sources first copied from ``reference_folder`` where it holds them and they are not here; and whether they
     are the ones the suite declares (``None`` where it declares none). Missing sources are one sentence; a
     ``dry_run`` copies nothing and reads the reference's where they are."""
-    from drltg.bench.run import REFERENCE_FILES as FILES
     from drltg.experiments.experiment import SEED
 
     runs = source_runs(tier, tier_folder, smoke)

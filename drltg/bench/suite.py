@@ -16,13 +16,16 @@ seeds' and every verdict on it is the report's exact sign-flip test of the paire
 """
 from __future__ import annotations
 
+import itertools
 import json
 from dataclasses import dataclass, field
 from importlib import resources
+from pathlib import Path
 
 from drltg.errors import UsageError, closest
 
-__all__ = ["Group", "Sources", "Tier", "SUITES", "LATEST", "get_tier", "SMOKE"]
+__all__ = ["Group", "Sources", "Tier", "SUITES", "LATEST", "get_tier", "SMOKE", "TUNE_SEED", "TUNE_SEEDS", "tier_root",
+           "tuning_root", "REFERENCE_FILES"]
 
 
 @dataclass(frozen=True)
@@ -53,6 +56,12 @@ class Group:
     def pairs(self) -> list[str]:
         return list(self.spec["pairs"])
 
+    @property
+    def baseline_settings(self) -> list[dict]:
+        """The settings of the baseline search, the defaults first (``[{}]`` for a group without one)."""
+        keys = list(self.baseline_search)
+        return [dict(zip(keys, point)) for point in itertools.product(*(self.baseline_search[k] for k in keys))]
+
     def sweep_spec(self, methods: list[str], smoke: bool = False) -> dict:
         """The sweep spec that runs ``methods`` on this group (at :data:`SMOKE` budgets where ``smoke``)."""
         spec = {**self.spec, "methods": list(methods)}
@@ -78,6 +87,25 @@ class Tier:
     @property
     def tunes_baseline(self) -> bool:
         return any(g.baseline_search for g in self.groups)
+
+
+TUNE_SEED = 5_000
+TUNE_SEEDS = 3
+"""The tuning seeds, ``5000 + 100 i`` (sources ``+ 50``): no leaderboard run has one, so a row is never scored
+on the seeds that chose its setting."""
+
+REFERENCE_FILES = ("config.yaml", "eval.csv", "summary.json", "manifest.json", "checkpoints/last.safetensors")
+"""What a finished run holds that another bench folder copies as data: the curve a report reads, and the
+networks a source is reused from (:mod:`drltg.store.rundir`'s and :mod:`drltg.store.manifest`'s names)."""
+
+
+def tier_root(out: str | Path, version: str, tier: str, smoke: bool = False) -> Path:
+    """A tier's folder in a bench folder: ``OUT/<version>/<tier>`` (``<tier>-smoke`` at smoke budgets)."""
+    return Path(out) / version / (f"{tier}-smoke" if smoke else tier)
+
+
+def tuning_root(out: str | Path, version: str, tier: str, method: str, smoke: bool = False) -> Path:
+    return tier_root(out, version, tier, smoke) / "tuning" / method
 
 
 SMOKE = {"seeds": 2, "divisor": 50, "episodes": 2}

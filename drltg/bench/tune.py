@@ -3,24 +3,24 @@ written where ``drltg bench run`` applies it, so every row of the leaderboard ge
 
 Each group of the tier is one sweep of the method over its settings (:attr:`TransferMethod.settings`, at
 most :data:`~drltg.transfer.TUNING_BUDGET`) into ``OUT/<version>/<tier>/tuning/<method>/<group>/``, on
-:data:`TUNE_SEEDS` paired seeds from :data:`TUNE_SEED` (``5000 + 100 i``, sources ``+ 50``): no leaderboard
-run has one of them, so the rows are never scored on the seeds that chose them. The baseline and the
-sources of a setting are those of every other setting (trained once).
+:data:`~drltg.bench.suite.TUNE_SEEDS` paired seeds from :data:`~drltg.bench.suite.TUNE_SEED` (``5000 + 100
+i``, sources ``+ 50``): no leaderboard run has one of them, so the rows are never scored on the seeds that
+chose them. The baseline and the sources of a setting are those of every other setting (trained once).
 
 **The rule.** The score of a setting is its mean FT over the tier's pairs (:func:`drltg.bench.board.pair_score`,
 the leaderboard's own score); the choice is the setting of the highest score, the earlier in the declared
 order on a tie, so the defaults (first) stand unless another setting beats them. ``tuning.json`` records the
 budget, the seeds, the rule, every setting with its score per pair, and the choice.
 
-**The baseline** (``--method none``, on a tier whose groups declare :attr:`~drltg.bench.suite.Group.baseline_search`)
-gets the same budget over the learner's own settings, group by group, scored by its mean normalised area over
-the group's pairs (:data:`BASELINE_RULE`), and is tuned first: every method's tuning and row then train at its choice, so
-transfer is measured against a tuned learner, never against defaults nobody tuned. Where the suite declares
-its sources (v2), every tuning run reads them (:mod:`drltg.bench.sources`).
+**The baseline** (``--method none``, on a tier whose groups declare
+:attr:`~drltg.bench.suite.Group.baseline_search`) gets the same budget over the learner's own settings, group
+by group, scored by its mean normalised area over the group's pairs (:data:`BASELINE_RULE`), and is tuned
+first: every method's tuning and row then train at its choice, so transfer is measured against a tuned
+learner, never against defaults nobody tuned. Where the suite declares its sources (v2), every tuning run
+reads them (:mod:`drltg.bench.sources`).
 """
 from __future__ import annotations
 
-import itertools
 import json
 import shutil
 from pathlib import Path
@@ -29,14 +29,13 @@ import numpy as np
 
 from drltg.bench.board import pair_score
 from drltg.bench.run import TUNING, applicable_pairs, plan_tier, tuning_root
-from drltg.bench.suite import LATEST, SMOKE, get_tier
+from drltg.bench import suite
+from drltg.bench.suite import LATEST, SMOKE, TUNE_SEED, get_tier
 from drltg.errors import RunFailed, UsageError
 from drltg.store import rundir
 
-__all__ = ["bench_tune", "baseline_settings", "TUNE_SEED", "TUNE_SEEDS", "RULE", "BASELINE_RULE"]
+__all__ = ["bench_tune", "RULE", "BASELINE_RULE"]
 
-TUNE_SEED = 5_000
-TUNE_SEEDS = 3
 RULE = "the highest mean FT over the tier's pairs on the tuning seeds; the earlier setting on a tie"
 BASELINE_RULE = ("in each group, the highest mean normalised area (AUC) over its pairs on the tuning seeds; the "
                  "earlier setting on a tie")
@@ -59,7 +58,7 @@ def bench_tune(method: str, *, tier: str = "quick", out: str | Path = "runs/benc
     the_tier = get_tier(version, tier)
     spec_of = get_method(method)
     root = rundir.check_directory(tuning_root(out, version, tier, method, smoke), "--out")
-    seeds = SMOKE["seeds"] if smoke else TUNE_SEEDS
+    seeds = SMOKE["seeds"] if smoke else suite.TUNE_SEEDS
     if method == "none":
         if not the_tier.tunes_baseline:
             raise UsageError(f"suite {version}'s tier {tier} tunes no baseline ('none' is the baseline every row is "
@@ -100,7 +99,7 @@ def bench_tune(method: str, *, tier: str = "quick", out: str | Path = "runs/benc
 def _copy_baseline_runs(spec: dict, group_out: Path, none_group: Path, choice: dict) -> None:
     """Copy into a method's tuning sweep the baseline runs the baseline's own tuning trained at its choice, on
     the same seeds with the same config, as data (as ``bench run`` copies a reference's): trained once."""
-    from drltg.bench.run import REFERENCE_FILES
+    from drltg.bench.suite import REFERENCE_FILES
     from drltg.config import config_changes
     from drltg.experiments.spec import parse_spec
     from drltg.experiments.sweep import plan
@@ -142,12 +141,6 @@ def _refuse_failed(status: dict, method: str, folder: Path) -> None:
                         "to resume")
 
 
-def baseline_settings(group) -> list[dict]:
-    """The settings of a group's baseline search, the defaults first (``[{}]`` for a group without one)."""
-    keys = list(group.baseline_search)
-    return [dict(zip(keys, point)) for point in itertools.product(*(group.baseline_search[k] for k in keys))]
-
-
 def _tune_baseline(tier, version: str, root: Path, seeds: int, smoke: bool, workers, group_seeds: bool,
                    progress: bool, dry_run: bool) -> dict:
     """The baseline's tuning, group by group (each group's search starts at its own tasks' defaults): each
@@ -166,7 +159,7 @@ def _tune_baseline(tier, version: str, root: Path, seeds: int, smoke: bool, work
     for group in tier.groups:
         spec = {**group.spec, **smoke_budgets(group.spec)} if smoke else group.spec
         for pair in group.pairs:
-            for i, setting in enumerate(baseline_settings(group)):
+            for i, setting in enumerate(group.baseline_settings):
                 variant = ",".join(f"{k}={v}" for k, v in setting.items()) or "defaults"
                 folder = root / group.name / pair / spec["algos"][0] / variant / "baseline"
                 runs_here = []
@@ -190,19 +183,19 @@ def _tune_baseline(tier, version: str, root: Path, seeds: int, smoke: bool, work
         finally:
             pool.close()
         _refuse_failed(status, "the baseline", root)
-        scores = {g.name: [{} for _ in baseline_settings(g)] for g in tier.groups}
+        scores = {g.name: [{} for _ in g.baseline_settings] for g in tier.groups}
         for name, i, pair, dirs in cells:
             scores[name][i][pair] = float(np.mean([normalised_area(run) for run in dirs]))
         tried, choice = [], {}
         for group in tier.groups:
-            settings = baseline_settings(group)
+            settings = group.baseline_settings
             means = [float(np.mean(list(s.values()))) for s in scores[group.name]]
             choice[group.name] = settings[max(range(len(settings)), key=lambda i: (means[i], -i))]
             tried += [{"group": group.name, "setting": s, "score": m, "per_pair": p}
                       for s, m, p in zip(settings, means, scores[group.name])]
         record = {"method": "none", "suite": version, "tier": tier.name, "smoke": smoke, "rule": BASELINE_RULE,
                   "seeds": config_lib.run_seeds(TUNE_SEED, seeds),
-                  "budget": max(len(baseline_settings(g)) for g in tier.groups), "settings": tried, "choice": choice,
+                  "budget": max(len(g.baseline_settings) for g in tier.groups), "settings": tried, "choice": choice,
                   "left_out": {}}
         rundir.write_files(root, {TUNING: (json.dumps(record, indent=1, sort_keys=True) + "\n").encode()})
     return record

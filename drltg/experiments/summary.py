@@ -2,6 +2,7 @@
 counts findings in, and the transfer-matrix heatmap. Pure functions of the report rows: they write nothing."""
 from __future__ import annotations
 
+from drltg.analysis.claims import LEVEL
 from drltg.analysis.figure_style import DEFAULT, FigureStyle
 
 __all__ = ["SUMMARY_COLUMNS", "LEVEL", "p_of", "sweep_family", "across_targets", "across_targets_table",
@@ -9,10 +10,6 @@ __all__ = ["SUMMARY_COLUMNS", "LEVEL", "p_of", "sweep_family", "across_targets",
 
 SUMMARY_COLUMNS = ("mean_return_gain", "jumpstart", "asymptotic_performance", "transfer_ratio",
                    "probability_of_improvement", "time_to_threshold_baseline", "time_to_threshold_transfer")
-
-
-LEVEL = 0.05
-"""The level at which the summary counts findings (the reports' 95 % intervals)."""
 
 
 def p_of(metrics: dict, name: str) -> float | None:
