@@ -86,9 +86,9 @@ def bench_tune(method: str, *, tier: str = "quick", out: str | Path = "runs/benc
             if dry_run else _write(root, method, version, tier, smoke, seeds, settings, scores, left_out, extra)
     if dry_run:
         return {"plan": plan_tier([(g, spec, root / g) for g, spec in specs.items()], None, group_seeds)}
-    none_root = tuning_root(out, version, tier, "none", smoke)
+    none_roots = [tuning_root(folder, version, tier, "none", smoke) for folder in (out, reference) if folder]
     for name, spec in specs.items():
-        _copy_baseline_runs(spec, root / name, none_root / name, fixed.get(name, {}))
+        _copy_baseline_runs(spec, root / name, [r / name for r in none_roots], fixed.get(name, {}))
         for cell, report in _swept(spec, root / name, method, backend, workers, group_seeds, progress):
             ft = pair_score(report)["ft"]
             if ft is not None:  # no transfer already at the maximum: the pair scores no setting
@@ -96,9 +96,10 @@ def bench_tune(method: str, *, tier: str = "quick", out: str | Path = "runs/benc
     return _write(root, method, version, tier, smoke, seeds, settings, scores, left_out, extra)
 
 
-def _copy_baseline_runs(spec: dict, group_out: Path, none_group: Path, choice: dict) -> None:
+def _copy_baseline_runs(spec: dict, group_out: Path, none_groups: list[Path], choice: dict) -> None:
     """Copy into a method's tuning sweep the baseline runs the baseline's own tuning trained at its choice, on
-    the same seeds with the same config, as data (as ``bench run`` copies a reference's): trained once."""
+    the same seeds with the same config (``none_groups``: that tuning's group folders, this bench folder's then
+    the reference's), as data, as ``bench run`` copies a reference's: trained once."""
     from drltg.bench.suite import REFERENCE_FILES
     from drltg.config import config_changes
     from drltg.experiments.spec import parse_spec
@@ -110,12 +111,14 @@ def _copy_baseline_runs(spec: dict, group_out: Path, none_group: Path, choice: d
         if run.role != "baseline" or rundir.is_complete(run.path):
             continue
         pair, algo = run.path.relative_to(group_out.resolve()).parts[:2]
-        kept = none_group.resolve() / pair / algo / variant / "baseline" / run.path.name
-        if rundir.is_complete(kept) and not config_changes(rundir.read_config(kept), run.cfg):
-            for name in REFERENCE_FILES:
-                if (kept / name).is_file():
-                    (run.path / name).parent.mkdir(parents=True, exist_ok=True)
-                    shutil.copyfile(kept / name, run.path / name)
+        for none_group in none_groups:
+            kept = none_group.resolve() / pair / algo / variant / "baseline" / run.path.name
+            if rundir.is_complete(kept) and not config_changes(rundir.read_config(kept), run.cfg):
+                for name in REFERENCE_FILES:
+                    if (kept / name).is_file():
+                        (run.path / name).parent.mkdir(parents=True, exist_ok=True)
+                        shutil.copyfile(kept / name, run.path / name)
+                break
 
 
 def _swept(spec: dict, group_out: Path, method: str, backend: str, workers, group_seeds: bool, progress: bool):
