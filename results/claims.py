@@ -65,9 +65,9 @@ def demo_plan() -> str:
 
     return (f"`drltg demo`: {DEMO['algo'].upper()} learns `{source.task}` once (one source run, {k(source.frames)} "
             f"frames, evaluated every {k(source.eval.interval(source.frames))}); then `{target.task}` is learnt for "
-            f"{k(target.frames)} frames from scratch and from that source's weights ({DEMO['method'].replace('-', ' ')})"
-            f" on {DEMO['seeds']} paired seeds, evaluated every {k(target.eval.interval(target.frames))} frames on "
-            f"{target.eval.episodes} episodes.")
+            f"{k(target.frames)} frames from scratch and from that source's weights "
+            f"({DEMO['method'].replace('-', ' ')}) on {DEMO['seeds']} paired seeds, evaluated every "
+            f"{k(target.eval.interval(target.frames))} frames on {target.eval.episodes} episodes.")
 
 
 def methods() -> str:

@@ -7,7 +7,7 @@ import pytest
 import yaml
 
 from drltg import config as config_lib
-from drltg.bench import sources, suite, tune
+from drltg.bench import sources, suite
 from drltg.bench.suite import Group, Sources, Tier
 from drltg.cli import main
 from drltg.envs import get_pair

@@ -4,7 +4,7 @@ import json
 import pytest
 from pydantic import Field
 
-from drltg.bench import suite, tune
+from drltg.bench import suite
 from drltg.bench.board import pair_score
 from drltg.bench.suite import Group, Tier
 from drltg.cli import main
@@ -35,7 +35,8 @@ def test_a_search_space_is_a_small_grid_of_the_method_s_own_options_from_their_d
         ({"scale": (2.0, 1.0)}, "must list distinct values, the default 1.0 first"),
         ({"scale": (1.0, 1.0)}, "must list distinct values"),
         ({"scale": (1.0, -1.0)}, "config key 'transfer.scale' must be a number >= 0, got -1.0"),
-        ({"scale": (1.0, 2.0, 3.0), "rate": (0.5, 0.1)}, f"holds 6 settings; the budget every row gets is {TUNING_BUDGET}"),
+        ({"scale": (1.0, 2.0, 3.0), "rate": (0.5, 0.1)},
+         f"holds 6 settings; the budget every row gets is {TUNING_BUDGET}"),
     ]:
         with pytest.raises(UsageError, match=sentence):
             _method(search, scale=1.0, rate=0.5)
@@ -72,7 +73,8 @@ def test_tune_tries_each_setting_on_its_own_seeds_and_bench_run_applies_the_choi
         capsys.readouterr().out
 
     assert main(["bench", "run", *common, "--reference", str(tmp_path / "tuning-as-reference"), "--dry-run"]) == 0
-    assert capsys.readouterr().out.splitlines()[1] == "rooms: left to train: about 1,152 of 1,152 frames (6 not started)"
+    assert capsys.readouterr().out.splitlines()[1] == \
+        "rooms: left to train: about 1,152 of 1,152 frames (6 not started)"
     assert main(["bench", "run", *common, "--reference", "none"]) == 0
     tier = tmp_path / "test" / "tiny"
     entry = json.loads((tier / "bench.json").read_text())["methods"]["value-shaping"]

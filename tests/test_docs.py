@@ -62,7 +62,7 @@ def test_the_custom_task_docs_state_the_settings_the_built_in_tasks_carry():
                         if isinstance(node, ast.Assign) and [t.id for t in node.targets] == ["TRAIN"])
     row = {line.split("|")[1].strip(" `"): line for line in (ROOT / "docs" / "extending.md").read_text().splitlines()
            if line.startswith("| `")}
-    assert f"0.01 (`ROOMS_TRAIN`)" in row["sac.alpha_init"] and tasks.ROOMS_TRAIN["sac"]["alpha_init"] == 0.01
+    assert "0.01 (`ROOMS_TRAIN`)" in row["sac.alpha_init"] and tasks.ROOMS_TRAIN["sac"]["alpha_init"] == 0.01
     assert tasks.GRID_TRAIN["sac"]["fixed_alpha"] is True and "`sac.fixed_alpha=true`" in row["sac.alpha_init"]
     assert plugin_train["sac"]["alpha_init"] == 0.01
     assert tasks.ROOMS_TRAIN["network"]["hidden"] == tasks.PENDULUM_TRAIN["network"]["hidden"] == [64, 64]

@@ -369,7 +369,8 @@ def test_an_experiment_yaml_runs_again_with_config_and_a_dry_run_lists_it(experi
     assert main(["experiment", "--config", str(out / "experiment.yaml"), "--out", str(again), "--dry-run"]) == 0
     listed = capsys.readouterr().out.splitlines()
     assert sum(line.endswith("not started") for line in listed) == 6
-    assert listed[-2] == "6 runs, 1 report; 3 units of work to train: 3 seed groups of 6 runs (2 runs each), 0 runs alone"
+    assert listed[-2] == ("6 runs, 1 report; 3 units of work to train: 3 seed groups of 6 runs (2 runs each), "
+                          "0 runs alone")
     assert not again.exists()
     assert main(["experiment", "--config", str(out / "experiment.yaml"), "--out", str(again), "--threshold", "0",
                  "--no-progress"]) == 0

@@ -131,7 +131,8 @@ def test_import_takes_a_file_path_and_a_module_of_the_working_directory(my_tasks
     assert by_name.returncode == 0 and "mine-near" in by_name.stdout, by_name.stderr[-2000:]
     missing = _console("tasks", "--import", "mine/nothing.py", cwd=tmp_path)
     assert missing.returncode == 2
-    assert missing.stderr.strip() == "drltg tasks: error: cannot import plugin 'mine/nothing.py': no such Python file or package folder."
+    assert missing.stderr.strip() == ("drltg tasks: error: cannot import plugin 'mine/nothing.py': no such Python "
+                                      "file or package folder.")
 
 
 def test_a_plugin_file_reaches_the_worker_processes(my_tasks, tmp_path):

@@ -15,9 +15,9 @@ pytest.importorskip("robosuite")
 
 from drltg import config as config_lib  # noqa: E402
 from drltg.store.rundir import load_checkpoint  # noqa: E402
+from drltg.training.grouping import group_support, in_process  # noqa: E402
 from drltg.training.loop import build_env  # noqa: E402
 from drltg.training.replay import load_buffer_state  # noqa: E402
-from drltg.training.grouping import group_support, in_process  # noqa: E402
 from drltg.training.seeds import _group_env, train_seeds  # noqa: E402
 
 TINY = ["network.hidden=[16,16]", "env.horizon=50", "env.parallel=false", "env.mp_start_method=fork",

@@ -3,10 +3,10 @@ import pytest
 import torch
 
 from drltg import config as config_lib
+from drltg.errors import UsageError
 from drltg.experiments.executor import Run, execute, seed_groups
 from drltg.store.rundir import MODEL_REUSE, load_checkpoint
 from drltg.training import grouping, loop, seeds
-from drltg.errors import UsageError
 from drltg.transfer import TransferMethod, get_method
 from tests.test_seed_groups import TINY, tiny_cfg
 

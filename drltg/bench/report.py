@@ -111,7 +111,8 @@ def board_markdown(board: dict, tier: Tier) -> str:
 def _pair_curves(board: dict, tier: Tier, figure: FigureStyle = DEFAULT) -> dict[str, bytes]:
     """``curves-<pair>.png`` for every pair: each row's transfer runs and no transfer's, normalised."""
     from drltg.analysis.curves import read_eval_csv
-    from drltg.analysis.plot import files as named, plot_method_curves
+    from drltg.analysis.plot import files as named
+    from drltg.analysis.plot import plot_method_curves
 
     def runs(folder: Path, lo: float, hi: float):
         curves = [read_eval_csv(p) for p in sorted(folder.glob("seed-*/eval.csv"))]
@@ -150,7 +151,8 @@ def bench_report(*, out: str | Path | None = "runs/bench", reference: str | Path
                  reps: int = 2000, figure: FigureStyle = DEFAULT) -> tuple[dict, Path]:
     """Write the leaderboard of ``tier`` (the reference's rows and ``out``'s) into ``board_dir`` (default
     ``<out>/<version>/<tier>/board``), its figures drawn as ``figure`` says; returns the board and the folder."""
-    from drltg.analysis.plot import files as named, plot_profiles
+    from drltg.analysis.plot import files as named
+    from drltg.analysis.plot import plot_profiles
     from drltg.store import atomic
 
     the_tier = get_tier(version, tier)

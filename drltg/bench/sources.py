@@ -18,7 +18,8 @@ import shutil
 from pathlib import Path
 
 from drltg.bench import suite
-from drltg.bench.suite import REFERENCE_FILES as FILES, SMOKE, Group, Tier, declared_sources, tier_root
+from drltg.bench.suite import REFERENCE_FILES as FILES
+from drltg.bench.suite import SMOKE, Group, Tier, declared_sources, tier_root
 from drltg.errors import UsageError
 from drltg.store import rundir
 

@@ -27,9 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
+from drltg.bench import suite
 from drltg.bench.board import pair_score
 from drltg.bench.run import TUNING, applicable_pairs, plan_tier, tuning_root
-from drltg.bench import suite
 from drltg.bench.suite import LATEST, SMOKE, TUNE_SEED, get_tier
 from drltg.errors import RunFailed, UsageError
 from drltg.store import rundir

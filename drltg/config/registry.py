@@ -26,6 +26,7 @@ from typing import Any
 
 from drltg.errors import UsageError, closest
 
+
 class Registry(MutableMapping):
     """``name -> entry`` of one entry-point group, loaded when first looked up."""
 

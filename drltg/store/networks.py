@@ -20,7 +20,7 @@ from itertools import accumulate
 from pathlib import Path
 
 from drltg.errors import UsageError
-from drltg.regular import open_regular, read_bytes
+from drltg.regular import read_bytes
 from drltg.store import manifest
 
 NETWORKS = {"last": Path("checkpoints") / "last.safetensors", "best": Path("checkpoints") / "best.safetensors"}

@@ -51,7 +51,6 @@ def in_process(cfg: RunConfig) -> bool:
 def batched(cfg: RunConfig) -> bool:
     """Whether the task's env steps a whole group's batch as one env seeded once (a :class:`GoalEnv`)."""
     from drltg.envs import get_task
-
     from drltg.envs.goal_env import GoalEnv
 
     factory = get_task(cfg.task).factory

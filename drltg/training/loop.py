@@ -41,8 +41,7 @@ from drltg.errors import UsageError
 from drltg.learners import Agent, UpdateStep, make_agent, sample_batches
 from drltg.store import rundir
 from drltg.store.rundir import EPISODE_FLAGS, RunWriter, is_complete, read_eval_csv
-from drltg.training import best, health, preflight
-from drltg.training import console
+from drltg.training import best, console, health, preflight
 from drltg.training.progress import Progress
 from drltg.training.replay import buffer_state, replay_buffer
 from drltg.training.session import RunSession
