@@ -194,6 +194,18 @@ def test_a_method_groups_only_if_it_and_every_part_declare_it(method, grouped):
     assert reason == (None if grouped else f"transfer method {method} has no grouped form")
 
 
+def test_a_method_without_a_grouped_form_says_why_in_the_plan(tmp_path):
+    from drltg.experiments.executor import Run, plan_of
+
+    cfg = tiny_cfg(**{"transfer.method": "sf-gpi"})
+    assert grouping.group_support(cfg) == f"transfer method sf-gpi has no grouped form: {get_method('sf-gpi').alone}"
+    runs = [Run("transfer", cfg.model_copy(update={"seed": s}), tmp_path / f"seed-{s}", tmp_path / f"{s}.log")
+            for s in (0, 100)]
+    first = plan_of(runs).summary(runs, 0)[0]
+    assert first.endswith(f"2 runs alone (transfer method sf-gpi has no grouped form: {get_method('sf-gpi').alone})")
+    assert "replaces the collector's policy" in get_method("sf-gpi").alone
+
+
 def test_a_user_method_trains_alone_unless_it_declares_a_grouped_form():
     from drltg.transfer import Transfer, TransferMethod, register_method
     from drltg.transfer.registry import METHODS

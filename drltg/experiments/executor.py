@@ -319,8 +319,16 @@ class Plan:
         return [f"{_count(len(runs), 'run')}, {_count(reports, 'report')}; {_count(len(self.units), 'unit')} of work "
                 f"to train: {_count(len(groups), 'seed group')} of {_count(sum(map(len, groups)), 'run')}"
                 + (f" ({' or '.join(map(str, sizes))} runs each)" if sizes else "")
-                + f", {_count(len(self.units) - len(groups), 'run')} alone",
+                + f", {_count(len(self.units) - len(groups), 'run')} alone" + _why_alone(self.units),
                 f"left to train: about {self.left:,} of {sum(r.frames for r in runs):,} frames ({counts})"]
+
+
+def _why_alone(units: list[list[Run]]) -> str:
+    """Why runs that could share a group train one at a time, where a part says so (``" (why)"``)."""
+    from drltg.training.grouping import group_support
+
+    reasons = sorted({why for u in units if len(u) == 1 and (why := group_support(u[0].cfg))})
+    return f" ({'; '.join(reasons)})" if reasons else ""
 
 
 def _count(n: int, noun: str) -> str:

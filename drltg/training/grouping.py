@@ -28,8 +28,9 @@ def group_support(cfg: RunConfig) -> str | None:
     """``None`` if the seeds of ``cfg`` can train as one group, else why not (one clause)."""
     if cfg.algo not in GROUPED_ALGOS:
         return f"--algo {cfg.algo} has no grouped update"
-    if not get_method(cfg.transfer.method).grouped:
-        return f"transfer method {cfg.transfer.method} has no grouped form"
+    method = get_method(cfg.transfer.method)
+    if not method.grouped:
+        return f"transfer method {method.name} has no grouped form" + (f": {method.alone}" if method.alone else "")
     if cfg.optim.cudagraphs:
         return "a group's vmapped update is not captured as a CUDA graph (optim.cudagraphs)"
     from drltg.envs import get_task

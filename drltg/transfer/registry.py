@@ -117,6 +117,8 @@ class TransferMethod:
             envs, seed k's ``batches`` of seed k's buffer, seed k's ``loss_terms`` (a
             :class:`~drltg.losses.terms.LossTerm`) with seed k's parameters, and every seed's
             ``on_frames``; a method whose ``Transfer`` sets the policy has no grouped form.
+        alone: where it has none, why, in one clause: a dry run's plan and the run's log say it beside the
+            runs that train one at a time.
         member_options: the options seed k's own parts read alone (built from seed k's config), so runs that
             differ in them still train as one seed group: a tuning grid's settings with their seeds.
         search: the method's tuning space, ``option -> values`` over its own options, each list starting
@@ -134,6 +136,7 @@ class TransferMethod:
     algos: tuple[str, ...] | None = None
     takes: tuple[str, ...] = ()
     grouped: bool = False
+    alone: str = ""
     search: dict[str, tuple] = field(default_factory=dict)
     member_options: tuple[str, ...] = ()
     model: type[Section] | None = field(init=False, repr=False, compare=False)
@@ -282,6 +285,7 @@ def combine(*methods: TransferMethod) -> TransferMethod:
     return TransferMethod(name, " + ".join(m.help for m in methods), build, source=source, options=options,
                           check=check, check_env=check_env, algos=algos, takes=tuple(owners),
                           grouped=all(m.grouped for m in methods),
+                          alone="; ".join(f"{m.name}: {m.alone}" for m in methods if not m.grouped and m.alone),
                           member_options=tuple(k for m in methods for k in m.member_options))
 
 

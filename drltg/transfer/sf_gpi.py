@@ -248,6 +248,8 @@ SF_GPI = TransferMethod(
     source="run",
     algos=("sac",),
     takes=("policy",),
+    alone="its GPI policy, over the source's and the learner's successor features, replaces the collector's "
+          "policy, which a seed group's seeds share",
     check=_check,
     options={
         "sf_frames": (Int, Field(10_000, ge=1, description="sf-gpi: frames the source policy acts in the source "
