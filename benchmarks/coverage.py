@@ -36,7 +36,7 @@ from drltg.analysis import metrics as M
 from drltg.analysis import stats
 
 SHAPES = ("normal", "lognormal", "bimodal", "rate")
-"""The shapes of the report's coverage claim (``drltg.analysis.report.COVERAGE_CLAIM``)."""
+"""The shapes of the report's coverage claim (``drltg.report.COVERAGE_CLAIM``)."""
 LEARN = {"learn-50": 0.5, "learn-80": 0.8}
 """The chance that a transfer seed learns, per learn-or-not shape."""
 

@@ -16,7 +16,7 @@ import json, os, sys
 from pathlib import Path
 sys.path.insert(0, "results")
 from rebuild import keep_curves
-from drltg.analysis.report import transfer_report
+from drltg.report import transfer_report
 from drltg.cli.demo import DEMO
 from drltg.store import rundir
 

@@ -167,7 +167,7 @@ def test_the_report_s_coverage_claim_matches_the_committed_simulation():
     exception is a cell that reaches it (the claim neither hides a shortfall nor gives up a success)."""
     from pathlib import Path
 
-    from drltg.analysis.report import COVERAGE_EXCEPTIONS
+    from drltg.report import COVERAGE_EXCEPTIONS
 
     text = (Path(__file__).resolve().parents[1] / "results" / "coverage" / "README.md").read_text()
     rows = [line.strip("|").split("|") for line in text.splitlines() if line.startswith("| ") and "---" not in line]
@@ -252,8 +252,8 @@ def test_the_default_interval_covers_any_scores_in_their_range_and_rarely_claims
 def test_the_default_withholds_intervals_of_scores_of_unknown_range():
     """Skewed and bimodal scores of unknown range: no interval at any seed count (the t interval's coverage
     falls below 0.93 there: see the tests above and results/coverage), a sentence that says why instead."""
-    from drltg.analysis import report
-    from drltg.analysis.curves import Curve
+    from drltg import report
+    from drltg.report.curves import Curve
 
     rng = np.random.default_rng(0)
     for n in (3, 5, 10):

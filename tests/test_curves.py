@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from drltg.analysis.curves import Curve, find_runs, read_curves, read_run
 from drltg.errors import UsageError
+from drltg.report.curves import Curve, find_runs, read_curves, read_run
 
 RUN_NAMES = [
     "lift_shaped_sac", "lift_soc4", "lift_sparse_sac", "liftplace_sac", "liftplace_sac_policyreuse",

@@ -54,7 +54,7 @@ def damage(path: Path, rng: random.Random) -> str:
 def read_everything(run: Path) -> None:
     """What drltg reads of a finished run: its curve and config (report), every logged scalar file, its
     checkpoint (resume), its networks file (reuse, evaluate, video) and its summary."""
-    from drltg.analysis.curves import read_csvlogger, read_run, read_tensorboard
+    from drltg.report.curves import read_csvlogger, read_run, read_tensorboard
 
     read_run(run)
     for path in sorted((run / "logs" / "csv").rglob("*.csv")):

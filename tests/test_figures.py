@@ -126,7 +126,7 @@ def test_the_style_leaves_matplotlib_s_settings_as_they_were(runs, tmp_path):
 
 
 def test_the_python_api_takes_the_same_object(runs, tmp_path):
-    from drltg.analysis.report import transfer_report
+    from drltg.report import transfer_report
 
     style = FigureStyle.preset("one-column", format="svg")
     assert style.formats("svg") == ("png", "svg") and FigureStyle().formats("svg") == ("png", "svg")

@@ -17,9 +17,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from drltg import config as config_lib
-from drltg.analysis.curves import Curve
-from drltg.analysis.report import compute, render
 from drltg.errors import UsageError
+from drltg.report import compute, render
+from drltg.report.curves import Curve
 
 EXAMPLES = int(os.environ.get("DRLTG_FUZZ_EXAMPLES", "0"))
 """Examples per property: a fixed, derandomized 60 in ``make test`` (the same inputs every run), else random."""

@@ -326,7 +326,7 @@ def _rounded(value):
 def test_the_pendulum_rows_are_reproduced_from_their_committed_curves(tmp_path):
     import json
 
-    from drltg.analysis.report import transfer_report
+    from drltg.report import transfer_report
 
     assert len(list(STUDY.glob("source/seed-*/checkpoints/last.safetensors"))) == 10
     assert len(list(STUDY.glob("baseline/seed-*/summary.json"))) == 10

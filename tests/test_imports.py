@@ -4,6 +4,7 @@ The layers, lowest first (a module may import its own package and lower layers o
 layer import nothing from each other)::
 
     errors       drltg.errors
+    analysis     drltg.analysis (pure functions over arrays and records: no torch, no run directory)
     regular      drltg.regular (reading a file that must be a regular one)
     yaml         drltg.safe_yaml (bounded YAML from files and command lines)
     base         drltg.plugins | drltg.store (a run directory on disk: files, manifest, checkpoints, lock)
@@ -15,7 +16,7 @@ layer import nothing from each other)::
     learners     drltg.learners
     transfer     drltg.transfer (methods compose parts; a source is rebuilt with a learner)
     training     drltg.training
-    analysis     drltg.analysis (no torch)
+    report       drltg.report (a report over run directories and logs: no torch)
     experiments  drltg.experiments, drltg.video (run, then report)
     bench        drltg.bench (a suite's tiers run as sweeps, and their leaderboard)
     cli          drltg.cli
@@ -35,6 +36,7 @@ PACKAGE = ROOT / "drltg"
 
 LAYERS = [
     ["drltg.errors"],
+    ["drltg.analysis"],
     ["drltg.regular"],
     ["drltg.safe_yaml"],
     ["drltg.plugins", "drltg.store"],
@@ -46,7 +48,7 @@ LAYERS = [
     ["drltg.learners"],
     ["drltg.transfer"],
     ["drltg.training"],
-    ["drltg.analysis"],
+    ["drltg.report"],
     ["drltg.experiments", "drltg.video"],
     ["drltg.bench"],
     ["drltg.cli"],
@@ -154,9 +156,9 @@ def test_no_import_cycles():
             visit(name, [name])
 
 
-def test_analysis_and_the_package_root_import_no_torch_at_all():
+def test_analysis_the_report_and_the_package_root_import_no_torch_at_all():
     for name in MODULES:
-        if name == "drltg" or name.startswith("drltg.analysis"):
+        if name == "drltg" or name.startswith(("drltg.analysis", "drltg.report")):
             heavy = {t for t in imports(name) if t.split(".")[0] in HEAVY}
             assert not heavy, f"{name} imports {heavy}"
 
@@ -209,7 +211,7 @@ def test_a_report_of_manipulation_runs_bounds_by_the_task_s_return_range_without
 def test_the_parts_register_nothing_and_load_no_upper_layer():
     code = (
         "import sys, drltg, drltg.envs, drltg.transforms, drltg.collectors, drltg.losses, drltg.modules\n"
-        "upper = ('drltg.transfer', 'drltg.analysis', 'drltg.cli', 'drltg.experiments', 'drltg.config',"
+        "upper = ('drltg.transfer', 'drltg.report', 'drltg.cli', 'drltg.experiments', 'drltg.config',"
         " 'drltg.learners', 'drltg.training')\n"
         "print(sorted(m for m in sys.modules if m.startswith(upper)))"
     )

@@ -94,8 +94,8 @@ def test_an_equivalence_margin_turns_an_undecided_mean_difference_into_equivalen
     import numpy as np
     from scipy import stats as sp
 
-    from drltg.analysis import report_from_curves
     from drltg.analysis.stats import tost
+    from drltg.report import report_from_curves
 
     b = np.array([0.5, 0.6, 0.4, 0.55, 0.45, 0.5])
     d = np.array([0.01, -0.01, 0.02, 0.0, -0.02, 0.01])
@@ -118,7 +118,7 @@ def test_an_equivalence_margin_turns_an_undecided_mean_difference_into_equivalen
     said = verdict_of(report, "mean_return_gain")
     assert said.startswith("+0.00, equivalent (TOST within +-0.05, paired t, p = ")
     assert "by paired t, assuming normal differences" in said  # TOST stands on the t interval's assumption
-    from drltg.analysis.report import outputs
+    from drltg.report import outputs
 
     assert "equivalent (TOST within +-0.05, paired t, p < 0.001, assuming normal differences)" in \
         outputs.magnitudes_table(report)

@@ -17,9 +17,9 @@ import yaml
 
 import drltg.training.loop as train_mod
 from drltg import config as config_lib
-from drltg.analysis.curves import read_csvlogger, read_tensorboard
 from drltg.cli import main
 from drltg.errors import UsageError
+from drltg.report.curves import read_csvlogger, read_tensorboard
 from drltg.store import atomic, rundir
 from drltg.store import lock as lock_mod
 
@@ -755,7 +755,7 @@ def test_an_edited_curve_of_a_finished_run_is_refused_by_the_report(source, tmp_
     ("scalars/eval/return_mean.csv", "0,0.5\n100,0.7\n200,0.8\n", 3),
 ])
 def test_a_torn_last_line_is_refused_naming_file_and_line(name, text, last, tmp_path):
-    from drltg.analysis.curves import read_curves
+    from drltg.report.curves import read_curves
 
     path = tmp_path / "run" / name
     path.parent.mkdir(parents=True)

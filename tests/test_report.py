@@ -9,11 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from drltg.analysis import order_stats, report, stats
-from drltg.analysis.curves import Curve
-from drltg.analysis.report import catalogue, outputs
+from drltg import report
+from drltg.analysis import order_stats, stats
 from drltg.cli import report as report_cli
 from drltg.errors import UsageError
+from drltg.report import catalogue, outputs
+from drltg.report.curves import Curve
 
 FILES = {"transfer_metrics.json", "transfer_metrics.csv", "transfer_plot.png", "transfer_plot.svg"}
 
@@ -105,7 +106,7 @@ def test_jumpstart_window_budget_and_fraction_threshold(two_by_two, tmp_path):
 
 
 def _read(path):
-    from drltg.analysis.curves import read_curves
+    from drltg.report.curves import read_curves
 
     return read_curves(path)
 
@@ -796,7 +797,7 @@ def test_other_modules_use_only_public_report_names():
     root = Path(report.__file__).resolve().parents[1]
     for path in [*root.glob("drltg/**/*.py"), *root.glob("results/*.py")]:
         for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.ImportFrom) and node.module in ("drltg.analysis.report", "drltg.analysis.tables"):
+            if isinstance(node, ast.ImportFrom) and node.module in ("drltg.report", "drltg.analysis.tables"):
                 assert not [a.name for a in node.names if a.name.startswith("_")], path
 
 
@@ -808,7 +809,7 @@ def test_the_analysis_package_imports_no_torch():
     """Nor the methods or the task registry; ``import drltg`` itself reads the task registry (no torch) to
     register the tasks' Gymnasium ids, so the registry counts only if the analysis is what brought it."""
     code = ("import sys, drltg\nbefore = set(sys.modules)\n"
-            "import drltg.analysis, drltg.analysis.report, drltg.analysis.plot\n"
+            "import drltg.analysis, drltg.report, drltg.analysis.plot\n"
             f"leaked = [m for m in {NO_TORCH!r} if m in sys.modules and (m == 'torch' or m not in before)]\n"
             "assert not leaked, leaked")
     subprocess.run([sys.executable, "-c", code], check=True)
@@ -1055,7 +1056,7 @@ def test_a_difference_within_float32_rounding_of_the_curves_is_drawn_as_zero(tmp
 
 
 def test_report_from_curves_is_the_report_of_the_same_curves(tmp_path):
-    from drltg.analysis import report_from_curves
+    from drltg.report import report_from_curves
 
     frames = [0, 10, 20, 30]
     b = [[0.0, 0.1, 0.2, 0.3], [0.0, 0.3, 0.3, 0.4], [0.1, 0.1, 0.2, 0.5]]

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from drltg.analysis.curves import read_curves
 from drltg.cli import main
+from drltg.report.curves import read_curves
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPTS = sorted(p for p in (ROOT / "results").glob("*.sh") if p.name != "demo.sh")  # demo.sh: `drltg demo`

@@ -185,7 +185,7 @@ def test_the_report_does_not_follow_links_between_folders(copy, tmp_path, capsys
     """Two links to ``..`` made the search for runs endless; a link is not searched."""
     (copy.parent / "up").symlink_to("..")
     (copy / "checkpoints" / "up").symlink_to("../..")
-    from drltg.analysis.curves import find_runs
+    from drltg.report.curves import find_runs
 
     assert find_runs(copy.parent) == [copy]
 

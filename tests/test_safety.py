@@ -324,8 +324,8 @@ def test_drltg_runs_and_config_less_logs_are_not_pooled_on_one_side(tmp_path, ca
 def test_a_run_that_skips_evaluations_is_named(tmp_path):
     from pathlib import Path
 
-    from drltg.analysis.curves import Curve
-    from drltg.analysis.report import compute
+    from drltg.report import compute
+    from drltg.report.curves import Curve
 
     grid = list(range(0, 1100, 100))
     full = [Curve(grid, [i / 10 for i in range(11)], Path(f"/b/seed-{s}"), f"b/seed-{s}") for s in range(3)]

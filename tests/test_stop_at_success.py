@@ -11,10 +11,10 @@ import torch
 import drltg.training.loop as loop
 import drltg.training.seeds as seeds_mod
 from drltg import config as config_lib
-from drltg.analysis.report.align import _frames_of_run
 from drltg.errors import UsageError
 from drltg.experiments.experiment import experiment, plan_runs
 from drltg.experiments.spec import parse_spec
+from drltg.report.align import _frames_of_run
 from drltg.training.loop import read_eval_csv, train
 from drltg.training.seeds import train_seeds
 

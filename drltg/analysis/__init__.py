@@ -1,19 +1,14 @@
-"""Analysis of saved runs: learning curves in, transfer metrics, intervals, tables and figures out.
+"""Transfer metrics and their statistics as pure functions over arrays and plain records, as rliable's are:
+nothing here reads a run directory or looks up a task; the caller (:mod:`drltg.report`, :mod:`drltg.bench`)
+passes return ranges and task facts in as data.
 
-    curves    read run directories and foreign logs (SB3, TensorBoard, CSVLogger) as :class:`Curve`
-    metrics   transfer metrics and multi-seed statistics on arrays (Taylor & Stone 2009; Agarwal et al. 2021)
-    report    ``drltg report``: both run sets checked, aligned, scored and compared
-    plot      the report's figures
-    tables    text, Markdown and CSV tables
+    metrics       transfer metrics and multi-seed statistics on arrays (Taylor & Stone 2009; Agarwal et al. 2021)
+    stats         intervals and randomization tests over per-seed scores
+    aggregate     rliable's aggregates over tasks (IQM, P(T > B), profiles)
+    claims        the sentences a verdict is stated in, generated from the numbers
+    sequential    the ``--seeds auto`` plan of looks; operating: its level and power
+    plot, tables  figures and tables of the numbers
 
-Only numpy, scipy, pandas and matplotlib are used: nothing here imports torch, the method registry or the
-task registry, so a report on saved runs starts fast and works where no learner can be built.
+Only numpy, scipy, pandas, rliable and matplotlib are used: nothing here imports torch, the method registry or
+the task registry, so a report on saved runs starts fast and works where no learner can be built.
 """
-
-
-def report_from_curves(frames, baseline, transfer, *, paired: bool = True, **settings) -> dict:
-    """:func:`drltg.analysis.report.report_from_curves`: the ``transfer_metrics.json`` dict of curves in
-    memory (``frames``: one per evaluation; ``baseline``, ``transfer``: seeds x evaluations)."""
-    from drltg.analysis.report import report_from_curves as from_arrays
-
-    return from_arrays(frames, baseline, transfer, paired=paired, **settings)

@@ -25,7 +25,7 @@ from typing import Mapping, NamedTuple, Sequence
 import numpy as np
 
 from drltg.analysis import stats
-from drltg.analysis.report.inference import ASSUMES
+from drltg.analysis.stats import ASSUMES
 
 LEVEL = 0.05
 """The level of every verdict drltg states (reports, sweep summaries, the board): the one home of 0.05."""

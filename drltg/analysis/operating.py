@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
+import os
 import warnings
 from pathlib import Path
 from typing import Callable
@@ -164,12 +165,12 @@ def main(argv=None) -> int:
     p.add_argument("--reps", type=int, default=2000)
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args(argv)
-    from drltg.store.rundir import atomic_write
-
     result = table(reps=args.reps, seed=args.seed)
     args.out.mkdir(parents=True, exist_ok=True)
-    atomic_write(args.out / "operating.json", json.dumps(result, indent=1) + "\n")
-    atomic_write(args.out / "operating.md", markdown(result))
+    for name, text in (("operating.json", json.dumps(result, indent=1) + "\n"), ("operating.md", markdown(result))):
+        tmp = args.out / f".{name}.tmp"  # written whole, then renamed: never half a table
+        tmp.write_text(text)
+        os.replace(tmp, args.out / name)
     print(markdown(result))
     return 0
 

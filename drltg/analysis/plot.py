@@ -9,7 +9,7 @@ import io
 import numpy as np
 
 from drltg.analysis.figure_style import DEFAULT, FigureStyle
-from drltg.analysis.report.inference import ASSUMES
+from drltg.analysis.stats import ASSUMES
 
 RANGE_ONLY = ASSUMES["range"]
 COLORS = {"baseline": "#0072B2", "transfer": "#D55E00"}  # colour-blind safe blue / vermillion

@@ -36,6 +36,20 @@ from drltg.analysis.metrics import as_array, checked_curve
 
 Array = np.ndarray
 
+ASSUMES = {
+    "range": "only the declared range (worst case over it)",
+    "normal differences": "normal differences",
+    "normal scores": "normal scores on each side",
+    "normal areas": "normal areas (Fieller)",
+    "resampling": "that the seeds stand for their distribution (bootstrap)",
+    "pairs": "independent pairs, any shape",
+    "shift": "independent runs, the sides differing by a shift, any shape",
+    "runs": "independent runs, a normal approximation of the score (Newcombe)",
+    "line": "normal scatter about a straight line",
+}
+"""What each interval assumes, as ``<key>_assumes`` gives it beside every ``<key>`` interval in the metrics: the
+test that decides a verdict assumes none of these (exchangeable runs under no effect only)."""
+
 
 # --------------------------------------------------------------------------------------- intervals
 # Interval functions work along the last axis (seeds), so one call can hold thousands of simulated

@@ -110,9 +110,9 @@ def board_markdown(board: dict, tier: Tier) -> str:
 
 def _pair_curves(board: dict, tier: Tier, figure: FigureStyle = DEFAULT) -> dict[str, bytes]:
     """``curves-<pair>.png`` for every pair: each row's transfer runs and no transfer's, normalised."""
-    from drltg.analysis.curves import read_eval_csv
     from drltg.analysis.plot import files as named
     from drltg.analysis.plot import plot_method_curves
+    from drltg.report.curves import read_eval_csv
 
     def runs(folder: Path, lo: float, hi: float):
         curves = [read_eval_csv(p) for p in sorted(folder.glob("seed-*/eval.csv"))]

@@ -207,9 +207,9 @@ def _tune_baseline(tier, version: str, root: Path, seeds: int, smoke: bool, work
 def normalised_area(run) -> float:
     """A run's mean return over its budget (the report's ``mean_return``: the area under its evaluation curve
     over the frames) normalised to [0, 1] by its task's declared return range: the board's AUC."""
-    from drltg.analysis.curves import read_eval_csv
     from drltg.analysis.metrics import area_under_curve
     from drltg.envs.registry import TASKS
+    from drltg.report.curves import read_eval_csv
 
     curve = read_eval_csv(run.path / rundir.EVAL)
     lo, hi = TASKS[run.cfg.task].return_range(run.cfg.model_dump()["env"])

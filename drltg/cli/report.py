@@ -1,6 +1,6 @@
 """``drltg report``: did the transfer method help? Metrics, a plot and tables from learning curves.
 
-The command's options and output; the report itself is :mod:`drltg.analysis.report`."""
+The command's options and output; the report itself is :mod:`drltg.report`."""
 from __future__ import annotations
 
 import argparse
@@ -9,8 +9,8 @@ import sys
 from dataclasses import asdict, fields
 
 from drltg.analysis import figure_style, tables
-from drltg.analysis.report import ReportSettings, find_matrix_cells, format_table, transfer_matrix, transfer_report
 from drltg.errors import UsageError
+from drltg.report import ReportSettings, find_matrix_cells, format_table, transfer_matrix, transfer_report
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

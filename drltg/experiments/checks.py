@@ -5,7 +5,7 @@ at the end: a budget whose evaluations the report cannot read (too few in the wi
 check fits) would be found only then. :func:`plan_warnings` says it before anything trains."""
 from __future__ import annotations
 
-from drltg.analysis.report.settings import MIN_TREND_POINTS, ReportSettings
+from drltg.report.settings import MIN_TREND_POINTS, ReportSettings
 from drltg.training.preflight import budget_warnings, every_text
 
 

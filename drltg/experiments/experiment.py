@@ -337,7 +337,7 @@ def experiment(pair: str, method: str, *, frames: int | str, out: str | Path, se
     The arguments are ``drltg experiment``'s (frame counts as ``20000``, ``"20k"`` or ``"1e4"``;
     ``overrides`` as ``["transfer.upsilon=0.9"]``; ``value_range`` as ``(-50, 0)``, for a task that declares no
     return range; ``figure`` how the report's plot is drawn, a
-    :class:`~drltg.analysis.figure_style.FigureStyle`). Returns the report, :func:`drltg.analysis.report.
+    :class:`~drltg.analysis.figure_style.FigureStyle`). Returns the report, :func:`drltg.report.
     transfer_report`'s dict, with ``"diverged"``: the runs left out of it because their losses diverged.
     Raises :class:`~drltg.errors.UsageError` for a bad setting, before anything is written, and
     :class:`~drltg.errors.RunFailed` naming every run that failed.
@@ -394,7 +394,7 @@ def experiment(pair: str, method: str, *, frames: int | str, out: str | Path, se
 
 def _with_sequential(result: dict, record: dict) -> dict:
     """The last look's report with the plan's record and verdict, written back to its transfer_metrics.json."""
-    from drltg.analysis.report.outputs import json_text
+    from drltg.report.outputs import json_text
 
     m = result["metrics"]
     gain = m.get("mean_return_gain") or 0.0
@@ -416,9 +416,9 @@ def _run(pair, method, frames, out, seeds, seed, algo, source_frames, overrides,
          figure: FigureStyle = DEFAULT) -> dict:
     """One experiment of ``seeds`` pairs (``counted``: how its settings name the seed count); with ``dry_run``,
     its checks and ``{"plan": lines}`` listing its runs (:func:`~drltg.experiments.executor.plan_lines`)."""
-    from drltg.analysis.report import parse_threshold
-    from drltg.analysis.report.settings import parse_range
     from drltg.experiments.executor import check_order, plan_lines
+    from drltg.report import parse_threshold
+    from drltg.report.settings import parse_range
 
     parse_threshold(threshold)
     parse_range(value_range)
@@ -499,7 +499,7 @@ def print_report(result: dict) -> None:
     """What the commands print of an experiment's report: its warnings (on stderr, as ``drltg report``
     prints them), the diverged runs, the table, the headline."""
     from drltg.analysis.claims import headline
-    from drltg.analysis.report import format_table
+    from drltg.report import format_table
 
     for w in result["settings"]["warnings"]:
         print(f"warning: {w}", file=sys.stderr)
@@ -516,9 +516,9 @@ def execute_and_report(runs, out: Path, saved: Path, settings: dict, *, workers:
     """Under the folder's lock: save the settings, train every run not finished yet on ``workers``
     processes, then report the transfer runs against the baselines (the report's dict, with ``"diverged"``:
     the runs left out of it). Raises :class:`~drltg.errors.RunFailed` if a run failed: no report then."""
-    from drltg.analysis.report import transfer_report
     from drltg.experiments.backends import LocalBackend
     from drltg.experiments.executor import execute
+    from drltg.report import transfer_report
 
     with rundir.lock(out, f"{name} folder"):
         _check_settings(saved, settings)  # another process may have started it meanwhile

@@ -169,7 +169,7 @@ def _check_grid(grid: dict, where: str) -> None:
 
 def _value_range(data: dict, where: str) -> tuple[float, float] | None:
     """``value_range: [low, high]``: the range of the runs' returns, for tasks that declare none."""
-    from drltg.analysis.report.settings import parse_range
+    from drltg.report.settings import parse_range
 
     value = data.get("value_range")
     if value is not None and not (isinstance(value, list) and len(value) == 2
@@ -183,7 +183,7 @@ def _value_range(data: dict, where: str) -> tuple[float, float] | None:
 
 def _report_keys(data: dict, where: str) -> tuple:
     """``threshold`` and ``primary_metric`` (``None`` where not given), checked as ``drltg report`` checks them."""
-    from drltg.analysis.report import check_metric, parse_threshold
+    from drltg.report import check_metric, parse_threshold
 
     threshold = data.get("threshold")
     if threshold is not None and (isinstance(threshold, bool) or not isinstance(threshold, (int, float, str))):

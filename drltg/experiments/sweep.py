@@ -158,7 +158,7 @@ def write_reports(cells: list[Cell], status: dict, threshold, value_range=None,
                   figure: FigureStyle = DEFAULT) -> list[dict]:
     """One ``drltg report`` per cell whose runs are all complete (its plot drawn as ``figure`` says); a row per
     cell for the summary."""
-    from drltg.analysis.report import transfer_report
+    from drltg.report import transfer_report
 
     rows = []
     for c in cells:
@@ -223,8 +223,8 @@ def sweep(spec: str | Path | dict, out: str | Path, *, backend: str = "local", w
 
         >>> result = drltg.sweep("examples/sweeps/fourrooms.yaml", "runs/sweep", workers=2)
     """
-    from drltg.analysis.report import check_metric
     from drltg.experiments.experiment import check_existing, check_runs, make_out
+    from drltg.report import check_metric
 
     if workers is not None and workers < 1:
         raise UsageError("--workers must be at least 1.")
@@ -279,7 +279,7 @@ def run(args: argparse.Namespace) -> int:
 def _dry_run(args: argparse.Namespace) -> int:
     """List the runs and reports of the spec, what each run's folder holds already, the units of work they
     train in and the frames left; run nothing."""
-    from drltg.analysis.report import check_metric
+    from drltg.report import check_metric
 
     check_metric(args.metric)
     spec = load_spec(args.spec)

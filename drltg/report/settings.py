@@ -7,8 +7,8 @@ from dataclasses import dataclass, field, fields
 
 from drltg.analysis import metrics as M
 from drltg.analysis import stats
-from drltg.analysis.curves import FORMATS
 from drltg.errors import UsageError
+from drltg.report.curves import FORMATS
 
 SIDES = ("baseline", "transfer")
 MAX_LENGTH_RATIO = 2.0  # longest / shortest run beyond which a default budget would hide too much

@@ -8,10 +8,10 @@ from pathlib import Path
 
 from drltg.analysis import tables
 from drltg.analysis.figure_style import DEFAULT, FigureStyle
-from drltg.analysis.report.catalogue import of_kind, table_rows
-from drltg.analysis.report.inference import ASSUMES
+from drltg.analysis.stats import ASSUMES
 from drltg.analysis.tables import number
 from drltg.errors import UsageError
+from drltg.report.catalogue import of_kind, table_rows
 from drltg.store import rundir
 
 

@@ -9,10 +9,10 @@ from typing import Sequence
 
 import numpy as np
 
-from drltg.analysis.curves import Curve
-from drltg.analysis.report.settings import CONFIG_KEYS_PER_RUN, ReportSettings
-from drltg.analysis.run_state import partition
 from drltg.errors import UsageError
+from drltg.report.curves import Curve
+from drltg.report.run_state import partition
+from drltg.report.settings import CONFIG_KEYS_PER_RUN, ReportSettings
 
 
 @dataclass

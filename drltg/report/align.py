@@ -12,11 +12,11 @@ import numpy as np
 from drltg import safe_yaml
 from drltg.analysis import metrics as M
 from drltg.analysis import stats
-from drltg.analysis.curves import Curve
-from drltg.analysis.report.checks import Sides, run_name
-from drltg.analysis.report.settings import MAX_LENGTH_RATIO, ReportSettings, parse_frames, parse_threshold, task_returns
 from drltg.analysis.tables import number
 from drltg.errors import UsageError
+from drltg.report.checks import Sides, run_name
+from drltg.report.curves import Curve
+from drltg.report.settings import MAX_LENGTH_RATIO, ReportSettings, parse_frames, parse_threshold, task_returns
 from drltg.store.rundir import DEMONSTRATOR
 
 

@@ -7,11 +7,11 @@ import numpy as np
 
 from drltg.analysis import tables
 from drltg.analysis.figure_style import DEFAULT, FigureStyle
-from drltg.analysis.report.catalogue import table_rows
-from drltg.analysis.report.outputs import check_out_dir, fresh_dir, json_text
-from drltg.analysis.report.pipeline import compute, read_runs
-from drltg.analysis.report.settings import settings_of
 from drltg.errors import UsageError
+from drltg.report.catalogue import table_rows
+from drltg.report.outputs import check_out_dir, fresh_dir, json_text
+from drltg.report.pipeline import compute, read_runs
+from drltg.report.settings import settings_of
 from drltg.store import rundir
 
 

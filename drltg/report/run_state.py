@@ -13,7 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Sequence
 
-from drltg.analysis.curves import Curve
+from drltg.report.curves import Curve
 from drltg.store import rundir
 
 CONFIG_LESS = "without config.yaml"

@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
-from drltg.analysis.report.settings import SIDES
+from drltg.report.settings import SIDES
 
 
 def _asymptote_note(st: dict, side: str | None) -> str:

@@ -5,7 +5,7 @@ r"""``drltg report``: did the transfer method help? Metrics, a plot and tables f
 
 The report is one pipeline (:func:`transfer_report`, :func:`compute`):
 
-1. read: both sides with :func:`drltg.analysis.curves.read_curves` (run directories, directories of seed runs,
+1. read: both sides with :func:`drltg.report.curves.read_curves` (run directories, directories of seed runs,
    globs, SB3 / TensorBoard / CSVLogger logs);
 2. check (:func:`check_runs`): no run twice, one task, one configuration a side, paired or not;
 3. align (:func:`align`): every curve is compared on the target task over a common interval
@@ -70,12 +70,12 @@ checked): ``transfer_metrics.json`` (``metrics``, ``settings`` with every choice
 column wide, :mod:`drltg.analysis.figure_style`); ``--matrix`` writes ``transfer_matrix.{png,svg,csv,json}``. All
 options: :class:`ReportSettings`.
 """
-from drltg.analysis.report.catalogue import COMPARISONS, METRICS, TABLE_ROWS, Metric, table_rows
-from drltg.analysis.report.describe import BETTING_CLAIM, COVERAGE_CLAIM, COVERAGE_EXCEPTIONS
-from drltg.analysis.report.matrix import check_metric, find_matrix_cells, transfer_matrix
-from drltg.analysis.report.outputs import format_table, metrics_rows, render
-from drltg.analysis.report.pipeline import compute, read_runs, report_from_curves, transfer_report
-from drltg.analysis.report.settings import SETTINGS_DEFAULTS, ReportSettings, parse_frames, parse_threshold
+from drltg.report.catalogue import COMPARISONS, METRICS, TABLE_ROWS, Metric, table_rows
+from drltg.report.describe import BETTING_CLAIM, COVERAGE_CLAIM, COVERAGE_EXCEPTIONS
+from drltg.report.matrix import check_metric, find_matrix_cells, transfer_matrix
+from drltg.report.outputs import format_table, metrics_rows, render
+from drltg.report.pipeline import compute, read_runs, report_from_curves, transfer_report
+from drltg.report.settings import SETTINGS_DEFAULTS, ReportSettings, parse_frames, parse_threshold
 
 __all__ = [
     "transfer_report", "report_from_curves", "compute", "read_runs", "render", "format_table", "metrics_rows",

@@ -4,15 +4,15 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Sequence
 
-from drltg.analysis.curves import Curve, read_curves
 from drltg.analysis.figure_style import DEFAULT, FigureStyle
-from drltg.analysis.report.align import align
-from drltg.analysis.report.checks import check_runs, nothing_learned
-from drltg.analysis.report.describe import describe, plot_curves
-from drltg.analysis.report.inference import metric_values, records_of, trend
-from drltg.analysis.report.outputs import check_out_dir, fresh_dir, render
-from drltg.analysis.report.scores import score_runs, stack
-from drltg.analysis.report.settings import ReportSettings, settings_of
+from drltg.report.align import align
+from drltg.report.checks import check_runs, nothing_learned
+from drltg.report.curves import Curve, read_curves
+from drltg.report.describe import describe, plot_curves
+from drltg.report.inference import metric_values, records_of, trend
+from drltg.report.outputs import check_out_dir, fresh_dir, render
+from drltg.report.scores import score_runs, stack
+from drltg.report.settings import ReportSettings, settings_of
 from drltg.store import rundir
 
 
@@ -27,7 +27,7 @@ def transfer_report(
     """Read both run sets, compute the metrics, write the four report files; return the JSON object.
 
     ``baseline`` and ``transfer`` are paths (runs, directories of runs, globs) or lists of
-    :class:`~drltg.analysis.curves.Curve`. ``out_dir`` defaults to a fresh folder named after the runs in the
+    :class:`~drltg.report.curves.Curve`. ``out_dir`` defaults to a fresh folder named after the runs in the
     working directory. Keyword settings are those of ``drltg report`` (``threshold=150`` or ``"80%"``,
     ``budget``, ``crossing``, ``paired``, ``source_frames``, ...: the fields of :class:`ReportSettings`);
     ``figure`` how the plot is drawn (size, style, DPI, format: :class:`~drltg.analysis.figure_style.FigureStyle`).

@@ -10,12 +10,13 @@ import pandas as pd
 
 from drltg.analysis import metrics as M
 from drltg.analysis import order_stats, stats
-from drltg.analysis.curves import Curve
 from drltg.analysis.planning import pairs_for_power
-from drltg.analysis.report.align import Window, eval_grid, on_grid
-from drltg.analysis.report.catalogue import COMPARISONS, Metric, of_kind
-from drltg.analysis.report.settings import MIN_SEEDS, MIN_TREND_POINTS, SIDES, ReportSettings
+from drltg.analysis.stats import ASSUMES
 from drltg.analysis.tables import number
+from drltg.report.align import Window, eval_grid, on_grid
+from drltg.report.catalogue import COMPARISONS, Metric, of_kind
+from drltg.report.curves import Curve
+from drltg.report.settings import MIN_SEEDS, MIN_TREND_POINTS, SIDES, ReportSettings
 
 
 def metric_values(scores: pd.DataFrame, trends: dict, paired: bool, w: Window, s: ReportSettings,
@@ -94,19 +95,6 @@ def _compare(metric: Metric, b: np.ndarray, t: np.ndarray, paired: bool, w: Wind
     return out
 
 
-ASSUMES = {
-    "range": "only the declared range (worst case over it)",
-    "normal differences": "normal differences",
-    "normal scores": "normal scores on each side",
-    "normal areas": "normal areas (Fieller)",
-    "resampling": "that the seeds stand for their distribution (bootstrap)",
-    "pairs": "independent pairs, any shape",
-    "shift": "independent runs, the sides differing by a shift, any shape",
-    "runs": "independent runs, a normal approximation of the score (Newcombe)",
-    "line": "normal scatter about a straight line",
-}
-"""What each interval assumes, as ``<key>_assumes`` gives it beside every ``<key>`` interval in the metrics: the
-test that decides a verdict assumes none of these (exchangeable runs under no effect only)."""
 
 
 def interval_assumes(kind: str, paired: bool, interval: str) -> str:

@@ -10,11 +10,11 @@ import pandas as pd
 
 from drltg.analysis import metrics as M
 from drltg.analysis import stats
-from drltg.analysis.curves import Curve
-from drltg.analysis.report.align import Window, eval_grid, on_grid
-from drltg.analysis.report.checks import Sides, tuned_on
-from drltg.analysis.report.inference import UNBOUNDED, family_of, is_missing, num
-from drltg.analysis.report.settings import MIN_SEEDS, PLOT_POINTS, ReportSettings
+from drltg.report.align import Window, eval_grid, on_grid
+from drltg.report.checks import Sides, tuned_on
+from drltg.report.curves import Curve
+from drltg.report.inference import UNBOUNDED, family_of, is_missing, num
+from drltg.report.settings import MIN_SEEDS, PLOT_POINTS, ReportSettings
 
 
 def describe(s: ReportSettings, sides: Sides, w: Window, trends: dict, warnings: list[str],

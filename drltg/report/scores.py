@@ -5,13 +5,13 @@ import numpy as np
 import pandas as pd
 
 from drltg.analysis import metrics as M
-from drltg.analysis.curves import Curve
-from drltg.analysis.report.align import Window
-from drltg.analysis.report.checks import Sides, run_name, seed_of
-from drltg.analysis.report.inference import num
-from drltg.analysis.report.settings import ReportSettings
 from drltg.analysis.tables import number
 from drltg.errors import UsageError
+from drltg.report.align import Window
+from drltg.report.checks import Sides, run_name, seed_of
+from drltg.report.curves import Curve
+from drltg.report.inference import num
+from drltg.report.settings import ReportSettings
 
 
 def score_runs(sides: Sides, w: Window, s: ReportSettings, warnings: list[str]) -> dict[str, pd.DataFrame]:
