@@ -91,6 +91,19 @@ def sf_psi() -> str:
 
 
 BOARD = {f"bench-{f}": lambda f=f: table(f"{BENCH}/board/{f}.md") for f in ("ranking", "pairs")}
+
+
+def sources(folder: str) -> str:
+    """A suite's sources (``sources.json``) per group: how many met the success criterion, in how many frames."""
+    listed = json.loads((ROOT / folder / "sources.json").read_text())
+    rows = [("group", "sources", "met the success criterion", "frames trained (min, median, max)")]
+    for group in sorted({key.split("/")[0] for key in listed}):
+        mine = [e for key, e in listed.items() if key.startswith(f"{group}/")]
+        frames = sorted(e["frames"] for e in mine)
+        met = [e["met"] for e in mine if e["met"] is not None]
+        rows.append((f"`{group}`", str(len(mine)), f"{sum(met)} of {len(met)}" if met else "no criterion (the budget)",
+                     f"{frames[0]:,}, {frames[len(frames) // 2]:,}, {frames[-1]:,}"))
+    return render(rows, "markdown")
 REGIONS = {
     "README.md": {"demo": lambda: headlines("results/demo/report")},
     "results/README.md": {
@@ -114,7 +127,7 @@ REGIONS = {
         "lift-to-place-verdicts": lambda: headlines("results/sweep-lift-to-place"),
         **BOARD, "pendulum-heavier": lambda: headlines(f"{BENCH}/pendulum"),
     },
-    "docs/bench.md": BOARD,
+    "docs/bench.md": {**BOARD, "bench-v2-sources": lambda: sources("results/bench/v2/quick/sources")},
     "docs/tasks.md": {"tasks": lambda: tasks("rooms"), "tasks-robosuite": lambda: tasks("robosuite"),
                       "tasks-gym": lambda: tasks("gym"),
                       "lift-summary": lambda: headlines("results/sweep-lift-demonstrations/lift/sac/demonstrations",

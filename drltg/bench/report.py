@@ -162,7 +162,9 @@ def bench_report(*, out: str | Path | None = "runs/bench", reference: str | Path
                  "normalised": True, **r["aggregate"]} for r in board["rows"] if r["aggregate"]]
     files = {"leaderboard.json": json.dumps(board, indent=1) + "\n",
              "leaderboard.md": board_markdown(board, the_tier),
-             "ranking.md": _best_sentence(board) + "\n\n" + board_table(board), "pairs.md": pair_table(board),
+             "ranking.md": "\n\n".join([_best_sentence(board), baseline_sentence(board.get("baseline_tuning")),
+                                         board_table(board)]),
+             "pairs.md": pair_table(board),
              **_pair_curves(board, the_tier, figure)}
     if profiled:
         files.update(named("profile", plot_profiles(profiled, over="the tier's pairs", style=figure)))
