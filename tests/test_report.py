@@ -1119,3 +1119,27 @@ def test_sources_that_never_succeeded_are_named(tmp_path):
         lines = [f"{i * 10},-1.0" + (f",{r}" if rates else "") for i, r in enumerate(rates or [0, 0])]
         (run / "eval.csv").write_text("\n".join([head, *lines]) + "\n")
     assert never_succeeded([tmp_path / n for n in ("seed-50", "seed-150", "seed-250")]) == [str(tmp_path / "seed-50")]
+
+
+def test_runs_paired_by_seed_that_learned_from_two_sources_are_refused_in_one_sentence(tmp_path, capsys):
+    """Two transfer methods head to head: seed 100's runs reused different teachers, which pairing would hide."""
+    from drltg.cli import main
+
+    frames = [0, 10, 20, 30, 40]
+    sides = {}
+    for side, digests in (("a", ["1" * 64, "2" * 64]), ("b", ["1" * 64, "3" * 64])):
+        for seed, digest in zip((0, 100), digests):
+            run = write_run(tmp_path / side / f"seed-{seed}", frames, linear(frames, seed / 100))
+            (run / "config.yaml").write_text(f"task: fourrooms/northeast\nseed: {seed}\nframes: 40\n")
+            (run / "summary.json").write_text(json.dumps({"status": "complete", "frames": 40, "source": {
+                "networks_sha256": digest, "config_sha256": "0" * 64}}))
+        sides[side] = tmp_path / side
+    assert main(["report", "--baseline", str(sides["a"]), "--transfer", str(sides["b"]), "--out",
+                 str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert "the pair of seed 100 learned from two sources" in err and "compare teachers, not methods" in err
+    assert err.count("\n") == 1 and not (tmp_path / "r").exists()
+    (sides["b"] / "seed-100" / "summary.json").write_text(json.dumps({"status": "complete", "frames": 40, "source": {
+        "networks_sha256": "2" * 64, "config_sha256": "0" * 64}}))  # the same teacher: the pairs stand
+    assert main(["report", "--baseline", str(sides["a"]), "--transfer", str(sides["b"]), "--out",
+                 str(tmp_path / "r")]) == 0

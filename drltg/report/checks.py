@@ -11,8 +11,9 @@ import numpy as np
 
 from drltg.errors import UsageError
 from drltg.report.curves import Curve
-from drltg.report.run_state import partition
+from drltg.report.run_state import partition, run_directory
 from drltg.report.settings import CONFIG_KEYS_PER_RUN, ReportSettings
+from drltg.store import rundir
 
 
 @dataclass
@@ -53,6 +54,8 @@ def check_runs(baseline: Sequence[Curve], transfer: Sequence[Curve], s: ReportSe
         _check_configs(side, runs, bool(s.allow_mixed), warnings)
     _check_sides(baseline, transfer, bool(s.allow_mismatch), warnings)
     paired, pairing, transfer = _pairing(baseline, transfer, s.paired)
+    if paired:
+        _check_sources(baseline, transfer)
     for side, runs in (("baseline", baseline), ("transfer", transfer)):
         seeds = tuned_on(runs)
         if seeds:
@@ -235,6 +238,35 @@ def seed_of(curve: Curve):
 def _folder_seed(curve: Curve) -> int | None:
     named = [m for part in curve.source.parts if (m := SEED_FOLDER.fullmatch(part))]
     return int(named[-1].group(1)) if named else None
+
+
+def source_digest(curve: Curve) -> str | None:
+    """The SHA-256 of the source networks a drltg run loaded, as its ``summary.json`` records it
+    (:func:`drltg.transfer.source.record`); ``None`` for a run that reused no source, or a foreign log."""
+    run = run_directory(curve)
+    path = None if run is None else run / rundir.SUMMARY
+    if path is None or not path.is_file():
+        return None
+    from drltg.regular import MAX_META_BYTES, read_bytes
+
+    try:
+        source = json.loads(read_bytes(path, MAX_META_BYTES, "a run summary")).get("source")
+    except (OSError, ValueError, AttributeError):
+        return None  # an unreadable summary is the run state's sentence (incomplete), not this one's
+    digest = source.get("networks_sha256") if isinstance(source, dict) else None
+    return digest if isinstance(digest, str) else None
+
+
+def _check_sources(baseline: list[Curve], transfer: list[Curve]) -> None:
+    """Paired runs that both reused a source reused the same one (by its networks' SHA-256): else the pairs'
+    differences would measure two teachers, not two methods."""
+    for b, t in zip(baseline, transfer):
+        mine, theirs = source_digest(b), source_digest(t)
+        if mine is not None and theirs is not None and mine != theirs:
+            raise UsageError(f"the pair of seed {seed_of(b)} learned from two sources ({run_name(b)} loaded networks "
+                             f"{mine[:12]}..., {run_name(t)} {theirs[:12]}..., by the SHA-256 each summary.json "
+                             "records), so paired by seed the report would compare teachers, not methods; compare "
+                             "runs that reused the same sources.")
 
 
 def _pairing(baseline: list[Curve], transfer: list[Curve], paired: bool | None) -> tuple[bool, str, list[Curve]]:
