@@ -12,13 +12,13 @@ for cell in results/sweep-{fourrooms-graded,gridrooms}/*/sac/{baseline,{reward,v
   group=$(cut -d/ -f2 <<< "$cell" | sed 's/sweep-//; s/-graded//') to=$TIER/$group/${cell#results/*/}
   [ -d "$to" ] || { mkdir -p "$(dirname "$to")" && cp -r "$cell" "$to"; }
 done
-for m in $METHODS; do $DRLTG bench run --method "$m" --out "$RUNS" --reference none --workers 2 --no-progress; done
+for m in $METHODS; do $DRLTG bench run --method "$m" --suite v1 --out "$RUNS" --reference none --workers 2 --no-progress; done
 (cd "$TIER" && find . -name summary.json -printf '%h\n') | while read -r run; do
   mkdir -p "$KEEP/$run" && cp "$TIER/$run"/{config.yaml,eval.csv,summary.json} "$KEEP/$run/"
   [[ $run != */source/* ]] || { mkdir -p "$KEEP/$run/checkpoints" && cp "$TIER/$run/manifest.json" "$KEEP/$run/" &&
     cp "$TIER/$run/checkpoints/last.safetensors" "$KEEP/$run/checkpoints/"; }
 done
-for m in $METHODS; do $DRLTG bench run --method "$m" --out results/bench --reference none --no-progress > /dev/null; done
+for m in $METHODS; do $DRLTG bench run --method "$m" --suite v1 --out results/bench --reference none --no-progress > /dev/null; done
 $PYTHON results/rebuild.py --again "$KEEP" > /dev/null  # each group summary of every method (a bench run summarises its own)
 find "$KEEP" \( -name '*.png' -o -name '*.svg' -o -name '*.log' -o -name runs.csv \) -delete
-$DRLTG bench report --out results/bench --reference results/bench && $PYTHON results/claims.py
+$DRLTG bench report --suite v1 --out results/bench --reference results/bench && $PYTHON results/claims.py

@@ -223,7 +223,7 @@ def test_bad_bench_input_is_one_sentence(tmp_path, capsys, argv, sentence):
 
 
 def test_a_broken_bench_record_is_one_sentence(tmp_path, capsys):
-    root = tmp_path / "v1" / "quick"
+    root = tmp_path / suite.LATEST / "quick"
     root.mkdir(parents=True)
     (root / "bench.json").write_text("[1, 2]")
     assert main(["bench", "report", "--out", str(tmp_path), "--reference", "none"]) == 2

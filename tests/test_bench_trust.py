@@ -25,8 +25,8 @@ def _report(pair):
 
 
 def _bench(tmp_path, monkeypatch, edit_record=None, edit_report=None):
-    monkeypatch.setitem(suite.SUITES, "v1", {"two": Tier("two", "two pairs", (Group("g", SPEC),))})
-    root = tmp_path / "v1" / "two"
+    monkeypatch.setitem(suite.SUITES, suite.LATEST, {"two": Tier("two", "two pairs", (Group("g", SPEC),))})
+    root = tmp_path / suite.LATEST / "two"
     reports = {}
     for pair in SPEC["pairs"]:
         folder = root / "g" / pair / "sac" / "m" / "report"
@@ -38,7 +38,7 @@ def _bench(tmp_path, monkeypatch, edit_record=None, edit_report=None):
         path = root / "g" / pair / "sac" / "m" / "report" / "transfer_metrics.json"
         if not path.is_symlink():
             path.write_text(report if isinstance(report, str) else json.dumps(report))
-    record = {"suite": "v1", "tier": "two", "methods": {"m": {"versions": {"drltg": "0", "torch": "0"},
+    record = {"suite": suite.LATEST, "tier": "two", "methods": {"m": {"versions": {"drltg": "0", "torch": "0"},
                                                               "smoke": False, "groups": {"g": SPEC}, "left_out": {}}}}
     if edit_record:
         record = edit_record(record)
@@ -119,7 +119,7 @@ def _refused(tmp_path, capsys, argv, fragment):
     assert main(["bench", "report", "--out", str(tmp_path), "--reference", "none", "--tier", "two", *argv]) == 2
     err = capsys.readouterr().err
     assert fragment in err and err.count("\n") == 1, err
-    assert not (tmp_path / "v1" / "two" / "board").exists()
+    assert not (tmp_path / suite.LATEST / "two" / "board").exists()
 
 
 @pytest.mark.parametrize("case, edit, fragment", REPORTS, ids=[c[0] for c in REPORTS])
@@ -144,4 +144,4 @@ def test_a_trusted_bench_folder_is_reported(tmp_path, monkeypatch, capsys):
     _bench(tmp_path, monkeypatch)
     assert main(["bench", "report", "--out", str(tmp_path), "--reference", "none", "--tier", "two",
                  "--reps", "200"]) == 0
-    assert (tmp_path / "v1" / "two" / "board" / "leaderboard.json").is_file()
+    assert (tmp_path / suite.LATEST / "two" / "board" / "leaderboard.json").is_file()
