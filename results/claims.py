@@ -93,6 +93,38 @@ def sf_psi() -> str:
 BOARD = {f"bench-{f}": lambda f=f: table(f"{BENCH}/board/{f}.md") for f in ("ranking", "pairs")}
 
 
+def costs(folder: str) -> str:
+    """What each part of a bench tier took to train, from its runs' summaries: a unit of work (a seed group, or a
+    run alone) is one process on one core, so its wall time is its CPU time; a run copied as data is counted
+    where it trained."""
+    units: dict[str, dict] = {}
+    for path in sorted((ROOT / folder).rglob("summary.json")):
+        parts = path.relative_to(ROOT / folder).parts
+        if parts[0] == "sources":
+            part = "the sources"
+        elif parts[0] == "tuning":
+            if parts[1] != "none" and "baseline" in parts:
+                continue  # the baseline's own tuning runs, copied
+            part = "the baseline's tuning" if parts[1] == "none" else f"{parts[1]}'s tuning"
+        elif "baseline" in parts:
+            part = "the baselines (shared by every row)"
+        elif "transfer" in parts:
+            part = f"{parts[parts.index('transfer') - 1]}'s row"
+        else:
+            continue
+        summary = json.loads(path.read_text())
+        group = (summary.get("seed_group") or {}).get("seeds") or [summary.get("seed")]
+        key = f"{path.parent.parent}|{group}"
+        unit = units.setdefault(part, {}).setdefault(key, {"runs": 0, "seconds": 0.0})
+        unit["runs"] += 1
+        unit["seconds"] = max(unit["seconds"], float(summary.get("wall_time_s") or 0.0))
+    rows = [("part", "runs", "units of work", "CPU-minutes")]
+    for part, found in units.items():
+        rows.append((part, str(sum(u["runs"] for u in found.values())), str(len(found)),
+                     f"{sum(u['seconds'] for u in found.values()) / 60:.0f}"))
+    return render(rows, "markdown")
+
+
 def sources(folder: str) -> str:
     """A suite's sources (``sources.json``) per group: how many met the success criterion, in how many frames."""
     listed = json.loads((ROOT / folder / "sources.json").read_text())
@@ -127,7 +159,10 @@ REGIONS = {
         "lift-to-place-verdicts": lambda: headlines("results/sweep-lift-to-place"),
         **BOARD, "pendulum-heavier": lambda: headlines(f"{BENCH}/pendulum"),
     },
-    "docs/bench.md": {**BOARD, "bench-v2-sources": lambda: sources("results/bench/v2/quick/sources")},
+    "docs/bench.md": {**BOARD, "bench-v2-sources": lambda: sources("results/bench/v2/quick/sources"),
+                      **{f"bench-v2-{f}": lambda f=f: table(f"results/bench/v2/quick/board/{f}.md")
+                         for f in ("ranking", "pairs")},
+                      "bench-v2-costs": lambda: costs("results/bench/v2/quick")},
     "docs/tasks.md": {"tasks": lambda: tasks("rooms"), "tasks-robosuite": lambda: tasks("robosuite"),
                       "tasks-gym": lambda: tasks("gym"),
                       "lift-summary": lambda: headlines("results/sweep-lift-demonstrations/lift/sac/demonstrations",
