@@ -24,8 +24,8 @@ sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__)
 
 import yaml  # noqa: E402
 
-from drltg.report import transfer_report  # noqa: E402
 from drltg.experiments.summary import plot_transfer_matrix, summary_aggregates, summary_tables  # noqa: E402
+from drltg.report import transfer_report  # noqa: E402
 from drltg.store import rundir  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -107,7 +107,8 @@ REPORTS = [
 ]
 RECORDS = [
     ("top-level list", lambda r: [r], "the record is [{"),
-    ("suite", lambda r: {**r, "suite": "v0"}, "it records suite 'v0', but it lies in the folder of suite 'v1'"),
+    ("suite", lambda r: {**r, "suite": "v0"},
+     f"it records suite 'v0', but it lies in the folder of suite '{suite.LATEST}'"),
     ("method 5", lambda r: {**r, "methods": {"m": 5}}, "method 'm' is 5, not a mapping"),
     ("groups list", _entry(groups=["g"]), "method 'm''s 'groups' is ['g'], not a mapping"),
     ("left_out list", _entry(left_out=["p"]), "method 'm''s 'left_out' is ['p'], not a mapping"),

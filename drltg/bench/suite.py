@@ -156,7 +156,7 @@ V2 = {
         digests="v2-quick.json"),
 }
 SUITES = {"v1": V1, "v2": V2}
-LATEST = "v1"
+LATEST = "v2"
 
 
 def declared_sources(tier: Tier) -> dict[str, dict]:
