@@ -16,11 +16,10 @@ from __future__ import annotations
 
 import json
 import platform
-import shutil
 from pathlib import Path
 
 from drltg.bench.sources import use_sources
-from drltg.bench.suite import LATEST, REFERENCE_FILES, Group, get_tier, tier_root, tuning_root
+from drltg.bench.suite import LATEST, REFERENCE_FILES, Group, copy_run, get_tier, tier_root, tuning_root
 from drltg.errors import RunFailed, UsageError
 from drltg.store import rundir
 
@@ -145,10 +144,7 @@ def copy_reference(runs, out: Path, reference: Path) -> int:
     the number copied."""
     held = in_reference(runs, out, reference)
     for path, kept in held.items():
-        for name in REFERENCE_FILES:
-            if (kept / name).is_file():
-                (path / name).parent.mkdir(parents=True, exist_ok=True)
-                shutil.copyfile(kept / name, path / name)
+        copy_run(kept, path)
     return len(held)
 
 

@@ -14,12 +14,11 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 from pathlib import Path
 
 from drltg.bench import suite
 from drltg.bench.suite import REFERENCE_FILES as FILES
-from drltg.bench.suite import SMOKE, Group, Tier, declared_sources, tier_root
+from drltg.bench.suite import SMOKE, Group, Tier, copy_run, declared_sources, tier_root
 from drltg.errors import UsageError
 from drltg.store import rundir
 
@@ -149,10 +148,7 @@ def use_sources(tier: Tier, tier_folder: Path, reference_folder: Path | None, sm
         if dry_run and absent:
             folder = kept
         for name in () if dry_run else absent:
-            for file in FILES:
-                if (kept / name / file).is_file():
-                    (here / name / file).parent.mkdir(parents=True, exist_ok=True)
-                    shutil.copyfile(kept / name / file, here / name / file)
+            copy_run(kept / name, here / name)
     missing = [r.path.relative_to(here) for r in runs if not rundir.is_complete(folder / r.path.relative_to(here))
                or not (folder / r.path.relative_to(here) / FILES[-1]).is_file()]
     if missing:

@@ -25,7 +25,7 @@ from pathlib import Path
 from drltg.errors import UsageError, closest
 
 __all__ = ["Group", "Sources", "Tier", "SUITES", "LATEST", "get_tier", "SMOKE", "TUNE_SEED", "TUNE_SEEDS", "tier_root",
-           "tuning_root", "REFERENCE_FILES"]
+           "tuning_root", "REFERENCE_FILES", "copy_run"]
 
 
 @dataclass(frozen=True)
@@ -97,6 +97,16 @@ on the seeds that chose its setting."""
 REFERENCE_FILES = ("config.yaml", "eval.csv", "summary.json", "manifest.json", "checkpoints/last.safetensors")
 """What a finished run holds that another bench folder copies as data: the curve a report reads, and the
 networks a source is reused from (:mod:`drltg.store.rundir`'s and :mod:`drltg.store.manifest`'s names)."""
+
+
+def copy_run(kept: Path, path: Path) -> None:
+    """Copy a finished run's :data:`REFERENCE_FILES` from ``kept`` into ``path``, as data."""
+    import shutil
+
+    for name in REFERENCE_FILES:
+        if (kept / name).is_file():
+            (path / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(kept / name, path / name)
 
 
 def tier_root(out: str | Path, version: str, tier: str, smoke: bool = False) -> Path:

@@ -22,7 +22,6 @@ reads them (:mod:`drltg.bench.sources`).
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -100,7 +99,7 @@ def _copy_baseline_runs(spec: dict, group_out: Path, none_groups: list[Path], ch
     """Copy into a method's tuning sweep the baseline runs the baseline's own tuning trained at its choice, on
     the same seeds with the same config (``none_groups``: that tuning's group folders, this bench folder's then
     the reference's), as data, as ``bench run`` copies a reference's: trained once."""
-    from drltg.bench.suite import REFERENCE_FILES
+    from drltg.bench.suite import copy_run
     from drltg.config import config_changes
     from drltg.experiments.spec import parse_spec
     from drltg.experiments.sweep import plan
@@ -114,10 +113,7 @@ def _copy_baseline_runs(spec: dict, group_out: Path, none_groups: list[Path], ch
         for none_group in none_groups:
             kept = none_group.resolve() / pair / algo / variant / "baseline" / run.path.name
             if rundir.is_complete(kept) and not config_changes(rundir.read_config(kept), run.cfg):
-                for name in REFERENCE_FILES:
-                    if (kept / name).is_file():
-                        (run.path / name).parent.mkdir(parents=True, exist_ok=True)
-                        shutil.copyfile(kept / name, run.path / name)
+                copy_run(kept, run.path)
                 break
 
 
