@@ -210,6 +210,21 @@ def test_a_pair_the_method_cannot_run_on_is_left_out_with_its_sentence(tmp_path)
     assert applicable_pairs(pendulum, "model-reuse", False, tmp_path) == (["pendulum-heavier"], {})
 
 
+def test_only_a_method_that_reads_a_source_is_given_the_suites_sources(tmp_path):
+    """Reward shaping reads no source: its runs are planned without ``transfer.source`` and run on every pair
+    with a shaping potential (the suite's sources are the reusing rows' alone)."""
+    from drltg.bench.run import applicable_pairs, group_spec
+
+    fourrooms = suite.get_tier("v2", "quick").groups[0]
+    given = {fourrooms.name: str(tmp_path / "sources" / "seed-{seed}")}
+    assert "transfer.source" not in group_spec(fourrooms, "reward-shaping", False, given, {})["overrides"]
+    spec = group_spec(fourrooms, "policy-reuse", False, given, {})
+    assert spec["overrides"]["transfer.source"] == given[fourrooms.name]
+    kept, left_out = applicable_pairs(fourrooms, "reward-shaping", False, tmp_path,
+                                      group_spec(fourrooms, "reward-shaping", False, given, {}))
+    assert kept == list(fourrooms.pairs) and left_out == {}
+
+
 @pytest.mark.parametrize("argv, sentence", [
     (["bench", "run", "--method", "none"], "'none' is the baseline"),
     (["bench", "run", "--method", "model-reuse", "--tier", "quik"], "did you mean 'quick'"),

@@ -48,6 +48,21 @@ def test_one_grouped_update_with_behaviour_cloning_is_each_seeds_own(algo, q_fil
     assert (grouped["loss_actor_bc"] > 0).all()
 
 
+def test_each_seeds_own_bc_alpha_scales_its_cloning_in_a_group():
+    """TD3+BC's alpha is a buffer of the term: seeds of one group (a tuning grid's settings) each clone at their
+    own mean|Q| / alpha, as alone; a group whose terms differ in form is refused in one sentence."""
+    from drltg.errors import UsageError
+
+    agents, batches = _agents_and_batches("fourrooms/northeast", "sac")
+    alphas = [1.0, 2.5, 10.0]
+    terms = [behaviour_cloning(a.loss, 8, 1.0, alpha=alpha) for a, alpha in zip(agents, alphas)]
+    grouped = _check_each_seed_is_its_own_update(agents, batches, terms)
+    assert len(set(grouped["bc_scale"].tolist())) == 3
+    with pytest.raises(UsageError, match="loss terms of different forms"):
+        SeedGroup(agents, terms=[behaviour_cloning(a.loss, 8, 1.0, alpha=alpha) for a, alpha in
+                                 zip(agents, [1.0, None, 2.5])])
+
+
 @pytest.mark.parametrize("task, algo", [("fourrooms/northeast", "sac"), ("gridrooms/northeast", "sac"),
                                         ("fourrooms/northeast", "td3"), ("fourrooms/northeast", "soc")])
 @pytest.mark.parametrize("update_actor", [True, False])

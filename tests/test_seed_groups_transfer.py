@@ -185,7 +185,8 @@ def test_a_group_s_members_may_differ_in_their_method_s_member_options(sources, 
 
 @pytest.mark.parametrize("method, grouped", [("none", True), ("reward-shaping", True), ("value-shaping", True),
                                              ("model-reuse", True), ("policy-reuse", True), ("jumpstart", True),
-                                             ("demonstrations", True), ("model-reuse+reward-shaping", True),
+                                             ("demonstrations", True), ("kickstarting", True), ("sf-gpi", True),
+                                             ("model-reuse+reward-shaping", True),
                                              ("reward-shaping+policy-reuse", True),
                                              ("model-reuse+demonstrations", True)])
 def test_a_method_groups_only_if_it_and_every_part_declare_it(method, grouped):
@@ -196,14 +197,32 @@ def test_a_method_groups_only_if_it_and_every_part_declare_it(method, grouped):
 
 def test_a_method_without_a_grouped_form_says_why_in_the_plan(tmp_path):
     from drltg.experiments.executor import Run, plan_of
+    from drltg.transfer import Transfer, register_method
+    from drltg.transfer.registry import METHODS
 
-    cfg = tiny_cfg(**{"transfer.method": "sf-gpi"})
-    assert grouping.group_support(cfg) == f"transfer method sf-gpi has no grouped form: {get_method('sf-gpi').alone}"
-    runs = [Run("transfer", cfg.model_copy(update={"seed": s}), tmp_path / f"seed-{s}", tmp_path / f"{s}.log")
-            for s in (0, 100)]
-    first = plan_of(runs).summary(runs, 0)[0]
-    assert first.endswith(f"2 runs alone (transfer method sf-gpi has no grouped form: {get_method('sf-gpi').alone})")
-    assert "replaces the collector's policy" in get_method("sf-gpi").alone
+    why = "its policy replaces the collector's"
+    try:
+        register_method(TransferMethod("test-alone", "x", lambda *a, **k: Transfer(), alone=why))
+        cfg = tiny_cfg(**{"transfer.method": "test-alone"})
+        assert grouping.group_support(cfg) == f"transfer method test-alone has no grouped form: {why}"
+        runs = [Run("transfer", cfg.model_copy(update={"seed": s}), tmp_path / f"seed-{s}", tmp_path / f"{s}.log")
+                for s in (0, 100)]
+        first = plan_of(runs).summary(runs, 0)[0]
+        assert first.endswith(f"2 runs alone (transfer method test-alone has no grouped form: {why})")
+    finally:
+        METHODS.pop("test-alone", None)
+
+
+@pytest.mark.parametrize("method", ["policy-reuse", "jumpstart", "kickstarting", "demonstrations", "value-shaping",
+                                    "sf-gpi"])
+def test_a_methods_tuning_settings_are_one_seed_group(method):
+    """Every setting of a method's search differs only in options its seeds' own parts read: ``drltg bench tune``
+    trains the whole grid with its seeds as one group."""
+    settings = get_method(method).settings
+    assert len(settings) > 1
+    cfgs = [tiny_cfg(seed=k, **{"transfer.method": method, "transfer.source": "src", **setting})
+            for k, setting in enumerate(settings)]
+    assert all(grouping.same_but_seed(cfgs[0], other) for other in cfgs[1:])
 
 
 def test_a_user_method_trains_alone_unless_it_declares_a_grouped_form():

@@ -181,6 +181,45 @@ def test_the_mixer_reads_the_learners_live_critics(tmp_path):
     assert not torch.allclose(before, after)
 
 
+@pytest.mark.parametrize("source_task, target_task", [("gridrooms/northeast", "gridrooms/northeast-shifted"),
+                                                      ("fourrooms/northeast", "fourrooms/northeast-shifted")])
+def test_in_a_seed_group_each_seeds_gpi_reads_its_own_live_critics(tmp_path, source_task, target_task):
+    """Block k of a group's batch acts by seed k's GPI, valued with seed k's current (stacked) critics: after seed
+    1's critics move, block 1's actions are those of GPI over seed 1's new critics, block 0's stay."""
+    from drltg.training.seeds import GroupLearner, SeedGroup
+
+    built = [_build(tmp_path / str(k), source_task, target_task) for k in range(2)]
+    agents, transfers = [b[1] for b in built], [b[3] for b in built]
+    group = SeedGroup(agents)
+    learner = GroupLearner(group, [None, None], None, transfers)
+    td = make_env(target_task, batch_size=(4,), seed=1).reset()
+
+    def gpi_of_each_seed():
+        """Block k through seed k's own mixer, seed k's stacked critics copied into its own loss."""
+        group.sync()
+        blocks = []
+        for k, (agent, transfer) in enumerate(zip(agents, transfers)):
+            block = td[2 * k:2 * k + 2].clone()
+            torch.manual_seed(0)
+            block.update(agent.policy(block.clone()).select("action"))
+            blocks.append(transfer.mixer(block))
+        return torch.cat(blocks)
+
+    def grouped():
+        torch.manual_seed(0)
+        return learner.policy(td.clone())
+
+    key = "learner_action_value" if source_task.startswith("gridrooms") else "gpi_value"
+    before = grouped()
+    torch.testing.assert_close(before[key], gpi_of_each_seed()[key])
+    with torch.no_grad():
+        for p in group.params[1]["qvalue_network_params"].values(True, True):
+            p.add_(torch.randn_like(p))
+    after = grouped()
+    assert torch.equal(after[key][:2], before[key][:2]) and not torch.allclose(after[key][2:], before[key][2:])
+    torch.testing.assert_close(after[key][2:], gpi_of_each_seed()[key][2:])
+
+
 def test_a_sweep_runs_both_new_methods_on_one_source_and_baseline(tmp_path):
     import yaml
 

@@ -78,10 +78,13 @@ def versions() -> dict:
 
 def group_spec(group: Group, method: str, smoke: bool, given: dict[str, str], choice: dict) -> dict:
     """The sweep spec of ``method`` on ``group``: the suite's, its runs reading the suite's sources where it
-    declares them (``given``: group -> ``.../seed-{seed}``), at the tuned ``choice`` (the baseline's and the
-    method's)."""
+    declares them (``given``: group -> ``.../seed-{seed}``) and the method reads one, at the tuned ``choice`` (the
+    baseline's and the method's)."""
+    from drltg.transfer import get_method
+
     spec = group.sweep_spec([method], smoke)
-    source = {"transfer.source": given[group.name]} if group.name in given else {}
+    reads = get_method(method).source is not None
+    source = {"transfer.source": given[group.name]} if group.name in given and reads else {}
     return {**spec, "overrides": {**spec.get("overrides", {}), **source, **choice}}
 
 

@@ -117,14 +117,16 @@ def behaviour_cloning(loss, count: int, weight: float | Callable[[], float], *, 
 class BehaviourCloning(LossTerm):
     """:func:`behaviour_cloning`'s term; it reads the actor's and critics' parameters of the loss it is
     evaluated with (:class:`~drltg.losses.terms.LossTerm`), so a seed group evaluates each seed's term with
-    that seed's parameters."""
+    that seed's parameters. ``alpha`` is a buffer, so the seeds of a group may each have their own (a tuning
+    grid's settings in one group)."""
 
     def __init__(self, loss, count: int, weight: float | Callable[[], float], *, q_filter: bool = False,
                  alpha: float | None = None):
         super().__init__(loss, weight)
         if alpha is not None and not alpha > 0:
             raise ValueError(f"TD3+BC's alpha must be > 0 (or None), got {alpha}.")
-        self.count, self.q_filter, self.alpha = count, q_filter, alpha
+        self.count, self.q_filter, self.scaled = count, q_filter, alpha is not None
+        self.register_buffer("alpha", None if alpha is None else torch.tensor(float(alpha)))
 
     def evaluate(self, loss, batch: TensorDictBase, weights: torch.Tensor) -> dict[str, torch.Tensor]:
         actor, num_options = loss.actor_network, _num_options(loss)
@@ -142,12 +144,12 @@ class BehaviourCloning(LossTerm):
         error = (action - pair["action"]).pow(2).sum(-1)
         accepted = torch.ones_like(error)
         out = {}
-        if self.q_filter or self.alpha is not None:
+        if self.q_filter or self.scaled:
             own = _min_q(loss, pair.clone(False).set("action", action.detach()))  # Q(s, o, mu_o(s)) [k, K]
         if self.q_filter:
             accepted = (_min_q(loss, pair) > own).float()
         scale = 1.0
-        if self.alpha is not None:
+        if self.scaled:
             scale = (probs * own.abs()).sum(-1).mean() / self.alpha  # 1 / lambda = mean|Q| / alpha
             out["bc_scale"] = scale
         return {"loss_actor_bc": weights[0] * scale * (probs * error * accepted).sum(-1).mean(),

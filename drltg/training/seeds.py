@@ -20,9 +20,9 @@ supports it (:func:`~drltg.training.grouping.group_support`) the seeds train as 
   it, in worker processes (:func:`_worker_env`);
 * a replay buffer per seed, and a transfer per seed composed onto its block: each seed's shaping potential
   on its own envs (:func:`seed_block_transforms`), each seed's policy-reuse mixer over its own source
-  (:class:`SeedBlocks`), model reuse loading each seed's own source before the seeds are stacked, and each
-  seed's ``on_eval`` (jumpstart's curriculum) told its own seed's evaluated return of the group's policy, its
-  ``state`` kept in its own checkpoint.
+  (:class:`SeedBlocks`; SF-GPI's with its own seed's live critics swapped in), model reuse loading each seed's
+  own source before the seeds are stacked, and each seed's ``on_eval`` (jumpstart's curriculum) told its own
+  seed's evaluated return of the group's policy, its ``state`` kept in its own checkpoint.
 
 * a transfer's loss terms (behaviour cloning, distillation) inside the vmapped loss: seed k's
   :class:`~drltg.losses.terms.LossTerm` with seed k's parameters, its stacked state (seed k's teacher) and
@@ -122,6 +122,9 @@ class StackedLoss(torch.nn.Module):
         self.__dict__["terms"] = list(terms)
         self.__dict__["seed_term"] = None
         self.term_state = None
+        if len({tuple(sorted(TensorDict.from_module(t).keys(True, True))) for t in self.terms}) > 1:
+            raise UsageError("the seeds of a group have loss terms of different forms (one with transfer.bc_alpha "
+                             "null, another with a number, say); train them in groups of their own.")
         if self.terms:  # one seed's term, reading the group's loss; each seed's state is swapped into it
             self.__dict__["seed_term"] = copy.deepcopy(self.terms[0], memo={id(self.terms[0].loss): loss})
             state = TensorDict.from_modules(*self.terms)
@@ -288,17 +291,24 @@ class SeedLoopPolicy(TensorDictModuleBase):
 
 class SeedBlocks(TensorDictModuleBase):
     """Per-seed modules on a seed group's batched env: block k of the flat batch (seed k's envs) goes
-    through ``modules[k]`` (e.g. seed k's policy-reuse mixer over its own source policy)."""
+    through ``modules[k]`` (e.g. seed k's policy-reuse mixer over its own source policy), inside
+    ``context(k)`` where given (:meth:`SeedGroup.seed_params`, for a module that reads seed k's learner)."""
 
-    def __init__(self, modules: Sequence[TensorDictModuleBase]):
+    def __init__(self, modules: Sequence[TensorDictModuleBase],
+                 context: Callable[[int], contextlib.AbstractContextManager] | None = None):
         super().__init__()
         self.blocks = torch.nn.ModuleList(modules)
+        self.context = context or (lambda k: contextlib.nullcontext())
         self.in_keys = list(dict.fromkeys(k for m in modules for k in m.in_keys))
         self.out_keys = list(dict.fromkeys(k for m in modules for k in m.out_keys))
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
         blocks = tensordict.reshape(len(self.blocks), -1)
-        out = torch.stack([module(block.copy()) for module, block in zip(self.blocks, blocks)])
+        outs = []
+        for k, (module, block) in enumerate(zip(self.blocks, blocks)):
+            with self.context(k):
+                outs.append(module(block.copy()))
+        out = torch.stack(outs)
         return tensordict.update(out.reshape(tensordict.batch_size).select(*self.out_keys, strict=False))
 
 
@@ -359,7 +369,8 @@ class GroupLearner:
             self.policy = GroupPolicy(first.actor, actor_params, then=noise)
             self.actor = GroupPolicy(first.actor, actor_params)
         if transfers[0].mixer is not None:  # seed k's mixer (policy reuse over its own source) on its envs
-            self.policy = TensorDictSequential(self.policy, SeedBlocks([t.mixer for t in transfers]))
+            live = group.seed_params if transfers[0].mixer_reads_learner else None
+            self.policy = TensorDictSequential(self.policy, SeedBlocks([t.mixer for t in transfers], live))
         self.on_frames = [t.on_frames for t in transfers if t.on_frames is not None]
         self.make_batches = None if transfers[0].batches is None else [t.batches for t in transfers]
         self.in_keys = list(group.loss.in_keys)

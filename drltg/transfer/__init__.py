@@ -22,9 +22,8 @@ training checkpoint with its replay buffer.
 run (:class:`Transfer`); :mod:`drltg.transfer.source` reads ``transfer.source``. The built-in methods are
 the entry points of the group ``drltg.methods`` (``pyproject.toml``), found by the config's registry
 (:data:`drltg.config.METHODS`, here ``METHODS``) on its first lookup: importing this package registers
-nothing (``a+b`` names a combination, :func:`combine`); all but sf-gpi (whose grid mixer reads the
-learner's live critics) train their seeds as one seed group (``TransferMethod.grouped``,
-:mod:`drltg.training.seeds`); the parts themselves
+nothing (``a+b`` names a combination, :func:`combine`); each trains its seeds as one seed group
+(``TransferMethod.grouped``, :mod:`drltg.training.seeds`); the parts themselves
 (``drltg.transforms``, ``drltg.collectors``, ``drltg.losses``, ``drltg.modules``) register nothing.
 """
 from drltg.transfer import (  # noqa: I001

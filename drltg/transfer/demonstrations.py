@@ -97,4 +97,5 @@ DEMONSTRATIONS = TransferMethod(
                                                            "demonstrated action, clipped (0: none)")),
     },
     search={"bc_alpha": (2.5, 1.0, 5.0, 10.0)},  # TD3+BC's alpha and its neighbours
+    member_options=("bc_alpha",),  # a buffer of each seed's cloning term
 )

@@ -68,4 +68,5 @@ KICKSTARTING = TransferMethod(
                                                                    "exponential decay reaches at kick_frames")),
     },
     search={"kick_weight": (1.0, 0.3), "kick_decay": ("linear", "exponential")},  # as Schmitt et al. tune it
+    member_options=("kick_weight", "kick_frames", "kick_decay", "kick_floor"),  # each seed's own weight schedule
 )

@@ -110,4 +110,5 @@ JUMPSTART = TransferMethod(
                                                               "frames until H reaches 0")),
     },
     search={"guide_stages": (10, 5), "guide_tolerance": (0.05, 0.1)},
+    member_options=("guide_steps", "guide_stages", "guide_tolerance", "guide_window", "guide_frames"),  # its mixer's
 )

@@ -56,6 +56,8 @@ class Transfer:
             :class:`~drltg.collectors.PolicyReuse`): the collector's policy is
             ``TensorDictSequential(learner's policy, mixer)``; in a seed group, seed k's mixer acts on
             seed k's envs.
+        mixer_reads_learner: the mixer reads the learner's parameters (SF-GPI values actions with the learner's
+            live critics): in a seed group, seed k's mixer runs with seed k's current parameters in its modules.
         on_frames: told the frames collected so far after every batch (schedules over training).
         on_eval: told, after every evaluation of the learner, the mean return of the collector's own policy
             evaluated as well, deterministically, on an evaluation env of its own (with the transfer's primers):
@@ -77,6 +79,7 @@ class Transfer:
     train_transforms: list = field(default_factory=list)
     policy: Any = None
     mixer: Any = None
+    mixer_reads_learner: bool = False
     on_frames: Callable[[int], None] | None = None
     on_eval: Callable[[float], dict] | None = None
     state: Any = None

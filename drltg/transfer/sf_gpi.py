@@ -237,8 +237,9 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     mixer = TensorDictSequential(*own, gpi, keep, explore,
                                  TensorDictModule(_chose_source, in_keys=["gpi_index", "action", "gpi_action"],
                                                   out_keys=["reused"]))
-    return Transfer(mixer=mixer, summary={"successor_feature_frames": frames, "successor_feature_td": td,
-                                          "gpi_weights": [round(x, 6) for x in w.tolist()]})
+    return Transfer(mixer=mixer, mixer_reads_learner=True,
+                    summary={"successor_feature_frames": frames, "successor_feature_td": td,
+                             "gpi_weights": [round(x, 6) for x in w.tolist()]})
 
 
 SF_GPI = TransferMethod(
@@ -248,8 +249,7 @@ SF_GPI = TransferMethod(
     source="run",
     algos=("sac",),
     takes=("policy",),
-    alone="its GPI policy, over the source's and the learner's successor features, replaces the collector's "
-          "policy, which a seed group's seeds share",
+    grouped=True,  # seed k's GPI over its own source's psi and its own live critics, on its own envs
     check=_check,
     options={
         "sf_frames": (Int, Field(10_000, ge=1, description="sf-gpi: frames the source policy acts in the source "
@@ -267,4 +267,5 @@ SF_GPI = TransferMethod(
                                 json_schema_extra={"absent": 0.0})),  # runs saved before it acted greedily
     },
     search={"sf_epsilon": (0.1, 0.05, 0.2)},
+    member_options=("sf_frames", "sf_updates", "sf_block", "sf_patience", "sf_tolerance", "sf_epsilon"),
 )
