@@ -235,13 +235,13 @@ def test_an_option_given_twice_is_refused(tmp_path, capsys):
 
 
 def test_a_fixed_count_folder_is_not_continued_as_a_sequential_plan(tmp_path, capsys):
-    from drltg.experiments.experiment import _check_settings
+    from drltg.experiments.experiment import check_settings
 
     saved = tmp_path / "experiment.yaml"
     saved.write_text(yaml.safe_dump({"pair": "fourrooms-near", "seeds": 5}))
-    _check_settings(saved, {"pair": "fourrooms-near", "seeds": 8})  # more fixed seeds: allowed
+    check_settings(saved, {"pair": "fourrooms-near", "seeds": 8})  # more fixed seeds: allowed
     with pytest.raises(UsageError, match=r"holds an experiment of --seeds 5 already reported, and a sequential"):
-        _check_settings(saved, {"pair": "fourrooms-near", "seeds": "auto", "max_seeds": 20})
+        check_settings(saved, {"pair": "fourrooms-near", "seeds": "auto", "max_seeds": 20})
 
 
 @pytest.mark.parametrize("p_values, stopped, pairs, verdict", [

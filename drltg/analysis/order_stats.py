@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from drltg.analysis.metrics import as_array
-from drltg.analysis.stats import Array, _check_confidence
+from drltg.analysis.stats import Array, check_confidence
 
 __all__ = ["median_interval", "shift_interval"]
 
@@ -25,7 +25,7 @@ def median_interval(differences, confidence: float = 0.95) -> tuple[float, float
     :math:`[d_{(1)}, d_{(n)}]` holds less than ``confidence`` (:math:`1 - 2/2^n`: 5 pairs give 0.9375 < 0.95)."""
     from scipy import stats as sst
 
-    alpha = 2 * _check_confidence(confidence)
+    alpha = 2 * check_confidence(confidence)
     d = np.sort(as_array(differences).ravel())
     n = d.size
     if n == 0:
@@ -63,7 +63,7 @@ def shift_interval(baseline, transfer, confidence: float = 0.95) -> tuple[float,
     holds, at least ``confidence``. It assumes independent runs whose two distributions differ by a shift, and
     nothing of their shape; ``nan`` where even :math:`[D_{(1)}, D_{(mn)}]` holds less than ``confidence``
     (3 + 3 runs: 1 - 2/20)."""
-    alpha = 2 * _check_confidence(confidence)
+    alpha = 2 * check_confidence(confidence)
     b, t = as_array(baseline).ravel(), as_array(transfer).ravel()
     if b.size == 0 or t.size == 0:
         raise ValueError("a shift interval needs runs on both sides")

@@ -70,7 +70,8 @@ def _normal_ppf(p: Array) -> Array:
     return stats.norm.ppf(p)
 
 
-def _check_confidence(confidence: float) -> float:
+def check_confidence(confidence: float) -> float:
+    """The tail probability (1 - confidence) / 2 of a two-sided interval, refusing a confidence outside (0, 1)."""
     if not 0.0 < confidence < 1.0:
         raise ValueError(f"confidence must lie in (0, 1), got {confidence}")
     return (1.0 - confidence) / 2.0
@@ -122,7 +123,7 @@ def t_interval(b, t, paired: bool = False, confidence: float = 0.95, df: str = "
     """``mean(t) - mean(b)`` +- ``t_{1-a/2, df} x se``: the paired t-interval (on :math:`d_i`), or
     the unpaired one with Welch's standard error (``df`` as in :func:`_difference_and_se`). Exact for
     normal pairs; NaN where the standard error is 0 (no spread to scale)."""
-    alpha = _check_confidence(confidence)
+    alpha = check_confidence(confidence)
     b, t = _pairs(b, t, paired)
     est, se, df = _difference_and_se(b, t, paired, df)
     half = t_quantile(1.0 - alpha, np.where(se > 0, df, 1.0)) * se
@@ -144,7 +145,7 @@ def percentile_interval(b, t, paired: bool = False, confidence: float = 0.95, n_
                         seed: int = 0) -> tuple[Array, Array]:
     """Percentile bootstrap of the mean difference: the ``a/2`` and ``1-a/2`` quantiles of the
     resampled differences. Too narrow with few seeds (it ignores the t-correction)."""
-    alpha = _check_confidence(confidence)
+    alpha = check_confidence(confidence)
     b, t = _pairs(b, t, paired)
     rb, rt = _resample(b, t, paired, n_resamples, np.random.default_rng(seed))
     diff = rt.mean(-1) - rb.mean(-1)
@@ -161,7 +162,7 @@ def bca_interval(b, t, paired: bool = False, confidence: float = 0.95, n_resampl
 
     from scipy import stats
 
-    _check_confidence(confidence)
+    check_confidence(confidence)
     b, t = _pairs(b, t, paired)
     if paired:
         data, statistic = (t - b,), lambda d, axis: d.mean(axis)
@@ -180,7 +181,7 @@ def studentized_interval(b, t, paired: bool = False, confidence: float = 0.95, n
     :math:`q^*` the quantiles of :math:`(\theta^* - \hat\theta)/se^*`. A resample without spread
     has :math:`se^* = 0` and counts as an infinite ratio (kept, not dropped), so the interval is
     NaN (unbounded) when such resamples reach a tail."""
-    alpha = _check_confidence(confidence)
+    alpha = check_confidence(confidence)
     b, t = _pairs(b, t, paired)
     est, se, _ = _difference_and_se(b, t, paired)
     rb, rt = _resample(b, t, paired, n_resamples, np.random.default_rng(seed))
@@ -259,7 +260,7 @@ def _unit(x: Array, low: float, high: float) -> Array:
 def betting_sides(b, t, value_range: tuple[float, float], confidence: float = 0.95) -> tuple[tuple, tuple]:
     """Each side's betting interval of its mean at level ``1 - alpha/2`` (Bonferroni: both hold together
     with probability at least ``1 - alpha``), for scores in ``value_range``: ``((L_B, U_B), (L_T, U_T))``."""
-    alpha = 2 * _check_confidence(confidence)
+    alpha = 2 * check_confidence(confidence)
     a, w = float(value_range[0]), float(value_range[1]) - float(value_range[0])
     (lb, ub, _), (lt, ut, _) = (_betting_mean(_unit(as_array(x), a, a + w), alpha / 2) for x in (b, t))
     return (a + w * lb, a + w * ub), (a + w * lt, a + w * ut)
@@ -276,7 +277,7 @@ def betting_interval(b, t, value_range: tuple[float, float], paired: bool = Fals
     value between their means. It is wide with few seeds (with 6 pairs or fewer it cannot exclude 0: a pair
     multiplies the wealth by at most 1 + c = 1.75, and 1.75^6 / 2 < 20), because only the range, not the
     seeds' spread, bounds what the unseen seeds could do."""
-    alpha = 2 * _check_confidence(confidence)
+    alpha = 2 * check_confidence(confidence)
     b, t = _pairs(b, t, paired)
     a, w = float(value_range[0]), float(value_range[1]) - float(value_range[0])
     b, t = _unit(b, a, a + w), _unit(t, a, a + w)
@@ -304,7 +305,7 @@ def fieller_interval(b, t, paired: bool = False, confidence: float = 0.95) -> tu
     (:math:`v` = squared standard errors, :math:`c` their covariance when paired, :math:`q` the t
     quantile). It is a bounded interval only when the denominator's own interval excludes 0
     (:math:`\bar b^2 > q^2 v_b`); otherwise ``(nan, nan)``: no honest bounded interval exists."""
-    alpha = _check_confidence(confidence)
+    alpha = check_confidence(confidence)
     b, t = _pairs(b, t, paired)
     size = max(float(np.abs(b).max()), float(np.abs(t).max()))
     if size > 0:  # the ratio is scale-free; squares of large areas would overflow
@@ -355,7 +356,7 @@ def poi_interval(p_hat: float, n_baseline: int, n_transfer: int, paired: bool = 
     + (N-1)\frac{p}{1+p}\big]`, :math:`N = (n+m)/2`."""
     from scipy import optimize, stats
 
-    alpha = _check_confidence(confidence)
+    alpha = check_confidence(confidence)
     if not 0.0 <= p_hat <= 1.0:
         raise ValueError(f"a probability of improvement lies in [0, 1], got {p_hat}")
     if paired:

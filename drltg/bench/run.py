@@ -14,6 +14,7 @@ Python it ran under, the specs, the pairs left out and why, and whether it ran a
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import platform
 from pathlib import Path
@@ -116,14 +117,14 @@ def applicable_pairs(group: Group, method: str, smoke: bool, out: Path,
     from drltg.experiments.spec import parse_spec
     from drltg.experiments.sweep import plan
 
+    whole = parse_spec(spec or group.sweep_spec([method], smoke), f"suite group {group.name}")
     kept, left_out = [], {}
     for pair in group.pairs:
-        one = {**(spec or group.sweep_spec([method], smoke)), "pairs": [pair]}
         try:
-            runs, _ = plan(parse_spec(one, f"suite group {group.name}"), out)
+            runs, _ = plan(dataclasses.replace(whole, pairs=[pair]), out)
             check_runs([(r.role, r.cfg, r.path) for r in runs])
         except UsageError as err:
-            left_out[pair] = str(err).removeprefix(f"suite group {group.name}: ")
+            left_out[pair] = str(err)
         else:
             kept.append(pair)
     return kept, left_out

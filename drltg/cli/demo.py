@@ -50,7 +50,7 @@ def plan(out: Path, d: dict = DEMO) -> list[tuple[str, dict, Path]]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drltg.experiments.experiment import _check_settings, check_runs, execute_and_report, print_report
+    from drltg.experiments.experiment import check_runs, check_settings, execute_and_report, print_report
 
     d = DEMO
     if args.workers < 1:
@@ -61,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
     runs = plan(out)
     check_runs(runs)
     saved = out / "demo.yaml"
-    _check_settings(saved, d)
+    check_settings(saved, d)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:

@@ -44,9 +44,8 @@ def run(args: argparse.Namespace) -> int:
         base = absolute_source(config_lib.load_yaml(args.config), Path(args.config).parent)
     elif args.resume and (args.run_dir / CONFIG).is_file():
         base = absolute_source(config_lib.load_yaml(args.run_dir / CONFIG), args.run_dir)
-    elif args.resume and args.seeds is not None and _first_seed(args.run_dir) is not None:
-        first = _first_seed(args.run_dir)  # a seed group: its first seed's config
-        base = absolute_source(config_lib.load_yaml(first / CONFIG), first)
+    elif args.resume and args.seeds is not None and (first := _first_seed(args.run_dir)) is not None:
+        base = absolute_source(first[1], first[0])  # a seed group: its first seed's config
     else:
         base = {}
     if args.task is None and "task" not in base:
@@ -98,17 +97,19 @@ def _say_how_it_went(run_dir: Path, name: str | None = None) -> None:
             print(f"warning: {went.collapse}", file=sys.stderr)
 
 
-def _first_seed(run_dir: Path) -> Path | None:
-    """The ``seed-<k>`` run directory with the lowest k under ``run_dir`` that holds a config."""
-    seeds = [p.parent for p in run_dir.glob("seed-*/" + CONFIG) if p.parent.name[5:].lstrip("-").isdigit()]
-    return min(seeds, key=lambda p: int(p.name[5:]), default=None)
+def _first_seed(run_dir: Path) -> tuple[Path, dict] | None:
+    """The seed group's run directory (``seed-*/`` under ``run_dir``) whose config names the lowest seed, with
+    that config."""
+    configs = [(p.parent, config_lib.load_yaml(p)) for p in sorted(run_dir.glob("seed-*/" + CONFIG))]
+    seeded = [(d, c) for d, c in configs if isinstance(c, dict) and isinstance(c.get("seed"), int)]
+    return min(seeded, key=lambda dc: dc[1]["seed"], default=None)
 
 
 def _refuse_diverged(dirs: list[Path]) -> None:
     """A resumed run that had diverged is finished without a result: say so, exit non-zero."""
-    from drltg.store.rundir import summary_status
+    from drltg.store.rundir import DIVERGED, summary_status
 
-    diverged = [d for d in dirs if (summary_status(d) or ("",))[0] == "diverged"]
+    diverged = [d for d in dirs if (summary_status(d) or ("",))[0] == DIVERGED]
     if diverged:
         names = ", ".join(f"'{d}'" for d in diverged)
         raise RunFailed(f"cannot resume {names}: its summary.json says status diverged "

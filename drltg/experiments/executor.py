@@ -71,7 +71,8 @@ def run_group(cfgs: list[RunConfig], run_dirs: list[str], log_paths: list[str]) 
     """:func:`run_one` for a seed group: the runs train (or resume) together, their output in the first
     run's log (each other log says where); one ``(status, detail)`` per run. One config trains alone."""
     from drltg import plugins
-    from drltg.training.health import DIVERGED, Diverged
+    from drltg.store.rundir import DIVERGED
+    from drltg.training.health import Diverged
     from drltg.training.loop import train
     from drltg.training.seeds import train_group
 

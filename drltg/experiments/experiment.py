@@ -286,7 +286,7 @@ is new and report the planned pairs; the runs already there are reused. A ``--se
 only under its own plan (:func:`_check_plan`)."""
 
 
-def _check_settings(path: Path, settings: dict) -> None:
+def check_settings(path: Path, settings: dict) -> None:
     """Refuse ``path`` (an experiment's ``experiment.yaml``) if it holds other settings than ``settings``
     beyond :data:`GROWS`, naming each one with its value there and here."""
     if not path.is_file():
@@ -436,7 +436,7 @@ def _run(pair, method, frames, out, seeds, seed, algo, source_frames, overrides,
                 "source_frames": source_frames, **({"source_success": source_success} if source_success else {}),
                 "overrides": overrides}
     saved = out / "experiment.yaml"
-    _check_settings(saved, settings)
+    check_settings(saved, settings)
     planned = as_runs(runs, out)
     check_order(planned)
     if dry_run:
@@ -521,7 +521,7 @@ def execute_and_report(runs, out: Path, saved: Path, settings: dict, *, workers:
     from drltg.report import transfer_report
 
     with rundir.lock(out, f"{name} folder"):
-        _check_settings(saved, settings)  # another process may have started it meanwhile
+        check_settings(saved, settings)  # another process may have started it meanwhile
         rundir.atomic_write(saved, yaml.safe_dump(settings, sort_keys=False))
         backend = LocalBackend(workers)
         try:

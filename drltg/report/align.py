@@ -17,7 +17,7 @@ from drltg.errors import UsageError
 from drltg.report.checks import Sides, run_name
 from drltg.report.curves import Curve
 from drltg.report.settings import MAX_LENGTH_RATIO, ReportSettings, parse_frames, parse_threshold, task_returns
-from drltg.store.rundir import DEMONSTRATOR
+from drltg.store.rundir import DEMONSTRATOR, EVAL, SUMMARY
 
 
 @dataclass
@@ -99,7 +99,7 @@ def _task_returns(runs: Sequence[Curve]) -> tuple[float, float] | None:
     ranges = set()
     for c in runs:
         task = (c.config or {}).get("task")
-        if not c.source.name == "eval.csv" or task not in TASKS:
+        if not c.source.name == EVAL or task not in TASKS:
             return None
         ranges.add(TASKS[task].return_range((c.config or {}).get("env")))
     return ranges.pop() if len(ranges) == 1 else None
@@ -259,7 +259,7 @@ def _stopped_at(run_dir: Path) -> float | None:
     import json
 
     try:
-        stop = json.loads((run_dir / "summary.json").read_text()).get("stop_at_success") or {}
+        stop = json.loads((run_dir / SUMMARY).read_text()).get("stop_at_success") or {}
     except (OSError, ValueError, AttributeError):
         return None
     frames = stop.get("frames") if isinstance(stop, dict) and stop.get("met") else None

@@ -40,6 +40,7 @@ import pandas as pd
 
 from drltg.errors import UsageError
 from drltg.regular import MAX_LOG_BYTES, open_regular, read_bytes
+from drltg.store.rundir import EVAL
 
 FORMATS = ("auto", "drltg", "sb3", "sb3-monitor", "tensorboard", "csvlogger")
 DEFAULT_TAGS = ("eval/return_mean", "eval/mean_reward", "eval/reward")
@@ -117,7 +118,7 @@ def _read_path(path: Path, format: str, tag: str | None) -> list[Curve]:
 def run_format(directory: Path) -> str | None:
     """The log format a directory holds as a single run, or None if it holds none."""
     d = Path(directory)
-    if (d / "eval.csv").is_file():
+    if (d / EVAL).is_file():
         return "drltg"
     if (d / "progress.csv").is_file():
         return "sb3"
@@ -135,7 +136,7 @@ def _has_format(directory: Path, format: str) -> bool:
         return run_format(directory) is not None
     d = Path(directory)
     return {
-        "drltg": lambda: (d / "eval.csv").is_file(),
+        "drltg": lambda: (d / EVAL).is_file(),
         "sb3": lambda: (d / "progress.csv").is_file(),
         "sb3-monitor": lambda: any(d.glob("*monitor.csv")),
         "tensorboard": lambda: any(d.glob("events.out.tfevents.*")),
@@ -165,7 +166,7 @@ def read_run(directory: str | Path, *, format: str = "auto", tag: str | None = N
     owner = _owner(d)
     config = _config_of(owner)
     label = owner.resolve().name
-    log = {"drltg": d / "eval.csv", "sb3": d / "progress.csv", "sb3-monitor": _one_runs_monitors(d),
+    log = {"drltg": d / EVAL, "sb3": d / "progress.csv", "sb3-monitor": _one_runs_monitors(d),
            "tensorboard": d, "csvlogger": d / "scalars"}[fmt]
     curve = _read(fmt, log, tag)
     curve.label, curve.config = label, config
@@ -190,7 +191,7 @@ def _one_runs_monitors(directory: Path) -> list[Path]:
 def _read_file(path: Path, format: str, tag: str | None) -> Curve:
     name = path.name
     if format == "auto":
-        if name == "eval.csv":
+        if name == EVAL:
             format = "drltg"
         elif name.endswith("monitor.csv"):
             format = "sb3-monitor"

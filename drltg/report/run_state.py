@@ -17,7 +17,7 @@ from drltg.report.curves import Curve
 from drltg.store import rundir
 
 CONFIG_LESS = "without config.yaml"
-LEFT_OUT = ("diverged", "incomplete", CONFIG_LESS)
+LEFT_OUT = (rundir.DIVERGED, "incomplete", CONFIG_LESS)
 """States left out of the metrics unless asked for."""
 WHY = {CONFIG_LESS: "nothing records the settings they were trained with, so they cannot be checked against "
                     "the other runs"}
@@ -39,8 +39,8 @@ def run_state(curve: Curve) -> str | None:
     if run is None:
         return None
     finished = rundir.summary_status(run)
-    if finished is not None and finished[0] != "complete":
-        return "diverged" if finished[0] == "diverged" else "incomplete"
+    if finished is not None and finished[0] != rundir.COMPLETE:
+        return rundir.DIVERGED if finished[0] == rundir.DIVERGED else "incomplete"
     if not (run / rundir.CONFIG).is_file():
         return CONFIG_LESS
     if finished is None and ((run / rundir.LOGS).is_dir() or (run / rundir.CHECKPOINT.parent).is_dir()):

@@ -37,6 +37,8 @@ from drltg.store.lock import LOCK, lock
 CONFIG = "config.yaml"
 EVAL = "eval.csv"
 SUMMARY = "summary.json"
+COMPLETE, DIVERGED = "complete", "diverged"
+"""summary.json's ``status`` of a run that finished, and of one whose losses diverged."""
 CHECKPOINT = Path("checkpoints") / "last.pt"
 BEST = Path("checkpoints") / "best.pt"
 CHECKPOINTS = {"last": CHECKPOINT, "best": BEST}
@@ -245,7 +247,7 @@ def summary_status(run_dir: str | Path) -> tuple[str, str] | None:
         manifest.verify(run_dir, SUMMARY)
     except UsageError as err:
         return "unreadable", str(err)
-    return str(summary.get("status", "complete")), str(summary.get("reason", ""))
+    return str(summary.get("status", COMPLETE)), str(summary.get("reason", ""))
 
 
 # ---------------------------------------------------------------------------------------- ownership
@@ -562,7 +564,7 @@ class RunWriter:
         import json
 
         summary = {
-            "status": "complete",
+            "status": COMPLETE,
             "task": self.cfg.task,
             "algo": self.cfg.algo,
             "seed": self.cfg.seed,

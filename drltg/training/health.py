@@ -18,9 +18,6 @@ from drltg.config import RunConfig
 from drltg.errors import RunFailed
 from drltg.store import rundir
 
-DIVERGED = "diverged"
-COMPLETE = "complete"
-
 
 class Diverged(RunFailed):
     """A loss or a parameter became non-finite; in a seed group, ``seeds`` holds the positions of the
@@ -61,7 +58,7 @@ def check_state(state: dict, frames: int, seed: int | None = None) -> None:
 
 def write_diverged(run_dir: str | Path, cfg: RunConfig, err: Diverged) -> None:
     """``summary.json`` of a diverged run: its status and why; the run is finished, not resumable."""
-    summary = {"status": DIVERGED, "reason": str(err), "task": cfg.task, "algo": cfg.algo,
+    summary = {"status": rundir.DIVERGED, "reason": str(err), "task": cfg.task, "algo": cfg.algo,
                "seed": cfg.seed}
     rundir.atomic_write(Path(run_dir) / rundir.SUMMARY, json.dumps(summary, indent=2) + "\n")
     rundir.finalize_manifest(run_dir)
