@@ -20,6 +20,7 @@ layer import nothing from each other)::
     experiments  drltg.experiments, drltg.video (run, then report)
     bench        drltg.bench (a suite's tiers run as sweeps, and their leaderboard)
     cli          drltg.cli
+    main         drltg.__main__ (``python -m drltg``)
 
 Every import counts, those inside functions included: a lazy import is still a dependency.
 """
@@ -52,6 +53,7 @@ LAYERS = [
     ["drltg.experiments", "drltg.video"],
     ["drltg.bench"],
     ["drltg.cli"],
+    ["drltg.__main__"],
 ]
 HEAVY = ("torch", "torchrl", "tensordict")
 
@@ -188,6 +190,13 @@ def test_cli_answers_without_importing_torch(argv, rc, stream, text):
     assert done.returncode == 0, done.stderr
     assert done.stdout.splitlines()[-1] == f"rc {rc}"
     assert text in getattr(done, stream)
+
+
+def test_python_dash_m_drltg_is_the_drltg_command():
+    done = subprocess.run([sys.executable, "-m", "drltg", "train", "fourrooms/northeastt"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2
+    assert "did you mean 'fourrooms/northeast'?" in done.stderr
 
 
 def test_a_report_of_manipulation_runs_bounds_by_the_task_s_return_range_without_importing_robosuite(tmp_path):
