@@ -424,11 +424,16 @@ def plot_profiles(entries: list[dict], over: str = "the sweep's pairs", *,
     ax.set_ylabel("share of runs with score > tau")
     ax.set_ylim(-0.02, 1.02)
     ax.set_title(f"Performance profiles over {over} (95% stratified-bootstrap bands)", wrap=style.page)
+    return _grid_and_legend(plt, fig, ax, style, title_lines=2, size=8, loc="lower left")
+
+
+def _grid_and_legend(plt, fig, ax, style: FigureStyle, *, title_lines: int, size: float, loc: str) -> dict[str, bytes]:
+    """A figure's grid and its legend (under the axes on a page, inside them at ``loc`` otherwise), saved."""
     ax.grid(alpha=0.3)
     if style.page:
-        _page_legend(fig, ax, style.height, _legend_columns(fig), 2)
+        _page_legend(fig, ax, style.height, _legend_columns(fig), title_lines)
     else:
-        ax.legend(fontsize=_pt(8), loc="lower left")
+        ax.legend(fontsize=_pt(size), loc=loc)
     return _save(plt, fig, style)
 
 
@@ -447,9 +452,4 @@ def plot_method_curves(title: str, curves: dict[str, tuple], baseline: tuple | N
     ax.xaxis.set_major_formatter(lambda x, _: _frames(x))
     ax.set_ylabel("normalised return" if style.page else "normalised return (mean; band: 25th-75th percentile of runs)")
     ax.set_title(title, wrap=style.page)
-    ax.grid(alpha=0.3)
-    if style.page:
-        _page_legend(fig, ax, style.height, _legend_columns(fig), 1)
-    else:
-        ax.legend(fontsize=_pt(7), loc="lower right")
-    return _save(plt, fig, style)
+    return _grid_and_legend(plt, fig, ax, style, title_lines=1, size=7, loc="lower right")

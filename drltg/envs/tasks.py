@@ -47,108 +47,39 @@ def _named_potential(entry: str, option: str, options: dict[str, Any]):
 _rooms_potential = functools.partial(_named_potential, "drltg.envs.fourrooms:FourRoomsPotential", "goal")
 _grid_potential = functools.partial(_named_potential, "drltg.envs.gridrooms:GridFourRoomsPotential", "goal")
 
-register_task(
-    "fourrooms/northeast",
-    "drltg.envs.fourrooms:FourRoomsEnv",
-    "continuous FourRooms, goal disc (r 0.5) at (8.0, 8.0) in the north-east room, random start",
-    goal=(8.0, 8.0),
-    step_cost=0.01,
-    train=ROOMS_TRAIN,
-    returns=_rooms_returns,
-    potential=_rooms_potential,
-    options=ROOMS_OPTIONS,
-)
-register_task(
-    "fourrooms/northeast-shifted",
-    "drltg.envs.fourrooms:FourRoomsEnv",
-    "continuous FourRooms, goal disc (r 0.5) at (8.0, 7.0), 1 unit south of fourrooms/northeast",
-    goal=(8.0, 7.0),
-    step_cost=0.01,
-    train=ROOMS_TRAIN,
-    returns=_rooms_returns,
-    potential=_rooms_potential,
-    options=ROOMS_OPTIONS,
-)
-register_task(
-    "fourrooms/southwest",
-    "drltg.envs.fourrooms:FourRoomsEnv",
-    "continuous FourRooms, goal disc (r 0.5) at (2.0, 2.0) in the south-west room, random start",
-    goal=(2.0, 2.0),
-    step_cost=0.01,
-    train=ROOMS_TRAIN,
-    returns=_rooms_returns,
-    potential=_rooms_potential,
-    options=ROOMS_OPTIONS,
-)
+
+def _rooms(name: str, goal: tuple[float, float], where: str) -> None:
+    """A continuous FourRooms task: its goal disc's centre, the rest as :data:`ROOMS_OPTIONS` declares."""
+    description = f"continuous FourRooms, goal disc (r 0.5) at {goal}{where}"
+    register_task(name, "drltg.envs.fourrooms:FourRoomsEnv", description, goal=goal, step_cost=0.01,
+                  train=ROOMS_TRAIN, returns=_rooms_returns, potential=_rooms_potential, options=ROOMS_OPTIONS)
+
+
+def _grid(name: str, goal: tuple[int, int], where: str) -> None:
+    """A grid FourRooms task: its goal cell (row, column), the rest as :data:`GRID_OPTIONS` declares."""
+    description = f"grid FourRooms 13x13, goal cell (row {goal[0]}, col {goal[1]}){where}"
+    register_task(name, "drltg.envs.gridrooms:GridFourRoomsEnv", description, goal=goal, step_cost=0.01,
+                  train=GRID_TRAIN, returns=_rooms_returns, potential=_grid_potential, options=GRID_OPTIONS)
+
+
 # Graded targets for the source goal (8, 8): shortest free path from the source goal through the
 # doorways, 1.0 (northeast-shifted), 2.1 (northeast-inner), 6.1 (southeast, northwest) and 9.9
 # (southwest) units.
-register_task(
-    "fourrooms/northeast-inner",
-    "drltg.envs.fourrooms:FourRoomsEnv",
-    "continuous FourRooms, goal disc (r 0.5) at (6.5, 6.5), the north-east room's inner corner",
-    goal=(6.5, 6.5),
-    step_cost=0.01,
-    train=ROOMS_TRAIN,
-    returns=_rooms_returns,
-    potential=_rooms_potential,
-    options=ROOMS_OPTIONS,
-)
-register_task(
-    "fourrooms/southeast",
-    "drltg.envs.fourrooms:FourRoomsEnv",
-    "continuous FourRooms, goal disc (r 0.5) at (8.0, 2.0) in the south-east room, random start",
-    goal=(8.0, 2.0),
-    step_cost=0.01,
-    train=ROOMS_TRAIN,
-    returns=_rooms_returns,
-    potential=_rooms_potential,
-    options=ROOMS_OPTIONS,
-)
-register_task(
-    "fourrooms/northwest",
-    "drltg.envs.fourrooms:FourRoomsEnv",
-    "continuous FourRooms, goal disc (r 0.5) at (2.0, 8.0) in the north-west room, random start",
-    goal=(2.0, 8.0),
-    step_cost=0.01,
-    train=ROOMS_TRAIN,
-    returns=_rooms_returns,
-    potential=_rooms_potential,
-    options=ROOMS_OPTIONS,
-)
-register_task(
-    "gridrooms/northeast",
-    "drltg.envs.gridrooms:GridFourRoomsEnv",
-    "grid FourRooms 13x13, goal cell (row 3, col 9) in the north-east room, random start",
-    goal=(3, 9),
-    step_cost=0.01,
-    train=GRID_TRAIN,
-    returns=_rooms_returns,
-    potential=_grid_potential,
-    options=GRID_OPTIONS,
-)
-register_task(
-    "gridrooms/northeast-shifted",
-    "drltg.envs.gridrooms:GridFourRoomsEnv",
-    "grid FourRooms 13x13, goal cell (row 4, col 9), 1 cell below gridrooms/northeast",
-    goal=(4, 9),
-    step_cost=0.01,
-    train=GRID_TRAIN,
-    returns=_rooms_returns,
-    potential=_grid_potential,
-    options=GRID_OPTIONS,
-)
-register_task(
-    "gridrooms/southwest",
-    "drltg.envs.gridrooms:GridFourRoomsEnv",
-    "grid FourRooms 13x13, goal cell (row 9, col 3) in the south-west room, random start",
-    goal=(9, 3),
-    step_cost=0.01,
-    train=GRID_TRAIN,
-    returns=_rooms_returns,
-    potential=_grid_potential,
-    options=GRID_OPTIONS,
-)
+for _name, _goal, _where in (
+    ("fourrooms/northeast", (8.0, 8.0), " in the north-east room, random start"),
+    ("fourrooms/northeast-shifted", (8.0, 7.0), ", 1 unit south of fourrooms/northeast"),
+    ("fourrooms/southwest", (2.0, 2.0), " in the south-west room, random start"),
+    ("fourrooms/northeast-inner", (6.5, 6.5), ", the north-east room's inner corner"),
+    ("fourrooms/southeast", (8.0, 2.0), " in the south-east room, random start"),
+    ("fourrooms/northwest", (2.0, 8.0), " in the north-west room, random start"),
+):
+    _rooms(_name, _goal, _where)
+for _name, _goal, _where in (
+    ("gridrooms/northeast", (3, 9), " in the north-east room, random start"),
+    ("gridrooms/northeast-shifted", (4, 9), ", 1 cell below gridrooms/northeast"),
+    ("gridrooms/southwest", (9, 3), " in the south-west room, random start"),
+):
+    _grid(_name, _goal, _where)
 register_pair(
     "fourrooms-near",
     "fourrooms/northeast",
@@ -214,61 +145,31 @@ ROBOSUITE_TRAIN = {
 
 _manipulation_potential = functools.partial(_named_potential, "drltg.envs.robosuite.potentials:potential_for", "task")
 
-register_task(
-    "lift",
-    "drltg.envs.robosuite.env:robosuite_task",
-    "robosuite Lift: the Panda lifts the cube 4 cm (reward 1 per lifted step), horizon 500",
-    task="lift",
-    train=ROBOSUITE_TRAIN,
-    returns=_manipulation_returns,
-    potential=_manipulation_potential,
-)
-register_task(
-    "lift-place",
-    "drltg.envs.robosuite.env:robosuite_task",
-    "lift the cube and set it down on the green target disc 0.32 m away, horizon 500",
-    task="lift-place",
-    train=ROBOSUITE_TRAIN,
-    returns=_manipulation_returns,
-    potential=_manipulation_potential,
-)
-register_task(
-    "lift-place-barrier",
-    "drltg.envs.robosuite.env:robosuite_task",
-    "lift-place with a heavy 7 cm wall between cube and target (pushing cannot work), horizon 500",
-    task="lift-place-barrier",
-    train=ROBOSUITE_TRAIN,
-    returns=_manipulation_returns,
-    potential=_manipulation_potential,
-)
-register_task(
-    "lift-dense",
-    "drltg.envs.robosuite.env:robosuite_task",
-    "robosuite Lift with robosuite's dense reward (reach + grasp + lift, at most 1 per step), horizon 500",
-    task="lift",
-    reward_shaping=True,
-    train=ROBOSUITE_TRAIN,
-    returns=_manipulation_returns,
-)
+
+def _manipulation(name: str, task: str, description: str, **options) -> None:
+    """A robosuite task (:func:`drltg.envs.robosuite.env.robosuite_task`'s ``task``), trained as
+    :data:`ROBOSUITE_TRAIN` says."""
+    register_task(name, "drltg.envs.robosuite.env:robosuite_task", description, task=task, train=ROBOSUITE_TRAIN,
+                  returns=_manipulation_returns, **options)
+
+_manipulation("lift", "lift", "robosuite Lift: the Panda lifts the cube 4 cm (reward 1 per lifted step), horizon 500",
+              potential=_manipulation_potential)
+_manipulation("lift-place", "lift-place",
+              "lift the cube and set it down on the green target disc 0.32 m away, horizon 500",
+              potential=_manipulation_potential)
+_manipulation("lift-place-barrier", "lift-place-barrier",
+              "lift-place with a heavy 7 cm wall between cube and target (pushing cannot work), horizon 500",
+              potential=_manipulation_potential)
+_manipulation("lift-dense", "lift",
+              "robosuite Lift with robosuite's dense reward (reach + grasp + lift, at most 1 per step), horizon 500",
+              reward_shaping=True)
 # The earlier implementation's place reward (drltg.envs.robosuite.tasks.SeedReward) on drltg's scenes: dense
 # stages plus a contact bonus that pays pushing like placing; success stays drltg's strict check.
-register_task(
-    "lift-place-seed",
-    "drltg.envs.robosuite.env:robosuite_task",
-    "lift-place with the earlier implementation's dense reward (reach, grasp, lift, place; contact pays 1), "
-    "horizon 500",
-    task="lift-place-seed",
-    train=ROBOSUITE_TRAIN,
-    returns=_manipulation_returns,
-)
-register_task(
-    "lift-place-barrier-seed",
-    "drltg.envs.robosuite.env:robosuite_task",
-    "lift-place-barrier with the earlier implementation's dense reward (contact pays 1), horizon 500",
-    task="lift-place-barrier-seed",
-    train=ROBOSUITE_TRAIN,
-    returns=_manipulation_returns,
-)
+_manipulation("lift-place-seed", "lift-place-seed",
+              "lift-place with the earlier implementation's dense reward (reach, grasp, lift, place; contact pays 1), "
+              "horizon 500")
+_manipulation("lift-place-barrier-seed", "lift-place-barrier-seed",
+              "lift-place-barrier with the earlier implementation's dense reward (contact pays 1), horizon 500")
 register_pair("lift-to-place", "lift", "lift-place", "lifting skills reused to lift and place")
 register_pair("lift-to-place-barrier", "lift", "lift-place-barrier", "lifting reused where pushing cannot work")
 register_pair(

@@ -108,12 +108,7 @@ def check_resume(cfg: RunConfig, run_dir: Path, ckpt: dict | None, rows: list[di
         write_tracked(run_dir, BEST.as_posix(), (run_dir / CHECKPOINT).read_bytes())
         return
     held = "is missing" if saved is None else f"is the checkpoint at frame {saved}"
-    name = metric(cfg, rows[-1])
-    raise UsageError(
-        f"cannot resume '{run_dir}': its {BEST.as_posix()} {held}, not that of its best evaluation (frame "
-        f"{best['frames']}, {name} {score(cfg, best, name):g}); restore it, or start the run again in another "
-        "--run-dir."
-    )
+    raise _not_best(cfg, run_dir, f"{BEST.as_posix()} {held}, not that", best, rows)
 
 
 def _check_best_networks(cfg: RunConfig, run_dir: Path, ckpt: dict, rows: list[dict]) -> None:
@@ -129,12 +124,14 @@ def _check_best_networks(cfg: RunConfig, run_dir: Path, ckpt: dict, rows: list[d
     if saved is None and not networks.listed(run_dir, "best"):
         return
     held = "is missing" if saved is None else f"holds the networks of frame {saved['frames']}"
+    raise _not_best(cfg, run_dir, f"{networks.NETWORKS['best'].as_posix()} {held}, not those", best, rows)
+
+
+def _not_best(cfg: RunConfig, run_dir: Path, held: str, best: dict, rows: list[dict]) -> UsageError:
+    """The sentence refusing to resume a run whose kept best is not its best evaluation's."""
     name = metric(cfg, rows[-1])
-    raise UsageError(
-        f"cannot resume '{run_dir}': its {networks.NETWORKS['best'].as_posix()} {held}, not those of its best "
-        f"evaluation (frame {best['frames']}, {name} {score(cfg, best, name):g}); restore it, or start the run "
-        "again in another --run-dir."
-    )
+    return UsageError(f"cannot resume '{run_dir}': its {held} of its best evaluation (frame {best['frames']}, {name} "
+                      f"{score(cfg, best, name):g}); restore it, or start the run again in another --run-dir.")
 
 
 @dataclass(frozen=True)
