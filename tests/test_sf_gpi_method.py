@@ -114,6 +114,33 @@ def test_psi_learns_sf_updates_steps_or_until_its_opt_in_plateau(tmp_path):
         assert (td["updates"], td["stopped"]) == expected and len(td["block_means"]) == expected[0]
 
 
+def test_runs_differing_only_in_sf_epsilon_learn_psi_once_and_as_each_would_alone(tmp_path, monkeypatch):
+    """A tuning grid's members of one seed share psi's learning: the second run, other only in sf_epsilon, learns
+    no psi of its own and gets the psi it learns with nothing kept; another seed learns its own."""
+    import drltg.transfer.sf_gpi as sf_gpi
+
+    run, _ = _source_run(tmp_path / "src", task="gridrooms/northeast")
+    learnt, real = [], sf_gpi._learnt_successor_features
+    monkeypatch.setattr(sf_gpi, "_learnt_successor_features", lambda *a: learnt.append(a[0].seed) or real(*a))
+    monkeypatch.setattr(sf_gpi, "LEARNT", {})
+
+    def psi(*options):
+        cfg = config_lib.resolve({}, ["network.hidden=[8,8]", "collector.num_envs=2", "transfer.method=sf-gpi",
+                                      f"transfer.source={run}", "transfer.sf_frames=64", "transfer.sf_updates=3",
+                                      *options], task="gridrooms/northeast-shifted")
+        env = make_env(cfg.task, batch_size=(2,), seed=0)
+        torch.manual_seed(cfg.seed)  # as a run (and each member of a seed group) starts
+        agent = make_agent(env, cfg)
+        transfer = get_method("sf-gpi").build(cfg, agent, env, resuming=False)
+        return TensorDict.from_module(_gpi(transfer).critics[0]).clone()
+
+    first = psi("transfer.sf_epsilon=0.1")
+    assert (psi("transfer.sf_epsilon=0.2") == first).all() and learnt == [0]
+    sf_gpi.LEARNT.clear()
+    assert (psi("transfer.sf_epsilon=0.2") == first).all() and learnt == [0, 0]
+    assert not (psi("seed=1") == first).all() and learnt == [0, 0, 1]
+
+
 def test_the_plateau_rule_stops_on_a_hand_made_td_sequence():
     """Blocks of 2 steps, tolerance 0.1, patience 2: means 9, 6 (< 0.9 * 9: falls), 5.7 (not < 0.9 * 6 = 5.4),
     5.1 (falls: the count restarts), 4.9 and 4.7 (neither < 0.9 * 5.1 = 4.59): TD stops after 12 steps."""

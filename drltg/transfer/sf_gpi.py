@@ -15,7 +15,9 @@ there than after the 2,000 steps this method took before). A plateau rule is opt
 ``sf_block`` steps has failed to fall ``sf_tolerance`` below the lowest so far for ``sf_patience`` blocks in a
 row. The error is taken relative to the target's size because the plain TD loss grows as psi does (psi starts at
 0 and its constant feature's part climbs towards ``1 / (1 - gamma)``); the relative one is no reliable stop
-either (on some sources it plateaus while psi still improves), which is why the rule is not the default.
+either (on some sources it plateaus while psi still improves), which is why the rule is not the default. Runs
+in one process that would learn the same psi (a tuning grid's settings of ``sf_epsilon`` on one seed) learn it
+once (:data:`LEARNT`).
 
 The collector then acts by GPI over the library :math:`\{\pi_S, \pi_L\}`, the source and the learner, each
 valued by its own :math:`Q` (:class:`~drltg.collectors.GPIPolicy`, Barreto et al. 2017, theorem 1):
@@ -31,6 +33,7 @@ it: ``train/reused_fraction``).
 """
 from __future__ import annotations
 
+import json
 import math
 
 from pydantic import Field
@@ -161,6 +164,27 @@ def _learnt_successor_features(cfg: RunConfig, source, features, discrete: bool)
                                   "block_means": block_means}
 
 
+LEARNT: dict[str, tuple] = {}
+"""psi learnt in this process, by :func:`_learnt_key`: the runs of a tuning grid that differ only in
+``sf_epsilon`` (one seed group) learn psi once, the same psi each would learn alone."""
+LEARNT_KEPT = 16
+
+
+def _learnt_key(cfg: RunConfig) -> str:
+    """All that psi's learning reads: the run's config but ``sf_epsilon`` (used after it), the SHA-256 of the
+    source's networks and config, and the random state it starts from."""
+    import hashlib
+
+    import torch
+
+    from drltg.transfer.source import record
+
+    settings = cfg.model_dump(mode="json")
+    settings["transfer"].pop("sf_epsilon")
+    state = hashlib.sha256(torch.random.get_rng_state().numpy().tobytes()).hexdigest()
+    return json.dumps([settings, record(cfg), state], sort_keys=True, default=str)
+
+
 def _learner_candidate_values(loss):
     """``(td, candidates [*, J, A]) -> min_k Q_k(s, a_j)`` ``[*, J]``, the live twin critics of a SAC learner at
     each candidate action: GPI's own values of the continuous candidates."""
@@ -211,6 +235,7 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     from drltg.transfer.source import check_same_spaces, rebuild
 
     t = cfg.transfer
+    key = _learnt_key(cfg)
     with torch.random.fork_rng(devices=[]):
         source = rebuild(t.source, cfg.device, t.source_checkpoint)
         _check_shared(source.cfg.task, source.cfg.env, cfg.task, cfg.env)
@@ -222,7 +247,11 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
         source_goal, goal = source.env.goal.tolist(), target_env.goal.tolist()
         features = GoalFeatures.for_env(target_env, [source_goal] + ([goal] if goal != source_goal else []))
         discrete = isinstance(env.full_action_spec_unbatched["action"], OneHot)
-        critic, frames, td = _learnt_successor_features(cfg, source, features, discrete)
+        if key not in LEARNT:
+            LEARNT[key] = _learnt_successor_features(cfg, source, features, discrete)
+            while len(LEARNT) > LEARNT_KEPT:
+                LEARNT.pop(next(iter(LEARNT)))
+        critic, frames, td = LEARNT[key]
     w = features.task_weights(goal, target_env.step_cost)
     if discrete:
         own = [TensorDictModule(_learner_values(agent.loss), in_keys=["observation"], out_keys=[OWN_VALUES])]
