@@ -12,7 +12,8 @@ Everything single-threaded (``OMP_NUM_THREADS=1``, ``torch.set_num_threads(1)``)
   observation 50, action 7; ``benchmarks.sac``'s work): one :class:`~drltg.training.seeds.SeedGroup` update
   of N seeds against N ``UpdateStep`` updates one after another, each seed drawing from its own replay
   buffer, in interleaved rounds; and the group against the matrix-product bound of the same N-seed
-  work (the update's products as N-batched ``bmm`` into preallocated outputs).
+  work (the update's products as N-batched ``bmm`` into preallocated outputs); ``split``: where a group
+  update of 8 and 16 seeds spends its time, by kind of operator (:func:`update_split`).
 """
 from __future__ import annotations
 
@@ -229,6 +230,34 @@ def _matmul_case(n: int, chunk: int):
     return run
 
 
+SPLIT = {"matrix products": ("aten::bmm", "aten::mm"),
+         "bias adds and gradient sums": ("aten::add", "aten::add_", "aten::sum"),
+         "activations": ("aten::clamp_min", "aten::threshold_backward", "aten::relu", "aten::tanh",
+                         "aten::tanh_backward", "Vmapped_SafeTanhNoEps", "Vmapped_SafeTanhNoEpsBackward"),
+         "Adam and target updates": ("Optimizer.step#Adam.step", "aten::_fused_adam_", "aten::sqrt", "aten::addcdiv_",
+                                     "aten::addcmul_", "aten::lerp_", "aten::div_"),
+         "concatenation, indexing and copies": ("aten::cat", "aten::index", "aten::stack", "aten::copy_")}
+"""The update's operators by kind: torch.profiler's self CPU time of each, the rest summed as ``other``."""
+
+
+def update_split(n: int, updates: int) -> dict:
+    """Where a group update of ``n`` seeds spends its time: each kind's share of the self CPU time
+    (:data:`SPLIT`), profiled over ``updates`` updates after a warm-up. The matmul bound counts the first
+    kind alone; the others are what the update must do besides."""
+    from torch.profiler import ProfilerActivity, profile
+
+    step = _group_case(n, 2)
+    step()
+    with profile(activities=[ProfilerActivity.CPU]) as prof:
+        for _ in range(-(-updates // 2)):
+            step()
+    times = {e.key: e.self_cpu_time_total for e in prof.key_averages()}
+    total = sum(times.values())
+    shares = {kind: sum(times.get(op, 0.0) for op in ops) / total for kind, ops in SPLIT.items()}
+    shares["other"] = 1.0 - sum(shares.values())
+    return {kind: round(share, 3) for kind, share in shares.items()}
+
+
 def lift_update(chunk: int, rounds: int) -> dict:
     cases = {}
     for n in SEEDS:
@@ -238,7 +267,8 @@ def lift_update(chunk: int, rounds: int) -> dict:
     results = interleaved(cases, rounds=rounds, warmup=1)
     pairs = [(f"group_{n}", f"separate_{n}") for n in SEEDS] + [(f"group_{n}", f"matmul_bound_{n}") for n in SEEDS]
     return {"unit": "seed-updates/s", "work": "SAC, batch 256, obs 50, act 7, 2x256 actor and twin critics",
-            "chunk": chunk, "rates": results, "ratios": ratios(results, pairs)}
+            "chunk": chunk, "rates": results, "ratios": ratios(results, pairs),
+            "split": {f"group_{n}": update_split(n, 2 * chunk) for n in (8, 16)}}
 
 
 def run(device: str = "cpu", quick: bool = False) -> dict:
