@@ -13,7 +13,9 @@ Everything single-threaded (``OMP_NUM_THREADS=1``, ``torch.set_num_threads(1)``)
   of N seeds against N ``UpdateStep`` updates one after another, each seed drawing from its own replay
   buffer, in interleaved rounds; and the group against the matrix-product bound of the same N-seed
   work (the update's products as N-batched ``bmm`` into preallocated outputs); ``split``: where a group
-  update of 8 and 16 seeds spends its time, by kind of operator (:func:`update_split`).
+  update of 8 and 16 seeds spends its time, by kind of operator (:func:`update_split`);
+* ``psi_pretraining``: SF-GPI's psi TD for the 10 members of a seed group, one after another against one
+  vmapped update (:func:`psi_pretraining`).
 """
 from __future__ import annotations
 
@@ -271,6 +273,51 @@ def lift_update(chunk: int, rounds: int) -> dict:
             "split": {f"group_{n}": update_split(n, 2 * chunk) for n in (8, 16)}}
 
 
+def psi_pretraining(n: int = 10, updates: int = 2000, rounds: int = 2) -> dict:
+    """SF-GPI's psi TD for ``n`` members of a seed group (seeds 0 .. n-1, one source each, as an experiment's
+    transfer runs have: ``fourrooms/northeast`` sources of 1,024 frames, target ``fourrooms/northeast-shifted``,
+    task defaults, ``sf_updates=updates``): each member's :func:`~drltg.training.pretraining.pretrain` one
+    after another against :func:`~drltg.training.pretraining.pretrain_together` (one vmapped update), the CPU
+    time of the TD alone (the builds' rollouts excluded), alternating by round."""
+    from drltg import config as config_lib
+    from drltg.envs import make_env
+    from drltg.learners import make_agent
+    from drltg.training.pretraining import pretrain, pretrain_together
+    from drltg.transfer import get_method
+
+    with tempfile.TemporaryDirectory() as tmp:
+        sources = [Path(tmp) / f"source-{k}" for k in range(n)]
+        for k, source in enumerate(sources):
+            _command(["--frames", "1024", "--seed", str(50 + k)], source)
+
+        def problems():
+            built = []
+            for k, source in enumerate(sources):
+                cfg = config_lib.resolve({}, ["transfer.method=sf-gpi", f"transfer.source={source}",
+                                              f"transfer.sf_updates={updates}", f"seed={k}"],
+                                         task="fourrooms/northeast-shifted")
+                env = make_env(cfg.task, batch_size=(cfg.collector.num_envs,), seed=cfg.seed)
+                torch.manual_seed(cfg.seed)
+                built.append(get_method("sf-gpi").build(cfg, make_agent(env, cfg), env, resuming=False).pretraining)
+            return built
+
+        seconds = {"alone": [], "together": []}
+        for r in range(rounds):
+            for kind in ("alone", "together") if r % 2 == 0 else ("together", "alone"):
+                todo = problems()
+                start = time.process_time()
+                if kind == "alone":
+                    for p in todo:
+                        pretrain(p)
+                else:
+                    pretrain_together(todo)
+                seconds[kind].append(time.process_time() - start)
+    median = {kind: sorted(xs)[len(xs) // 2] for kind, xs in seconds.items()}
+    return {"members": n, "sf_updates": updates, "rounds": rounds,
+            "cpu_s": {kind: round(t, 1) for kind, t in median.items()},
+            "ratio_cpu": round(median["alone"] / median["together"], 3)}
+
+
 def run(device: str = "cpu", quick: bool = False) -> dict:
     if device != "cpu":
         return {"missing": "the seeds suite measures single-threaded CPU runs"}
@@ -281,6 +328,7 @@ def run(device: str = "cpu", quick: bool = False) -> dict:
         "threads": 1,
         "lift_update": lift_update(chunk, update_rounds),
         "fourrooms": fourrooms(frames, rounds),
+        "psi_pretraining": psi_pretraining(4 if quick else 10, 200 if quick else 2000, 1 if quick else 2),
         "targets": ">= 4x at 8 seeds on FourRooms, >= 1.5x on the Lift-sized update, group >= 0.85 of the "
                    "matmul bound",
     }

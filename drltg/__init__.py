@@ -20,8 +20,8 @@ when first used)::
                        the named methods of ``drltg train -o transfer.method=...``
     drltg.training.loop        train(cfg, run_dir): the loop that writes a run directory (is_complete(run_dir));
                                evaluate(env, actor): success rate and return of deterministic episodes
-    drltg.training.seeds       train_seeds(cfg, run_dir, n): n seeds in one process, one directory each;
-                               SeedGroup: N seeds' agents stacked, one vmapped update for all of them
+    drltg.training.seeds       train_seeds(cfg, run_dir, n): n seeds in one process, one directory each
+    drltg.training.seed_group  SeedGroup: N seeds' agents stacked, one vmapped update for all of them
     drltg.training.reevaluate  evaluate_run(run_dir, checkpoint="best"): a saved policy on fresh episodes
     drltg.experiments.experiment  experiment(pair, method, frames=, out=): source, baseline and transfer runs
                        over seeds, then the report (``drltg experiment``)
@@ -48,7 +48,8 @@ _SURFACE = {
     "drltg.learners": ["make_agent", "UpdateStep", "sample_batches"],
     "drltg.transfer": ["load_actor", "load_critic", "load_agent", "load_from_run"],
     "drltg.training.loop": ["train", "evaluate", "is_complete"],
-    "drltg.training.seeds": ["train_seeds", "SeedGroup"],
+    "drltg.training.seeds": ["train_seeds"],
+    "drltg.training.seed_group": ["SeedGroup"],
     "drltg.training.reevaluate": ["evaluate_run"],
     "drltg.experiments.experiment": ["experiment"],
     "drltg.experiments.sweep": ["sweep"],

@@ -50,7 +50,8 @@ def test_every_method_builds_a_transfer_for_a_run(name, tmp_path):
         "policy-reuse": {"train_transforms", "mixer", "on_frames"},
         "jumpstart": {"train_transforms", "mixer", "on_frames", "on_eval", "state"},
         "model-reuse": {"files"}, "demonstrations": {"batches", "loss_terms", "summary"},
-        "kickstarting": {"loss_terms", "on_frames", "summary"}, "sf-gpi": {"mixer", "mixer_reads_learner", "summary"},
+        "kickstarting": {"loss_terms", "on_frames", "summary"},
+        "sf-gpi": {"mixer", "mixer_reads_learner", "pretraining", "summary"},
     }
     assert changed == expected[name]
 

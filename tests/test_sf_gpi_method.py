@@ -14,6 +14,7 @@ from drltg.envs import make_env
 from drltg.errors import UsageError
 from drltg.learners import make_agent
 from drltg.training.loop import AgentLearner
+from drltg.training.pretraining import pretrain
 from drltg.transfer import get_method
 from tests.test_experiment import TINY
 from tests.test_methods import _source_run
@@ -29,7 +30,9 @@ def _build(tmp_path, source_task, target_task, *options):
                                   "transfer.sf_updates=2", "transfer.sf_epsilon=0", *options], task=target_task)
     env = make_env(target_task, batch_size=(2,), seed=0)
     agent = make_agent(env, cfg)
-    return cfg, agent, env, get_method("sf-gpi").build(cfg, agent, env, resuming=False)
+    transfer = get_method("sf-gpi").build(cfg, agent, env, resuming=False)
+    transfer.summary.update(pretrain(transfer.pretraining))  # psi's TD, as the run does before it trains
+    return cfg, agent, env, transfer
 
 
 def _gpi(transfer):
@@ -114,31 +117,40 @@ def test_psi_learns_sf_updates_steps_or_until_its_opt_in_plateau(tmp_path):
         assert (td["updates"], td["stopped"]) == expected and len(td["block_means"]) == expected[0]
 
 
-def test_runs_differing_only_in_sf_epsilon_learn_psi_once_and_as_each_would_alone(tmp_path, monkeypatch):
-    """A tuning grid's members of one seed share psi's learning: the second run, other only in sf_epsilon, learns
-    no psi of its own and gets the psi it learns with nothing kept; another seed learns its own."""
-    import drltg.transfer.sf_gpi as sf_gpi
+def test_a_seed_groups_members_learn_psi_together_as_each_learns_it_alone(tmp_path, monkeypatch):
+    """A group's psi TD is one vmapped update whose members draw their batches as they draw them alone: each
+    member's psi is the one it learns alone, up to round-off; members other only in sf_epsilon (a tuning grid's
+    settings on one seed) learn it once, and are told the same TD record."""
+    from drltg.training import pretraining
 
-    run, _ = _source_run(tmp_path / "src", task="gridrooms/northeast")
-    learnt, real = [], sf_gpi._learnt_successor_features
-    monkeypatch.setattr(sf_gpi, "_learnt_successor_features", lambda *a: learnt.append(a[0].seed) or real(*a))
-    monkeypatch.setattr(sf_gpi, "LEARNT", {})
+    sources = [_source_run(tmp_path / f"src{k}", task="gridrooms/northeast")[0] for k in range(2)]
 
-    def psi(*options):
+    def built(source, seed, epsilon):
         cfg = config_lib.resolve({}, ["network.hidden=[8,8]", "collector.num_envs=2", "transfer.method=sf-gpi",
-                                      f"transfer.source={run}", "transfer.sf_frames=64", "transfer.sf_updates=3",
-                                      *options], task="gridrooms/northeast-shifted")
+                                      f"transfer.source={source}", "transfer.sf_frames=64", "transfer.sf_updates=7",
+                                      f"transfer.sf_epsilon={epsilon}", f"seed={seed}"],
+                                 task="gridrooms/northeast-shifted")
         env = make_env(cfg.task, batch_size=(2,), seed=0)
         torch.manual_seed(cfg.seed)  # as a run (and each member of a seed group) starts
-        agent = make_agent(env, cfg)
-        transfer = get_method("sf-gpi").build(cfg, agent, env, resuming=False)
-        return TensorDict.from_module(_gpi(transfer).critics[0]).clone()
+        return get_method("sf-gpi").build(cfg, make_agent(env, cfg), env, resuming=False)
 
-    first = psi("transfer.sf_epsilon=0.1")
-    assert (psi("transfer.sf_epsilon=0.2") == first).all() and learnt == [0]
-    sf_gpi.LEARNT.clear()
-    assert (psi("transfer.sf_epsilon=0.2") == first).all() and learnt == [0, 0]
-    assert not (psi("seed=1") == first).all() and learnt == [0, 0, 1]
+    def psi(transfer):
+        return TensorDict.from_module(_gpi(transfer).critics[0])
+
+    settings = [(sources[0], 0, 0.1), (sources[1], 1, 0.1), (sources[0], 0, 0.2)]
+    alone = [built(*s) for s in settings]
+    entries = [pretrain(t.pretraining) for t in alone]
+    together = [built(*s) for s in settings]
+    monkeypatch.setattr(pretraining, "PRETRAIN_CHUNK", 3)  # 7 steps: batches drawn 3, 3 and 1 at a time
+    updates = []
+    real = pretraining.SeedGroup.update
+    monkeypatch.setattr(pretraining.SeedGroup, "update",
+                        lambda self, b, *a: updates.append(b.shape[0]) or real(self, b, *a))
+    assert pretraining.pretrain_together([t.pretraining for t in together]) == entries
+    assert updates == [2] * 7  # the two distinct problems, seven steps
+    for a, t in zip(alone, together):
+        torch.testing.assert_close(psi(t), psi(a), rtol=1e-5, atol=1e-6)
+    assert (psi(together[0]) == psi(together[2])).all() and not (psi(together[0]) == psi(together[1])).all()
 
 
 def test_the_plateau_rule_stops_on_a_hand_made_td_sequence():

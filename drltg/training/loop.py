@@ -42,6 +42,7 @@ from drltg.learners import Agent, UpdateStep, make_agent, sample_batches
 from drltg.store import rundir
 from drltg.store.rundir import EPISODE_FLAGS, RunWriter, is_complete, read_eval_csv
 from drltg.training import best, console, health, preflight
+from drltg.training.pretraining import pretrain
 from drltg.training.progress import Progress
 from drltg.training.replay import buffer_state, replay_buffer
 from drltg.training.session import RunSession
@@ -201,6 +202,8 @@ def train(
         train_env, eval_env = make_envs(cfg, agent.env_transforms)
         resuming = session.checkpoints[0] is not None
         transfer = get_method(cfg.transfer.method).build(cfg, agent, probe, resuming=resuming)
+        if transfer.pretraining is not None:
+            transfer.summary.update(pretrain(transfer.pretraining))
         source = start_record(cfg, run_dir, resuming, transfer.files)  # the source by content, as it was loaded
         summary = {**transfer.summary, **source}
         for t in transfer.train_transforms:  # after RewardSum: train/episode_return stays the task's return

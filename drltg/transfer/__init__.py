@@ -39,6 +39,7 @@ from drltg.transfer.model_reuse import load_from_run
 from drltg.transfer.registry import (
     METHODS,
     TUNING_BUDGET,
+    Pretraining,
     Transfer,
     TransferMethod,
     combine,
@@ -48,7 +49,7 @@ from drltg.transfer.registry import (
 from drltg.transfer.source import load_actor, load_agent, load_critic
 
 __all__ = [
-    "METHODS", "TUNING_BUDGET", "Transfer", "TransferMethod", "combine", "get_method", "register_method",
+    "METHODS", "TUNING_BUDGET", "Transfer", "Pretraining", "TransferMethod", "combine", "get_method", "register_method",
     "load_actor", "load_critic", "load_agent", "load_from_run",
     "reward_shaping", "value_shaping", "policy_reuse", "model_reuse", "demonstrations", "kickstarting", "sf_gpi",
 ]

@@ -41,7 +41,8 @@ from drltg import config
 from drltg.config import METHODS, Bool, Float, Int, RunConfig, Section, Str, get_method
 from drltg.errors import UsageError
 
-__all__ = ["Transfer", "TransferMethod", "METHODS", "register_method", "get_method", "combine", "TUNING_BUDGET"]
+__all__ = ["Transfer", "Pretraining", "TransferMethod", "METHODS", "register_method", "get_method", "combine",
+           "TUNING_BUDGET"]
 
 
 @dataclass
@@ -74,6 +75,7 @@ class Transfer:
             group evaluates inside its vmapped loss with each seed's parameters.
         files: written into the run directory when the run starts (``name -> text``).
         summary: entries added to the run's ``summary.json``.
+        pretraining: what the transfer learns before the run trains (:class:`Pretraining`, SF-GPI's psi).
     """
 
     train_transforms: list = field(default_factory=list)
@@ -87,6 +89,28 @@ class Transfer:
     loss_terms: Callable[[Any], dict] | None = None
     files: dict[str, str] = field(default_factory=dict)
     summary: dict[str, Any] = field(default_factory=dict)
+    pretraining: Pretraining | None = None
+
+
+@dataclass
+class Pretraining:
+    """A learning problem a transfer solves before its run trains (SF-GPI's psi by TD): ``agent``'s loss
+    (a :class:`drltg.learners.Agent`: loss, optimizer, target updater) stepped ``steps`` times on batches of
+    ``buffer``, drawn from the random state ``rng``; ``stop(losses)`` is told each step's losses and, where
+    ``can_stop``, may end it early; then ``finish(steps_taken, stopped)`` returns the entries it adds to the run's
+    summary. A run alone solves it at once
+    (:func:`drltg.training.pretraining.pretrain`); a seed group solves its members' as one vmapped update
+    where none can stop early (:func:`drltg.training.seeds.pretrain_together`), and members of one ``key``
+    (all the learning reads is the same) once."""
+
+    agent: Any
+    buffer: Any
+    steps: int
+    rng: Any
+    finish: Callable[[int, bool], dict] | None
+    stop: Callable[[Any], bool] | None = None
+    can_stop: bool = False
+    key: str | None = None
 
 
 @dataclass(frozen=True)
@@ -342,7 +366,9 @@ def _join(parts: list[Transfer]) -> Transfer:
     on_eval = [t.on_eval for t in parts if t.on_eval is not None]
     states = [t.state for t in parts if t.state is not None]
     terms = [t.loss_terms for t in parts if t.loss_terms is not None]
-    assert len(policies) + len(mixers) <= 1 and len(batches) <= 1, "combine() admits one owner per place"
+    pretraining = [t.pretraining for t in parts if t.pretraining is not None]
+    assert len(policies) + len(mixers) <= 1 and len(batches) <= 1 and len(pretraining) <= 1, \
+        "combine() admits one owner per place"
 
     def tell(frames: int) -> None:
         for f in on_frames:
@@ -365,6 +391,7 @@ def _join(parts: list[Transfer]) -> Transfer:
         train_transforms=[x for t in parts for x in t.train_transforms],
         policy=policies[0] if policies else None,
         mixer=mixers[0] if mixers else None,
+        mixer_reads_learner=any(t.mixer_reads_learner for t in parts),
         on_frames=tell if on_frames else None,
         on_eval=evaluated if on_eval else None,
         state=states[0] if len(states) == 1 else (torch.nn.ModuleList(states) if states else None),
@@ -372,4 +399,5 @@ def _join(parts: list[Transfer]) -> Transfer:
         loss_terms=loss_terms if terms else None,
         files={k: v for t in parts for k, v in t.files.items()},
         summary={k: v for t in parts for k, v in t.summary.items()},
+        pretraining=pretraining[0] if pretraining else None,
     )

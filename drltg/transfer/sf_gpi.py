@@ -15,9 +15,10 @@ there than after the 2,000 steps this method took before). A plateau rule is opt
 ``sf_block`` steps has failed to fall ``sf_tolerance`` below the lowest so far for ``sf_patience`` blocks in a
 row. The error is taken relative to the target's size because the plain TD loss grows as psi does (psi starts at
 0 and its constant feature's part climbs towards ``1 / (1 - gamma)``); the relative one is no reliable stop
-either (on some sources it plateaus while psi still improves), which is why the rule is not the default. Runs
-in one process that would learn the same psi (a tuning grid's settings of ``sf_epsilon`` on one seed) learn it
-once (:data:`LEARNT`).
+either (on some sources it plateaus while psi still improves), which is why the rule is not the default. psi's TD
+is the run's :class:`~drltg.transfer.registry.Pretraining`: a seed group learns its members' psi as one vmapped
+update, and the members that would learn the same psi (a tuning grid's settings of ``sf_epsilon`` on one seed)
+learn it once.
 
 The collector then acts by GPI over the library :math:`\{\pi_S, \pi_L\}`, the source and the learner, each
 valued by its own :math:`Q` (:class:`~drltg.collectors.GPIPolicy`, Barreto et al. 2017, theorem 1):
@@ -40,7 +41,7 @@ from pydantic import Field
 
 from drltg.config import Float, Int, Probability, RunConfig
 from drltg.errors import UsageError
-from drltg.transfer.registry import Transfer, TransferMethod
+from drltg.transfer.registry import Pretraining, Transfer, TransferMethod
 
 SHARED = ("goal", "step_cost")
 """The env options that set the reward alone; every other one is the dynamics, the same on both tasks."""
@@ -114,17 +115,19 @@ class Plateau:
         return self.flat >= self.patience
 
 
-def _learnt_successor_features(cfg: RunConfig, source, features, discrete: bool):
-    """psi of the source's deterministic policy, by TD on ``sf_frames`` frames its exploration policy collects
-    in the source task (Adam at ``optim.lr``, ``optim.gamma``, a soft target at ``optim.tau``) for ``sf_updates``
-    steps, or until its relative TD error stops falling (:class:`Plateau`, with ``sf_patience`` > 0). Returns the
-    critic, the frames and what TD did (its steps, why it stopped, the blocks' mean relative TD errors)."""
+def _successor_feature_problem(cfg: RunConfig, source, features, discrete: bool):
+    """psi of the source's deterministic policy as a TD problem (:class:`Pretraining`) on ``sf_frames`` frames its
+    exploration policy collects in the source task: Adam at ``optim.lr``, ``optim.gamma``, a soft target at
+    ``optim.tau``, ``sf_updates`` steps or until its relative TD error stops falling (:class:`Plateau`, with
+    ``sf_patience`` > 0). Returns the critic, the frames, the problem (its ``finish`` is the caller's) and the
+    plateau rule that watches it."""
     import torch
     from torchrl.data import LazyTensorStorage, ReplayBuffer
     from torchrl.envs import TransformedEnv
     from torchrl.objectives import SoftUpdate
 
     from drltg.envs import make_env
+    from drltg.learners import Agent
     from drltg.losses import SuccessorFeatureLoss
     from drltg.modules import make_sf_critic
 
@@ -148,26 +151,16 @@ def _learnt_successor_features(cfg: RunConfig, source, features, discrete: bool)
     buffer = ReplayBuffer(storage=LazyTensorStorage(data.numel(), device=cfg.device),
                           batch_size=cfg.buffer.batch_size)
     buffer.extend(data.select(*loss.in_keys))
-    target, optimizer = SoftUpdate(loss, tau=cfg.optim.tau), torch.optim.Adam(loss.parameters(), lr=cfg.optim.lr)
-    plateau, steps, stopped = Plateau(t.sf_block, max(t.sf_patience, 1), t.sf_tolerance), 0, False
-    while steps < t.sf_updates and not stopped:
-        optimizer.zero_grad(set_to_none=True)
-        out = loss(buffer.sample())
-        out["loss_sf"].backward()
-        optimizer.step()
-        target.step()
-        steps += 1
-        relative = out["loss_sf"].detach() / out["sf_target_sq"].clamp_min(1e-12)
-        stopped = plateau.push(relative) and t.sf_patience > 0
-    block_means = [float(f"{m:.4g}") for m in plateau.means]
-    return critic, data.numel(), {"updates": steps, "stopped": "plateau" if stopped else "sf_updates",
-                                  "block_means": block_means}
+    agent = Agent(source.agent.actor, source.agent.actor, loss, SoftUpdate(loss, tau=cfg.optim.tau),
+                  torch.optim.Adam(loss.parameters(), lr=cfg.optim.lr))
+    plateau = Plateau(t.sf_block, max(t.sf_patience, 1), t.sf_tolerance)
 
+    def stop(losses) -> bool:
+        return plateau.push(losses["loss_sf"] / losses["sf_target_sq"].clamp_min(1e-12)) and t.sf_patience > 0
 
-LEARNT: dict[str, tuple] = {}
-"""psi learnt in this process, by :func:`_learnt_key`: the runs of a tuning grid that differ only in
-``sf_epsilon`` (one seed group) learn psi once, the same psi each would learn alone."""
-LEARNT_KEPT = 16
+    problem = Pretraining(agent, buffer, t.sf_updates, torch.get_rng_state(), finish=None, stop=stop,
+                          can_stop=t.sf_patience > 0)
+    return critic, data.numel(), problem, plateau
 
 
 def _learnt_key(cfg: RunConfig) -> str:
@@ -222,9 +215,11 @@ def _chose_source(index, action, gpi_action):
 
 
 def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
-    """The source's psi learnt at build time (under a forked random state: the learner draws what it would
-    draw without transfer), GPI after the learner's policy in the collector."""
+    """The source's psi set up as a TD problem (under a forked random state: the learner draws what it would
+    draw without transfer) that the run solves before it trains, GPI after the learner's policy in the
+    collector."""
     import torch
+    from tensordict import TensorDict
     from tensordict.nn import TensorDictModule, TensorDictSequential
     from torchrl.data import OneHot
     from torchrl.modules import EGreedyModule
@@ -247,11 +242,8 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
         source_goal, goal = source.env.goal.tolist(), target_env.goal.tolist()
         features = GoalFeatures.for_env(target_env, [source_goal] + ([goal] if goal != source_goal else []))
         discrete = isinstance(env.full_action_spec_unbatched["action"], OneHot)
-        if key not in LEARNT:
-            LEARNT[key] = _learnt_successor_features(cfg, source, features, discrete)
-            while len(LEARNT) > LEARNT_KEPT:
-                LEARNT.pop(next(iter(LEARNT)))
-        critic, frames, td = LEARNT[key]
+        critic, frames, problem, plateau = _successor_feature_problem(cfg, source, features, discrete)
+    problem.key = key
     w = features.task_weights(goal, target_env.step_cost)
     if discrete:
         own = [TensorDictModule(_learner_values(agent.loss), in_keys=["observation"], out_keys=[OWN_VALUES])]
@@ -266,9 +258,16 @@ def _build(cfg: RunConfig, agent, env, *, resuming: bool) -> Transfer:
     mixer = TensorDictSequential(*own, gpi, keep, explore,
                                  TensorDictModule(_chose_source, in_keys=["gpi_index", "action", "gpi_action"],
                                                   out_keys=["reused"]))
-    return Transfer(mixer=mixer, mixer_reads_learner=True,
-                    summary={"successor_feature_frames": frames, "successor_feature_td": td,
-                             "gpi_weights": [round(x, 6) for x in w.tolist()]})
+    def finish(steps: int, stopped: bool) -> dict:
+        """psi as TD left it, into GPI's copy of the critic; what TD did, for the summary."""
+        with torch.no_grad():
+            TensorDict.from_module(gpi.critics[0]).update_(TensorDict.from_module(critic))
+        return {"successor_feature_td": {"updates": steps, "stopped": "plateau" if stopped else "sf_updates",
+                                         "block_means": [float(f"{m:.4g}") for m in plateau.means]}}
+
+    problem.finish = finish
+    return Transfer(mixer=mixer, mixer_reads_learner=True, pretraining=problem,
+                    summary={"successor_feature_frames": frames, "gpi_weights": [round(x, 6) for x in w.tolist()]})
 
 
 SF_GPI = TransferMethod(
