@@ -26,18 +26,21 @@ def test_a_plain_line_every_half_minute_with_rate_and_time_left(monkeypatch):
     out = io.StringIO()  # no terminal: no bar, plain lines
     bar = Progress(1000, desc="experiment", file=out)
     bar.set_note("runs 0/3 done")
+    clock.now += 300  # start-up: builds, a transfer's pretraining; no frame yet
+    bar.refresh()
+    assert out.getvalue() == "experiment: 0 of 1,000 frames (0%); runs 0/3 done\n"  # no rate: no time left
     clock.now += 10
-    bar.update(100)
-    assert out.getvalue() == ""  # not half a minute yet
+    bar.update(100)  # the first count: the clock of the rate starts here
     clock.now += 30
-    bar.update(100)  # 200 frames in 40 s: 5 frames/s, 800 left take 160 s
-    assert out.getvalue() == "experiment: 200 of 1,000 frames (20%), 5 frames/s, about 3 min left; runs 0/3 done\n"
+    bar.update(150)  # 150 frames in the 30 s since: 5 frames/s, 750 left take 150 s
+    assert out.getvalue().splitlines()[1] == ("experiment: 250 of 1,000 frames (25%), 5 frames/s, about 2 min left; "
+                                              "runs 0/3 done")
     clock.now += 29
     bar.refresh()
-    assert out.getvalue().count("\n") == 1
+    assert out.getvalue().count("\n") == 2
     clock.now += 1
     bar.refresh()
-    assert out.getvalue().count("\n") == 2
+    assert out.getvalue().count("\n") == 3
     bar.close()
 
 
