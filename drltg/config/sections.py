@@ -73,7 +73,7 @@ class TD3Config(Section):
     policy_delay: Int = Field(2, ge=1, le=MAX_REPEATS, description="critic updates per actor update")
 
 
-OPTION_POLICIES = ("soft", "egreedy")
+OPTION_POLICIES = ("soft", "egreedy")  # as drltg.losses.soc declares them: a config is checked without torch
 
 
 class SOCConfig(Section):

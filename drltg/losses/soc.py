@@ -86,7 +86,7 @@ from torchrl.objectives.utils import ValueEstimators, default_value_kwargs, disp
 
 from drltg.losses.td_keys import TDKeys
 
-OPTION_POLICIES = ("soft", "egreedy")
+OPTION_POLICIES = ("soft", "egreedy")  # drltg.config repeats them to check a run without torch (tests/test_config.py)
 
 
 class SoftOptionCriticLoss(LossModule):
