@@ -94,10 +94,11 @@ BOARD = {f"bench-{f}": lambda f=f: table(f"{BENCH}/board/{f}.md") for f in ("ran
 
 
 def costs(folder: str) -> str:
-    """What each part of a bench tier took to train, from its runs' summaries: a unit of work (a seed group, or a
-    run alone) is one process on one core, so its wall time is its CPU time; a run copied as data is counted
-    where it trained."""
+    """What each part of a bench tier took to train, from its runs' summaries (the training loop's wall time and a
+    transfer's pretraining): a unit of work (a seed group, or a run alone) is one process on one core, so its wall
+    time is its CPU time; a run copied as data is counted where it trained."""
     units: dict[str, dict] = {}
+    untimed: set[str] = set()  # parts whose runs pretrained without recording how long (written before it was)
     for path in sorted((ROOT / folder).rglob("summary.json")):
         parts = path.relative_to(ROOT / folder).parts
         if parts[0] == "sources":
@@ -117,10 +118,14 @@ def costs(folder: str) -> str:
         key = f"{path.parent.parent}|{group}"
         unit = units.setdefault(part, {}).setdefault(key, {"runs": 0, "seconds": 0.0})
         unit["runs"] += 1
-        unit["seconds"] = max(unit["seconds"], float(summary.get("wall_time_s") or 0.0))
+        seconds = float(summary.get("wall_time_s") or 0.0) + float(summary.get("pretraining_s") or 0.0)
+        unit["seconds"] = max(unit["seconds"], seconds)
+        if "successor_feature_td" in summary and "pretraining_s" not in summary:
+            untimed.add(part)
     rows = [("part", "runs", "units of work", "CPU-minutes")]
     for part, found in units.items():
-        rows.append((part, str(sum(u["runs"] for u in found.values())), str(len(found)),
+        label = f"{part} (training only: its psi's TD was not timed)" if part in untimed else part
+        rows.append((label, str(sum(u["runs"] for u in found.values())), str(len(found)),
                      f"{sum(u['seconds'] for u in found.values()) / 60:.0f}"))
     return render(rows, "markdown")
 

@@ -2,6 +2,7 @@
 and for the members of a seed group as one vmapped update."""
 from __future__ import annotations
 
+import time
 from typing import Sequence
 
 import torch
@@ -14,7 +15,9 @@ from drltg.transfer import Pretraining
 
 def pretrain(problem: Pretraining) -> dict:
     """``problem.steps`` updates of its agent on batches of its buffer (fewer where its ``stop`` may end it),
-    drawn from its own random state, the run's own generator left as it was; returns its summary entries."""
+    drawn from its own random state, the run's own generator left as it was; returns its summary entries, with
+    the seconds it took (``pretraining_s``)."""
+    start = time.perf_counter()
     step, taken, stopped = UpdateStep(problem.agent, threads=None), 0, False
     with torch.random.fork_rng(devices=[]):
         torch.set_rng_state(problem.rng)
@@ -22,7 +25,7 @@ def pretrain(problem: Pretraining) -> dict:
             losses = step(problem.buffer.sample())
             taken += 1
             stopped = problem.stop is not None and problem.stop(losses) and problem.can_stop
-    return problem.finish(taken, stopped)
+    return {**problem.finish(taken, stopped), "pretraining_s": round(time.perf_counter() - start, 2)}
 
 
 PRETRAIN_CHUNK = 100
@@ -37,6 +40,7 @@ def pretrain_together(problems: Sequence[Pretraining]) -> list[dict]:
     learns alone (:func:`pretrain`). Returns each member's summary entries."""
     if any(p.can_stop for p in problems) or len({p.steps for p in problems}) > 1:
         return [pretrain(p) for p in problems]
+    start = time.perf_counter()
     keyed: dict = {}
     for p in problems:
         keyed.setdefault(id(p) if p.key is None else p.key, []).append(p)
@@ -64,4 +68,5 @@ def pretrain_together(problems: Sequence[Pretraining]) -> list[dict]:
             learnt = TensorDict.from_module(same[0].agent.loss)
             for p in same[1:]:
                 TensorDict.from_module(p.agent.loss).update_(learnt)
-    return [p.finish(steps, False) for p in problems]
+    seconds = round(time.perf_counter() - start, 2)  # the group's, as each member's wall_time_s is
+    return [{**p.finish(steps, False), "pretraining_s": seconds} for p in problems]
