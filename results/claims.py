@@ -116,6 +116,8 @@ def costs(folder: str) -> str:
         summary = json.loads(path.read_text())
         group = (summary.get("seed_group") or {}).get("seeds") or [summary.get("seed")]
         key = f"{path.parent.parent}|{group}"
+        if parts[0] == "tuning":  # a tuning grid's settings (folders of their own) may share one seed group: its clock
+            key = f"{'/'.join(parts[:5])}|{group}|{summary.get('wall_time_s')}|{summary.get('wall_time_split_s')}"
         unit = units.setdefault(part, {}).setdefault(key, {"runs": 0, "seconds": 0.0})
         unit["runs"] += 1
         seconds = float(summary.get("wall_time_s") or 0.0) + float(summary.get("pretraining_s") or 0.0)
