@@ -59,8 +59,9 @@ def pretrain_together(problems: Sequence[Pretraining]) -> list[dict]:
         for i in range(count):
             losses = group.update(torch.stack([batches[i] for batches in drawn]))
             for k, same in enumerate(members):
-                for p in same if same[0].stop is not None else ():
-                    p.stop(losses[k])
+                for p in same:
+                    if p.stop is not None:
+                        p.stop(losses[k])
         done += count
     group.sync()
     with torch.no_grad():

@@ -156,7 +156,7 @@ def _successor_feature_problem(cfg: RunConfig, source, features, discrete: bool)
     plateau = Plateau(t.sf_block, max(t.sf_patience, 1), t.sf_tolerance)
 
     def stop(losses) -> bool:
-        return plateau.push(losses["loss_sf"] / losses["sf_target_sq"].clamp_min(1e-12)) and t.sf_patience > 0
+        return plateau.push(losses["loss_sf"] / losses["sf_target_sq"].clamp_min(1e-12))
 
     problem = Pretraining(agent, buffer, t.sf_updates, torch.get_rng_state(), finish=None, stop=stop,
                           can_stop=t.sf_patience > 0)
